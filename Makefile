@@ -1,0 +1,33 @@
+# Two commands: `make demo` and `make test`. Both set up .venv from pyproject.toml.
+PYTHON ?= python3
+VENV   := .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+# Numba compiles once per machine; keep its cache inside the checkout.
+export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
+
+.PHONY: demo test lint bench clean
+
+$(STAMP): pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e ".[dev]"
+	touch $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer reference --size 256 --out out/pillars_reference.png
+	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer lod --lod 2 --size 256 --out out/pillars_lod2.png
+	$(BIN)/voxfield info builtin:pillars
+	@echo "demo images written to out/"
+
+test: $(STAMP)
+	$(BIN)/python -m pytest -q
+
+lint: $(STAMP)
+	$(BIN)/ruff check src tests benchmarks
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/bench_traversal.py
+
+clean:
+	rm -rf $(VENV) out .numba_cache

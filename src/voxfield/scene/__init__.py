@@ -1,0 +1,5 @@
+"""Scenes: the VoxelScene container, readers for real data, built-in procedural scenes."""
+
+from voxfield.scene.voxel_scene import VoxelScene, compose, linear_to_srgb, srgb_to_linear
+
+__all__ = ["VoxelScene", "compose", "linear_to_srgb", "srgb_to_linear"]

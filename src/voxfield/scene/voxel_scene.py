@@ -1,0 +1,148 @@
+"""VoxelScene: the one in-memory form every reader produces and the octree builder consumes."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+
+#: Largest coordinate extent a scene may span (21 bits per axis fit a 63-bit Morton code).
+MAX_EXTENT = 1 << 21
+
+
+@dataclass(frozen=True)
+class VoxelScene:
+    """A set of occupied voxels with linear colours.
+
+    ``coords`` are integer voxel positions (N×3, x, y, z with +y up); ``color`` is linear RGB
+    in [0, 1] (N×3 float32); ``emission`` is optional linear emitted radiance (N×3 float32);
+    ``channels`` holds extra per-voxel RGB channels (e.g. lit colours per time of day).
+    Each voxel appears once: readers resolve overlaps before construction (see ``dedupe``).
+    """
+
+    coords: np.ndarray
+    color: np.ndarray
+    emission: np.ndarray | None = None
+    channels: Mapping[str, np.ndarray] = field(default_factory=dict)
+    name: str = "scene"
+
+    def __post_init__(self) -> None:
+        coords = np.asarray(self.coords)
+        if coords.ndim != 2 or coords.shape[1] != 3:
+            raise VoxfieldError(f"voxel coords must be N×3, got shape {coords.shape}")
+        if coords.size and not np.issubdtype(coords.dtype, np.integer):
+            raise VoxfieldError(f"voxel coords must be integers, got {coords.dtype}")
+        object.__setattr__(self, "coords", coords.astype(np.int64, copy=False))
+        n = len(coords)
+        object.__setattr__(self, "color", _checked_rgb(self.color, n, "color"))
+        if self.emission is not None:
+            object.__setattr__(self, "emission", _checked_rgb(self.emission, n, "emission"))
+        checked = {name: _checked_rgb(v, n, f"channel {name!r}") for name, v in self.channels.items()}
+        object.__setattr__(self, "channels", checked)
+
+    def __len__(self) -> int:
+        return len(self.coords)
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """Inclusive min and exclusive max voxel corner (each a length-3 int array)."""
+        if len(self) == 0:
+            zero = np.zeros(3, dtype=np.int64)
+            return zero, zero
+        return self.coords.min(axis=0), self.coords.max(axis=0) + 1
+
+    @property
+    def extent(self) -> np.ndarray:
+        lo, hi = self.bounds
+        return hi - lo
+
+    def translated(self, offset: Sequence[int]) -> VoxelScene:
+        """The same voxels moved by an integer offset."""
+        off = np.asarray(offset, dtype=np.int64).reshape(3)
+        return self._with(coords=self.coords + off)
+
+    def normalized(self) -> VoxelScene:
+        """Moved so that the minimum corner is at the origin (what the octree expects)."""
+        lo, _ = self.bounds
+        return self.translated(-lo)
+
+    def subset(self, keep: np.ndarray) -> VoxelScene:
+        """The voxels selected by a boolean mask or index array."""
+        return self._with(
+            coords=self.coords[keep],
+            color=self.color[keep],
+            emission=None if self.emission is None else self.emission[keep],
+            channels={k: v[keep] for k, v in self.channels.items()},
+        )
+
+    def dedupe(self) -> VoxelScene:
+        """One voxel per position; where several share one, the last given wins."""
+        if len(self) == 0:
+            return self
+        lo = self.coords.min(axis=0)
+        span = self.coords.max(axis=0) - lo + 1
+        key = np.ravel_multi_index((self.coords - lo).T, tuple(int(s) for s in span))
+        # Reverse so np.unique's first occurrence is the last given voxel.
+        _, first_rev = np.unique(key[::-1], return_index=True)
+        keep = np.sort(len(key) - 1 - first_rev)
+        if len(keep) == len(self):
+            return self
+        return self.subset(keep)
+
+    def _with(self, **changes) -> VoxelScene:
+        fields = {
+            "coords": self.coords,
+            "color": self.color,
+            "emission": self.emission,
+            "channels": self.channels,
+            "name": self.name,
+        }
+        fields.update(changes)
+        return VoxelScene(**fields)
+
+
+def _checked_rgb(values, n: int, what: str) -> np.ndarray:
+    arr = np.asarray(values, dtype=np.float32)
+    if arr.shape != (n, 3):
+        raise VoxfieldError(f"{what} must be {n}×3 to match the voxel coords, got {arr.shape}")
+    if n and not np.isfinite(arr).all():
+        raise VoxfieldError(f"{what} holds NaN or infinite values")
+    return arr
+
+
+def compose(parts: Sequence[tuple[VoxelScene, Sequence[int]]], name: str = "composite") -> VoxelScene:
+    """Place several scenes into one world, each at an integer offset; later parts win overlaps.
+
+    Extra channels are kept only when every part has them; emission is zero where a part has none.
+    """
+    if not parts:
+        raise VoxfieldError("compose needs at least one scene")
+    moved = [scene.translated(offset) for scene, offset in parts]
+    any_emission = any(s.emission is not None for s in moved)
+    shared_channels = set(moved[0].channels)
+    for s in moved[1:]:
+        shared_channels &= set(s.channels)
+    coords = np.concatenate([s.coords for s in moved])
+    color = np.concatenate([s.color for s in moved])
+    emission = None
+    if any_emission:
+        emission = np.concatenate(
+            [s.emission if s.emission is not None else np.zeros_like(s.color) for s in moved]
+        )
+    channels = {k: np.concatenate([s.channels[k] for s in moved]) for k in sorted(shared_channels)}
+    return VoxelScene(coords, color, emission, channels, name).dedupe()
+
+
+def srgb_to_linear(srgb: np.ndarray) -> np.ndarray:
+    """Decode sRGB-encoded values in [0, 1] (any shape) to linear [0, 1]."""
+    c = np.asarray(srgb, dtype=np.float32)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4).astype(np.float32)
+
+
+def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
+    """Encode linear values in [0, 1] (any shape) as sRGB in [0, 1]."""
+    c = np.clip(np.asarray(linear, dtype=np.float32), 0.0, 1.0)
+    return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055).astype(np.float32)
