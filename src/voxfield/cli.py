@@ -1,0 +1,288 @@
+"""The ``voxfield`` command line: one entry point, one sub-command per task.
+
+Bad input prints one line, ``voxfield: error: ...``, and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+
+EXIT_USAGE = 2
+
+
+def _vector_arg(text: str) -> tuple[float, float, float]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected three numbers like 1,2,3, got {text!r}") from None
+    if len(values) != 3:
+        raise argparse.ArgumentTypeError(f"expected three numbers like 1,2,3, got {text!r}")
+    return values
+
+
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
+def _add_scene_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "scene",
+        help="scene: a .vox/.obj/.glb/.ply/.hgt/.tif/.npz file, builtin:NAME, terrain:RECIPE "
+        "or dem:jacksboro (see `voxfield scenes`)",
+    )
+    p.add_argument("--mesh-resolution", type=_positive_int, default=256, metavar="N",
+                   help="voxels along a mesh's longest side (default 256)")
+    p.add_argument("--footprint", type=_positive_int, default=512, metavar="N",
+                   help="terrain footprint in voxels per side (default 512)")
+    p.add_argument("--vertical-scale", type=float, default=None, metavar="S",
+                   help="terrain height multiplier (default: true scale)")
+    p.add_argument("--seed", type=int, default=0, help="seed for sampling and scattering")
+
+
+def _scene_options(args):
+    from voxfield.scene.loaders import SceneOptions
+
+    return SceneOptions(
+        mesh_resolution=args.mesh_resolution, terrain_footprint=args.footprint,
+        vertical_scale=args.vertical_scale, seed=args.seed,
+    )
+
+
+def _open_octree(args):
+    from voxfield.svo.io import open_octree
+
+    return open_octree(args.scene, _scene_options(args))
+
+
+def _camera(args, octree):
+    from voxfield.render.camera import Camera, oblique_camera, orbit_camera, top_down_camera
+
+    lo, hi = octree.voxel_bounds
+    if args.eye is not None or args.target is not None:
+        if args.eye is None or args.target is None:
+            raise VoxfieldError("--eye and --target must be given together")
+        return Camera.look_at(args.eye, args.target, fov_deg=args.fov or 60.0, width=args.size)
+    preset = args.camera
+    if preset == "top":
+        return top_down_camera(lo, hi, size=args.size, fov_deg=args.fov or 90.0)
+    if preset == "oblique":
+        return oblique_camera(lo, hi, size=args.size, fov_deg=args.fov or 90.0)
+    if preset == "orbit":
+        return orbit_camera(lo, hi, size=args.size, fov_deg=args.fov or 45.0)
+    if preset.startswith("cube"):
+        face = preset[4:] or "+x"
+        return Camera.cube_face((lo + hi) / 2.0, face, size=args.size)
+    if preset == "ortho-top":
+        c = (lo + hi) / 2.0
+        extent = float(max(hi[0] - lo[0], hi[2] - lo[2]))
+        return Camera.orthographic(
+            (c[0], hi[1] + 1.0, c[2]), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0),
+            view_height=extent, width=args.size,
+        )
+    raise VoxfieldError(
+        f"unknown camera {preset!r}; use top, oblique, orbit, ortho-top, cube+x..cube-z "
+        "or --eye/--target"
+    )
+
+
+def cmd_render(args) -> int:
+    from voxfield.render.image_io import save_png, save_result_image
+    from voxfield.render.renderers import render_lod, render_reference
+
+    octree = _open_octree(args)
+    camera = _camera(args, octree)
+    progress = not args.quiet
+    if args.renderer == "reference":
+        result = render_reference(octree, camera, side=args.spp_side, seed=args.seed,
+                                  channel=args.channel, threads=args.threads, progress=progress)
+    else:
+        lod = None if args.lod == "cone" else int(args.lod)
+        result = render_lod(octree, camera, lod=lod, cone_scale=args.cone_scale, seed=args.seed,
+                            channel=args.channel, threads=args.threads, progress=progress)
+    out = Path(args.out)
+    save_result_image(result, out)
+    written = [out]
+    if args.counters:
+        steps = result.steps.astype(np.float64)
+        heat = steps / max(1.0, float(np.percentile(steps[steps > 0], 99)) if steps.any() else 1.0)
+        written.append(save_png(np.clip(heat, 0, 1), out.with_name(out.stem + "_steps.png"),
+                                encode_srgb=False))
+        lod_map = result.finest_lod.astype(np.float64)
+        lod_img = np.where(lod_map < 0, 0.0, 1.0 - lod_map / max(1, octree.depth))
+        written.append(save_png(lod_img, out.with_name(out.stem + "_lod.png"), encode_srgb=False))
+        summary_path = out.with_name(out.stem + "_summary.json")
+        summary_path.write_text(json.dumps(result.summary(), indent=2))
+        written.append(summary_path)
+    if not args.quiet:
+        s = result.summary()
+        print(
+            f"{s['renderer']}: {s['width']}x{s['height']}, {s['rays']:,} rays, "
+            f"{s['traversal_steps']:,} steps ({s['steps_per_ray']:.2f}/ray), "
+            f"{s['seconds']:.2f} s, {s['mrays_per_second']:.2f} Mrays/s"
+        )
+        for path in written:
+            print(f"wrote {path}")
+    return 0
+
+
+def cmd_info(args) -> int:
+    from voxfield.scene.loaders import npz_kind
+    from voxfield.svo.build import build_octree
+    from voxfield.svo.io import load_octree
+
+    path = Path(args.scene)
+    if path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree":
+        octree = load_octree(path)
+        load_note = "loaded"
+    else:
+        from voxfield.scene.loaders import load_scene
+
+        start = time.perf_counter()
+        scene = load_scene(args.scene, _scene_options(args))
+        load_seconds = time.perf_counter() - start
+        octree = build_octree(scene)
+        load_note = f"scene read in {load_seconds:.2f} s"
+    lo, hi = octree.voxel_bounds
+    info = {
+        "name": octree.name,
+        "depth": octree.depth,
+        "root_size": octree.size,
+        "voxels": octree.voxel_count,
+        "nodes": octree.node_count,
+        "extent": (hi - lo).tolist(),
+        "nodes_per_level": octree.nodes_per_level(),
+        "bytes_per_node": octree.bytes_per_node(),
+        "channels": sorted("albedo" if k == "color" else k for k in octree.attributes),
+        "build_seconds": octree.build_seconds,
+    }
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    print(f"{info['name']}: {info['voxels']:,} voxels, extent {info['extent']}, "
+          f"depth {info['depth']} (root {info['root_size']}^3), {load_note}")
+    print(f"built in {info['build_seconds']:.3f} s; {info['nodes']:,} nodes; "
+          f"channels: {', '.join(info['channels'])}")
+    print(f"{'level':>5} {'lod':>4} {'nodes':>12} {'node size':>10}")
+    for level, count in enumerate(info["nodes_per_level"]):
+        print(f"{level:>5} {octree.depth - level:>4} {count:>12,} {1 << (octree.depth - level):>10}")
+    per = info["bytes_per_node"]
+    parts = ", ".join(f"{k} {v:.1f}" for k, v in per.items() if k != "total")
+    print(f"bytes per node: {per['total']:.1f} ({parts})")
+    return 0
+
+
+def cmd_build(args) -> int:
+    from voxfield.svo.io import save_octree
+
+    octree = _open_octree(args)
+    path = save_octree(octree, args.out)
+    if not args.quiet:
+        print(f"{octree.voxel_count:,} voxels, {octree.node_count:,} nodes, depth {octree.depth}, "
+              f"built in {octree.build_seconds:.2f} s; wrote {path}")
+    return 0
+
+
+def cmd_scenes(args) -> int:
+    from voxfield.scene.builtin import BUILTIN_SCENES
+
+    print("built-in scenes (no files needed):")
+    for name, make in sorted(BUILTIN_SCENES.items()):
+        doc = (make.__doc__ or "").strip().splitlines()[0]
+        print(f"  builtin:{name:<10} {doc}")
+    try:
+        from voxfield.scene.terrain import RECIPES
+    except ImportError:
+        return 0
+    print("terrain recipes over the shared DEMs (see README):")
+    for name in RECIPES:
+        print(f"  terrain:{name}")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="voxfield",
+        description="Sparse voxel octrees with error-aware LOD, light probes and ray queries.",
+    )
+    parser.add_argument("--quiet", action="store_true", help="no progress bars or summaries")
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+
+    p = sub.add_parser("render", help="render a scene to PNG or EXR",
+                       description="Trace a scene with the reference or LOD renderer.")
+    _add_scene_options(p)
+    p.add_argument("--renderer", choices=("reference", "lod"), default="reference")
+    p.add_argument("--camera", default="top",
+                   help="top (thesis setup, 90° looking down), oblique, orbit, ortho-top, "
+                   "cube+x..cube-z (default top)")
+    p.add_argument("--eye", type=_vector_arg, default=None, metavar="X,Y,Z",
+                   help="pinhole eye position in octree voxel units (with --target)")
+    p.add_argument("--target", type=_vector_arg, default=None, metavar="X,Y,Z")
+    p.add_argument("--fov", type=float, default=None, help="vertical field of view in degrees")
+    p.add_argument("--size", type=_positive_int, default=512, help="image width = height (512)")
+    p.add_argument("--spp-side", type=_positive_int, default=4,
+                   help="reference: side of the CMJ sample grid per pixel (default 4 → 16 rays)")
+    p.add_argument("--lod", default="cone",
+                   help="lod renderer: a fixed LOD (0 = voxels) or 'cone' (default)")
+    p.add_argument("--cone-scale", type=float, default=1.0,
+                   help="lod renderer, cone mode: node size accepted per pixel footprint")
+    p.add_argument("--channel", default="albedo", help="colour channel to show (default albedo)")
+    p.add_argument("--threads", type=_positive_int, default=None, help="kernel threads")
+    p.add_argument("--counters", action="store_true",
+                   help="also write traversal-step and LOD maps and a JSON summary")
+    p.add_argument("--out", required=True, help="output .png (sRGB) or .exr (linear RGB + Z)")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress bars or summaries")
+    p.set_defaults(func=cmd_render)
+
+    p = sub.add_parser("info", help="build a scene's octree and print its structure",
+                       description="Levels, node counts per level, bytes per node, build time.")
+    _add_scene_options(p)
+    p.add_argument("--json", action="store_true", help="print JSON")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress bars or summaries")
+    p.set_defaults(func=cmd_info)
+
+    p = sub.add_parser("build", help="build a scene's octree and save it (.npz)",
+                       description="Build the SVO once and save it for fast reuse.")
+    _add_scene_options(p)
+    p.add_argument("--out", required=True, help="output octree file (.npz)")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress bars or summaries")
+    p.set_defaults(func=cmd_build)
+
+    p = sub.add_parser("scenes", help="list built-in scenes and terrain recipes",
+                       description="Scenes that need no files, and terrain recipes.")
+    p.set_defaults(func=cmd_scenes)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    args.quiet = getattr(args, "quiet", False)
+    try:
+        return args.func(args)
+    except VoxfieldError as exc:
+        print(f"voxfield: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("voxfield: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

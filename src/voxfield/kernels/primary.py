@@ -1,0 +1,128 @@
+"""Primary-ray image kernel: supersampled, counted, LOD-limited tracing of a band of rows."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from voxfield.kernels.camera_rays import camera_ray, pixel_cone
+from voxfield.kernels.sampling import subpixel
+from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
+
+
+@njit(cache=True, nogil=True)
+def normal_from_code(code: int) -> tuple[float, float, float]:
+    if code < 0:
+        return 0.0, 0.0, 0.0
+    sign = -1.0 if code % 2 == 0 else 1.0
+    axis = code // 2
+    return (sign if axis == 0 else 0.0), (sign if axis == 1 else 0.0), (sign if axis == 2 else 0.0)
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def render_rows(
+    cam: np.ndarray, width: int, height: int, row0: int, row1: int,
+    side: int, seed: int,
+    child_mask: np.ndarray, first_child: np.ndarray, depth: int,
+    stop_level: int, cone_scale: float, colors: np.ndarray,
+    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
+    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
+) -> None:
+    """Trace rows ``[row0, row1)`` with side×side samples per pixel.
+
+    ``cone_scale`` > 0 stops descent where a node is no larger than ``cone_scale`` times the
+    sub-sample footprint; 0 descends to ``stop_level``. Misses contribute black.
+    """
+    spp = side * side
+    radius, spread = pixel_cone(cam, height)
+    radius *= cone_scale / side
+    spread *= cone_scale / side
+    for row in prange(row0, row1):
+        stack_node, stack_level, stack_pos, order_t, order_c = new_scratch(depth)
+        for col in range(width):
+            pixel = row * width + col
+            r = 0.0
+            g = 0.0
+            b = 0.0
+            nx = 0.0
+            ny = 0.0
+            nz = 0.0
+            t_sum = 0.0
+            hits = 0
+            steps_sum = 0
+            finest = 127
+            for s in range(spp):
+                fx, fy = subpixel(pixel, s, side, seed)
+                ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
+                node, level, t, normal, steps = trace_ray(
+                    ox, oy, oz, dx, dy, dz, 0.0, math.inf,
+                    child_mask, first_child, depth, stop_level, radius, spread,
+                    stack_node, stack_level, stack_pos, order_t, order_c,
+                )
+                steps_sum += steps
+                if node == MISS:
+                    continue
+                hits += 1
+                r += colors[node, 0]
+                g += colors[node, 1]
+                b += colors[node, 2]
+                t_sum += t
+                ax, ay, az = normal_from_code(normal)
+                nx += ax
+                ny += ay
+                nz += az
+                lod = depth - level
+                if lod < finest:
+                    finest = lod
+            i = row - row0
+            out_color[i, col, 0] = r / spp
+            out_color[i, col, 1] = g / spp
+            out_color[i, col, 2] = b / spp
+            out_rays[i, col] = spp
+            out_hits[i, col] = hits
+            out_steps[i, col] = steps_sum
+            if hits > 0:
+                out_depth[i, col] = t_sum / hits
+                length = math.sqrt(nx * nx + ny * ny + nz * nz)
+                if length > 0.0:
+                    nx /= length
+                    ny /= length
+                    nz /= length
+                out_normal[i, col, 0] = nx
+                out_normal[i, col, 1] = ny
+                out_normal[i, col, 2] = nz
+                out_lod[i, col] = finest
+            else:
+                out_depth[i, col] = math.inf
+                out_normal[i, col, 0] = 0.0
+                out_normal[i, col, 1] = 0.0
+                out_normal[i, col, 2] = 0.0
+                out_lod[i, col] = -1
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def trace_rays(
+    origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
+    child_mask: np.ndarray, first_child: np.ndarray, depth: int, stop_level: int,
+    out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray,
+) -> None:
+    """Trace arbitrary rays at a fixed stop level (batch API, tests, oracles, probes)."""
+    n = origins.shape[0]
+    chunk = 256
+    for c in prange((n + chunk - 1) // chunk):
+        stack_node, stack_level, stack_pos, order_t, order_c = new_scratch(depth)
+        for k in range(c * chunk, min(n, (c + 1) * chunk)):
+            node, level, t, normal, steps = trace_ray(
+                origins[k, 0], origins[k, 1], origins[k, 2],
+                directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
+                child_mask, first_child, depth, stop_level, 0.0, 0.0,
+                stack_node, stack_level, stack_pos, order_t, order_c,
+            )
+            out_node[k] = node
+            out_level[k] = level
+            out_t[k] = t
+            out_normal[k] = normal
+            out_steps[k] = steps

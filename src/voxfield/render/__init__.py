@@ -1,0 +1,23 @@
+"""Cameras, renderers and their results."""
+
+from voxfield.render.camera import (
+    Camera,
+    cube_cameras,
+    oblique_camera,
+    orbit_camera,
+    top_down_camera,
+)
+from voxfield.render.renderers import render, render_lod, render_reference
+from voxfield.render.result import RenderResult
+
+__all__ = [
+    "Camera",
+    "RenderResult",
+    "cube_cameras",
+    "oblique_camera",
+    "orbit_camera",
+    "render",
+    "render_lod",
+    "render_reference",
+    "top_down_camera",
+]

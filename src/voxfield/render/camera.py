@@ -1,0 +1,164 @@
+"""Cameras: pinhole (look-at), orthographic, and the six 90° cube-map faces of a probe."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from voxfield.errors import CameraError
+from voxfield.kernels.camera_rays import ORTHOGRAPHIC, PINHOLE, camera_ray_arrays
+
+#: Cube-map faces in the OpenGL/DirectX order and orientation: (name, forward, up).
+CUBE_FACES = (
+    ("+x", (1.0, 0.0, 0.0), (0.0, -1.0, 0.0)),
+    ("-x", (-1.0, 0.0, 0.0), (0.0, -1.0, 0.0)),
+    ("+y", (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+    ("-y", (0.0, -1.0, 0.0), (0.0, 0.0, -1.0)),
+    ("+z", (0.0, 0.0, 1.0), (0.0, -1.0, 0.0)),
+    ("-z", (0.0, 0.0, -1.0), (0.0, -1.0, 0.0)),
+)
+
+
+def _vector(value, what: str) -> np.ndarray:
+    try:
+        v = np.asarray(value, dtype=np.float64).reshape(3)
+    except (TypeError, ValueError) as exc:
+        raise CameraError(f"camera {what} must be three numbers, got {value!r}") from exc
+    if not np.isfinite(v).all():
+        raise CameraError(f"camera {what} holds NaN or infinity: {v.tolist()}")
+    return v
+
+
+def _basis(forward, up) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Orthonormal (forward, right, up) with right = forward × up (right-handed, y-up)."""
+    f = _vector(forward, "direction")
+    length = np.linalg.norm(f)
+    if length == 0.0:
+        raise CameraError("camera direction is zero (eye and target coincide?)")
+    f = f / length
+    u = _vector(up, "up vector")
+    r = np.cross(f, u)
+    if np.linalg.norm(r) < 1e-9:
+        raise CameraError("camera up vector is parallel to the view direction; pick another up")
+    r /= np.linalg.norm(r)
+    u = np.cross(r, f)
+    return f, r, u
+
+
+@dataclass(frozen=True)
+class Camera:
+    """A camera producing one ray per image position; immutable, packed for kernels."""
+
+    kind: int
+    position: np.ndarray
+    forward: np.ndarray
+    right: np.ndarray
+    up: np.ndarray
+    half_width: float
+    half_height: float
+    width: int
+    height: int
+
+    def __post_init__(self) -> None:
+        if not (1 <= int(self.width) <= 16384 and 1 <= int(self.height) <= 16384):
+            raise CameraError(f"image size {self.width}×{self.height} is outside 1..16384")
+        if not (np.isfinite(self.half_width) and np.isfinite(self.half_height)):
+            raise CameraError("camera field of view or extent is not finite")
+        if self.half_width <= 0.0 or self.half_height <= 0.0:
+            raise CameraError("camera field of view or extent must be positive")
+
+    @classmethod
+    def look_at(
+        cls, eye, target, up=(0.0, 1.0, 0.0), *, fov_deg: float = 60.0,
+        width: int = 512, height: int | None = None,
+    ) -> Camera:
+        """Pinhole camera; ``fov_deg`` is the vertical field of view."""
+        height = width if height is None else height
+        if not (0.0 < float(fov_deg) < 180.0):
+            raise CameraError(f"field of view must be between 0 and 180 degrees, got {fov_deg}")
+        eye = _vector(eye, "eye")
+        f, r, u = _basis(_vector(target, "target") - eye, up)
+        half_h = float(np.tan(np.radians(fov_deg) / 2.0))
+        return cls(PINHOLE, eye, f, r, u, half_h * width / height, half_h, int(width), int(height))
+
+    @classmethod
+    def orthographic(
+        cls, center, direction, up=(0.0, 1.0, 0.0), *, view_height: float,
+        width: int = 512, height: int | None = None,
+    ) -> Camera:
+        """Parallel projection; rays start on the image plane through ``center``."""
+        height = width if height is None else height
+        f, r, u = _basis(direction, up)
+        half_h = float(view_height) / 2.0
+        return cls(
+            ORTHOGRAPHIC, _vector(center, "center"), f, r, u,
+            half_h * width / height, half_h, int(width), int(height),
+        )
+
+    @classmethod
+    def cube_face(cls, position, face: str, size: int = 128) -> Camera:
+        """One 90° face of a cube map centred at ``position`` (faces named +x, -x, ...)."""
+        for name, forward, up in CUBE_FACES:
+            if name == face:
+                f, r, u = _basis(forward, up)
+                return cls(PINHOLE, _vector(position, "position"), f, r, u, 1.0, 1.0, size, size)
+        names = ", ".join(n for n, _, _ in CUBE_FACES)
+        raise CameraError(f"unknown cube face {face!r}; use one of {names}")
+
+    @property
+    def params(self) -> np.ndarray:
+        """The packed float64 layout the kernels read (see kernels.camera_rays)."""
+        return np.concatenate(
+            (
+                [float(self.kind)], self.position, self.forward, self.right, self.up,
+                [self.half_width, self.half_height],
+            )
+        ).astype(np.float64)
+
+    def rays(self, side: int = 1, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+        """Origins and directions of every ray the renderers cast (pixel-major)."""
+        return camera_ray_arrays(self.params, self.width, self.height, int(side), int(seed))
+
+
+def cube_cameras(position, size: int = 128) -> list[Camera]:
+    """The six faces of a probe's cube map, in +x, -x, +y, -y, +z, -z order."""
+    return [Camera.cube_face(position, name, size) for name, _, _ in CUBE_FACES]
+
+
+def top_down_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 90.0) -> Camera:
+    """The EA thesis's setup (§5.1.1): centred above the map, looking straight down, placed so
+    the 90° frustum just spans the map's horizontal extent at the ground."""
+    lo = np.asarray(bounds_min, np.float64)
+    hi = np.asarray(bounds_max, np.float64)
+    c = (lo + hi) / 2.0
+    half_extent = max(hi[0] - lo[0], hi[2] - lo[2]) / 2.0
+    distance = half_extent / np.tan(np.radians(fov_deg) / 2.0)
+    eye = (c[0], lo[1] + distance, c[2])
+    return Camera.look_at(eye, (c[0], lo[1], c[2]), (0.0, 0.0, -1.0), fov_deg=fov_deg, width=size)
+
+
+def oblique_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 90.0,
+                   elevation_deg: float = 45.0) -> Camera:
+    """Looking at the map centre from the south at the given elevation (45° by default)."""
+    lo = np.asarray(bounds_min, np.float64)
+    hi = np.asarray(bounds_max, np.float64)
+    c = (lo + hi) / 2.0
+    half_extent = max(hi[0] - lo[0], hi[2] - lo[2]) / 2.0
+    distance = 1.2 * half_extent / np.tan(np.radians(fov_deg) / 2.0)
+    el = np.radians(elevation_deg)
+    eye = c + distance * np.array([0.0, np.sin(el), np.cos(el)])
+    return Camera.look_at(eye, c, fov_deg=fov_deg, width=size)
+
+
+def orbit_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 45.0,
+                 azimuth_deg: float = 35.0, elevation_deg: float = 30.0) -> Camera:
+    """A three-quarter view framing a box, for demos and quick looks."""
+    lo = np.asarray(bounds_min, np.float64)
+    hi = np.asarray(bounds_max, np.float64)
+    center = (lo + hi) / 2.0
+    radius = float(np.linalg.norm(hi - lo)) / 2.0
+    dist = radius / np.sin(np.radians(fov_deg) / 2.0) * 1.05
+    az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
+    offset = dist * np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
+    return Camera.look_at(center + offset, center, fov_deg=fov_deg, width=size)

@@ -1,0 +1,77 @@
+"""Image output: sRGB PNG for looking at, linear EXR for measuring; both written atomically."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+from voxfield.errors import VoxfieldError
+from voxfield.scene.voxel_scene import linear_to_srgb
+
+
+def _atomic_target(path: Path):
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.stem + ".", suffix=path.suffix, dir=path.parent)
+    os.close(fd)
+    return Path(tmp)
+
+
+def save_png(image: np.ndarray, path: str | os.PathLike, *, encode_srgb: bool = True) -> Path:
+    """Write a linear [0, 1] image (H×W×3 or H×W) as 8-bit PNG, sRGB-encoded by default."""
+    path = Path(path)
+    data = np.asarray(image, dtype=np.float32)
+    if data.ndim not in (2, 3) or (data.ndim == 3 and data.shape[2] not in (3, 4)):
+        raise VoxfieldError(f"cannot write an image of shape {data.shape} as PNG")
+    data = np.nan_to_num(data, nan=0.0, posinf=1.0, neginf=0.0)
+    data = linear_to_srgb(data) if encode_srgb else np.clip(data, 0.0, 1.0)
+    pixels = np.round(data * 255.0).astype(np.uint8)
+    tmp = _atomic_target(path)
+    try:
+        Image.fromarray(pixels).save(tmp, format="PNG")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike) -> Path:
+    """Write float32 channels (``{"RGB": H×W×3, "Z": H×W}``) to an EXR file, linear."""
+    import OpenEXR
+
+    path = Path(path)
+    data = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
+    tmp = _atomic_target(path)
+    try:
+        with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
+                          data) as f:
+            f.write(str(tmp))
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def load_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
+    """Read every channel of an EXR file (RGB kept together)."""
+    import OpenEXR
+
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        channels = {name: np.array(ch.pixels) for name, ch in f.channels().items()}
+    if {"R", "G", "B"} <= set(channels):
+        channels["RGB"] = np.stack([channels.pop(c) for c in "RGB"], axis=-1)
+    return channels
+
+
+def save_result_image(result, path: str | os.PathLike) -> Path:
+    """Save a RenderResult: ``.png`` gives the sRGB image, ``.exr`` linear RGB plus depth Z."""
+    path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix == ".png":
+        return save_png(result.image, path)
+    if suffix == ".exr":
+        return save_exr({"RGB": result.image, "Z": result.depth}, path)
+    raise VoxfieldError(f"unsupported image format {suffix!r}; use .png or .exr")

@@ -1,0 +1,65 @@
+"""RenderResult: an image plus the per-pixel cost counters both theses measure."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class RenderResult:
+    """What every renderer returns; counters are hardware-independent cost measures.
+
+    ``ray_count`` counts every ray cast for a pixel (including discarded ones),
+    ``hit_count`` those that hit geometry, ``steps`` the octree nodes visited,
+    ``finest_lod`` the smallest LOD any of the pixel's rays sampled (-1: nothing hit).
+    """
+
+    image: np.ndarray  # (H, W, 3) float32 linear RGB
+    depth: np.ndarray  # (H, W) float32 mean hit distance, inf where nothing was hit
+    normal: np.ndarray  # (H, W, 3) float32 mean face normal of hits
+    ray_count: np.ndarray  # (H, W) int32
+    hit_count: np.ndarray  # (H, W) int32
+    steps: np.ndarray  # (H, W) int64
+    finest_lod: np.ndarray  # (H, W) int8
+    seconds: float = 0.0
+    renderer: str = ""
+    params: dict = field(default_factory=dict)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.image.shape[:2]
+
+    @property
+    def total_rays(self) -> int:
+        return int(self.ray_count.sum())
+
+    @property
+    def total_steps(self) -> int:
+        return int(self.steps.sum())
+
+    @property
+    def covered_pixels(self) -> int:
+        return int((self.hit_count > 0).sum())
+
+    @property
+    def mrays_per_second(self) -> float:
+        return self.total_rays / self.seconds / 1e6 if self.seconds > 0 else float("nan")
+
+    def summary(self) -> dict:
+        """Totals for reports (JSON-friendly)."""
+        rays = self.total_rays
+        return {
+            "renderer": self.renderer,
+            "width": int(self.shape[1]),
+            "height": int(self.shape[0]),
+            "rays": rays,
+            "hits": int(self.hit_count.sum()),
+            "covered_pixels": self.covered_pixels,
+            "traversal_steps": self.total_steps,
+            "steps_per_ray": self.total_steps / rays if rays else 0.0,
+            "seconds": self.seconds,
+            "mrays_per_second": self.mrays_per_second,
+            **{k: v for k, v in self.params.items() if isinstance(v, (int, float, str))},
+        }

@@ -1,0 +1,95 @@
+"""One entry point from a scene description (file path or ``builtin:NAME``) to a VoxelScene.
+
+Descriptions: ``builtin:NAME`` (procedural), ``terrain:RECIPE`` (a documented terrain recipe
+over the shared DEMs), ``dem:jacksboro`` / ``dem:topobathy`` (matplotlib's sample DEMs), or a
+file: ``.vox``, ``.obj/.gltf/.glb/.ply`` (voxelized), ``.hgt/.tif/.tiff`` (DEM), ``.npz``
+(a saved voxel scene, a saved octree, or a DEM array).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from voxfield.errors import DataNotFoundError, SceneFormatError, VoxfieldError
+from voxfield.scene.voxel_scene import VoxelScene
+
+MESH_SUFFIXES = (".obj", ".gltf", ".glb", ".ply")
+DEM_SUFFIXES = (".hgt", ".tif", ".tiff")
+
+
+@dataclass(frozen=True)
+class SceneOptions:
+    """How file formats without a native voxel size become voxels."""
+
+    mesh_resolution: int = 256
+    terrain_footprint: int = 512
+    vertical_scale: float | None = None
+    seed: int = 0
+
+
+def npz_kind(path: Path) -> str:
+    """``octree``, ``scene`` or ``dem`` for a ``.npz`` file, by the arrays it holds."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            files = set(data.files)
+    except Exception as exc:  # noqa: BLE001 - any failure here means "not a readable npz"
+        raise SceneFormatError(f"{path}: not a readable .npz file ({exc})") from exc
+    if "header" in files and "child_mask" in files:
+        return "octree"
+    if "coords" in files:
+        return "scene"
+    return "dem"
+
+
+def load_scene(spec: str, options: SceneOptions | None = None) -> VoxelScene:
+    """The VoxelScene a description names."""
+    options = options or SceneOptions()
+    if spec.startswith("builtin:"):
+        from voxfield.scene.builtin import builtin_scene
+
+        return builtin_scene(spec.split(":", 1)[1])
+    if spec.startswith("terrain:"):
+        from voxfield.scene.terrain import recipe_scene
+
+        return recipe_scene(spec.split(":", 1)[1], footprint=options.terrain_footprint)
+    if spec.startswith("dem:"):
+        return _terrain_from(spec.split(":", 1)[1], options)
+    path = Path(spec)
+    if not path.exists():
+        raise DataNotFoundError(f"{spec}: no such file (or use builtin:NAME, terrain:RECIPE)")
+    suffix = path.suffix.lower()
+    if suffix == ".vox":
+        from voxfield.scene.vox import load_vox
+
+        return load_vox(path)
+    if suffix in MESH_SUFFIXES:
+        from voxfield.scene.mesh import load_mesh
+        from voxfield.scene.voxelize import voxelize_mesh
+
+        return voxelize_mesh(load_mesh(path), resolution=options.mesh_resolution)
+    if suffix in DEM_SUFFIXES:
+        return _terrain_from(str(path), options)
+    if suffix == ".npz":
+        kind = npz_kind(path)
+        if kind == "scene":
+            from voxfield.scene.npz_io import load_scene_npz
+
+            return load_scene_npz(path)
+        if kind == "octree":
+            raise VoxfieldError(f"{path} is an octree, not a voxel scene; load it with load_octree")
+        return _terrain_from(str(path), options)
+    raise SceneFormatError(
+        f"{path}: unknown scene format {suffix!r} (expected .vox, a mesh, a DEM or .npz)"
+    )
+
+
+def _terrain_from(source: str, options: SceneOptions) -> VoxelScene:
+    from voxfield.scene.terrain import load_heightmap, terrain_scene
+
+    kwargs = {"footprint": options.terrain_footprint, "seed": options.seed}
+    if options.vertical_scale is not None:
+        kwargs["vertical_scale"] = options.vertical_scale
+    return terrain_scene(load_heightmap(source), **kwargs)

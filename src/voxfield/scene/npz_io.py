@@ -1,0 +1,47 @@
+"""Voxel scenes as ``.npz`` (coords, color, optional emission and channels), written atomically."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from voxfield.errors import SceneFormatError, VoxfieldError
+from voxfield.scene.voxel_scene import VoxelScene
+
+
+def save_scene(scene: VoxelScene, path: str | os.PathLike) -> Path:
+    path = Path(path)
+    arrays = {"coords": scene.coords.astype(np.int32), "color": scene.color}
+    if scene.emission is not None:
+        arrays["emission"] = scene.emission
+    for name, values in scene.channels.items():
+        arrays[f"channel_{name}"] = values
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            np.savez_compressed(f, **arrays)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return path
+
+
+def load_scene_npz(path: str | os.PathLike) -> VoxelScene:
+    path = Path(path)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            if "coords" not in data or "color" not in data:
+                raise SceneFormatError(f"{path}: a voxel-scene .npz needs 'coords' and 'color'")
+            emission = data["emission"] if "emission" in data else None
+            channels = {k[len("channel_"):]: data[k] for k in data.files if k.startswith("channel_")}
+            return VoxelScene(data["coords"], data["color"], emission, channels, path.stem)
+    except VoxfieldError:
+        raise
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise SceneFormatError(f"{path}: unreadable voxel-scene file ({exc})") from exc
