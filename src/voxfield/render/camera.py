@@ -30,6 +30,13 @@ def _vector(value, what: str) -> np.ndarray:
     return v
 
 
+def _image_size(width, height) -> tuple[int, int]:
+    height = width if height is None else height
+    if not (1 <= int(width) <= 16384 and 1 <= int(height) <= 16384):
+        raise CameraError(f"image size {width}×{height} is outside 1..16384")
+    return int(width), int(height)
+
+
 def _basis(forward, up) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Orthonormal (forward, right, up) with right = forward × up (right-handed, y-up)."""
     f = _vector(forward, "direction")
@@ -61,8 +68,7 @@ class Camera:
     height: int
 
     def __post_init__(self) -> None:
-        if not (1 <= int(self.width) <= 16384 and 1 <= int(self.height) <= 16384):
-            raise CameraError(f"image size {self.width}×{self.height} is outside 1..16384")
+        _image_size(self.width, self.height)
         if not (np.isfinite(self.half_width) and np.isfinite(self.half_height)):
             raise CameraError("camera field of view or extent is not finite")
         if self.half_width <= 0.0 or self.half_height <= 0.0:
@@ -74,7 +80,7 @@ class Camera:
         width: int = 512, height: int | None = None,
     ) -> Camera:
         """Pinhole camera; ``fov_deg`` is the vertical field of view."""
-        height = width if height is None else height
+        width, height = _image_size(width, height)
         if not (0.0 < float(fov_deg) < 180.0):
             raise CameraError(f"field of view must be between 0 and 180 degrees, got {fov_deg}")
         eye = _vector(eye, "eye")
@@ -88,7 +94,7 @@ class Camera:
         width: int = 512, height: int | None = None,
     ) -> Camera:
         """Parallel projection; rays start on the image plane through ``center``."""
-        height = width if height is None else height
+        width, height = _image_size(width, height)
         f, r, u = _basis(direction, up)
         half_h = float(view_height) / 2.0
         return cls(

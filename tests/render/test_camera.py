@@ -1,0 +1,79 @@
+"""Cameras against analytic rays: centre rays, parallel orthographic rays, cube-face coverage."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from voxfield.errors import CameraError
+from voxfield.render.camera import Camera, cube_cameras, top_down_camera
+
+
+def test_pinhole_centre_ray_looks_at_target_and_corners_span_fov():
+    cam = Camera.look_at((0, 0, 10), (0, 0, 0), fov_deg=90.0, width=2, height=2)
+    o, d = cam.rays(side=1)
+    assert np.allclose(o, [0, 0, 10])
+    # Pixel centres of a 2×2 image sit at ±half of the half-extent: tan(45°)/2 = 0.5.
+    expected = np.array([[-0.5, 0.5, -1], [0.5, 0.5, -1], [-0.5, -0.5, -1], [0.5, -0.5, -1]])
+    expected /= np.linalg.norm(expected, axis=1)[:, None]
+    assert np.allclose(d, expected)
+
+
+def test_orthographic_rays_are_parallel_and_spread_over_the_view():
+    cam = Camera.orthographic((5, 9, 5), (0, -1, 0), (0, 0, -1), view_height=10, width=10)
+    o, d = cam.rays()
+    assert np.allclose(d, [0, -1, 0])
+    assert np.allclose(o[:, 1], 9)
+    assert np.isclose(o[:, 0].min(), 0.5) and np.isclose(o[:, 0].max(), 9.5)
+
+
+def test_supersampled_rays_stay_inside_their_pixel():
+    cam = Camera.orthographic((2, 2, 10), (0, 0, -1), view_height=4, width=4)
+    o, _ = cam.rays(side=4, seed=7)
+    pixel = np.repeat(np.arange(16), 16)
+    col, row = pixel % 4, pixel // 4
+    assert np.all((o[:, 0] >= col) & (o[:, 0] < col + 1))
+    assert np.all((4 - o[:, 1] >= row) & (4 - o[:, 1] < row + 1))
+
+
+def test_cube_faces_tile_the_sphere():
+    faces = cube_cameras((0, 0, 0), size=8)
+    rng = np.random.default_rng(0)
+    dirs = rng.normal(size=(2000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1)[:, None]
+    inside = np.zeros(len(dirs), int)
+    for cam in faces:
+        along = dirs @ cam.forward
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a = (dirs @ cam.right) / along
+            b = (dirs @ cam.up) / along
+        inside += (along > 0) & (np.abs(a) < 1) & (np.abs(b) < 1)
+    assert np.all(inside == 1)
+    # Right-handed faces: right = forward × up.
+    for cam in faces:
+        assert np.allclose(np.cross(cam.forward, cam.up), cam.right)
+
+
+def test_top_down_camera_spans_the_map_at_ground_level():
+    cam = top_down_camera((0, 0, 0), (64, 10, 64), size=4)
+    o, d = cam.rays()
+    assert np.allclose(o[0], [32, 32, 32])
+    ground = o - d * (o[:, 1:2] / d[:, 1:2])
+    assert ground[:, 0].min() > 0 and ground[:, 0].max() < 64
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: Camera.look_at((0, 0, 0), (0, 0, 0)),
+        lambda: Camera.look_at((0, 0, np.nan), (0, 0, 1)),
+        lambda: Camera.look_at((0, 0, 0), (0, 1, 0), up=(0, 1, 0)),
+        lambda: Camera.look_at((0, 0, 0), (0, 0, 1), fov_deg=0),
+        lambda: Camera.look_at((0, 0, 0), (0, 0, 1), width=0),
+        lambda: Camera.orthographic((0, 0, 0), (0, 0, 1), view_height=-1),
+        lambda: Camera.cube_face((0, 0, 0), "+w"),
+    ],
+)
+def test_invalid_cameras_raise_camera_error(make):
+    with pytest.raises(CameraError):
+        make()

@@ -1,0 +1,123 @@
+"""Octree build against a brute-force level grid, plus file round trips and invariants."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from conftest import random_scene
+
+from voxfield.errors import OctreeFormatError, VoxfieldError
+from voxfield.scene.voxel_scene import VoxelScene
+from voxfield.svo import build_octree, load_octree, morton_encode, save_octree
+from voxfield.svo.io import validate_octree
+
+
+def _brute_force_levels(scene: VoxelScene, depth: int):
+    """Per LOD: dict from node corner (in node units) to mean of its children's colours."""
+    levels = [{tuple(c): col.astype(np.float64) for c, col in zip(scene.coords, scene.color)}]
+    for _ in range(depth):
+        groups: dict[tuple, list] = {}
+        for key, col in levels[-1].items():
+            groups.setdefault(tuple(k >> 1 for k in key), []).append(col)
+        levels.append({k: np.mean(v, axis=0) for k, v in groups.items()})
+    return levels
+
+
+def test_morton_code_interleaves_x_y_z():
+    coords = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [3, 5, 6], [2**20, 0, 0]])
+    got = morton_encode(coords)
+    expected = []
+    for x, y, z in coords:
+        code = 0
+        for bit in range(21):
+            code |= ((int(x) >> bit) & 1) << (3 * bit)
+            code |= ((int(y) >> bit) & 1) << (3 * bit + 1)
+            code |= ((int(z) >> bit) & 1) << (3 * bit + 2)
+        expected.append(code)
+    assert got.tolist() == expected
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_levels_match_brute_force_occupancy_and_means(seed):
+    scene = random_scene(seed, n=300, size=13)
+    octree = build_octree(scene)
+    normalized = scene.normalized()
+    levels = _brute_force_levels(normalized, octree.depth)
+    for lod, expected in enumerate(levels):
+        level = octree.depth - lod
+        sl = octree.level_slice(level)
+        coords = octree.node_coord[sl]
+        got = {tuple(c): col for c, col in zip(coords, octree.color[sl])}
+        assert set(got) == set(expected)
+        for key, col in expected.items():
+            np.testing.assert_allclose(got[key], col, rtol=1e-5, atol=1e-6)
+
+
+def test_child_pointers_and_masks_describe_children():
+    octree = build_octree(random_scene(3))
+    validate_octree(octree)
+    for level in range(octree.depth):
+        sl = octree.level_slice(level)
+        for node in range(sl.start, sl.stop):
+            mask = int(octree.child_mask[node])
+            first = int(octree.first_child[node])
+            for octant in range(8):
+                if mask >> octant & 1:
+                    child = first + bin(mask & ((1 << octant) - 1)).count("1")
+                    expected = octree.node_coord[node] * 2 + [octant & 1, octant >> 1 & 1, octant >> 2]
+                    assert octree.node_coord[child].tolist() == expected.tolist()
+
+
+def test_scene_is_moved_to_the_origin_and_depth_covers_extent():
+    scene = VoxelScene(np.array([[-5, 10, 3], [4, 10, 3]]), np.ones((2, 3)))
+    octree = build_octree(scene)
+    assert octree.scene_origin.tolist() == [-5, 10, 3]
+    assert octree.depth == 4  # extent 10 needs a 16^3 root
+    lo, hi = octree.voxel_bounds
+    assert lo.tolist() == [0, 0, 0] and hi.tolist() == [10, 1, 1]
+
+
+def test_single_voxel_still_has_a_root_above_it():
+    octree = build_octree(VoxelScene(np.array([[7, 7, 7]]), np.ones((1, 3))))
+    assert octree.depth == 1 and octree.nodes_per_level() == [1, 1]
+
+
+def test_bad_scenes_are_rejected():
+    with pytest.raises(VoxfieldError, match="no voxels"):
+        build_octree(VoxelScene(np.zeros((0, 3), int), np.zeros((0, 3))))
+    dup = VoxelScene(np.array([[1, 1, 1], [1, 1, 1]]), np.ones((2, 3)))
+    with pytest.raises(VoxfieldError, match="duplicate"):
+        build_octree(dup)
+
+
+def test_save_load_round_trip(tmp_path):
+    scene = random_scene(4)
+    scene = VoxelScene(scene.coords, scene.color, emission=scene.color * 2, name="r")
+    octree = build_octree(scene)
+    path = save_octree(octree, tmp_path / "r.npz")
+    loaded = load_octree(path)
+    assert loaded.depth == octree.depth and loaded.name == "r"
+    for name in ("child_mask", "first_child", "node_coord", "level_offsets", "scene_origin"):
+        assert np.array_equal(getattr(loaded, name), getattr(octree, name))
+    assert set(loaded.attributes) == {"color", "emission"}
+    assert np.array_equal(loaded.attributes["emission"], octree.attributes["emission"])
+    assert not list(tmp_path.glob("*.tmp"))
+
+
+def test_corrupt_octree_files_give_clear_errors(tmp_path):
+    octree = build_octree(random_scene(5))
+    good = save_octree(octree, tmp_path / "good.npz").read_bytes()
+    with pytest.raises(OctreeFormatError, match="no such"):
+        load_octree(tmp_path / "missing.npz")
+    for cut in (10, len(good) // 2, len(good) - 5):
+        bad = tmp_path / f"cut{cut}.npz"
+        bad.write_bytes(good[:cut])
+        with pytest.raises(OctreeFormatError):
+            load_octree(bad)
+    # Structurally wrong but readable: a child pointer past the end.
+    broken = tmp_path / "broken.npz"
+    first = octree.first_child.copy()
+    first[0] = octree.node_count + 5
+    save_octree(type(octree)(**{**octree.__dict__, "first_child": first}), broken)
+    with pytest.raises(OctreeFormatError, match="child pointers"):
+        load_octree(broken)

@@ -1,0 +1,90 @@
+"""The command line: help everywhere, images written, one-line errors with exit status 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from voxfield.cli import build_parser, main
+from voxfield.render.image_io import load_exr
+
+COMMANDS = ["render", "info", "build", "scenes"]
+
+
+@pytest.mark.parametrize("command", [None, *COMMANDS])
+def test_every_command_has_help(command, capsys):
+    argv = ["--help"] if command is None else [command, "--help"]
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 0
+    assert "usage:" in capsys.readouterr().out
+
+
+def test_parser_lists_every_command():
+    text = build_parser().format_help()
+    for command in COMMANDS:
+        assert command in text
+
+
+def test_render_png_exr_and_counters(tmp_path, capsys):
+    png = tmp_path / "a.png"
+    assert main(["render", "builtin:sphere", "--size", "32", "--camera", "orbit",
+                 "--out", str(png), "--counters", "--quiet"]) == 0
+    assert capsys.readouterr().out == ""
+    image = np.asarray(Image.open(png))
+    assert image.shape == (32, 32, 3) and image.max() > 0
+    summary = json.loads((tmp_path / "a_summary.json").read_text())
+    assert summary["rays"] == 32 * 32 * 16
+    assert (tmp_path / "a_steps.png").exists() and (tmp_path / "a_lod.png").exists()
+    exr = tmp_path / "b.exr"
+    assert main(["render", "builtin:sphere", "--size", "16", "--renderer", "lod", "--lod", "1",
+                 "--out", str(exr)]) == 0
+    channels = load_exr(exr)
+    assert channels["RGB"].shape == (16, 16, 3) and channels["Z"].shape == (16, 16)
+    assert "Mrays/s" in capsys.readouterr().out
+
+
+def test_info_and_build_round_trip(tmp_path, capsys):
+    assert main(["info", "builtin:menger", "--json"]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["voxels"] == 20**3 and info["depth"] == 5
+    assert info["nodes_per_level"][0] == 1 and sum(info["nodes_per_level"]) == info["nodes"]
+    saved = tmp_path / "m.npz"
+    assert main(["build", "builtin:menger", "--out", str(saved), "--quiet"]) == 0
+    assert main(["info", str(saved), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["nodes"] == info["nodes"]
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["render", "no/such/file.vox", "--out", "x.png"],
+        ["render", "builtin:nothing", "--out", "x.png"],
+        ["render", "builtin:sphere", "--camera", "sideways", "--out", "x.png"],
+        ["render", "builtin:sphere", "--renderer", "lod", "--lod", "40", "--out", "x.png"],
+        ["render", "builtin:sphere", "--eye", "0,0,0", "--target", "0,0,0", "--out", "x.png"],
+        ["render", "builtin:sphere", "--size", "8", "--out", "x.bmp"],
+        ["info", "data.unknown"],
+    ],
+)
+def test_bad_input_is_one_line_and_exit_two(argv, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    if argv[1] == "data.unknown":
+        (tmp_path / "data.unknown").write_text("x")
+    proc = subprocess.run([sys.executable, "-m", "voxfield.cli", *argv],
+                          capture_output=True, text=True)
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert lines[-1].startswith("voxfield: error:") and "Traceback" not in proc.stderr
+
+
+def test_corrupt_octree_file_is_a_clear_error(tmp_path, capsys):
+    bad = tmp_path / "bad.npz"
+    np.savez(bad, header=np.frombuffer(b"{}", np.uint8), child_mask=np.zeros(3, np.uint8))
+    assert main(["info", str(bad)]) == 2
+    assert "octree" in capsys.readouterr().err
