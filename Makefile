@@ -15,9 +15,11 @@ $(STAMP): pyproject.toml
 	touch $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer reference --size 256 --out out/pillars_reference.png
-	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer lod --lod 2 --size 256 --out out/pillars_lod2.png
 	$(BIN)/voxfield info builtin:pillars
+	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer reference --size 384 --shade --counters --out out/pillars_reference.png
+	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer lod --lod 2 --size 384 --shade --out out/pillars_lod2.png
+	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer lod --lod cone --size 384 --shade --counters --out out/pillars_cone.png
+	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer reference --size 384 --out out/pillars_reference.exr
 	@echo "demo images written to out/"
 
 test: $(STAMP)

@@ -40,7 +40,7 @@ def render_rows(
     radius *= cone_scale / side
     spread *= cone_scale / side
     for row in prange(row0, row1):
-        stack_node, stack_level, stack_pos, order_t, order_c = new_scratch(depth)
+        scratch = new_scratch(depth)
         for col in range(width):
             pixel = row * width + col
             r = 0.0
@@ -59,7 +59,7 @@ def render_rows(
                 node, level, t, normal, steps = trace_ray(
                     ox, oy, oz, dx, dy, dz, 0.0, math.inf,
                     child_mask, first_child, depth, stop_level, radius, spread,
-                    stack_node, stack_level, stack_pos, order_t, order_c,
+                    *scratch,
                 )
                 steps_sum += steps
                 if node == MISS:
@@ -113,13 +113,13 @@ def trace_rays(
     n = origins.shape[0]
     chunk = 256
     for c in prange((n + chunk - 1) // chunk):
-        stack_node, stack_level, stack_pos, order_t, order_c = new_scratch(depth)
+        scratch = new_scratch(depth)
         for k in range(c * chunk, min(n, (c + 1) * chunk)):
             node, level, t, normal, steps = trace_ray(
                 origins[k, 0], origins[k, 1], origins[k, 2],
                 directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
                 child_mask, first_child, depth, stop_level, 0.0, 0.0,
-                stack_node, stack_level, stack_pos, order_t, order_c,
+                *scratch,
             )
             out_node[k] = node
             out_level[k] = level

@@ -84,13 +84,14 @@ def trace_ray(
     child_mask: np.ndarray, first_child: np.ndarray, depth: int,
     stop_level: int, cone_radius: float, cone_spread: float,
     stack_node: np.ndarray, stack_level: np.ndarray, stack_pos: np.ndarray,
-    order_t: np.ndarray, order_c: np.ndarray,
+    stack_t: np.ndarray, order_t: np.ndarray, order_c: np.ndarray,
 ) -> tuple[int, int, float, int, int]:
     """First node hit by a ray, descending until ``stop_level`` or the cone footprint.
 
     Returns ``(node, level, t_hit, normal_code, steps)``; ``node == MISS`` when nothing is hit.
     ``steps`` counts every node visited (popped), the EA thesis's traversal steps.
-    The stack and ``order_*`` arrays (8 entries) are per-thread scratch, allocated once.
+    The stacks (node, level, position, entry time) and ``order_*`` arrays (8 entries) are
+    per-thread scratch from ``new_scratch``, allocated once per tile.
     A node of side ``s`` met at distance ``t`` is sampled as a leaf when
     ``s <= cone_radius + cone_spread * t`` (set both to 0 for a fixed level).
     """
@@ -109,6 +110,7 @@ def trace_ray(
     stack_pos[0, 0] = 0
     stack_pos[0, 1] = 0
     stack_pos[0, 2] = 0
+    stack_t[0] = max(enter, tmin)
     sp = 1
     while sp > 0:
         sp -= 1
@@ -117,32 +119,50 @@ def trace_ray(
         px = stack_pos[sp, 0]
         py = stack_pos[sp, 1]
         pz = stack_pos[sp, 2]
+        t_near = stack_t[sp]
         steps += 1
         size = float(1 << (depth - level))
         x0 = px * size
         y0 = py * size
         z0 = pz * size
-        enter, leave, axis = box_interval(ox, oy, oz, dx, dy, dz, ix, iy, iz, x0, y0, z0, size)
         mask = child_mask[node]
-        t_near = max(enter, tmin)
         is_leaf = mask == 0 or level >= stop_level
         if not is_leaf and use_cone:
             is_leaf = size <= cone_radius + cone_spread * max(t_near, 0.0)
         if is_leaf:
+            enter, leave, axis = box_interval(
+                ox, oy, oz, dx, dy, dz, ix, iy, iz, x0, y0, z0, size
+            )
             normal = NO_NORMAL
             if enter > tmin:
                 d_axis = dx if axis == 0 else (dy if axis == 1 else dz)
                 normal = 2 * axis + (0 if d_axis > 0.0 else 1)
             return node, level, t_near, normal, steps
         half = size * 0.5
+        # Entry/exit times of the low and high half along each axis, from three planes per
+        # axis; identical to box_interval on each child, at a third of the cost.
+        lx0, lx1 = axis_interval(ox, dx, ix, x0, x0 + half)
+        hx0, hx1 = axis_interval(ox, dx, ix, x0 + half, x0 + size)
+        ly0, ly1 = axis_interval(oy, dy, iy, y0, y0 + half)
+        hy0, hy1 = axis_interval(oy, dy, iy, y0 + half, y0 + size)
+        lz0, lz1 = axis_interval(oz, dz, iz, z0, z0 + half)
+        hz0, hz1 = axis_interval(oz, dz, iz, z0 + half, z0 + size)
         count = 0
         for octant in range(8):
             if not (mask >> octant) & 1:
                 continue
-            cx = x0 + half * (octant & 1)
-            cy = y0 + half * ((octant >> 1) & 1)
-            cz = z0 + half * ((octant >> 2) & 1)
-            c_enter, c_leave, _ = box_interval(ox, oy, oz, dx, dy, dz, ix, iy, iz, cx, cy, cz, half)
+            if octant & 1:
+                c_enter, c_leave = hx0, hx1
+            else:
+                c_enter, c_leave = lx0, lx1
+            if octant & 2:
+                c_enter, c_leave = max(c_enter, hy0), min(c_leave, hy1)
+            else:
+                c_enter, c_leave = max(c_enter, ly0), min(c_leave, ly1)
+            if octant & 4:
+                c_enter, c_leave = max(c_enter, hz0), min(c_leave, hz1)
+            else:
+                c_enter, c_leave = max(c_enter, lz0), min(c_leave, lz1)
             c_near = max(c_enter, tmin)
             if not (c_near < min(c_leave, tmax)):
                 continue
@@ -163,6 +183,7 @@ def trace_ray(
             stack_pos[sp, 0] = 2 * px + (octant & 1)
             stack_pos[sp, 1] = 2 * py + ((octant >> 1) & 1)
             stack_pos[sp, 2] = 2 * pz + ((octant >> 2) & 1)
+            stack_t[sp] = order_t[k]
             sp += 1
     return MISS, 0, math.inf, NO_NORMAL, steps
 
@@ -180,6 +201,7 @@ def new_scratch(depth: int):
         np.empty(cap, np.int64),
         np.empty(cap, np.int64),
         np.empty((cap, 3), np.int64),
+        np.empty(cap, np.float64),
         np.empty(8, np.float64),
         np.empty(8, np.int64),
     )
