@@ -1,0 +1,85 @@
+"""VoxelScene invariants, composition, colour transfer functions and the scene loader dispatch."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from voxfield.errors import DataNotFoundError, SceneFormatError, VoxfieldError
+from voxfield.scene.builtin import BUILTIN_SCENES, builtin_scene, menger
+from voxfield.scene.loaders import load_scene
+from voxfield.scene.npz_io import load_scene_npz, save_scene
+from voxfield.scene.voxel_scene import VoxelScene, compose, linear_to_srgb, srgb_to_linear
+
+
+def cube(offset=(0, 0, 0), n=2, color=(1.0, 0.0, 0.0)):
+    coords = np.argwhere(np.ones((n, n, n), bool)) + np.asarray(offset)
+    return VoxelScene(coords, np.tile(color, (len(coords), 1)))
+
+
+def test_validation_rejects_bad_arrays():
+    with pytest.raises(VoxfieldError, match="N×3"):
+        VoxelScene(np.zeros((4, 2), int), np.zeros((4, 3)))
+    with pytest.raises(VoxfieldError, match="integers"):
+        VoxelScene(np.zeros((1, 3)), np.zeros((1, 3)))
+    with pytest.raises(VoxfieldError, match="match"):
+        VoxelScene(np.zeros((2, 3), int), np.zeros((3, 3)))
+    with pytest.raises(VoxfieldError, match="NaN"):
+        VoxelScene(np.zeros((1, 3), int), np.full((1, 3), np.nan))
+
+
+def test_dedupe_keeps_the_last_voxel_given():
+    scene = VoxelScene(np.array([[0, 0, 0], [1, 1, 1], [0, 0, 0]]),
+                       np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1]]))
+    d = scene.dedupe()
+    assert len(d) == 2
+    assert d.color[(d.coords == 0).all(axis=1)].tolist() == [[0, 0, 1]]
+
+
+def test_compose_places_scenes_at_offsets_and_later_parts_win():
+    a = cube(color=(1, 0, 0))
+    b = VoxelScene(np.array([[0, 0, 0]]), np.array([[0, 1, 0]]), emission=np.ones((1, 3)))
+    world = compose([(a, (0, 0, 0)), (b, (1, 1, 1)), (a, (10, 0, 0))])
+    assert len(world) == 16
+    lo, hi = world.bounds
+    assert lo.tolist() == [0, 0, 0] and hi.tolist() == [12, 2, 2]
+    at = world.color[(world.coords == [1, 1, 1]).all(axis=1)]
+    assert at.tolist() == [[0, 1, 0]]
+    assert world.emission is not None and world.emission.sum() == 3  # only b emits
+
+
+def test_srgb_transfer_round_trips_and_hits_known_points():
+    x = np.linspace(0, 1, 101, dtype=np.float32)
+    assert np.allclose(linear_to_srgb(srgb_to_linear(x)), x, atol=1e-6)
+    assert np.isclose(srgb_to_linear(np.float32(0.5)), 0.2140, atol=1e-4)
+
+
+def test_menger_sponge_has_twenty_to_the_level_voxels():
+    for level in (1, 2, 3):
+        assert len(menger(level)) == 20**level
+
+
+def test_every_builtin_builds_a_nonempty_scene():
+    for name in BUILTIN_SCENES:
+        scene = builtin_scene(name)
+        assert len(scene) > 0 and len(scene.dedupe()) == len(scene)
+    with pytest.raises(VoxfieldError, match="choose one of"):
+        builtin_scene("nope")
+
+
+def test_scene_npz_round_trip_and_loader_dispatch(tmp_path):
+    scene = VoxelScene(np.array([[0, 1, 2]]), np.array([[0.1, 0.2, 0.3]]),
+                       emission=np.array([[1.0, 1.0, 1.0]]), channels={"noon": np.ones((1, 3))})
+    path = save_scene(scene, tmp_path / "s.npz")
+    for loaded in (load_scene_npz(path), load_scene(str(path))):
+        assert np.array_equal(loaded.coords, scene.coords)
+        assert np.array_equal(loaded.color, scene.color)
+        assert set(loaded.channels) == {"noon"} and loaded.emission is not None
+    with pytest.raises(DataNotFoundError):
+        load_scene(str(tmp_path / "missing.vox"))
+    (tmp_path / "x.stl").write_text("solid")
+    with pytest.raises(SceneFormatError, match="unknown scene format"):
+        load_scene(str(tmp_path / "x.stl"))
+    (tmp_path / "bad.npz").write_bytes(b"not a zip")
+    with pytest.raises(SceneFormatError):
+        load_scene(str(tmp_path / "bad.npz"))
