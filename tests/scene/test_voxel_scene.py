@@ -83,3 +83,10 @@ def test_scene_npz_round_trip_and_loader_dispatch(tmp_path):
     (tmp_path / "bad.npz").write_bytes(b"not a zip")
     with pytest.raises(SceneFormatError):
         load_scene(str(tmp_path / "bad.npz"))
+
+
+def test_dedupe_works_across_the_full_coordinate_range():
+    far = 2**21 - 1
+    scene = VoxelScene(np.array([[0, 0, 0], [far, far, far], [0, 0, 0]]), np.eye(3))
+    d = scene.dedupe()
+    assert len(d) == 2 and d.color[(d.coords == 0).all(axis=1)].tolist() == [[0, 0, 1]]

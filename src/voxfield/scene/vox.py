@@ -26,6 +26,7 @@ Conventions chosen here (the format leaves them open):
 from __future__ import annotations
 
 import os
+import struct
 import warnings
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -54,11 +55,13 @@ MAX_MODEL_SIZE = 256
 #: Cap on voxels placed by the scene graph before overlaps are resolved (memory guard: a
 #: shared subgraph can multiply instances exponentially).
 MAX_PLACED_VOXELS = 1 << 26
-#: Cap on scene-graph node visits, for the same reason.
-MAX_NODE_VISITS = 1 << 20
+#: Cap on scene-graph node visits, for the same reason (real scenes visit thousands).
+MAX_NODE_VISITS = 1 << 18
 #: Largest translation component accepted from a file.
 _MAX_TRANSLATION = MAX_EXTENT
 
+_I32 = struct.Struct("<i")
+_IDENTITY_ROTATION = 4  # row 0 -> column 0, row 1 -> column 1, all signs positive
 _SUPPORTED_VERSIONS = (150, 200)
 _EMISSIVE_MATL_TYPES = ("_emit", "_blend")
 _MATT_EMISSIVE = 3
@@ -136,7 +139,10 @@ def encode_rotation(matrix) -> int:
 
 @dataclass(frozen=True)
 class VoxModel:
-    """One SIZE/XYZI pair: ``size`` (x, y, z, z-up) and ``voxels`` (N×4 uint8: x, y, z, index)."""
+    """One SIZE/XYZI pair: ``size`` (x, y, z, z-up) and ``voxels`` (N×4 uint8: x, y, z, index).
+
+    ``voxels`` is a read-only view of the file's bytes (no copy of large models).
+    """
 
     size: tuple[int, int, int]
     voxels: np.ndarray
@@ -154,7 +160,7 @@ class VoxNode:
     kind: str
     attributes: Mapping[str, str]
     children: tuple[int, ...]
-    rotation: int = 4
+    rotation: int = _IDENTITY_ROTATION
     translation: tuple[int, int, int] = (0, 0, 0)
     layer: int = -1
 
@@ -204,8 +210,9 @@ class _Cursor:
             )
 
     def i32(self) -> int:
-        self.need(4)
-        value = int.from_bytes(self.buf[self.pos : self.pos + 4], "little", signed=True)
+        if self.pos + 4 > self.end:
+            self.need(4)
+        (value,) = _I32.unpack_from(self.buf, self.pos)
         self.pos += 4
         return value
 
@@ -219,7 +226,8 @@ class _Cursor:
         """A length prefix, checked against what is left so a bad one cannot allocate or loop."""
         n = self.i32()
         if n < 0 or n * item_bytes > self.end - self.pos:
-            raise self.fail(f"{what} count {n} does not fit in the {self.end - self.pos} bytes left")
+            left = self.end - self.pos
+            raise self.fail(f"{what} count {n} does not fit in the {left} bytes left")
         return n
 
     def string(self) -> str:
@@ -349,8 +357,9 @@ def _parse(data: bytes, label: str, name: str) -> VoxFile:
             n = cur.count("voxel", 4)
             voxels = np.frombuffer(data, dtype=np.uint8, count=4 * n, offset=cur.pos).reshape(n, 4)
             if n:
-                top = voxels[:, :3].max(axis=0)
-                if (top >= np.asarray(pending_size)).any():
+                # Per-column reductions: an axis-0 reduction over N×3 is several times slower.
+                top = [int(voxels[:, k].max()) for k in range(3)]
+                if any(t >= s for t, s in zip(top, pending_size, strict=True)):
                     bad = voxels[(voxels[:, :3] >= np.asarray(pending_size)).any(axis=1)][0]
                     raise cur.fail(
                         f"voxel {tuple(int(v) for v in bad[:3])} of model {len(models)} lies "
@@ -359,9 +368,11 @@ def _parse(data: bytes, label: str, name: str) -> VoxFile:
             models.append(VoxModel(pending_size, voxels))
             pending_size = None
         elif chunk_id == b"RGBA":
-            cur.need(1024)
-            raw = np.frombuffer(data, dtype=np.uint8, count=1024, offset=cur.pos).reshape(256, 4)
-            # Chunk entry k is colour index k + 1; index 0 (empty) takes the unused last entry.
+            # Entry k is colour index k + 1; index 0 (empty) takes the unused entry 255. Some
+            # writers store only 255 entries (teardown.vox): the rest keep the default colours.
+            n = min((c_end - c_start) // 4, 256)
+            raw = DEFAULT_PALETTE[np.r_[1:256, 0]].copy()
+            raw[:n] = np.frombuffer(data, dtype=np.uint8, count=4 * n, offset=cur.pos).reshape(n, 4)
             rgba = np.roll(raw, 1, axis=0)
         elif chunk_id == b"MATL":
             mat_id = cur.i32()
@@ -412,7 +423,7 @@ def _parse_node(chunk_id: bytes, cur: _Cursor) -> VoxNode:
         n_frames = cur.count("frame", 4)
         frames = [cur.dict() for _ in range(n_frames)]
         frame = frames[0] if frames else {}
-        rotation = 4  # identity
+        rotation = _IDENTITY_ROTATION
         if "_r" in frame:
             (rotation,) = _parse_int_list(frame["_r"], 1, "rotation _r", cur)
             try:
@@ -446,24 +457,30 @@ def _parse_node(chunk_id: bytes, cur: _Cursor) -> VoxNode:
 def _instances(vf: VoxFile, label: str) -> tuple[list[tuple[int, np.ndarray, np.ndarray]], list]:
     """(model id, rotation, translation) per visible shape, in graph order, and missing ids.
 
-    Iterative depth-first walk from node 0; a node repeated along one path is a cycle, while a
-    node shared by several parents (instancing, as in test-transform.vox) is legal.
+    Iterative depth-first walk from node 0 (no recursion limit to hit); a node met again while
+    it is still on the current path is a cycle, while a node shared by several parents
+    (instancing, as in test-transform.vox) is legal. An exit marker on the stack takes a node
+    off the path, so the check costs O(1) however deep the graph.
     """
     nodes = vf.nodes
     if 0 not in nodes:
         raise SceneFormatError(f"{label}: the scene graph has no root node 0")
     placed: list[tuple[int, np.ndarray, np.ndarray]] = []
     missing: list[int] = []
+    on_path: set[int] = set()
     visits = 0
     placed_voxels = 0
-    identity = np.eye(3, dtype=np.int64)
-    stack = [(0, identity, np.zeros(3, dtype=np.int64), (), -1)]
+    exit_marker = None
+    stack: list = [(0, np.eye(3, dtype=np.int64), np.zeros(3, dtype=np.int64), -1)]
     while stack:
-        node_id, rot, trans, path, parent = stack.pop()
+        node_id, rot, trans, parent = stack.pop()
+        if rot is exit_marker:
+            on_path.discard(node_id)
+            continue
         node = nodes.get(node_id)
         if node is None:
             raise SceneFormatError(f"{label}: node {parent} refers to missing node {node_id}")
-        if node_id in path:
+        if node_id in on_path:
             raise SceneFormatError(f"{label}: the scene graph has a cycle through node {node_id}")
         visits += 1
         if visits > MAX_NODE_VISITS:
@@ -472,17 +489,19 @@ def _instances(vf: VoxFile, label: str) -> tuple[list[tuple[int, np.ndarray, np.
             )
         if node.hidden:
             continue
-        path = (*path, node_id)
         if node.kind == "transform":
             if node.layer in vf.hidden_layers:
                 continue
-            local = decode_rotation(node.rotation)
             trans = trans + rot @ np.asarray(node.translation, dtype=np.int64)
-            rot = rot @ local
-            stack.append((node.children[0], rot, trans, path, node_id))
+            rot = rot @ decode_rotation(node.rotation)
+            on_path.add(node_id)
+            stack.append((node_id, exit_marker, None, -1))
+            stack.append((node.children[0], rot, trans, node_id))
         elif node.kind == "group":
+            on_path.add(node_id)
+            stack.append((node_id, exit_marker, None, -1))
             for child in reversed(node.children):
-                stack.append((child, rot, trans, path, node_id))
+                stack.append((child, rot, trans, node_id))
         elif node.children:
             model_id = node.children[0]
             if not 0 <= model_id < len(vf.models):
@@ -519,10 +538,10 @@ def _build_scene(
     vf: VoxFile, coords_mv: np.ndarray, color_index: np.ndarray, name: str, label: str
 ) -> VoxelScene:
     if len(coords_mv):
-        extent = coords_mv.max(axis=0) - coords_mv.min(axis=0) + 1
-        if (extent > MAX_EXTENT).any() or int(np.prod([int(e) for e in extent])) >= 2**63:
+        extent = [int(c.max()) - int(c.min()) + 1 for c in coords_mv.T]
+        if max(extent) > MAX_EXTENT or extent[0] * extent[1] * extent[2] >= 2**63:
             raise SceneFormatError(
-                f"{label}: the placed scene spans {tuple(int(e) for e in extent)} voxels, more "
+                f"{label}: the placed scene spans {tuple(extent)} voxels, more "
                 f"than the {MAX_EXTENT} per axis a scene may span"
             )
     linear = srgb_to_linear(vf.palette[:, :3].astype(np.float32) / 255.0)
@@ -532,6 +551,10 @@ def _build_scene(
     if (strength > 0).any():
         emission = color * strength[:, None]
     return VoxelScene(_to_y_up(coords_mv), color, emission, name=name)
+
+
+def _empty_scene(name: str) -> VoxelScene:
+    return VoxelScene(np.zeros((0, 3), np.int64), np.zeros((0, 3), np.float32), name=name)
 
 
 def _check_source_options(missing_models: str) -> None:
@@ -550,7 +573,9 @@ def read_vox(source: Source) -> VoxFile:
     return _parse(data, label, name)
 
 
-def load_vox(source: Source, *, model: int | None = None, missing_models: str = "skip") -> VoxelScene:
+def load_vox(
+    source: Source, *, model: int | None = None, missing_models: str = "skip"
+) -> VoxelScene:
     """Load a ``.vox`` file as one y-up VoxelScene with its minimum corner at the origin.
 
     With a scene graph, every visible shape is placed by its composed transforms (hidden nodes
@@ -566,7 +591,7 @@ def load_vox(source: Source, *, model: int | None = None, missing_models: str = 
     if model is not None or not vf.nodes:
         index = 0 if model is None else int(model)
         if not vf.models and model is None:
-            return VoxelScene(np.zeros((0, 3), np.int64), np.zeros((0, 3), np.float32), name=name)
+            return _empty_scene(name)
         if not 0 <= index < len(vf.models):
             raise VoxfieldError(
                 f"{label}: model={index} is out of range, the file has {len(vf.models)} model(s)"
@@ -593,8 +618,7 @@ def load_vox(source: Source, *, model: int | None = None, missing_models: str = 
         warnings.warn(message + "; those shapes were skipped", UserWarning, stacklevel=2)
 
     if not placed:
-        empty = np.zeros((0, 3), np.int64)
-        return VoxelScene(empty, np.zeros((0, 3), np.float32), name=name)
+        return _empty_scene(name)
     coords = np.concatenate([_place(vf.models[m], rot, t) for m, rot, t in placed])
     index = np.concatenate([vf.models[m].voxels[:, 3] for m, _, _ in placed])
     return _build_scene(vf, coords, index, name, label).dedupe().normalized()

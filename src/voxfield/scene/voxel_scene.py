@@ -84,9 +84,12 @@ class VoxelScene:
             return self
         lo = self.coords.min(axis=0)
         span = self.coords.max(axis=0) - lo + 1
-        key = np.ravel_multi_index((self.coords - lo).T, tuple(int(s) for s in span))
+        if int(span[0]) * int(span[1]) * int(span[2]) < 2**62:
+            key = np.ravel_multi_index((self.coords - lo).T, tuple(int(s) for s in span))
+        else:  # too wide for one int64 key: compare whole rows instead
+            key = self.coords
         # Reverse so np.unique's first occurrence is the last given voxel.
-        _, first_rev = np.unique(key[::-1], return_index=True)
+        _, first_rev = np.unique(key[::-1], return_index=True, axis=0 if key.ndim == 2 else None)
         keep = np.sort(len(key) - 1 - first_rev)
         if len(keep) == len(self):
             return self
