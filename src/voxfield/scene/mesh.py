@@ -190,7 +190,7 @@ def _load_obj(path: Path) -> TriangleMesh:
     mat_index: dict[str, int] = {}
     libs: list[str] = []
     current = -1
-    for lineno, raw in enumerate(text.splitlines(), 1):
+    for raw in text.splitlines():
         if "#" in raw:
             raw = raw.split("#", 1)[0]
         parts = raw.split(None, 1)
@@ -324,7 +324,7 @@ def _numbers(rows: list[str], what: str, path: Path) -> tuple[np.ndarray, np.nda
 def _parse_vertices(rows: list[str], path: Path) -> tuple[np.ndarray, np.ndarray | None]:
     flat, counts = _numbers(rows, "vertex ('v')", path)
     width = int(counts[0])
-    if (counts != width).any() or width not in (3, 4, 6, 7):
+    if (counts != width).any() or width not in (3, 4, 6):
         bad = int(np.argmax((counts != width) | (counts < 3)))
         raise SceneFormatError(
             f"{path}: vertex {bad + 1} has {int(counts[bad])} numbers; every 'v' line needs "
@@ -333,7 +333,7 @@ def _parse_vertices(rows: list[str], path: Path) -> tuple[np.ndarray, np.ndarray
     table = flat.reshape(-1, width)
     vertices = table[:, :3].copy()
     colour = None
-    if width >= 6:
+    if width == 6:
         rgb = table[:, 3:6]
         if np.isfinite(rgb).all() and rgb.max() > 1.0:
             rgb = rgb / 255.0  # some writers use 0..255
