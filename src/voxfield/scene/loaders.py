@@ -14,9 +14,9 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.errors import DataNotFoundError, SceneFormatError, VoxfieldError
+from voxfield.scene.mesh import MESH_SUFFIXES
 from voxfield.scene.voxel_scene import VoxelScene
 
-MESH_SUFFIXES = (".obj", ".gltf", ".glb", ".ply")
 DEM_SUFFIXES = (".hgt", ".tif", ".tiff")
 
 

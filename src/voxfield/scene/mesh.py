@@ -33,10 +33,6 @@ DEFAULT_COLOR = (0.8, 0.8, 0.8)
 MESH_SUFFIXES = (".obj", ".gltf", ".glb", ".ply")
 
 
-class MeshFileNotFoundError(SceneFormatError, DataNotFoundError):
-    """A mesh file (or its folder) does not exist; caught as either parent class."""
-
-
 @dataclass(frozen=True)
 class TriangleMesh:
     """Triangles with linear colours, in the file's own units and axes (+y up by convention).
@@ -145,7 +141,7 @@ def load_mesh(path: str | Path) -> TriangleMesh:
     """
     path = Path(path)
     if not path.is_file():
-        raise MeshFileNotFoundError(f"mesh file {path} does not exist (or is not a file)")
+        raise DataNotFoundError(f"mesh file {path} does not exist (or is not a file)")
     suffix = path.suffix.lower()
     if suffix == ".obj":
         mesh = _load_obj(path)
