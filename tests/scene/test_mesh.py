@@ -114,9 +114,8 @@ def test_bad_obj_files_raise_scene_format_error(tmp_path, text, match):
 
 
 def test_missing_binary_and_unknown_files(tmp_path):
-    with pytest.raises(SceneFormatError, match="does not exist") as err:
+    with pytest.raises(DataNotFoundError, match="does not exist"):
         load_mesh(tmp_path / "absent.obj")
-    assert isinstance(err.value, DataNotFoundError)
     (tmp_path / "bin.obj").write_bytes(b"\x00\x01\x02garbage")
     with pytest.raises(SceneFormatError, match="binary"):
         load_mesh(tmp_path / "bin.obj")
