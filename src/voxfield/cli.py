@@ -220,8 +220,8 @@ def cmd_scenes(args) -> int:
     except ImportError:
         return 0
     print("terrain recipes over the shared DEMs (see README):")
-    for name in RECIPES:
-        print(f"  terrain:{name}")
+    for name, recipe in RECIPES.items():
+        print(f"  terrain:{name:<10} {recipe.description}")
     return 0
 
 

@@ -151,7 +151,7 @@ def oblique_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 
     hi = np.asarray(bounds_max, np.float64)
     c = (lo + hi) / 2.0
     half_extent = max(hi[0] - lo[0], hi[2] - lo[2]) / 2.0
-    distance = 1.2 * half_extent / np.tan(np.radians(fov_deg) / 2.0)
+    distance = 1.6 * half_extent / np.tan(np.radians(fov_deg) / 2.0)
     el = np.radians(elevation_deg)
     eye = c + distance * np.array([0.0, np.sin(el), np.cos(el)])
     return Camera.look_at(eye, c, fov_deg=fov_deg, width=size)
