@@ -16,7 +16,7 @@ import time
 import numpy as np
 
 
-def synthetic_terrain(footprint: int, depth_fill: int) -> "VoxelScene":  # noqa: F821
+def synthetic_terrain(footprint: int, depth_fill: int):
     """Rolling hills with every column filled ``depth_fill`` voxels down (no files needed)."""
     from voxfield.scene.voxel_scene import VoxelScene
 
