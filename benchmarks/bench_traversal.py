@@ -106,7 +106,7 @@ def build_scene(args, footprint: int):
         name=f"{args.recipe} {footprint}²", voxels=len(scene), nodes=octree.node_count,
         depth=octree.depth, scene_s=t1 - t0, octree_s=t2 - t1,
         octree_mib=octree_bytes(octree) / 2**20,
-        kernel_mib=(octree.child_mask.nbytes + octree.first_child.nbytes) / 2**20,
+        kernel_mib=octree.inner_nodes.nbytes / 2**20,
     )
     return octree, stats
 
@@ -143,7 +143,7 @@ def voxfield_trace(octree, origins, directions, threads=None):
         trace_rays(
             np.ascontiguousarray(origins, np.float64),
             np.ascontiguousarray(directions, np.float64),
-            0.0, math.inf, octree.child_mask, octree.first_child, octree.depth, octree.depth,
+            0.0, math.inf, octree.inner_nodes, octree.depth, octree.depth,
             node, level, t, normal, steps,
         )
     return node >= 0, t, steps

@@ -20,7 +20,7 @@ from voxfield.scene.voxel_scene import VoxelScene  # noqa: E402
 def shared_data() -> Path:
     root = data_root()
     if not root.is_dir():
-        pytest.skip(f"real scenes not found at {root} (set VOXFIELD_DATA to the shared data folder)")
+        pytest.skip(f"real scenes not found at {root} (set VOXFIELD_DATA to the data folder)")
     return root
 
 

@@ -22,7 +22,8 @@ def _vector_arg(text: str) -> tuple[float, float, float]:
     try:
         values = tuple(float(v) for v in text.split(","))
     except ValueError:
-        raise argparse.ArgumentTypeError(f"expected three numbers like 1,2,3, got {text!r}") from None
+        message = f"expected three numbers like 1,2,3, got {text!r}"
+        raise argparse.ArgumentTypeError(message) from None
     if len(values) != 3:
         raise argparse.ArgumentTypeError(f"expected three numbers like 1,2,3, got {text!r}")
     return values
@@ -190,7 +191,8 @@ def cmd_info(args) -> int:
           f"channels: {', '.join(info['channels'])}")
     print(f"{'level':>5} {'lod':>4} {'nodes':>12} {'node size':>10}")
     for level, count in enumerate(info["nodes_per_level"]):
-        print(f"{level:>5} {octree.depth - level:>4} {count:>12,} {1 << (octree.depth - level):>10}")
+        lod = octree.depth - level
+        print(f"{level:>5} {lod:>4} {count:>12,} {1 << lod:>10}")
     per = info["bytes_per_node"]
     parts = ", ".join(f"{k} {v:.1f}" for k, v in per.items() if k != "total")
     print(f"bytes per node: {per['total']:.1f} ({parts})")

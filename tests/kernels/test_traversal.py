@@ -10,9 +10,9 @@ import math
 
 import numpy as np
 import pytest
+
 from conftest import random_scene
 from ray_oracle import first_hits
-
 from voxfield.kernels.primary import trace_rays
 from voxfield.kernels.traversal import NO_NORMAL
 from voxfield.scene.voxel_scene import VoxelScene
@@ -28,7 +28,7 @@ def trace(octree, origins, directions, lod=0, tmin=0.0):
     steps = np.empty(n, np.int64)
     trace_rays(
         np.ascontiguousarray(origins, np.float64), np.ascontiguousarray(directions, np.float64),
-        tmin, math.inf, octree.child_mask, octree.first_child, octree.depth,
+        tmin, math.inf, octree.inner_nodes, octree.depth,
         octree.depth - lod, node, level, t, normal, steps,
     )
     return node, level, t, normal, steps

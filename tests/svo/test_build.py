@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from conftest import random_scene
 
+from conftest import random_scene
 from voxfield.errors import OctreeFormatError, VoxfieldError
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree, load_octree, morton_encode, save_octree
@@ -14,7 +14,8 @@ from voxfield.svo.io import validate_octree
 
 def _brute_force_levels(scene: VoxelScene, depth: int):
     """Per LOD: dict from node corner (in node units) to mean of its children's colours."""
-    levels = [{tuple(c): col.astype(np.float64) for c, col in zip(scene.coords, scene.color)}]
+    pairs = zip(scene.coords, scene.color, strict=True)
+    levels = [{tuple(c): col.astype(np.float64) for c, col in pairs}]
     for _ in range(depth):
         groups: dict[tuple, list] = {}
         for key, col in levels[-1].items():
@@ -47,7 +48,7 @@ def test_levels_match_brute_force_occupancy_and_means(seed):
         level = octree.depth - lod
         sl = octree.level_slice(level)
         coords = octree.node_coord[sl]
-        got = {tuple(c): col for c, col in zip(coords, octree.color[sl])}
+        got = {tuple(c): col for c, col in zip(coords, octree.color[sl], strict=True)}
         assert set(got) == set(expected)
         for key, col in expected.items():
             np.testing.assert_allclose(got[key], col, rtol=1e-5, atol=1e-6)
@@ -64,7 +65,8 @@ def test_child_pointers_and_masks_describe_children():
             for octant in range(8):
                 if mask >> octant & 1:
                     child = first + bin(mask & ((1 << octant) - 1)).count("1")
-                    expected = octree.node_coord[node] * 2 + [octant & 1, octant >> 1 & 1, octant >> 2]
+                    bits = [octant & 1, octant >> 1 & 1, octant >> 2]
+                    expected = octree.node_coord[node] * 2 + bits
                     assert octree.node_coord[child].tolist() == expected.tolist()
 
 

@@ -25,7 +25,7 @@ def normal_from_code(code: int) -> tuple[float, float, float]:
 def render_rows(
     cam: np.ndarray, width: int, height: int, row0: int, row1: int,
     side: int, seed: int,
-    child_mask: np.ndarray, first_child: np.ndarray, depth: int,
+    inner_nodes: np.ndarray, depth: int,
     stop_level: int, cone_scale: float, colors: np.ndarray,
     out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
     out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
@@ -58,7 +58,7 @@ def render_rows(
                 ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
                 node, level, t, normal, steps = trace_ray(
                     ox, oy, oz, dx, dy, dz, 0.0, math.inf,
-                    child_mask, first_child, depth, stop_level, radius, spread,
+                    inner_nodes, depth, stop_level, radius, spread,
                     *scratch,
                 )
                 steps_sum += steps
@@ -105,7 +105,7 @@ def render_rows(
 @njit(parallel=True, cache=True, nogil=True)
 def trace_rays(
     origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
-    child_mask: np.ndarray, first_child: np.ndarray, depth: int, stop_level: int,
+    inner_nodes: np.ndarray, depth: int, stop_level: int,
     out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
     out_normal: np.ndarray, out_steps: np.ndarray,
 ) -> None:
@@ -118,7 +118,7 @@ def trace_rays(
             node, level, t, normal, steps = trace_ray(
                 origins[k, 0], origins[k, 1], origins[k, 2],
                 directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
-                child_mask, first_child, depth, stop_level, 0.0, 0.0,
+                inner_nodes, depth, stop_level, 0.0, 0.0,
                 *scratch,
             )
             out_node[k] = node

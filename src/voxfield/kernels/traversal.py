@@ -24,6 +24,17 @@ NO_NORMAL = -1
 
 
 @njit(cache=True, nogil=True)
+def fmax(a: float, b: float) -> float:
+    """max for non-NaN floats without the NaN handling of the builtin."""
+    return a if a > b else b
+
+
+@njit(cache=True, nogil=True)
+def fmin(a: float, b: float) -> float:
+    return a if a < b else b
+
+
+@njit(cache=True, nogil=True)
 def axis_interval(o: float, d: float, inv: float, lo: float, hi: float) -> tuple[float, float]:
     """Times at which the ray is inside the slab ``[lo, hi)`` of one axis."""
     if d == 0.0:
@@ -61,7 +72,7 @@ def box_interval(
     if az0 > enter:
         enter = az0
         axis = 2
-    leave = min(ax1, ay1, az1)
+    leave = fmin(fmin(ax1, ay1), az1)
     return enter, leave, axis
 
 
@@ -81,12 +92,15 @@ def trace_ray(
     ox: float, oy: float, oz: float,
     dx: float, dy: float, dz: float,
     tmin: float, tmax: float,
-    child_mask: np.ndarray, first_child: np.ndarray, depth: int,
+    inner_nodes: np.ndarray, depth: int,
     stop_level: int, cone_radius: float, cone_spread: float,
     stack_node: np.ndarray, stack_level: np.ndarray, stack_pos: np.ndarray,
     stack_t: np.ndarray, order_t: np.ndarray, order_c: np.ndarray,
 ) -> tuple[int, int, float, int, int]:
     """First node hit by a ray, descending until ``stop_level`` or the cone footprint.
+
+    ``inner_nodes`` holds one packed descriptor per inner node, ``first_child << 8 | mask``
+    (``Octree.inner_nodes``): one memory access per visited inner node, none per leaf.
 
     Returns ``(node, level, t_hit, normal_code, steps)``; ``node == MISS`` when nothing is hit.
     ``steps`` counts every node visited (popped), the EA thesis's traversal steps.
@@ -104,6 +118,7 @@ def trace_ray(
     if not (max(enter, tmin) < min(leave, tmax)):
         return MISS, 0, math.inf, NO_NORMAL, steps
     use_cone = cone_radius > 0.0 or cone_spread > 0.0
+    stop_level = min(stop_level, depth)
     sp = 0
     stack_node[0] = 0
     stack_level[0] = 0
@@ -125,8 +140,8 @@ def trace_ray(
         x0 = px * size
         y0 = py * size
         z0 = pz * size
-        mask = child_mask[node]
-        is_leaf = mask == 0 or level >= stop_level
+        # Levels at or below the stop level are never read: leaves cost no memory access.
+        is_leaf = level >= stop_level
         if not is_leaf and use_cone:
             is_leaf = size <= cone_radius + cone_spread * max(t_near, 0.0)
         if is_leaf:
@@ -138,6 +153,8 @@ def trace_ray(
                 d_axis = dx if axis == 0 else (dy if axis == 1 else dz)
                 normal = 2 * axis + (0 if d_axis > 0.0 else 1)
             return node, level, t_near, normal, steps
+        descriptor = inner_nodes[node]
+        mask = descriptor & 0xFF
         half = size * 0.5
         # Entry/exit times of the low and high half along each axis, from three planes per
         # axis; identical to box_interval on each child, at a third of the cost.
@@ -156,15 +173,15 @@ def trace_ray(
             else:
                 c_enter, c_leave = lx0, lx1
             if octant & 2:
-                c_enter, c_leave = max(c_enter, hy0), min(c_leave, hy1)
+                c_enter, c_leave = fmax(c_enter, hy0), fmin(c_leave, hy1)
             else:
-                c_enter, c_leave = max(c_enter, ly0), min(c_leave, ly1)
+                c_enter, c_leave = fmax(c_enter, ly0), fmin(c_leave, ly1)
             if octant & 4:
-                c_enter, c_leave = max(c_enter, hz0), min(c_leave, hz1)
+                c_enter, c_leave = fmax(c_enter, hz0), fmin(c_leave, hz1)
             else:
-                c_enter, c_leave = max(c_enter, lz0), min(c_leave, lz1)
-            c_near = max(c_enter, tmin)
-            if not (c_near < min(c_leave, tmax)):
+                c_enter, c_leave = fmax(c_enter, lz0), fmin(c_leave, lz1)
+            c_near = fmax(c_enter, tmin)
+            if not (c_near < fmin(c_leave, tmax)):
                 continue
             # Insertion sort, latest entry first, so the nearest child ends on top of the stack.
             k = count
@@ -175,7 +192,7 @@ def trace_ray(
             order_t[k] = c_near
             order_c[k] = octant
             count += 1
-        base = first_child[node]
+        base = descriptor >> 8
         for k in range(count):
             octant = order_c[k]
             stack_node[sp] = base + child_slot(mask, octant)

@@ -53,7 +53,7 @@ def trace_image(
     lod = np.empty((h, w), np.int8)
     band = max(8, min(64, h // 16 or 1))
     cam = camera.params
-    args = (octree.child_mask, octree.first_child, octree.depth, stop_level, cone_scale, colors)
+    args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors)
     # An empty band loads (or compiles) the kernel outside the timed region.
     render_rows(cam, w, h, 0, 0, side, seed, *args, image, depth, normal, rays, hits, steps, lod)
     start = time.perf_counter()

@@ -39,7 +39,8 @@ def load_scene_npz(path: str | os.PathLike) -> VoxelScene:
             if "coords" not in data or "color" not in data:
                 raise SceneFormatError(f"{path}: a voxel-scene .npz needs 'coords' and 'color'")
             emission = data["emission"] if "emission" in data else None
-            channels = {k[len("channel_"):]: data[k] for k in data.files if k.startswith("channel_")}
+            prefix = "channel_"
+            channels = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
             return VoxelScene(data["coords"], data["color"], emission, channels, path.stem)
     except VoxfieldError:
         raise

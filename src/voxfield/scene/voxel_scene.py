@@ -40,7 +40,7 @@ class VoxelScene:
         object.__setattr__(self, "color", _checked_rgb(self.color, n, "color"))
         if self.emission is not None:
             object.__setattr__(self, "emission", _checked_rgb(self.emission, n, "emission"))
-        checked = {name: _checked_rgb(v, n, f"channel {name!r}") for name, v in self.channels.items()}
+        checked = {k: _checked_rgb(v, n, f"channel {k!r}") for k, v in self.channels.items()}
         object.__setattr__(self, "channels", checked)
 
     def __len__(self) -> int:
@@ -116,7 +116,9 @@ def _checked_rgb(values, n: int, what: str) -> np.ndarray:
     return arr
 
 
-def compose(parts: Sequence[tuple[VoxelScene, Sequence[int]]], name: str = "composite") -> VoxelScene:
+def compose(
+    parts: Sequence[tuple[VoxelScene, Sequence[int]]], name: str = "composite"
+) -> VoxelScene:
     """Place several scenes into one world, each at an integer offset; later parts win overlaps.
 
     Extra channels are kept only when every part has them; emission is zero where a part has none.

@@ -1,4 +1,4 @@
-"""Bottom-up octree build: Morton-sort the voxels, then group children under parents level by level."""
+"""Bottom-up octree build: Morton-sort the voxels, then group children under parents per level."""
 
 from __future__ import annotations
 
@@ -86,7 +86,8 @@ def build_octree(scene: VoxelScene, *, memory_limit_bytes: int | None = None) ->
         starts = np.flatnonzero(np.diff(parent_codes)) + 1
         starts = np.concatenate(([0], starts)).astype(np.int64)
         counts = np.diff(np.append(starts, len(child_codes)))
-        octant_bits = (np.uint8(1) << (child_codes & np.uint64(7)).astype(np.uint8)).astype(np.uint8)
+        octants = (child_codes & np.uint64(7)).astype(np.uint8)
+        octant_bits = (np.uint8(1) << octants).astype(np.uint8)
         level_masks.append(np.bitwise_or.reduceat(octant_bits, starts).astype(np.uint8))
         level_first.append(starts)
         level_coords.append(level_coords[-1][starts] >> 1)

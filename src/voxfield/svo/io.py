@@ -79,7 +79,7 @@ def load_octree(path: str | os.PathLike) -> Octree:
             )
     except OctreeFormatError:
         raise
-    except (OSError, ValueError, KeyError, zipfile.BadZipFile, json.JSONDecodeError, EOFError) as exc:
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
         raise OctreeFormatError(f"{path}: unreadable or corrupt octree file ({exc})") from exc
     validate_octree(octree, str(path))
     return octree

@@ -10,6 +10,7 @@ the mean of its children's colours (EA §3.1).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -40,6 +41,14 @@ class Octree:
     def size(self) -> int:
         """Side length of the root cube in voxels."""
         return 1 << self.depth
+
+    @cached_property
+    def inner_nodes(self) -> np.ndarray:
+        """Packed ``first_child << 8 | child_mask`` per inner node (levels 0..depth-1), the
+        layout the traversal kernels read: one 8-byte load per visited node."""
+        inner = int(self.level_offsets[-2])
+        packed = self.first_child[:inner].astype(np.uint64) << np.uint64(8)
+        return (packed | self.child_mask[:inner].astype(np.uint64)).astype(np.int64)
 
     @property
     def voxel_bounds(self) -> tuple[np.ndarray, np.ndarray]:
