@@ -330,7 +330,7 @@ def print_tables(all_stats: list[SceneStats], peer: bool, args) -> None:
         print("| " + " | ".join(cells) + " |")
     print()
     print("voxfield MiB: every octree array (masks, child offsets, node coordinates, colours); "
-          "in brackets the two arrays the traversal reads (child masks, first-child offsets). "
+          "in brackets what the traversal reads (one packed descriptor per inner node). "
           "voxfield Mrays/s: its renderers, ray generation and shading included.")
     if peer:
         print("Embree: the mesh arrays handed over (float32 vertices, uint32 triangles) and the "

@@ -66,7 +66,7 @@ def _scene_options(args):
 def _open_octree(args):
     from voxfield.svo.io import open_octree
 
-    return open_octree(args.scene, _scene_options(args))
+    return open_octree(args.scene, _scene_options(args), progress=not args.quiet)
 
 
 def _camera(args, octree):
@@ -167,7 +167,7 @@ def cmd_info(args) -> int:
         start = time.perf_counter()
         scene = load_scene(args.scene, _scene_options(args))
         load_seconds = time.perf_counter() - start
-        octree = build_octree(scene)
+        octree = build_octree(scene, progress=not args.quiet)
         load_note = f"scene read in {load_seconds:.2f} s"
     lo, hi = octree.voxel_bounds
     info = {

@@ -7,6 +7,7 @@ import time
 import numpy as np
 
 from voxfield.errors import SceneTooLargeError, VoxfieldError
+from voxfield.progress import progress_bar
 from voxfield.scene.voxel_scene import MAX_EXTENT, VoxelScene
 from voxfield.svo.octree import Octree
 
@@ -43,7 +44,33 @@ def octree_depth_for(extent: np.ndarray) -> int:
     return max(1, int(np.ceil(np.log2(max(longest, 2)))))
 
 
-def build_octree(scene: VoxelScene, *, memory_limit_bytes: int | None = None) -> Octree:
+def _add_parent_level(codes, level_masks, level_first, level_coords, level_attrs) -> np.ndarray:
+    """Group the last level's nodes under their parents (Morton code >> 3) and append the
+    parent level: OR-ed child masks, first-child offsets, coordinates and mean attributes.
+    Returns the parents' Morton codes."""
+    parent_codes = codes >> np.uint64(3)
+    starts = np.flatnonzero(np.diff(parent_codes)) + 1
+    starts = np.concatenate(([0], starts)).astype(np.int64)
+    counts = np.diff(np.append(starts, len(codes)))
+    octants = (codes & np.uint64(7)).astype(np.uint8)
+    octant_bits = (np.uint8(1) << octants).astype(np.uint8)
+    level_masks.append(np.bitwise_or.reduceat(octant_bits, starts).astype(np.uint8))
+    level_first.append(starts)
+    level_coords.append(level_coords[-1][starts] >> 1)
+    level_attrs.append(
+        {
+            k: (np.add.reduceat(v, starts, axis=0, dtype=np.float64) / counts[:, None]).astype(
+                np.float32
+            )
+            for k, v in level_attrs[-1].items()
+        }
+    )
+    return parent_codes[starts]
+
+
+def build_octree(
+    scene: VoxelScene, *, memory_limit_bytes: int | None = None, progress: bool = False
+) -> Octree:
     """Build the SVO of a scene; the scene is moved so its minimum corner is the origin."""
     if len(scene) == 0:
         raise VoxfieldError(f"scene {scene.name!r} has no voxels; nothing to build")
@@ -80,27 +107,11 @@ def build_octree(scene: VoxelScene, *, memory_limit_bytes: int | None = None) ->
     level_first = [np.zeros(n, np.int64)]
     level_coords = [coords[order]]
     level_attrs = [attributes]
-    for _ in range(depth):
-        child_codes = codes
-        parent_codes = child_codes >> np.uint64(3)
-        starts = np.flatnonzero(np.diff(parent_codes)) + 1
-        starts = np.concatenate(([0], starts)).astype(np.int64)
-        counts = np.diff(np.append(starts, len(child_codes)))
-        octants = (child_codes & np.uint64(7)).astype(np.uint8)
-        octant_bits = (np.uint8(1) << octants).astype(np.uint8)
-        level_masks.append(np.bitwise_or.reduceat(octant_bits, starts).astype(np.uint8))
-        level_first.append(starts)
-        level_coords.append(level_coords[-1][starts] >> 1)
-        child_attrs = level_attrs[-1]
-        level_attrs.append(
-            {
-                k: (np.add.reduceat(v, starts, axis=0, dtype=np.float64) / counts[:, None]).astype(
-                    np.float32
-                )
-                for k, v in child_attrs.items()
-            }
-        )
-        codes = parent_codes[starts]
+    with progress_bar(total=depth + 1, desc="octree", unit="level", enabled=progress) as bar:
+        bar.update(1)  # the Morton sort, done above
+        for _ in range(depth):
+            codes = _add_parent_level(codes, level_masks, level_first, level_coords, level_attrs)
+            bar.update(1)
 
     level_masks.reverse()
     level_first.reverse()

@@ -115,7 +115,7 @@ def validate_octree(octree: Octree, where: str = "octree") -> None:
             raise OctreeFormatError(f"{where}: child pointers of level {level} are not contiguous")
 
 
-def open_octree(spec: str, options=None) -> Octree:
+def open_octree(spec: str, options=None, *, progress: bool = False) -> Octree:
     """An octree from a saved octree file, or built from any scene description."""
     from voxfield.scene.loaders import load_scene, npz_kind
     from voxfield.svo.build import build_octree
@@ -123,4 +123,4 @@ def open_octree(spec: str, options=None) -> Octree:
     path = Path(spec)
     if path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree":
         return load_octree(path)
-    return build_octree(load_scene(spec, options))
+    return build_octree(load_scene(spec, options), progress=progress)
