@@ -3,21 +3,14 @@
 from __future__ import annotations
 
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
+from voxfield.atomic import atomic_path
 from voxfield.errors import VoxfieldError
 from voxfield.scene.voxel_scene import linear_to_srgb
-
-
-def _atomic_target(path: Path):
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.stem + ".", suffix=path.suffix, dir=path.parent)
-    os.close(fd)
-    return Path(tmp)
 
 
 def save_png(image: np.ndarray, path: str | os.PathLike, *, encode_srgb: bool = True) -> Path:
@@ -29,12 +22,8 @@ def save_png(image: np.ndarray, path: str | os.PathLike, *, encode_srgb: bool = 
     data = np.nan_to_num(data, nan=0.0, posinf=1.0, neginf=0.0)
     data = linear_to_srgb(data) if encode_srgb else np.clip(data, 0.0, 1.0)
     pixels = np.round(data * 255.0).astype(np.uint8)
-    tmp = _atomic_target(path)
-    try:
+    with atomic_path(path) as tmp:
         Image.fromarray(pixels).save(tmp, format="PNG")
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
     return path
 
 
@@ -44,14 +33,9 @@ def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike) -> Path:
 
     path = Path(path)
     data = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
-    tmp = _atomic_target(path)
-    try:
-        with OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
-                          data) as f:
-            f.write(str(tmp))
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    with atomic_path(path) as tmp, OpenEXR.File(header, data) as f:
+        f.write(str(tmp))
     return path
 
 

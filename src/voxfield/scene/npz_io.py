@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import os
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from voxfield.atomic import atomic_path
 from voxfield.errors import SceneFormatError, VoxfieldError
 from voxfield.scene.voxel_scene import VoxelScene
 
@@ -20,15 +20,8 @@ def save_scene(scene: VoxelScene, path: str | os.PathLike) -> Path:
         arrays["emission"] = scene.emission
     for name, values in scene.channels.items():
         arrays[f"channel_{name}"] = values
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez_compressed(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, **arrays)
     return path
 
 

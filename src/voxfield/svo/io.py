@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 import zipfile
 from pathlib import Path
 
 import numpy as np
 
+from voxfield.atomic import atomic_path
 from voxfield.errors import OctreeFormatError
 from voxfield.svo.octree import Octree
 
@@ -38,15 +38,8 @@ def save_octree(octree: Octree, path: str | os.PathLike) -> Path:
     }
     for name, values in octree.attributes.items():
         arrays[f"attr_{name}"] = values
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name, suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            np.savez(f, **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez(f, **arrays)
     return path
 
 
