@@ -130,23 +130,10 @@ def warm_up() -> None:
 
 def voxfield_trace(octree, origins, directions, threads=None):
     """Per-ray (hit?, t, steps) from the batch kernel at LOD 0."""
-    from voxfield.kernels.primary import trace_rays
-    from voxfield.render.renderers import thread_count
+    from voxfield.render.ray_query import trace
 
-    n = len(origins)
-    node = np.empty(n, np.int64)
-    level = np.empty(n, np.int64)
-    t = np.empty(n)
-    normal = np.empty(n, np.int64)
-    steps = np.empty(n, np.int64)
-    with thread_count(threads):
-        trace_rays(
-            np.ascontiguousarray(origins, np.float64),
-            np.ascontiguousarray(directions, np.float64),
-            0.0, math.inf, octree.inner_nodes, octree.depth, octree.depth,
-            node, level, t, normal, steps,
-        )
-    return node >= 0, t, steps
+    hits = trace(octree, origins, directions, lod=0, threads=threads)
+    return hits.hit, hits.t, hits.steps
 
 
 def best_of(repeats: int, fn):

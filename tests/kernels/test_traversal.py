@@ -6,32 +6,21 @@ LOD grid), on rays that include axis-aligned, face-grazing, edge- and corner-hit
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 import pytest
 
 from conftest import random_scene
 from ray_oracle import first_hits
-from voxfield.kernels.primary import trace_rays
+from voxfield.errors import VoxfieldError
 from voxfield.kernels.traversal import NO_NORMAL
+from voxfield.render import ray_query
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
 
 
 def trace(octree, origins, directions, lod=0, tmin=0.0):
-    n = len(origins)
-    node = np.empty(n, np.int64)
-    level = np.empty(n, np.int64)
-    t = np.empty(n)
-    normal = np.empty(n, np.int64)
-    steps = np.empty(n, np.int64)
-    trace_rays(
-        np.ascontiguousarray(origins, np.float64), np.ascontiguousarray(directions, np.float64),
-        tmin, math.inf, octree.inner_nodes, octree.depth,
-        octree.depth - lod, node, level, t, normal, steps,
-    )
-    return node, level, t, normal, steps
+    hits = ray_query.trace(octree, origins, directions, lod=lod, tmin=tmin)
+    return hits.node, hits.level, hits.t, hits.normal_code, hits.steps
 
 
 def adversarial_rays(lo, hi, n_random, seed):
@@ -150,6 +139,16 @@ def test_steps_count_every_node_on_the_way_down():
     # A ray missing the root visits nothing.
     *_, steps = trace(octree, np.array([[-1.0, -1.0, -1.0]]), np.array([[-1.0, 0.0, 0.0]]))
     assert steps[0] == 0
+
+
+def test_ray_query_rejects_bad_rays():
+    octree = build_octree(VoxelScene(np.array([[0, 0, 0]]), np.ones((1, 3))))
+    with pytest.raises(VoxfieldError, match="N×3"):
+        ray_query.trace(octree, np.zeros((2, 2)), np.ones((2, 2)))
+    with pytest.raises(VoxfieldError, match="zero vector"):
+        ray_query.trace(octree, np.zeros((1, 3)), np.zeros((1, 3)))
+    with pytest.raises(VoxfieldError, match="NaN"):
+        ray_query.trace(octree, np.full((1, 3), np.nan), np.ones((1, 3)))
 
 
 def test_rays_starting_inside_a_voxel_hit_it_at_tmin():

@@ -1,0 +1,63 @@
+"""Arbitrary ray queries against an octree: the batch form of the primary-ray traversal."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+from voxfield.kernels.primary import trace_rays
+from voxfield.render.renderers import thread_count
+from voxfield.svo.octree import Octree
+
+
+@dataclass
+class RayHits:
+    """Per-ray results; ``node`` is -1 and ``t`` is inf where a ray hits nothing.
+
+    ``normal_code`` is 0..5 for the -x, +x, -y, +y, -z, +z face entered, -1 when the ray
+    starts inside the node it hits; ``steps`` counts the octree nodes visited.
+    """
+
+    node: np.ndarray
+    level: np.ndarray
+    t: np.ndarray
+    normal_code: np.ndarray
+    steps: np.ndarray
+
+    @property
+    def hit(self) -> np.ndarray:
+        return self.node >= 0
+
+
+def trace(
+    octree: Octree, origins, directions, *, lod: int = 0, tmin: float = 0.0,
+    tmax: float = math.inf, threads: int | None = None,
+) -> RayHits:
+    """First node at ``lod`` hit by each ray ``o + t·d`` with ``tmin <= t < tmax``.
+
+    Directions need not be normalised; ``t`` is in units of each direction's length.
+    """
+    o = np.ascontiguousarray(origins, dtype=np.float64)
+    d = np.ascontiguousarray(directions, dtype=np.float64)
+    if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
+        raise VoxfieldError(f"origins and directions must both be N×3, got {o.shape}, {d.shape}")
+    if not (np.isfinite(o).all() and np.isfinite(d).all()):
+        raise VoxfieldError("ray origins or directions hold NaN or infinity")
+    if np.any(~d.any(axis=1)):
+        raise VoxfieldError("a ray direction is the zero vector")
+    if not 0 <= lod <= octree.depth:
+        raise VoxfieldError(f"LOD must be between 0 and {octree.depth} for this octree, got {lod}")
+    n = len(o)
+    hits = RayHits(
+        node=np.empty(n, np.int64), level=np.empty(n, np.int64), t=np.empty(n),
+        normal_code=np.empty(n, np.int64), steps=np.empty(n, np.int64),
+    )
+    with thread_count(threads):
+        trace_rays(
+            o, d, float(tmin), float(tmax), octree.inner_nodes, octree.depth, octree.depth - lod,
+            hits.node, hits.level, hits.t, hits.normal_code, hits.steps,
+        )
+    return hits
