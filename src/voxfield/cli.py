@@ -101,7 +101,8 @@ def _camera(args, octree):
 
 
 def cmd_render(args) -> int:
-    from voxfield.render.image_io import save_png, save_result_image
+    from voxfield.render.counter_maps import write_counter_maps
+    from voxfield.render.image_io import save_result_image
     from voxfield.render.renderers import render_lod, render_reference
 
     octree = _open_octree(args)
@@ -120,16 +121,7 @@ def cmd_render(args) -> int:
     save_result_image(result, out)
     written = [out]
     if args.counters:
-        steps = result.steps.astype(np.float64)
-        heat = steps / max(1.0, float(np.percentile(steps[steps > 0], 99)) if steps.any() else 1.0)
-        written.append(save_png(np.clip(heat, 0, 1), out.with_name(out.stem + "_steps.png"),
-                                encode_srgb=False))
-        lod_map = result.finest_lod.astype(np.float64)
-        lod_img = np.where(lod_map < 0, 0.0, 1.0 - lod_map / max(1, octree.depth))
-        written.append(save_png(lod_img, out.with_name(out.stem + "_lod.png"), encode_srgb=False))
-        summary_path = out.with_name(out.stem + "_summary.json")
-        summary_path.write_text(json.dumps(result.summary(), indent=2))
-        written.append(summary_path)
+        written += write_counter_maps(result, out, octree.depth)
     if not args.quiet:
         s = result.summary()
         print(
