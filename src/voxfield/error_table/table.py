@@ -1,0 +1,238 @@
+"""ErrorTable: the error of sampling a node instead of its children, per child mask and
+direction, in two encodings — 9 SH coefficients (EA §3.2) and a bordered octahedral map
+(EA §6.2). Built by ``voxfield errors build``; one file ships with the package.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import time
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from voxfield.atomic import atomic_path
+from voxfield.error_table.directions import fibonacci_directions
+from voxfield.error_table.spherical_harmonics import fit_sh, sh_basis, sh_evaluate
+from voxfield.errors import VoxfieldError
+from voxfield.kernels.error_raycast import (
+    child_hit_histograms,
+    errors_from_histograms,
+    image_plane_samples,
+)
+from voxfield.kernels.octahedral import add_border, oct_bilinear, oct_encode, texel_directions
+
+ENCODINGS = ("sh", "oct")
+FORMAT = "voxfield-error-table"
+FORMAT_VERSION = 1
+DEFAULT_TABLE = Path(__file__).parent / "data" / "error_table.npz"
+REBUILD_COMMAND = "voxfield errors build --out " + "src/voxfield/error_table/data/error_table.npz"
+
+
+class ErrorTableError(VoxfieldError):
+    """An error table file is missing, corrupt or was built differently than recorded."""
+
+
+@dataclass(frozen=True)
+class ErrorTable:
+    """Per-mask error over the sphere; ``error(mask, direction)`` is the one interface.
+
+    Directions are ray travel directions. ``raw`` holds the ray-cast errors at the Fibonacci
+    ``directions`` the SH fit used; ``oct_map`` holds (256, R + 2, R + 2) bordered maps whose
+    interior texels were ray-cast at the texel-centre directions.
+    """
+
+    directions: np.ndarray  # (n, 3) float64
+    raw: np.ndarray  # (256, n) float32
+    sh: np.ndarray  # (256, 9) float32
+    oct_map: np.ndarray  # (256, R + 2, R + 2) float32
+    params: dict = field(default_factory=dict)
+    default_encoding: str = "oct"
+
+    @property
+    def oct_resolution(self) -> int:
+        return self.oct_map.shape[-1] - 2
+
+    def error(self, mask, direction, encoding: str | None = None) -> np.ndarray:
+        """Error for masks (int or array) and unit directions (3 or N×3), broadcast."""
+        encoding = encoding or self.default_encoding
+        masks = np.asarray(mask, dtype=np.int64)
+        dirs = np.asarray(direction, dtype=np.float64)
+        if dirs.shape[-1] != 3:
+            raise VoxfieldError(f"directions must end in 3 components, got shape {dirs.shape}")
+        if np.any((masks < 0) | (masks > 255)):
+            raise VoxfieldError("child masks must be between 0 and 255")
+        norms = np.linalg.norm(dirs, axis=-1, keepdims=True)
+        if np.any(norms == 0) or not np.all(np.isfinite(dirs)):
+            raise VoxfieldError("directions must be finite and non-zero")
+        dirs = dirs / norms
+        masks, dirs_b = np.broadcast_arrays(masks[..., None], dirs)
+        masks = masks[..., 0]
+        flat_m = np.array(masks.reshape(-1))  # own copies: broadcast views are read-only
+        flat_d = np.array(dirs_b.reshape(-1, 3))
+        if encoding == "sh":
+            out = np.einsum("ij,ij->i", sh_basis(flat_d), self.sh[flat_m].astype(np.float64))
+        elif encoding == "oct":
+            out = _oct_lookup_many(self.oct_map, flat_m, flat_d)
+        else:
+            raise VoxfieldError(f"unknown encoding {encoding!r}; choose one of {ENCODINGS}")
+        return np.clip(out, 0.0, 1.0).reshape(masks.shape)
+
+
+@njit(cache=True, nogil=True)
+def oct_error(oct_map: np.ndarray, mask: int, x: float, y: float, z: float) -> float:
+    """Kernel form of ``ErrorTable.error`` with the octahedral encoding."""
+    u, v = oct_encode(x, y, z)
+    return oct_bilinear(oct_map[mask], u, v)
+
+
+@njit(cache=True, nogil=True)
+def sh_error(sh: np.ndarray, mask: int, x: float, y: float, z: float) -> float:
+    """Kernel form of ``ErrorTable.error`` with the SH encoding."""
+    return sh_evaluate(sh[mask], x, y, z)
+
+
+@njit(cache=True)
+def _oct_lookup_many(oct_map, masks, dirs):
+    out = np.empty(masks.shape[0])
+    for i in range(masks.shape[0]):
+        out[i] = oct_error(oct_map, masks[i], dirs[i, 0], dirs[i, 1], dirs[i, 2])
+    return out
+
+
+def raycast_errors(directions: np.ndarray, resolution: int = 512, seed: int = 0) -> np.ndarray:
+    """(256, n) ray-cast errors at the given ray directions (EA Algorithm 1)."""
+    if not 2 <= int(resolution) <= 4096:
+        raise VoxfieldError(f"framebuffer resolution must be in 2..4096, got {resolution}")
+    dirs = np.ascontiguousarray(directions, dtype=np.float64)
+    if dirs.ndim != 2 or dirs.shape[1] != 3 or len(dirs) == 0:
+        raise VoxfieldError(f"directions must be N×3, got {dirs.shape}")
+    dirs = dirs / np.linalg.norm(dirs, axis=1)[:, None]
+    samples = image_plane_samples(int(resolution), int(seed))
+    return errors_from_histograms(child_hit_histograms(dirs, samples))
+
+
+def build_error_table(
+    n_directions: int = 1024, resolution: int = 512, oct_resolution: int = 32, seed: int = 0,
+    progress: bool = False,
+) -> ErrorTable:
+    """Ray-cast the errors and fit both encodings (deterministic for fixed parameters)."""
+    from voxfield.progress import progress_bar
+
+    if n_directions < 9:
+        raise VoxfieldError("need at least 9 directions to fit 9 SH coefficients")
+    if not 2 <= oct_resolution <= 256:
+        raise VoxfieldError(f"octahedral map resolution must be in 2..256, got {oct_resolution}")
+    start = time.perf_counter()
+    directions = fibonacci_directions(n_directions)
+    texels = texel_directions(oct_resolution)
+    all_dirs = np.concatenate([directions, texels])
+    chunk = 128
+    parts = []
+    with progress_bar(total=len(all_dirs), desc="error table", unit="dir", enabled=progress) as bar:
+        for i in range(0, len(all_dirs), chunk):
+            parts.append(raycast_errors(all_dirs[i : i + chunk], resolution, seed))
+            bar.update(min(chunk, len(all_dirs) - i))
+    errors = np.concatenate(parts, axis=1)
+    raw = errors[:, :n_directions]
+    oct_interior = errors[:, n_directions:].reshape(256, oct_resolution, oct_resolution)
+    params = {
+        "n_directions": int(n_directions),
+        "resolution": int(resolution),
+        "oct_resolution": int(oct_resolution),
+        "seed": int(seed),
+        "direction_set": "fibonacci",
+        "build_seconds": round(time.perf_counter() - start, 2),
+    }
+    return ErrorTable(
+        directions=directions,
+        raw=raw.astype(np.float32),
+        sh=fit_sh(directions, raw).astype(np.float32),
+        oct_map=add_border(oct_interior).astype(np.float32),
+        params=params,
+    )
+
+
+def _checksum(arrays: dict[str, np.ndarray]) -> str:
+    digest = hashlib.sha256()
+    for name in sorted(arrays):
+        digest.update(name.encode())
+        digest.update(np.ascontiguousarray(arrays[name]).tobytes())
+    return digest.hexdigest()
+
+
+def save_error_table(table: ErrorTable, path: str | Path) -> Path:
+    """Write the table with its parameters and a SHA-256 of its arrays (atomically)."""
+    arrays = {
+        "directions": table.directions.astype(np.float64),
+        "raw": table.raw.astype(np.float16),  # for reports and refits; ±5e-4 is plenty
+        "sh": table.sh,
+        "oct_map": table.oct_map,
+    }
+    header = {
+        "format": FORMAT,
+        "version": FORMAT_VERSION,
+        "params": table.params,
+        "default_encoding": table.default_encoding,
+        "sha256": _checksum(arrays),
+    }
+    path = Path(path)
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(
+            f, header=np.frombuffer(json.dumps(header).encode(), np.uint8), **arrays
+        )
+    return path
+
+
+def load_error_table(path: str | Path | None = None) -> ErrorTable:
+    """Read a table (the packaged one by default), verifying its checksum."""
+    path = DEFAULT_TABLE if path is None else Path(path)
+    hint = f"rebuild it with `{REBUILD_COMMAND}`" if path == DEFAULT_TABLE else (
+        f"rebuild it with `voxfield errors build --out {path}`"
+    )
+    if not path.is_file():
+        raise ErrorTableError(f"error table {path} is missing; {hint}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            header = json.loads(bytes(data["header"]).decode())
+            arrays = {k: data[k] for k in ("directions", "raw", "sh", "oct_map")}
+    except (OSError, ValueError, KeyError, zipfile.BadZipFile, EOFError) as exc:
+        raise ErrorTableError(f"error table {path} is unreadable ({exc}); {hint}") from exc
+    if header.get("format") != FORMAT or header.get("version") != FORMAT_VERSION:
+        raise ErrorTableError(f"{path} is not a version-{FORMAT_VERSION} error table; {hint}")
+    if _checksum(arrays) != header.get("sha256"):
+        raise ErrorTableError(f"error table {path} fails its checksum (corrupt?); {hint}")
+    n = len(arrays["directions"])
+    if arrays["raw"].shape != (256, n) or arrays["sh"].shape != (256, 9):
+        raise ErrorTableError(f"error table {path} has inconsistent array shapes; {hint}")
+    if arrays["oct_map"].ndim != 3 or arrays["oct_map"].shape[0] != 256:
+        raise ErrorTableError(f"error table {path} has a malformed octahedral map; {hint}")
+    return ErrorTable(
+        directions=arrays["directions"], raw=arrays["raw"].astype(np.float32), sh=arrays["sh"],
+        oct_map=arrays["oct_map"], params=header.get("params", {}),
+        default_encoding=header.get("default_encoding", "oct"),
+    )
+
+
+def fit_report(table: ErrorTable, n_holdout: int = 512, seed: int = 12345) -> dict:
+    """Max and RMS difference of each encoding from fresh ray-cast errors at held-out random
+    directions (same framebuffer resolution and seed as the table)."""
+    from voxfield.error_table.directions import random_directions
+
+    dirs = random_directions(n_holdout, seed)
+    truth = raycast_errors(dirs, table.params.get("resolution", 512), table.params.get("seed", 0))
+    masks = np.arange(1, 256)  # mask 0 is no node at all
+    report = {"n_holdout": n_holdout}
+    for encoding in ENCODINGS:
+        approx = table.error(masks[:, None], dirs[None, :, :], encoding)
+        diff = approx - truth[1:]
+        report[encoding] = {
+            "max_abs": float(np.abs(diff).max()),
+            "rms": float(np.sqrt(np.mean(diff**2))),
+            "mean_abs": float(np.abs(diff).mean()),
+        }
+    return report
