@@ -13,12 +13,15 @@ from PIL import Image
 from voxfield.cli import build_parser, main
 from voxfield.render.image_io import load_exr
 
-COMMANDS = ["render", "info", "build", "scenes"]
+COMMANDS = ["render", "info", "build", "scenes", "errors"]
+ERROR_ACTIONS = ["build", "info", "show"]
 
 
-@pytest.mark.parametrize("command", [None, *COMMANDS])
-def test_every_command_has_help(command, capsys):
-    argv = ["--help"] if command is None else [command, "--help"]
+@pytest.mark.parametrize(
+    "argv", [[], *([c] for c in COMMANDS), *(["errors", a] for a in ERROR_ACTIONS)]
+)
+def test_every_command_has_help(argv, capsys):
+    argv = [*argv, "--help"]
     with pytest.raises(SystemExit) as exc:
         main(argv)
     assert exc.value.code == 0
@@ -81,6 +84,26 @@ def test_bad_input_is_one_line_and_exit_two(argv, tmp_path, monkeypatch):
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
     assert lines[-1].startswith("voxfield: error:") and "Traceback" not in proc.stderr
+
+
+def test_errors_build_small_table_then_info_and_show(tmp_path, capsys):
+    table = tmp_path / "t.npz"
+    assert main(["errors", "build", "--directions", "32", "--resolution", "32",
+                 "--oct-resolution", "8", "--out", str(table), "--quiet"]) == 0
+    assert main(["errors", "info", "--table", str(table)]) == 0
+    out = capsys.readouterr().out
+    assert "32 Fibonacci directions" in out and "22 of 256" in out
+    png = tmp_path / "m.png"
+    assert main(["errors", "show", "0x0f", "--table", str(table), "--out", str(png)]) == 0
+    assert Image.open(png).size[0] > 500
+
+
+def test_errors_commands_reject_bad_input(tmp_path, capsys):
+    assert main(["errors", "info", "--table", str(tmp_path / "none.npz")]) == 2
+    assert "voxfield errors build" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["errors", "show", "256"])
+    assert exc.value.code == 2
 
 
 def test_corrupt_octree_file_is_a_clear_error(tmp_path, capsys):
