@@ -12,7 +12,8 @@ import numpy as np
 
 def _axis_times(o, d, lo, hi):
     """Per-ray × per-box entry and exit times along one axis."""
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        d = np.where(np.isfinite(1.0 / d), d, 0.0)  # uninvertible components count as zero
         inv = np.where(d != 0.0, 1.0 / np.where(d != 0.0, d, 1.0), np.inf)
         t0 = (lo[None, :] - o[:, None]) * inv[:, None]
         t1 = (hi[None, :] - o[:, None]) * inv[:, None]

@@ -12,6 +12,7 @@ import pytest
 from conftest import random_scene
 from ray_oracle import first_hits
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.primary import trace_rays
 from voxfield.kernels.traversal import NO_NORMAL
 from voxfield.render import ray_query
 from voxfield.scene.voxel_scene import VoxelScene
@@ -155,3 +156,19 @@ def test_rays_starting_inside_a_voxel_hit_it_at_tmin():
     octree = build_octree(VoxelScene(np.array([[0, 0, 0], [3, 3, 3]]), np.ones((2, 3))))
     node, level, t, normal, _ = trace(octree, np.array([[0.5, 0.5, 0.5]]), np.array([[1.0, 0, 0]]))
     assert node[0] >= 0 and t[0] == 0.0 and normal[0] == NO_NORMAL
+
+
+def test_denormal_direction_components_count_as_zero_and_nan_rays_miss():
+    octree = build_octree(random_scene(3, n=300, size=8))
+    rng = np.random.default_rng(5)
+    origins = rng.uniform(-3, 11, size=(2000, 3))
+    directions = rng.normal(size=(2000, 3))
+    directions[::2, 1] = 1e-320  # 1 / d overflows
+    assert_matches_oracle(octree, origins, directions, 0)
+    n = 3
+    outs = [np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n), np.empty(n, np.int64),
+            np.empty(n, np.int64)]
+    bad_o = np.array([[np.nan, 1.0, 1.0], [1.0, 1.0, 1.0], [1.0, 1.0, 1.0]])
+    bad_d = np.array([[1.0, 0.0, 0.0], [np.inf, 0.0, 0.0], [1.0, 0.0, 0.0]])
+    trace_rays(bad_o, bad_d, 0.0, np.nan, octree.inner_nodes, octree.depth, octree.depth, *outs)
+    assert np.all(outs[0] == -1) and np.all(outs[4] == 0)

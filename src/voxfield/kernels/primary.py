@@ -8,7 +8,7 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
-from voxfield.kernels.sampling import subpixel
+from voxfield.kernels.sampling import cmj_sample, pixel_pattern
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
 
@@ -40,7 +40,7 @@ def render_rows(
     radius *= cone_scale / side
     spread *= cone_scale / side
     for row in prange(row0, row1):
-        scratch = new_scratch(depth)
+        s_node, s_level, s_pos, s_t = new_scratch(depth)
         for col in range(width):
             pixel = row * width + col
             r = 0.0
@@ -53,13 +53,18 @@ def render_rows(
             hits = 0
             steps_sum = 0
             finest = 127
+            # ``subpixel`` per sample, with the pixel's pattern hashed once per pixel.
+            pattern = pixel_pattern(pixel, seed) if side > 1 else 0
             for s in range(spp):
-                fx, fy = subpixel(pixel, s, side, seed)
+                if side == 1:
+                    fx, fy = 0.5, 0.5
+                else:
+                    fx, fy = cmj_sample(s, side, side, pattern)
                 ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
                 node, level, t, normal, steps = trace_ray(
                     ox, oy, oz, dx, dy, dz, 0.0, math.inf,
                     inner_nodes, depth, stop_level, radius, spread,
-                    *scratch,
+                    s_node, s_level, s_pos, s_t,
                 )
                 steps_sum += steps
                 if node == MISS:
@@ -113,13 +118,13 @@ def trace_rays(
     n = origins.shape[0]
     chunk = 256
     for c in prange((n + chunk - 1) // chunk):
-        scratch = new_scratch(depth)
+        s_node, s_level, s_pos, s_t = new_scratch(depth)
         for k in range(c * chunk, min(n, (c + 1) * chunk)):
             node, level, t, normal, steps = trace_ray(
                 origins[k, 0], origins[k, 1], origins[k, 2],
                 directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
                 inner_nodes, depth, stop_level, 0.0, 0.0,
-                *scratch,
+                s_node, s_level, s_pos, s_t,
             )
             out_node[k] = node
             out_level[k] = level
