@@ -85,7 +85,8 @@ def assert_matches_oracle(octree, origins, directions, lod):
     # Normals: the axis whose slab is entered last, pointing against the ray.
     corner = boxes[got[hit]].astype(np.float64)
     o, d = origins[hit], directions[hit]
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        d = np.where(np.isfinite(1.0 / d), d, 0.0)  # the kernel's zero rule
         enter = np.where(d > 0, (corner - o) / d, (corner + 2**lod - o) / d)
     enter = np.where(d == 0, -np.inf, enter)
     inside = t[hit] <= 0.0
