@@ -82,12 +82,14 @@ def add_border(maps: np.ndarray) -> np.ndarray:
 def oct_bilinear(bordered: np.ndarray, u: float, v: float) -> float:
     """Bilinear lookup in one bordered (R + 2)² map at (u, v) in [0, 1]²."""
     r = bordered.shape[0] - 2
-    x = u * r + 0.5  # texel space of the bordered map, centres at integer + 0.5
+    # Bordered texel i holds interior texel i - 1, centred at u = (i - 0.5) / r: in these
+    # coordinates texel centres sit on integers.
+    x = u * r + 0.5
     y = v * r + 0.5
-    x0 = min(max(int(math.floor(x - 0.5)), 0), r)
-    y0 = min(max(int(math.floor(y - 0.5)), 0), r)
-    fx = min(max(x - 0.5 - x0, 0.0), 1.0)
-    fy = min(max(y - 0.5 - y0, 0.0), 1.0)
+    x0 = min(max(int(math.floor(x)), 0), r)
+    y0 = min(max(int(math.floor(y)), 0), r)
+    fx = min(max(x - x0, 0.0), 1.0)
+    fy = min(max(y - y0, 0.0), 1.0)
     top = bordered[y0, x0] * (1.0 - fx) + bordered[y0, x0 + 1] * fx
     bottom = bordered[y0 + 1, x0] * (1.0 - fx) + bordered[y0 + 1, x0 + 1] * fx
     return top * (1.0 - fy) + bottom * fy
