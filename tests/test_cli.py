@@ -52,6 +52,15 @@ def test_render_png_exr_and_counters(tmp_path, capsys):
     assert "Mrays/s" in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("renderer", ["error-aware", "adaptive"])
+def test_adaptive_renderers_from_the_command_line(renderer, tmp_path):
+    out = tmp_path / f"{renderer}.png"
+    assert main(["render", "builtin:pillars", "--renderer", renderer, "--size", "24",
+                 "--camera", "top", "--counters", "--out", str(out), "--quiet"]) == 0
+    summary = json.loads((tmp_path / f"{renderer}_summary.json").read_text())
+    assert summary["renderer"] == renderer and summary["covered_pixels"] > 0
+
+
 def test_info_and_build_round_trip(tmp_path, capsys):
     assert main(["info", "builtin:menger", "--json"]) == 0
     info = json.loads(capsys.readouterr().out)
@@ -72,6 +81,8 @@ def test_info_and_build_round_trip(tmp_path, capsys):
         ["render", "builtin:sphere", "--renderer", "lod", "--lod", "40", "--out", "x.png"],
         ["render", "builtin:sphere", "--eye", "0,0,0", "--target", "0,0,0", "--out", "x.png"],
         ["render", "builtin:sphere", "--size", "8", "--out", "x.bmp"],
+        ["render", "builtin:sphere", "--renderer", "error-aware", "--refinements", "9",
+         "--out", "x.png"],
         ["info", "data.unknown"],
     ],
 )

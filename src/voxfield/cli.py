@@ -29,6 +29,20 @@ def _vector_arg(text: str) -> tuple[float, float, float]:
     return values
 
 
+def _lod_arg(text: str) -> int | None:
+    """A LOD number (0 = voxels) or 'cone' (None: chosen from the pixel footprint)."""
+    if text == "cone":
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        message = f"expected a LOD (0, 1, 2, ...) or 'cone', got {text!r}"
+        raise argparse.ArgumentTypeError(message) from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"a LOD is 0 or more, got {value}")
+    return value
+
+
 def _positive_int(text: str) -> int:
     try:
         value = int(text)
@@ -108,13 +122,25 @@ def cmd_render(args) -> int:
     octree = _open_octree(args)
     camera = _camera(args, octree)
     progress = not args.quiet
+    options = {"seed": args.seed, "channel": args.channel, "threads": args.threads,
+               "progress": progress}
     if args.renderer == "reference":
-        result = render_reference(octree, camera, side=args.spp_side, seed=args.seed,
-                                  channel=args.channel, threads=args.threads, progress=progress)
+        result = render_reference(octree, camera, side=args.spp_side, **options)
+    elif args.renderer == "lod":
+        result = render_lod(octree, camera, lod=args.lod, cone_scale=args.cone_scale, **options)
+    elif args.renderer == "error-aware":
+        from voxfield.render.error_aware import render_error_aware
+
+        result = render_error_aware(
+            octree, camera, threshold=args.threshold, decay=args.decay, base_lod=args.base_lod,
+            cone_scale=args.cone_scale, max_refinements=args.refinements,
+            encoding=args.encoding, **options,
+        )
     else:
-        lod = None if args.lod == "cone" else int(args.lod)
-        result = render_lod(octree, camera, lod=lod, cone_scale=args.cone_scale, seed=args.seed,
-                            channel=args.channel, threads=args.threads, progress=progress)
+        from voxfield.render.adaptive import render_adaptive
+
+        result = render_adaptive(octree, camera, base_lod=args.base_lod,
+                                 iterations=args.iterations, **options)
     out = Path(args.out)
     if args.shade:
         result.image = shade_for_display(result)
@@ -344,7 +370,10 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("render", help="render a scene to PNG or EXR",
                        description="Trace a scene with the reference or LOD renderer.")
     _add_scene_options(p)
-    p.add_argument("--renderer", choices=("reference", "lod"), default="reference")
+    p.add_argument("--renderer", choices=("reference", "lod", "error-aware", "adaptive"),
+                   default="reference",
+                   help="reference (4×4 rays, LOD 0), lod (1 ray, fixed/cone LOD), error-aware "
+                   "(EA §5.1.3) or adaptive (variance baseline, EA §5.1.2)")
     p.add_argument("--camera", default="top",
                    help="top (thesis setup, 90° looking down), oblique, orbit, ortho-top, "
                    "cube+x..cube-z (default top)")
@@ -355,10 +384,22 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--size", type=_positive_int, default=512, help="image width = height (512)")
     p.add_argument("--spp-side", type=_positive_int, default=4,
                    help="reference: side of the CMJ sample grid per pixel (default 4 → 16 rays)")
-    p.add_argument("--lod", default="cone",
+    p.add_argument("--lod", type=_lod_arg, default=None,
                    help="lod renderer: a fixed LOD (0 = voxels) or 'cone' (default)")
     p.add_argument("--cone-scale", type=float, default=1.0,
                    help="lod renderer, cone mode: node size accepted per pixel footprint")
+    p.add_argument("--threshold", type=float, default=0.154,
+                   help="error-aware: refinement threshold (default 0.154, EA §5.1.4)")
+    p.add_argument("--decay", type=float, default=0.2,
+                   help="error-aware: weight of the children's error (default 0.2)")
+    p.add_argument("--base-lod", type=_lod_arg, default=2,
+                   help="error-aware/adaptive: LOD of the first ray, or 'cone' (default 2)")
+    p.add_argument("--refinements", type=int, default=2,
+                   help="error-aware: maximum 2×2 refinements per pixel (default 2 → ≤ 21 rays)")
+    p.add_argument("--encoding", choices=("oct", "sh"), default=None,
+                   help="error-aware: error-table encoding (default: the table's)")
+    p.add_argument("--iterations", type=int, default=1,
+                   help="adaptive: refinement iterations (default 1, as the thesis)")
     p.add_argument("--channel", default="albedo", help="colour channel to show (default albedo)")
     p.add_argument("--threads", type=_positive_int, default=None, help="kernel threads")
     p.add_argument("--shade", action="store_true",

@@ -1,4 +1,4 @@
-"""Primary-ray image kernel: supersampled, counted, LOD-limited tracing of a band of rows."""
+"""Primary-ray kernels: supersampled, counted, LOD-limited tracing of pixels and of ray batches."""
 
 from __future__ import annotations
 
@@ -22,15 +22,16 @@ def normal_from_code(code: int) -> tuple[float, float, float]:
 
 
 @njit(parallel=True, cache=True, nogil=True)
-def render_rows(
-    cam: np.ndarray, width: int, height: int, row0: int, row1: int,
+def render_pixels(
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray,
     side: int, seed: int,
     inner_nodes: np.ndarray, depth: int,
     stop_level: int, cone_scale: float, colors: np.ndarray,
     out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
     out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
 ) -> None:
-    """Trace rows ``[row0, row1)`` with side×side samples per pixel.
+    """Trace the listed pixels (flat indices) with side×side samples each; output ``k`` of
+    every flat ``out_*`` array belongs to ``pixels[k]``.
 
     ``cone_scale`` > 0 stops descent where a node is no larger than ``cone_scale`` times the
     sub-sample footprint; 0 descends to ``stop_level``. Misses contribute black.
@@ -39,10 +40,14 @@ def render_rows(
     radius, spread = pixel_cone(cam, height)
     radius *= cone_scale / side
     spread *= cone_scale / side
-    for row in prange(row0, row1):
+    n = pixels.shape[0]
+    chunk = 64
+    for c in prange((n + chunk - 1) // chunk):
         s_node, s_level, s_pos, s_t = new_scratch(depth)
-        for col in range(width):
-            pixel = row * width + col
+        for i in range(c * chunk, min(n, (c + 1) * chunk)):
+            pixel = pixels[i]
+            row = pixel // width
+            col = pixel - row * width
             r = 0.0
             g = 0.0
             b = 0.0
@@ -81,30 +86,29 @@ def render_rows(
                 lod = depth - level
                 if lod < finest:
                     finest = lod
-            i = row - row0
-            out_color[i, col, 0] = r / spp
-            out_color[i, col, 1] = g / spp
-            out_color[i, col, 2] = b / spp
-            out_rays[i, col] = spp
-            out_hits[i, col] = hits
-            out_steps[i, col] = steps_sum
+            out_color[i, 0] = r / spp
+            out_color[i, 1] = g / spp
+            out_color[i, 2] = b / spp
+            out_rays[i] = spp
+            out_hits[i] = hits
+            out_steps[i] = steps_sum
             if hits > 0:
-                out_depth[i, col] = t_sum / hits
+                out_depth[i] = t_sum / hits
                 length = math.sqrt(nx * nx + ny * ny + nz * nz)
                 if length > 0.0:
                     nx /= length
                     ny /= length
                     nz /= length
-                out_normal[i, col, 0] = nx
-                out_normal[i, col, 1] = ny
-                out_normal[i, col, 2] = nz
-                out_lod[i, col] = finest
+                out_normal[i, 0] = nx
+                out_normal[i, 1] = ny
+                out_normal[i, 2] = nz
+                out_lod[i] = finest
             else:
-                out_depth[i, col] = math.inf
-                out_normal[i, col, 0] = 0.0
-                out_normal[i, col, 1] = 0.0
-                out_normal[i, col, 2] = 0.0
-                out_lod[i, col] = -1
+                out_depth[i] = math.inf
+                out_normal[i, 0] = 0.0
+                out_normal[i, 1] = 0.0
+                out_normal[i, 2] = 0.0
+                out_lod[i] = -1
 
 
 @njit(parallel=True, cache=True, nogil=True)

@@ -9,7 +9,7 @@ import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.primary import render_rows
+from voxfield.kernels.primary import render_pixels
 from voxfield.progress import progress_bar
 from voxfield.render.camera import Camera
 from voxfield.render.result import RenderResult
@@ -54,18 +54,18 @@ def trace_image(
     band = max(8, min(64, h // 16 or 1))
     cam = camera.params
     args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors)
-    # An empty band loads (or compiles) the kernel outside the timed region.
-    render_rows(cam, w, h, 0, 0, side, seed, *args, image, depth, normal, rays, hits, steps, lod)
+    flat = (image.reshape(-1, 3), depth.reshape(-1), normal.reshape(-1, 3), rays.reshape(-1),
+            hits.reshape(-1), steps.reshape(-1), lod.reshape(-1))
+    # An empty pixel list loads (or compiles) the kernel outside the timed region.
+    render_pixels(cam, w, h, np.empty(0, np.int64), side, seed, *args, *flat)
     start = time.perf_counter()
     bar_options = {"total": h, "desc": label, "unit": "row", "enabled": progress}
     with thread_count(threads), progress_bar(**bar_options) as bar:
         for row0 in range(0, h, band):
             row1 = min(h, row0 + band)
-            sl = slice(row0, row1)
-            render_rows(
-                cam, w, h, row0, row1, side, seed, *args,
-                image[sl], depth[sl], normal[sl], rays[sl], hits[sl], steps[sl], lod[sl],
-            )
+            pixels = np.arange(row0 * w, row1 * w, dtype=np.int64)
+            render_pixels(cam, w, h, pixels, side, seed, *args,
+                          *(a[row0 * w : row1 * w] for a in flat))
             bar.update(row1 - row0)
     seconds = time.perf_counter() - start
     return RenderResult(image, depth, normal, rays, hits, steps, lod, seconds)

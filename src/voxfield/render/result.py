@@ -26,6 +26,7 @@ class RenderResult:
     seconds: float = 0.0
     renderer: str = ""
     params: dict = field(default_factory=dict)
+    maps: dict = field(default_factory=dict)  # renderer-specific per-pixel maps (H, W)
 
     @property
     def shape(self) -> tuple[int, int]:

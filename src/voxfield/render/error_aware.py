@@ -1,0 +1,93 @@
+"""The error-aware renderer (EA thesis §5.1.3): LOD refined where the error table says so."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from voxfield.error_table.table import ENCODINGS, ErrorTable, load_error_table
+from voxfield.errors import VoxfieldError
+from voxfield.kernels.error_aware import (
+    ENCODING_OCT,
+    ENCODING_SH,
+    MAX_REFINEMENTS,
+    render_error_aware_rows,
+)
+from voxfield.progress import progress_bar
+from voxfield.render.camera import Camera
+from voxfield.render.renderers import thread_count
+from voxfield.render.result import RenderResult
+from voxfield.svo.octree import Octree
+
+#: The thesis's calibration on its Desert terrain (§5.1.4).
+THESIS_DECAY = 0.2
+THESIS_THRESHOLD = 0.154
+
+
+def render_error_aware(
+    octree: Octree, camera: Camera, table: ErrorTable | None = None, *,
+    threshold: float = THESIS_THRESHOLD, decay: float = THESIS_DECAY,
+    base_lod: int | None = 2, cone_scale: float = 1.0, max_refinements: int = 2,
+    encoding: str | None = None, seed: int = 0, channel: str = "albedo",
+    threads: int | None = None, progress: bool = False,
+) -> RenderResult:
+    """One ray per pixel at ``base_lod`` (or, with ``base_lod=None``, the LOD whose nodes match
+    ``cone_scale`` pixel footprints), refined 2×2 one LOD finer wherever
+    ``E_N(r) = e(r, N) + decay · mean_c e(r, c)`` exceeds ``threshold``.
+
+    ``maps["refined"]`` counts the discarded (refined) rays per pixel.
+    """
+    table = load_error_table() if table is None else table
+    encoding = encoding or table.default_encoding
+    if encoding not in ENCODINGS:
+        raise VoxfieldError(f"unknown encoding {encoding!r}; choose one of {ENCODINGS}")
+    if not 0 <= max_refinements <= MAX_REFINEMENTS:
+        raise VoxfieldError(f"refinements must be between 0 and {MAX_REFINEMENTS}")
+    if base_lod is not None and not 0 <= base_lod <= octree.depth:
+        raise VoxfieldError(f"base LOD must be between 0 and {octree.depth}, got {base_lod}")
+    if np.isnan(threshold) or not (np.isfinite(decay) and decay >= 0):
+        raise VoxfieldError("threshold must be a number (inf: never refine) and decay >= 0")
+    if base_lod is None and not cone_scale > 0:
+        raise VoxfieldError("cone LOD selection needs a positive cone scale")
+    colors = octree.channel(channel)
+    h, w = camera.height, camera.width
+    image = np.empty((h, w, 3), np.float32)
+    depth = np.empty((h, w), np.float32)
+    normal = np.empty((h, w, 3), np.float32)
+    rays = np.empty((h, w), np.int32)
+    hits = np.empty((h, w), np.int32)
+    steps = np.empty((h, w), np.int64)
+    lod = np.empty((h, w), np.int8)
+    refined = np.empty((h, w), np.int32)
+    stop_level = octree.depth - (0 if base_lod is None else base_lod)
+    args = (
+        octree.inner_nodes, octree.depth, stop_level, cone_scale if base_lod is None else 0.0,
+        max_refinements, float(threshold), float(decay),
+        ENCODING_SH if encoding == "sh" else ENCODING_OCT,
+        np.ascontiguousarray(table.oct_map, np.float64), np.ascontiguousarray(table.sh, np.float64),
+        colors,
+    )
+    cam = camera.params
+    render_error_aware_rows(cam, w, h, 0, 0, seed, *args, image, depth, normal, rays, hits,
+                            steps, lod, refined)
+    band = max(8, min(64, h // 16 or 1))
+    start = time.perf_counter()
+    bar_options = {"total": h, "desc": "error-aware", "unit": "row", "enabled": progress}
+    with thread_count(threads), progress_bar(**bar_options) as bar:
+        for row0 in range(0, h, band):
+            sl = slice(row0, min(h, row0 + band))
+            render_error_aware_rows(
+                cam, w, h, sl.start, sl.stop, seed, *args, image[sl], depth[sl], normal[sl],
+                rays[sl], hits[sl], steps[sl], lod[sl], refined[sl],
+            )
+            bar.update(sl.stop - sl.start)
+    result = RenderResult(image, depth, normal, rays, hits, steps, lod,
+                          time.perf_counter() - start, renderer="error-aware")
+    result.params = {
+        "threshold": float(threshold), "decay": float(decay),
+        "base_lod": "cone" if base_lod is None else base_lod, "max_refinements": max_refinements,
+        "encoding": encoding, "seed": seed, "channel": channel,
+    }
+    result.maps["refined"] = refined
+    return result

@@ -1,0 +1,104 @@
+"""Error-aware renderer against independent facts (issue: EA §5.1.3–5.1.4).
+
+- a scene whose error is zero everywhere needs no refinement;
+- refinement forced everywhere with 2 refinements reproduces the 4×4 reference;
+- a larger threshold never casts more rays;
+- an infinite threshold is the plain LOD render.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from voxfield.error_table import build_error_table
+from voxfield.errors import VoxfieldError
+from voxfield.render import Camera, render_lod, render_reference
+from voxfield.render.error_aware import render_error_aware
+from voxfield.scene.builtin import pillars
+from voxfield.scene.voxel_scene import VoxelScene
+from voxfield.svo import build_octree
+
+
+@pytest.fixture(scope="module")
+def table():
+    return build_error_table(n_directions=64, resolution=64, oct_resolution=16, seed=0)
+
+
+@pytest.fixture(scope="module")
+def terrain():
+    """Rolling heightfield filling a top-down view completely (no background pixels)."""
+    return build_octree(pillars(64))
+
+
+def _top(octree, size=32):
+    lo, hi = octree.voxel_bounds
+    c = (lo + hi) / 2
+    return Camera.orthographic((c[0], hi[1] + 2, c[2]), (0, -1, 0), (0, 0, -1),
+                               view_height=float(hi[0] - lo[0]) * 0.9, width=size)
+
+
+def _psnr(a, b):
+    mse = float(np.mean((a.astype(np.float64) - b) ** 2))
+    return np.inf if mse == 0 else 10 * np.log10(1 / mse)
+
+
+def test_solid_block_has_zero_error_and_needs_no_refinement(table):
+    # A solid 16³ block: every inner node has all 8 children (error 0 from every direction).
+    coords = np.argwhere(np.ones((16, 16, 16), bool))
+    octree = build_octree(VoxelScene(coords, np.full((len(coords), 3), 0.5)))
+    cam = Camera.look_at((30, 25, 40), (8, 8, 8), fov_deg=40, width=32)
+    result = render_error_aware(octree, cam, table, threshold=0.01, decay=0.5)
+    assert result.maps["refined"].max() == 0
+    assert np.array_equal(result.ray_count, np.ones_like(result.ray_count))
+
+
+def test_forced_refinement_reproduces_the_reference(table, terrain):
+    cam = _top(terrain)
+    reference = render_reference(terrain, cam, side=4, seed=3)
+    forced = render_error_aware(terrain, cam, table, threshold=-1.0, decay=0.2, base_lod=2,
+                                max_refinements=2, seed=3)
+    assert _psnr(reference.image, forced.image) >= 50.0
+    assert np.all(forced.ray_count == 21)  # 1 + 4 discarded, 16 kept
+    assert np.all(forced.finest_lod == 0)
+
+
+def test_larger_threshold_never_casts_more_rays(table, terrain):
+    lo, hi = terrain.voxel_bounds
+    cam = Camera.look_at((70, 60, 90), (32, 10, 32), fov_deg=50, width=48)
+    counts = [render_error_aware(terrain, cam, table, threshold=t).total_rays
+              for t in (0.0, 0.05, 0.1, 0.2, 0.4, 0.8)]
+    assert all(a >= b for a, b in zip(counts, counts[1:], strict=False)), counts
+    assert counts[0] > counts[-1]
+
+
+def test_infinite_threshold_is_the_lod_render(table, terrain):
+    cam = _top(terrain)
+    never = render_error_aware(terrain, cam, table, threshold=np.inf, base_lod=2)
+    lod = render_lod(terrain, cam, lod=2)
+    assert np.array_equal(never.image, lod.image)
+    assert np.array_equal(never.steps, lod.steps)
+
+
+def test_decay_adds_the_childrens_error(table, terrain):
+    cam = _top(terrain)
+    without = render_error_aware(terrain, cam, table, threshold=0.3, decay=0.0)
+    with_decay = render_error_aware(terrain, cam, table, threshold=0.3, decay=1.0)
+    assert with_decay.total_rays >= without.total_rays
+
+
+def test_one_and_two_threads_agree(table, terrain):
+    cam = _top(terrain)
+    a = render_error_aware(terrain, cam, table, threshold=0.1, threads=1)
+    b = render_error_aware(terrain, cam, table, threshold=0.1, threads=2)
+    assert np.array_equal(a.image, b.image) and np.array_equal(a.steps, b.steps)
+
+
+def test_bad_options_raise(table, terrain):
+    cam = _top(terrain, 8)
+    with pytest.raises(VoxfieldError):
+        render_error_aware(terrain, cam, table, max_refinements=9)
+    with pytest.raises(VoxfieldError):
+        render_error_aware(terrain, cam, table, encoding="wavelet")
+    with pytest.raises(VoxfieldError):
+        render_error_aware(terrain, cam, table, decay=-1)
