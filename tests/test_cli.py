@@ -13,7 +13,7 @@ from PIL import Image
 from voxfield.cli import build_parser, main
 from voxfield.render.image_io import load_exr
 
-COMMANDS = ["render", "info", "build", "scenes", "errors"]
+COMMANDS = ["render", "info", "build", "scenes", "errors", "calibrate"]
 ERROR_ACTIONS = ["build", "info", "show"]
 
 
@@ -59,6 +59,15 @@ def test_adaptive_renderers_from_the_command_line(renderer, tmp_path):
                  "--camera", "top", "--counters", "--out", str(out), "--quiet"]) == 0
     summary = json.loads((tmp_path / f"{renderer}_summary.json").read_text())
     assert summary["renderer"] == renderer and summary["covered_pixels"] > 0
+
+
+def test_calibrate_writes_its_trail(tmp_path, capsys):
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", "builtin:pillars", "--target-rays", "2000", "--size", "24",
+                 "--iterations", "4", "--out", str(out)]) == 0
+    data = json.loads(out.read_text())
+    assert data["rays"] <= 2000 and len(data["trail"]) >= 4
+    assert "threshold" in capsys.readouterr().out
 
 
 def test_info_and_build_round_trip(tmp_path, capsys):

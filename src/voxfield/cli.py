@@ -311,6 +311,51 @@ def cmd_errors_show(args) -> int:
     return 0
 
 
+def cmd_calibrate(args) -> int:
+    from voxfield.atomic import atomic_path
+    from voxfield.studies.calibrate import calibrate_threshold
+
+    octree = _open_octree(args)
+    camera = _camera(args, octree)
+    cal = calibrate_threshold(
+        octree, camera, target_rays=args.target_rays, target_psnr=args.target_psnr,
+        decay=args.decay, base_lod=args.base_lod, iterations=args.iterations, seed=args.seed,
+        progress=not args.quiet,
+    )
+    if args.out:
+        with atomic_path(args.out) as tmp:
+            tmp.write_text(json.dumps(cal.as_dict(), indent=2))
+    if not args.quiet:
+        quality = f", PSNR {cal.psnr:.2f} dB" if np.isfinite(cal.psnr) else ""
+        print(f"threshold {cal.threshold:.4f} (decay {args.decay}): {cal.rays:,} rays, "
+              f"{cal.steps:,} steps{quality}; {len(cal.trail)} renders")
+    return 0
+
+
+def _add_calibrate_parser(sub) -> None:
+    p = sub.add_parser(
+        "calibrate", help="solve for the error threshold meeting a ray budget or PSNR",
+        description="Bisection on the error-aware renderer's threshold (EA §5.1.4): the "
+        "smallest threshold within a ray budget, or the largest meeting a PSNR target.",
+    )
+    _add_scene_options(p)
+    target = p.add_mutually_exclusive_group(required=True)
+    target.add_argument("--target-rays", type=_positive_int, help="ray budget for the image")
+    target.add_argument("--target-psnr", type=float, help="PSNR target in dB vs the reference")
+    p.add_argument("--decay", type=float, default=0.2, help="decay factor d (default 0.2)")
+    p.add_argument("--base-lod", type=_lod_arg, default=2, help="LOD of the first ray")
+    p.add_argument("--iterations", type=_positive_int, default=14, help="bisection steps")
+    p.add_argument("--camera", default="top", help="camera preset (default top)")
+    p.add_argument("--eye", type=_vector_arg, default=None, metavar="X,Y,Z")
+    p.add_argument("--target", type=_vector_arg, default=None, metavar="X,Y,Z")
+    p.add_argument("--fov", type=float, default=None)
+    p.add_argument("--size", type=_positive_int, default=512, help="image side (default 512)")
+    p.add_argument("--out", default=None, help="write the result and trail as JSON")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress bars or summaries")
+    p.set_defaults(func=cmd_calibrate)
+
+
 def _add_errors_parser(sub) -> None:
     errors = sub.add_parser(
         "errors", help="error tables: build, inspect, picture one mask",
@@ -428,6 +473,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.set_defaults(func=cmd_build)
 
     _add_errors_parser(sub)
+    _add_calibrate_parser(sub)
 
     p = sub.add_parser("scenes", help="list built-in scenes and terrain recipes",
                        description="Scenes that need no files, and terrain recipes.")
