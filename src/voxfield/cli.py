@@ -332,6 +332,65 @@ def cmd_calibrate(args) -> int:
     return 0
 
 
+def _float_list(text: str) -> tuple[float, ...]:
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected numbers like 0.1,0.2, got {text!r}") from None
+    if not values:
+        raise argparse.ArgumentTypeError("expected at least one number")
+    return values
+
+
+def cmd_sweep(args) -> int:
+    from voxfield.studies.sweep import run_sweep
+
+    octree = _open_octree(args)
+    camera = _camera(args, octree)
+    out = args.out or f"out/sweep_{Path(args.scene).stem.replace(':', '_')}"
+    report = run_sweep(octree, camera, out, decays=args.decays, thresholds=args.thresholds,
+                       base_lod=args.base_lod, seed=args.seed, scene_name=args.scene,
+                       progress=not args.quiet, fresh=args.fresh)
+    if not args.quiet:
+        print(f"adaptive: {report['adaptive']['rays']:,} rays; per decay, the threshold "
+              "closest to it:")
+        for pick in report["closest_to_adaptive"]:
+            print(f"  d={pick['decay']}: t={pick['threshold']} → {pick['rays']:,} rays, "
+                  f"PSNR {pick['psnr']:.2f} dB")
+        print(f"wrote {out}/results.md, results.json, sweep.png")
+    return 0
+
+
+def _add_view_options(p, size: int = 512) -> None:
+    p.add_argument("--camera", default="top", help="camera preset (default top)")
+    p.add_argument("--eye", type=_vector_arg, default=None, metavar="X,Y,Z")
+    p.add_argument("--target", type=_vector_arg, default=None, metavar="X,Y,Z")
+    p.add_argument("--fov", type=float, default=None)
+    p.add_argument("--size", type=_positive_int, default=size, help=f"image side ({size})")
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress bars or summaries")
+
+
+def _add_sweep_parser(sub) -> None:
+    from voxfield.studies.sweep import THESIS_DECAYS, THESIS_THRESHOLDS
+
+    p = sub.add_parser(
+        "sweep", help="decay × threshold grid of ray counts and quality (EA Table 5.1)",
+        description="Render the error-aware renderer over a decay × threshold grid, beside "
+        "the adaptive renderer and the 4×4 reference; resumable.",
+    )
+    _add_scene_options(p)
+    p.add_argument("--decays", type=_float_list, default=THESIS_DECAYS,
+                   help="comma-separated decays (default the thesis's 0.05..0.3)")
+    p.add_argument("--thresholds", type=_float_list, default=THESIS_THRESHOLDS,
+                   help="comma-separated thresholds (default the thesis's 0.175..0.05)")
+    p.add_argument("--base-lod", type=_lod_arg, default=2, help="LOD of the first ray")
+    p.add_argument("--out", default=None, help="output folder (default out/sweep_SCENE)")
+    p.add_argument("--fresh", action="store_true", help="ignore cached cells")
+    _add_view_options(p)
+    p.set_defaults(func=cmd_sweep)
+
+
 def _add_calibrate_parser(sub) -> None:
     p = sub.add_parser(
         "calibrate", help="solve for the error threshold meeting a ray budget or PSNR",
@@ -345,14 +404,8 @@ def _add_calibrate_parser(sub) -> None:
     p.add_argument("--decay", type=float, default=0.2, help="decay factor d (default 0.2)")
     p.add_argument("--base-lod", type=_lod_arg, default=2, help="LOD of the first ray")
     p.add_argument("--iterations", type=_positive_int, default=14, help="bisection steps")
-    p.add_argument("--camera", default="top", help="camera preset (default top)")
-    p.add_argument("--eye", type=_vector_arg, default=None, metavar="X,Y,Z")
-    p.add_argument("--target", type=_vector_arg, default=None, metavar="X,Y,Z")
-    p.add_argument("--fov", type=float, default=None)
-    p.add_argument("--size", type=_positive_int, default=512, help="image side (default 512)")
     p.add_argument("--out", default=None, help="write the result and trail as JSON")
-    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
-                   help="no progress bars or summaries")
+    _add_view_options(p)
     p.set_defaults(func=cmd_calibrate)
 
 
@@ -474,6 +527,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     _add_errors_parser(sub)
     _add_calibrate_parser(sub)
+    _add_sweep_parser(sub)
+    from voxfield.studies.cli_compare import add_compare_parser
+
+    add_compare_parser(sub)
 
     p = sub.add_parser("scenes", help="list built-in scenes and terrain recipes",
                        description="Scenes that need no files, and terrain recipes.")

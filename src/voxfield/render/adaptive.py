@@ -4,7 +4,7 @@ One ray per pixel at the base LOD; the luminance variance in each 3×3 window (s
 differences from the window mean, background pixels excluded) divided by a fixed constant
 sorts pixels into three classes: ≥ 0.75 → 4×4 rays at LOD 0, 0.25–0.75 → 2×2 rays at LOD 0,
 else the single ray is kept. Refined pixels take the mean of their new rays; the first ray
-still counts.
+still counts (as a discarded hit, ``maps["refined"]``).
 """
 
 from __future__ import annotations
@@ -91,6 +91,8 @@ def render_adaptive(
     result.seconds = first.seconds + time.perf_counter() - start
     result.maps["variance"] = variance
     result.maps["refinement_class"] = np.where(valid, current, -1).astype(np.int8)
+    # The first ray of a refined pixel hit but no longer shows: counted like a discarded ray.
+    result.maps["refined"] = (current > 0).astype(np.int32)
     result.params = {"base_lod": "cone" if base_lod is None else base_lod,
                      "iterations": iterations, "variance_normalisation": variance_normalisation,
                      "seed": seed, "channel": channel}

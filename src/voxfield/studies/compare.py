@@ -1,0 +1,275 @@
+"""The renderer comparison of EA thesis §5.2: reference, adaptive and error-aware on one view.
+
+Renders the three, measures the two cheap ones against the reference (PSNR, RMSE, SSIM on
+linear RGB; FLIP on sRGB) and counts their cost (rays as the thesis counts them, traversal
+steps), then writes the study folder: ``results.json``, ``results.md`` (Tables 5.2–5.5),
+the images and cost maps of figs 5.1–5.3, and ``contact_sheet.png``. Renders and metrics are
+cached per item, so an interrupted or repeated run only does what is missing.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from voxfield.errors import VoxfieldError
+from voxfield.metrics import MISSED, compare_images, cost_summary, flip_available
+from voxfield.render.camera import Camera
+from voxfield.render.result import RenderResult
+from voxfield.studies.figures import (
+    Panel,
+    contact_sheet,
+    finest_lod_map,
+    ray_count_map,
+    refinement_map,
+    variance_map,
+)
+from voxfield.studies.report import StudyFolder, array_fingerprint, fmt, markdown_table
+from voxfield.svo.octree import Octree
+
+#: The thesis's reference: 4×4 CMJ rays per pixel, all at LOD 0 (§5.1.1).
+REFERENCE_SIDE = 4
+#: The thesis limits the adaptive renderer to one refinement pass for a fair count (§5.1.2).
+ADAPTIVE_ITERATIONS = 1
+#: Two refinements: at most 1 + 4 + 16 = 21 rays per pixel (§5.1.3).
+MAX_REFINEMENTS = 2
+RENDERERS = ("reference", "adaptive", "error-aware")
+METRIC_NOTE = ("PSNR, RMSE and SSIM on linear RGB in [0, 1] against the reference; "
+               "FLIP (LDR) on sRGB-encoded copies, 0 = identical.")
+RAY_NOTE = ("Rays are counted as in the thesis: only rays that hit a voxel (discarded "
+            "error-aware rays included); rays/pixel is over the pixels that show geometry.")
+
+
+def _renderers() -> dict:
+    """The three renderers, imported here so this module loads before they all exist."""
+    from voxfield.render.renderers import render_reference
+
+    try:
+        from voxfield.render.adaptive import render_adaptive
+        from voxfield.render.error_aware import render_error_aware
+    except ImportError as exc:
+        raise VoxfieldError(f"the comparison needs the adaptive and error-aware renderers: "
+                            f"{exc}") from None
+    return {"reference": render_reference, "adaptive": render_adaptive,
+            "error-aware": render_error_aware}
+
+
+def run_compare(
+    octree: Octree, camera: Camera, out_dir: str | Path, *, threshold: float = 0.154,
+    decay: float = 0.2, base_lod: int | None = 2, seed: int = 0, channel: str = "albedo",
+    camera_label: str = "", threads: int | None = None, fresh: bool = False,
+    progress: bool = False,
+) -> dict:
+    """Render, measure and write the comparison into ``out_dir``; returns the results as in
+    ``results.json`` plus ``written`` (paths) and ``computed`` / ``reused`` (item names).
+
+    ``base_lod=None`` lets both cheap renderers pick the first ray's LOD from the pixel cone.
+    """
+    if base_lod is not None and not 0 <= base_lod <= octree.depth:
+        raise VoxfieldError(f"base LOD must be between 0 and {octree.depth}, got {base_lod}")
+    render = _renderers()
+    folder = StudyFolder(out_dir, fresh=fresh)
+    scene = {"name": octree.name, "depth": octree.depth, "voxels": octree.voxel_count,
+             "fingerprint": array_fingerprint(octree.level_offsets, octree.child_mask,
+                                              octree.channel(channel))}
+    common = {"scene": scene["fingerprint"], "camera": array_fingerprint(camera.params),
+              "width": camera.width, "height": camera.height, "seed": seed, "channel": channel}
+    options = {"seed": seed, "channel": channel, "threads": threads, "progress": progress}
+    settings = {
+        "reference": {"side": REFERENCE_SIDE},
+        "adaptive": {"base_lod": base_lod, "iterations": ADAPTIVE_ITERATIONS},
+        "error-aware": {"threshold": threshold, "decay": decay, "base_lod": base_lod,
+                        "max_refinements": MAX_REFINEMENTS},
+    }
+    results: dict[str, RenderResult] = {}
+    keys: dict[str, dict] = {}
+    for name in RENDERERS:
+        keys[name] = {**common, "renderer": name, **settings[name]}
+        results[name] = folder.render_item(
+            _slug(name), keys[name],
+            lambda name=name: render[name](octree, camera, **settings[name], **options),
+        )
+    reference = results["reference"]
+    rows = []
+    for name, result in results.items():
+        quality = None
+        if name != "reference":
+            quality = folder.value_item(
+                f"quality_{_slug(name)}",
+                {"reference": keys["reference"], "test": keys[name], "flip": flip_available()},
+                lambda result=result: compare_images(reference.image, result.image),
+            )
+        rows.append({"renderer": name, "cost": cost_summary(result), "quality": quality})
+    images = _write_images(folder, results, base_lod)
+    report = {
+        "study": "compare",
+        "scene": scene,
+        "camera": {"label": camera_label, "width": camera.width, "height": camera.height},
+        "settings": settings,
+        "notes": [METRIC_NOTE, RAY_NOTE],
+        "rows": rows,
+        "images": images,
+    }
+    written = [folder.path(p) for p in images.values()]
+    # About one screen pixel per image pixel up to 512², so the sheet shows the real detail.
+    dpi = int(min(160, max(100, camera.width / 3.6)))
+    written.append(folder.write_figure("contact_sheet.png", _sheet(report, results, base_lod),
+                                       dpi=dpi))
+    written.append(folder.write_json("results.json", report))
+    written.append(folder.write_text("results.md", results_markdown(report)))
+    return {**report, "folder": str(folder.root), "written": [str(p) for p in written],
+            "computed": folder.computed, "reused": folder.reused}
+
+
+def _slug(name: str) -> str:
+    return name.replace("-", "_")
+
+
+def _lod(base_lod: int | None) -> str:
+    return "cone" if base_lod is None else str(base_lod)
+
+
+def _write_images(folder: StudyFolder, results: dict[str, RenderResult],
+                  base_lod: int | None) -> dict:
+    """The three images (sRGB) and the thesis's cost maps (grey levels); returns name → file."""
+    images = {}
+    for name, result in results.items():
+        images[name] = folder.write_png(f"{_slug(name)}.png", result.image).name
+    adaptive, error_aware = results["adaptive"], results["error-aware"]
+    maps = {
+        "adaptive_rays": lambda: refinement_map(adaptive),
+        "adaptive_variance": lambda: variance_map(adaptive),
+        "error_aware_rays": lambda: ray_count_map(error_aware),
+        "error_aware_lod": lambda: finest_lod_map(error_aware, base_lod or 0),
+    }
+    for name, make in maps.items():
+        try:
+            grey = make()
+        except VoxfieldError:
+            continue  # a renderer without that map: leave the picture out
+        images[name] = folder.write_png(f"{name}.png", grey, encode_srgb=False).name
+    return images
+
+
+def _sheet(report: dict, results: dict[str, RenderResult], base_lod: int | None):
+    """Images on top with their cost and quality, the cost maps below, a summary at the end."""
+    rows = {row["renderer"]: row for row in report["rows"]}
+    cells: list = []
+    for name, result in results.items():
+        cost, quality = rows[name]["cost"], rows[name]["quality"]
+        title = f"{name}: {cost['rays_per_pixel']:.2f} rays/px"
+        if quality is not None:
+            title += f", PSNR {fmt(quality['psnr'], '.1f')} dB, SSIM {fmt(quality['ssim'], '.3f')}"
+        cells.append(Panel(title, result.image))
+    cells.append(_summary_text(report))
+    adaptive, error_aware = results["adaptive"], results["error-aware"]
+    for title, make in (
+        ("adaptive: normalised variance", lambda: variance_map(adaptive)),
+        ("adaptive: rays/px (black bg, 1, 4, 16)", lambda: refinement_map(adaptive)),
+        ("error-aware: rays/px (black 1 → white 21)", lambda: ray_count_map(error_aware)),
+        ("error-aware: finest LOD (white = LOD 0)",
+         lambda: finest_lod_map(error_aware, base_lod or 0)),
+    ):
+        try:
+            cells.append(Panel(title, make(), linear_rgb=False))
+        except VoxfieldError:
+            continue
+    scene, camera = report["scene"], report["camera"]
+    view = f", camera {camera['label']}" if camera["label"] else ""
+    title = f"{scene['name']}: {camera['width']}×{camera['height']}{view}"
+    return contact_sheet(cells, columns=4, title=title)
+
+
+def _summary_text(report: dict) -> str:
+    """The sheet's text cell: settings and the main numbers, monospaced."""
+    ea = report["settings"]["error-aware"]
+    lines = [
+        f"threshold {ea['threshold']}, decay {ea['decay']}, base LOD {_lod(ea['base_lod'])}",
+        "",
+        f"{'':<12}{'rays':>10}{'r/px':>6}{'steps':>11}",
+    ]
+    for row in report["rows"]:
+        c = row["cost"]
+        lines.append(f"{row['renderer']:<12}{c['rays_hit']:>10,}{c['rays_per_pixel']:>6.2f}"
+                     f"{c['traversal_steps']:>11,}")
+    lines += ["", f"{'':<12}{'PSNR':>7}{'RMSE':>9}{'SSIM':>7}{'FLIP':>7}"]
+    for row in report["rows"]:
+        q = row["quality"]
+        if q is None:
+            continue
+        lines.append(f"{row['renderer']:<12}{fmt(q['psnr'], '.2f'):>7}{fmt(q['rmse'], '.5f'):>9}"
+                     f"{fmt(q['ssim'], '.3f'):>7}{fmt(q['flip'], '.3f'):>7}")
+    lines += ["", "metrics: linear RGB vs reference;", "FLIP on sRGB. Rays: hit rays only."]
+    return "\n".join(lines)
+
+
+def results_markdown(report: dict) -> str:
+    """``results.md``: the thesis's Tables 5.2–5.5 for this scene and view."""
+    scene, camera, settings = report["scene"], report["camera"], report["settings"]
+    ea, ad = settings["error-aware"], settings["adaptive"]
+    view = f", camera `{camera['label']}`" if camera["label"] else ""
+    rows = report["rows"]
+    out = [
+        f"# Renderer comparison: {scene['name']}\n",
+        f"{camera['width']}×{camera['height']}{view}; {scene['voxels']:,} voxels, "
+        f"octree depth {scene['depth']}.\n",
+        f"- reference: {settings['reference']['side']}×{settings['reference']['side']} CMJ rays "
+        "per pixel at LOD 0 (EA §5.1.1)",
+        f"- adaptive: 1 ray per pixel at LOD {_lod(ad['base_lod'])}, {ad['iterations']} refinement "
+        "pass of 2×2 or 4×4 rays at LOD 0 by normalised 3×3 luminance variance (EA §5.1.2)",
+        f"- error-aware: threshold {ea['threshold']}, decay {ea['decay']}, base LOD "
+        f"{_lod(ea['base_lod'])}, at most {ea['max_refinements']} refinements (EA §5.1.3–5.1.4)\n",
+        *[f"{note}\n" for note in report["notes"]],
+        "## Cost and quality (EA Tables 5.2 and 5.5)\n",
+        markdown_table(
+            ["renderer", "rays", "rays / pixel", "traversal steps", "steps / ray", "PSNR (dB)",
+             "RMSE", "SSIM", "FLIP", "rays cast", "seconds"],
+            [_main_row(row) for row in rows],
+        ),
+        "## Pixels by rays per pixel (EA Table 5.3)\n",
+        _histogram_table(rows, "ray_histogram", {"1": "1 ray", "4": "4 rays", "16": "16 rays"}),
+        "## Pixels by finest LOD used (EA Table 5.4)\n",
+        _histogram_table(rows, "lod_histogram", {}),
+        "## Pixels by rays cast, discarded rays included (EA fig. 5.2a)\n",
+        _histogram_table(rows, "ray_distribution", {}, skip_empty=True),
+        "## Images\n",
+        *[f"- `{file}`" for file in report["images"].values()],
+        "- `contact_sheet.png`: all of the above side by side\n",
+    ]
+    return "\n".join(out)
+
+
+def _main_row(row: dict) -> list[str]:
+    c, q = row["cost"], row["quality"] or {}
+    return [
+        row["renderer"], fmt(c["rays_hit"]), fmt(c["rays_per_pixel"], ".3f"),
+        fmt(c["traversal_steps"]), fmt(c["steps_per_ray"], ".2f"),
+        fmt(q.get("psnr"), ".3f"), fmt(q.get("rmse"), ".5f"),
+        fmt(q.get("ssim"), ".3f"), fmt(q.get("flip"), ".4f"), fmt(c["rays"]),
+        fmt(c["seconds"], ".2f"),
+    ]
+
+
+def _bucket_order(column: str) -> tuple:
+    """Didn't hit first, LODs coarsest first, ray counts ascending, anything else last."""
+    if column == MISSED:
+        return (0, 0)
+    if column.startswith("LOD ") and column[4:].isdigit():
+        return (1, -int(column[4:]))
+    if column.isdigit():
+        return (1, int(column))
+    return (2, 0)
+
+
+def _histogram_table(rows: list[dict], key: str, names: dict[str, str], *,
+                     skip_empty: bool = False) -> str:
+    """One row per renderer, one column per bucket (union over renderers, order kept)."""
+    columns: list[str] = []
+    for row in rows:
+        columns += [c for c in row["cost"][key] if c not in columns]
+    columns.sort(key=_bucket_order)
+    if skip_empty:
+        columns = [c for c in columns
+                   if c == MISSED or any(row["cost"][key].get(c, 0) for row in rows)]
+    body = [[row["renderer"], *(fmt(row["cost"][key].get(c, 0)) for c in columns)]
+            for row in rows]
+    return markdown_table(["renderer", *(names.get(c, c) for c in columns)], body)

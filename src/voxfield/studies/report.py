@@ -1,0 +1,203 @@
+"""A study's output folder: results written atomically, finished items cached so runs resume.
+
+Every file goes through ``atomic_path``, so an interrupted study never leaves half a file.
+Expensive items (renders, metrics) are cached under ``items/`` as ``NAME-KEY.json`` (plus
+``NAME-KEY.npz`` for arrays), ``KEY`` a hash of everything the item depends on; re-running the
+study with the same inputs loads them instead of recomputing, and changed inputs get new keys.
+The JSON file is written last, so it marks a complete item.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import zipfile
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+import numpy as np
+
+from voxfield.atomic import atomic_path
+from voxfield.errors import VoxfieldError
+from voxfield.render.result import RenderResult
+
+#: Bump when the cached item layout changes, so old caches are recomputed, not misread.
+CACHE_VERSION = 1
+
+_RESULT_ARRAYS = ("image", "depth", "normal", "ray_count", "hit_count", "steps", "finest_lod")
+_MAP_PREFIX = "map_"
+
+
+def to_json(value):
+    """A strictly JSON-valid copy: NumPy scalars and arrays become Python, NaN/±inf become None
+    (JSON has no infinity; a PSNR of identical images is reported as None)."""
+    if isinstance(value, dict):
+        return {str(k): to_json(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [to_json(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return to_json(value.tolist())
+    if isinstance(value, np.generic):
+        value = value.item()
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def params_key(params: dict) -> str:
+    """A short stable hash of an item's parameters (canonical JSON, sorted keys)."""
+    text = json.dumps(to_json({"cache_version": CACHE_VERSION, **params}), sort_keys=True)
+    return hashlib.blake2b(text.encode(), digest_size=8).hexdigest()
+
+
+def array_fingerprint(*arrays: np.ndarray) -> str:
+    """A hash of array contents, shapes and types: identifies a scene or camera in item keys."""
+    digest = hashlib.blake2b(digest_size=16)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        digest.update(f"{a.dtype.str}{a.shape}".encode())
+        digest.update(memoryview(a).cast("B"))
+    return digest.hexdigest()
+
+
+def result_to_arrays(result: RenderResult) -> tuple[dict, dict[str, np.ndarray]]:
+    """Split a RenderResult into JSON metadata and named arrays for the item cache."""
+    arrays = {name: np.asarray(getattr(result, name)) for name in _RESULT_ARRAYS}
+    arrays.update({_MAP_PREFIX + k: np.asarray(v) for k, v in result.maps.items()})
+    meta = {"renderer": result.renderer, "seconds": float(result.seconds),
+            "params": to_json(result.params)}
+    return meta, arrays
+
+
+def result_from_arrays(meta: dict, arrays: dict[str, np.ndarray]) -> RenderResult:
+    """The RenderResult that ``result_to_arrays`` split."""
+    missing = [name for name in _RESULT_ARRAYS if name not in arrays]
+    if missing:
+        raise VoxfieldError(f"cached render lacks {', '.join(missing)}")
+    maps = {k[len(_MAP_PREFIX):]: v for k, v in arrays.items() if k.startswith(_MAP_PREFIX)}
+    return RenderResult(
+        *(arrays[name] for name in _RESULT_ARRAYS), seconds=float(meta.get("seconds", 0.0)),
+        renderer=str(meta.get("renderer", "")), params=dict(meta.get("params") or {}), maps=maps,
+    )
+
+
+class StudyFolder:
+    """The folder a study writes; ``computed`` and ``reused`` name the items of this run."""
+
+    def __init__(self, root: str | Path, *, fresh: bool = False):
+        self.root = Path(root)
+        if self.root.exists() and not self.root.is_dir():
+            raise VoxfieldError(f"study output {self.root} exists and is not a folder")
+        self.items_dir = self.root / "items"
+        self.fresh = fresh
+        self.computed: list[str] = []
+        self.reused: list[str] = []
+
+    def path(self, name: str) -> Path:
+        return self.root / name
+
+    # --- cached items -------------------------------------------------------------------------
+
+    def item(
+        self, name: str, params: dict,
+        compute: Callable[[], tuple[dict, dict[str, np.ndarray]]],
+    ) -> tuple[dict, dict[str, np.ndarray]]:
+        """``compute()``'s (JSON data, arrays), or the cached copy from an earlier run with the
+        same ``params``; a cache file that cannot be read is recomputed, not trusted."""
+        stem = self.items_dir / f"{name}-{params_key({'item': name, **params})}"
+        # Not with_suffix: item names may hold dots (thresholds like 0.154).
+        json_path, npz_path = Path(f"{stem}.json"), Path(f"{stem}.npz")
+        if not self.fresh and json_path.is_file():
+            cached = self._load(json_path, npz_path)
+            if cached is not None:
+                self.reused.append(name)
+                return cached
+        data, arrays = compute()
+        if arrays:
+            with atomic_path(npz_path) as tmp:
+                np.savez_compressed(tmp, **arrays)
+        self._write_json_file(json_path, {"item": name, "params": params, "data": data,
+                                          "arrays": sorted(arrays)})
+        self.computed.append(name)
+        return to_json(data), dict(arrays)
+
+    def render_item(self, name: str, params: dict, render: Callable[[], RenderResult]
+                    ) -> RenderResult:
+        """A render, cached like ``item``."""
+        meta, arrays = self.item(name, params, lambda: result_to_arrays(render()))
+        return result_from_arrays(meta, arrays)
+
+    def value_item(self, name: str, params: dict, compute: Callable[[], dict]) -> dict:
+        """A JSON-only result (e.g. metrics), cached like ``item``."""
+        data, _ = self.item(name, params, lambda: (compute(), {}))
+        return data
+
+    @staticmethod
+    def _load(json_path: Path, npz_path: Path):
+        try:
+            record = json.loads(json_path.read_text())
+            arrays = {}
+            if record.get("arrays"):
+                with np.load(npz_path, allow_pickle=False) as npz:
+                    arrays = {k: npz[k] for k in record["arrays"]}
+            return record["data"], arrays
+        except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile):
+            return None
+
+    # --- outputs ------------------------------------------------------------------------------
+
+    def write_json(self, name: str, data) -> Path:
+        path = self.path(name)
+        self._write_json_file(path, data)
+        return path
+
+    def write_text(self, name: str, text: str) -> Path:
+        path = self.path(name)
+        with atomic_path(path) as tmp:
+            tmp.write_text(text, encoding="utf-8")
+        return path
+
+    def write_png(self, name: str, image: np.ndarray, *, encode_srgb: bool = True) -> Path:
+        """A linear image as sRGB PNG (``encode_srgb=False`` for maps that are already grey
+        levels or colours)."""
+        from voxfield.render.image_io import save_png
+
+        return save_png(image, self.path(name), encode_srgb=encode_srgb)
+
+    def write_figure(self, name: str, figure, *, dpi: int = 100) -> Path:
+        """A matplotlib Figure as PNG."""
+        path = self.path(name)
+        with atomic_path(path) as tmp:
+            figure.savefig(tmp, format="png", dpi=dpi, facecolor=figure.get_facecolor())
+        return path
+
+    @staticmethod
+    def _write_json_file(path: Path, data) -> None:
+        with atomic_path(path) as tmp:
+            tmp.write_text(json.dumps(to_json(data), indent=2, allow_nan=False) + "\n")
+
+
+def markdown_table(headers: Sequence[str], rows: Sequence[Sequence], *,
+                   align: str | None = None) -> str:
+    """A GitHub Markdown table; ``align`` is one of ``l``/``r`` per column (default: first
+    column left, the rest right)."""
+    align = align or "l" + "r" * (len(headers) - 1)
+    if len(align) != len(headers) or any(len(r) != len(headers) for r in rows):
+        raise ValueError("every row and the alignment need one entry per header")
+    rule = ["---:" if a == "r" else "---" for a in align]
+    lines = [headers, rule, *[[str(c) for c in r] for r in rows]]
+    return "\n".join("| " + " | ".join(line) + " |" for line in lines) + "\n"
+
+
+def fmt(value, spec: str = ",") -> str:
+    """One table cell: ``—`` for missing values, ``∞`` for infinite ones, else ``format``."""
+    if value is None:
+        return "—"
+    if isinstance(value, float) and math.isinf(value):
+        return "∞" if value > 0 else "−∞"
+    if isinstance(value, float) and math.isnan(value):
+        return "—"
+    return format(value, spec)

@@ -1,0 +1,132 @@
+"""The decay × threshold sweep (EA Table 5.1): ray counts and quality of the error-aware
+renderer over a grid, against the adaptive renderer's ray count as the thesis calibrates."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from voxfield.metrics import compare_images
+from voxfield.progress import progress_bar
+from voxfield.render.adaptive import render_adaptive
+from voxfield.render.camera import Camera
+from voxfield.render.error_aware import render_error_aware
+from voxfield.render.renderers import render_reference
+from voxfield.studies.report import StudyFolder, fmt, markdown_table
+from voxfield.svo.octree import Octree
+
+#: The thesis's grid (§5.1.4): decay 0.05–0.3, thresholds 0.175 down to 0.05.
+THESIS_DECAYS = (0.05, 0.1, 0.15, 0.2, 0.25, 0.3)
+THESIS_THRESHOLDS = (0.175, 0.15, 0.125, 0.1, 0.075, 0.05)
+
+
+def run_sweep(
+    octree: Octree, camera: Camera, out_dir: str | Path, *,
+    decays=THESIS_DECAYS, thresholds=THESIS_THRESHOLDS, base_lod: int | None = 2,
+    seed: int = 0, scene_name: str = "scene", progress: bool = False, fresh: bool = False,
+) -> dict:
+    """Render the grid (resumable: finished cells are reused) and write results.json,
+    results.md and sweep.png into ``out_dir``."""
+    folder = StudyFolder(out_dir, fresh=fresh)
+    view = {"scene": scene_name, "camera": camera.params.tolist(), "size": camera.width,
+            "seed": seed, "base_lod": base_lod}
+    reference = folder.render_item("reference", view, lambda: render_reference(
+        octree, camera, side=4, seed=seed))
+    adaptive = folder.value_item("adaptive", view, lambda: _costs_and_quality(
+        reference, render_adaptive(octree, camera, base_lod=base_lod, seed=seed)))
+    cells = []
+    with progress_bar(total=len(decays) * len(thresholds), desc="sweep", unit="render",
+                      enabled=progress) as bar:
+        for decay in decays:
+            for threshold in thresholds:
+                params = {**view, "decay": decay, "threshold": threshold}
+                cell = folder.value_item(
+                    f"ea-d{decay:g}-t{threshold:g}", params,
+                    lambda d=decay, t=threshold: _costs_and_quality(reference, render_error_aware(
+                        octree, camera, threshold=t, decay=d, base_lod=base_lod, seed=seed)),
+                )
+                cells.append({"decay": decay, "threshold": threshold, **cell})
+                bar.update(1)
+    picks = _closest_to_adaptive(cells, adaptive["rays"], decays)
+    report = {"scene": scene_name, "width": camera.width, "height": camera.height,
+              "base_lod": base_lod, "adaptive": adaptive, "cells": cells,
+              "closest_to_adaptive": picks, "metrics_on": "linear RGB in [0, 1]"}
+    folder.write_json("results.json", report)
+    folder.write_text("results.md", _markdown(report, decays, thresholds))
+    folder.write_figure("sweep.png", _figure(report, decays, thresholds))
+    return report
+
+
+def _costs_and_quality(reference, result) -> dict:
+    hit = result.hit_count > 0
+    quality = compare_images(reference.image, result.image)
+    return {"rays": result.total_rays, "rays_hit_pixels": int(result.ray_count[hit].sum()),
+            "steps": result.total_steps, **quality}
+
+
+def _closest_to_adaptive(cells, adaptive_rays, decays) -> list[dict]:
+    """Per decay, the cell whose ray count is closest to the adaptive renderer's (§5.1.4)."""
+    picks = []
+    for decay in decays:
+        row = [c for c in cells if c["decay"] == decay]
+        picks.append(min(row, key=lambda c: abs(c["rays"] - adaptive_rays)))
+    return picks
+
+
+def _markdown(report, decays, thresholds) -> str:
+    cells = {(c["decay"], c["threshold"]): c for c in report["cells"]}
+    rays = [[f"d = {d}"] + [fmt(cells[d, t]["rays"]) for t in thresholds] for d in decays]
+    psnr = [[f"d = {d}"] + [fmt(cells[d, t]["psnr"], ".2f") for t in thresholds] for d in decays]
+    headers = ["decay \\ threshold", *[str(t) for t in thresholds]]
+    adaptive = report["adaptive"]
+    picks = [[fmt(p["decay"], ".2f"), fmt(p["threshold"], ".3f"), fmt(p["rays"]),
+              fmt(p["steps"]), fmt(p["psnr"], ".2f"), fmt(p["ssim"], ".4f")]
+             for p in report["closest_to_adaptive"]]
+    return "\n".join([
+        f"# Decay × threshold sweep — {report['scene']}, {report['width']}×{report['height']}",
+        "",
+        f"Adaptive renderer: {fmt(adaptive['rays'])} rays, {fmt(adaptive['steps'])} steps, "
+        f"PSNR {fmt(adaptive['psnr'], '.2f')} dB (metrics on linear RGB in [0, 1]).",
+        "",
+        "## Ray counts (EA Table 5.1)",
+        "",
+        markdown_table(headers, rays),
+        "## PSNR against the 4×4 reference (dB)",
+        "",
+        markdown_table(headers, psnr),
+        "## Per decay, the threshold closest to the adaptive ray count",
+        "",
+        markdown_table(["decay", "threshold", "rays", "steps", "PSNR", "SSIM"], picks),
+    ])
+
+
+def _figure(report, decays, thresholds):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    cells = {(c["decay"], c["threshold"]): c for c in report["cells"]}
+    grid = np.array([[cells[d, t]["rays"] for t in thresholds] for d in decays], dtype=float)
+    fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4.2))
+    image = ax0.imshow(grid, cmap="magma", aspect="auto")
+    ax0.set_xticks(range(len(thresholds)), [str(t) for t in thresholds])
+    ax0.set_yticks(range(len(decays)), [str(d) for d in decays])
+    ax0.set_xlabel("error threshold")
+    ax0.set_ylabel("decay d")
+    ax0.set_title("rays (incl. discarded)")
+    fig.colorbar(image, ax=ax0)
+    for d in decays:
+        row = sorted((cells[d, t]["rays"], cells[d, t]["psnr"]) for t in thresholds)
+        ax1.plot([r for r, _ in row], [p for _, p in row], marker="o", label=f"d = {d}")
+    adaptive = report["adaptive"]
+    ax1.scatter([adaptive["rays"]], [adaptive["psnr"]], marker="*", s=160, color="black",
+                label="adaptive", zorder=5)
+    ax1.set_xlabel("rays")
+    ax1.set_ylabel("PSNR vs reference (dB)")
+    ax1.set_title("quality per cost")
+    ax1.legend(fontsize=8)
+    fig.suptitle(f"error-aware sweep — {report['scene']}")
+    fig.tight_layout()
+    return fig
