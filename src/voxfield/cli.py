@@ -362,11 +362,16 @@ def cmd_sweep(args) -> int:
 
 
 def _add_view_options(p, size: int = 512) -> None:
-    p.add_argument("--camera", default="top", help="camera preset (default top)")
-    p.add_argument("--eye", type=_vector_arg, default=None, metavar="X,Y,Z")
+    """Camera and image options shared by every command that renders, plus --quiet."""
+    p.add_argument("--camera", default="top",
+                   help="top (thesis setup, 90° looking down), oblique, orbit, ortho-top, "
+                   "cube+x..cube-z (default top)")
+    p.add_argument("--eye", type=_vector_arg, default=None, metavar="X,Y,Z",
+                   help="pinhole eye position in octree voxel units (with --target)")
     p.add_argument("--target", type=_vector_arg, default=None, metavar="X,Y,Z")
-    p.add_argument("--fov", type=float, default=None)
-    p.add_argument("--size", type=_positive_int, default=size, help=f"image side ({size})")
+    p.add_argument("--fov", type=float, default=None, help="vertical field of view in degrees")
+    p.add_argument("--size", type=_positive_int, default=size,
+                   help=f"image width = height (default {size})")
     p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
                    help="no progress bars or summaries")
 
@@ -472,14 +477,7 @@ def build_parser() -> argparse.ArgumentParser:
                    default="reference",
                    help="reference (4×4 rays, LOD 0), lod (1 ray, fixed/cone LOD), error-aware "
                    "(EA §5.1.3) or adaptive (variance baseline, EA §5.1.2)")
-    p.add_argument("--camera", default="top",
-                   help="top (thesis setup, 90° looking down), oblique, orbit, ortho-top, "
-                   "cube+x..cube-z (default top)")
-    p.add_argument("--eye", type=_vector_arg, default=None, metavar="X,Y,Z",
-                   help="pinhole eye position in octree voxel units (with --target)")
-    p.add_argument("--target", type=_vector_arg, default=None, metavar="X,Y,Z")
-    p.add_argument("--fov", type=float, default=None, help="vertical field of view in degrees")
-    p.add_argument("--size", type=_positive_int, default=512, help="image width = height (512)")
+    _add_view_options(p)
     p.add_argument("--spp-side", type=_positive_int, default=4,
                    help="reference: side of the CMJ sample grid per pixel (default 4 → 16 rays)")
     p.add_argument("--lod", type=_lod_arg, default=None,
@@ -505,8 +503,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--counters", action="store_true",
                    help="also write traversal-step and LOD maps and a JSON summary")
     p.add_argument("--out", required=True, help="output .png (sRGB) or .exr (linear RGB + Z)")
-    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
-                   help="no progress bars or summaries")
     p.set_defaults(func=cmd_render)
 
     p = sub.add_parser("info", help="build a scene's octree and print its structure",

@@ -9,7 +9,7 @@ from pathlib import Path
 
 def add_compare_parser(subparsers) -> argparse.ArgumentParser:
     """Register ``compare`` on the main parser's sub-commands (scene options as ``render``)."""
-    from voxfield.cli import _add_scene_options, _lod_arg, _positive_int, _vector_arg
+    from voxfield.cli import _add_scene_options, _add_view_options, _lod_arg, _positive_int
 
     p = subparsers.add_parser(
         "compare", help="reference vs adaptive vs error-aware: cost and quality tables",
@@ -20,15 +20,7 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
         "are cached, so a re-run resumes.",
     )
     _add_scene_options(p)
-    p.add_argument("--camera", default="top",
-                   help="top (thesis setup, 90° looking down), oblique, orbit, ortho-top, "
-                   "cube+x..cube-z (default top)")
-    p.add_argument("--eye", type=_vector_arg, default=None, metavar="X,Y,Z",
-                   help="pinhole eye position in octree voxel units (with --target)")
-    p.add_argument("--target", type=_vector_arg, default=None, metavar="X,Y,Z")
-    p.add_argument("--fov", type=float, default=None, help="vertical field of view in degrees")
-    p.add_argument("--size", type=_positive_int, default=512,
-                   help="image width = height (default 512, the thesis's)")
+    _add_view_options(p)
     p.add_argument("--threshold", type=float, default=0.154,
                    help="error-aware error threshold (default 0.154, the thesis's calibration)")
     p.add_argument("--decay", type=float, default=0.2,
@@ -42,8 +34,6 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
                    help="ignore cached renders and metrics in the output folder")
     p.add_argument("--out", default=None,
                    help="output folder (default out/compare_NAME, NAME from the scene)")
-    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
-                   help="no progress bars or summaries")
     p.set_defaults(func=cmd_compare)
     return p
 
