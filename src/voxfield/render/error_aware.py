@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from voxfield.error_table.table import ENCODINGS, ErrorTable, load_error_table
@@ -14,9 +12,8 @@ from voxfield.kernels.error_aware import (
     MAX_REFINEMENTS,
     render_error_aware_rows,
 )
-from voxfield.progress import progress_bar
 from voxfield.render.camera import Camera
-from voxfield.render.renderers import thread_count
+from voxfield.render.renderers import run_in_bands
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
 
@@ -52,13 +49,7 @@ def render_error_aware(
         raise VoxfieldError("cone LOD selection needs a positive cone scale")
     colors = octree.channel(channel)
     h, w = camera.height, camera.width
-    image = np.empty((h, w, 3), np.float32)
-    depth = np.empty((h, w), np.float32)
-    normal = np.empty((h, w, 3), np.float32)
-    rays = np.empty((h, w), np.int32)
-    hits = np.empty((h, w), np.int32)
-    steps = np.empty((h, w), np.int64)
-    lod = np.empty((h, w), np.int8)
+    result = RenderResult.allocate(h, w, renderer="error-aware")
     refined = np.empty((h, w), np.int32)
     stop_level = octree.depth - (0 if base_lod is None else base_lod)
     args = (
@@ -69,21 +60,13 @@ def render_error_aware(
         colors,
     )
     cam = camera.params
-    render_error_aware_rows(cam, w, h, 0, 0, seed, *args, image, depth, normal, rays, hits,
-                            steps, lod, refined)
-    band = max(8, min(64, h // 16 or 1))
-    start = time.perf_counter()
-    bar_options = {"total": h, "desc": "error-aware", "unit": "row", "enabled": progress}
-    with thread_count(threads), progress_bar(**bar_options) as bar:
-        for row0 in range(0, h, band):
-            sl = slice(row0, min(h, row0 + band))
-            render_error_aware_rows(
-                cam, w, h, sl.start, sl.stop, seed, *args, image[sl], depth[sl], normal[sl],
-                rays[sl], hits[sl], steps[sl], lod[sl], refined[sl],
-            )
-            bar.update(sl.stop - sl.start)
-    result = RenderResult(image, depth, normal, rays, hits, steps, lod,
-                          time.perf_counter() - start, renderer="error-aware")
+
+    def band(rows: slice) -> None:
+        render_error_aware_rows(cam, w, h, rows.start, rows.stop, seed, *args,
+                                *result.buffers(rows), refined[rows])
+
+    result.seconds = run_in_bands(h, band, label="error-aware", threads=threads,
+                                  progress=progress)
     result.params = {
         "threshold": float(threshold), "decay": float(decay),
         "base_lod": "cone" if base_lod is None else base_lod, "max_refinements": max_refinements,

@@ -44,31 +44,33 @@ def trace_image(
         raise VoxfieldError(f"samples per pixel side must be in 1..16, got {side}")
     colors = octree.channel(channel)
     h, w = camera.height, camera.width
-    image = np.empty((h, w, 3), np.float32)
-    depth = np.empty((h, w), np.float32)
-    normal = np.empty((h, w, 3), np.float32)
-    rays = np.empty((h, w), np.int32)
-    hits = np.empty((h, w), np.int32)
-    steps = np.empty((h, w), np.int64)
-    lod = np.empty((h, w), np.int8)
-    band = max(8, min(64, h // 16 or 1))
+    result = RenderResult.allocate(h, w)
     cam = camera.params
     args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors)
-    flat = (image.reshape(-1, 3), depth.reshape(-1), normal.reshape(-1, 3), rays.reshape(-1),
-            hits.reshape(-1), steps.reshape(-1), lod.reshape(-1))
-    # An empty pixel list loads (or compiles) the kernel outside the timed region.
-    render_pixels(cam, w, h, np.empty(0, np.int64), side, seed, *args, *flat)
+
+    def band(rows: slice) -> None:
+        pixels = np.arange(rows.start * w, rows.stop * w, dtype=np.int64)
+        flat = (b.reshape(len(pixels), *b.shape[2:]) for b in result.buffers(rows))
+        render_pixels(cam, w, h, pixels, side, seed, *args, *flat)
+
+    result.seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress)
+    return result
+
+
+def run_in_bands(height: int, band, *, label: str, threads: int | None, progress: bool) -> float:
+    """Call ``band(rows)`` over bands of rows with a progress bar; returns the seconds spent.
+
+    An empty first band loads (or compiles) the kernel outside the timed region.
+    """
+    band(slice(0, 0))
+    rows = max(8, min(64, height // 16 or 1))
     start = time.perf_counter()
-    bar_options = {"total": h, "desc": label, "unit": "row", "enabled": progress}
-    with thread_count(threads), progress_bar(**bar_options) as bar:
-        for row0 in range(0, h, band):
-            row1 = min(h, row0 + band)
-            pixels = np.arange(row0 * w, row1 * w, dtype=np.int64)
-            render_pixels(cam, w, h, pixels, side, seed, *args,
-                          *(a[row0 * w : row1 * w] for a in flat))
-            bar.update(row1 - row0)
-    seconds = time.perf_counter() - start
-    return RenderResult(image, depth, normal, rays, hits, steps, lod, seconds)
+    options = {"total": height, "desc": label, "unit": "row", "enabled": progress}
+    with thread_count(threads), progress_bar(**options) as bar:
+        for row0 in range(0, height, rows):
+            band(slice(row0, min(height, row0 + rows)))
+            bar.update(min(height, row0 + rows) - row0)
+    return time.perf_counter() - start
 
 
 def render_reference(

@@ -28,6 +28,25 @@ class RenderResult:
     params: dict = field(default_factory=dict)
     maps: dict = field(default_factory=dict)  # renderer-specific per-pixel maps (H, W)
 
+    @classmethod
+    def allocate(cls, height: int, width: int, renderer: str = "") -> RenderResult:
+        """Uninitialised buffers for a renderer's kernels to fill."""
+        return cls(
+            image=np.empty((height, width, 3), np.float32),
+            depth=np.empty((height, width), np.float32),
+            normal=np.empty((height, width, 3), np.float32),
+            ray_count=np.empty((height, width), np.int32),
+            hit_count=np.empty((height, width), np.int32),
+            steps=np.empty((height, width), np.int64),
+            finest_lod=np.empty((height, width), np.int8),
+            renderer=renderer,
+        )
+
+    def buffers(self, rows: slice = slice(None)) -> tuple[np.ndarray, ...]:
+        """The per-pixel arrays in kernel argument order, for a band of rows."""
+        return (self.image[rows], self.depth[rows], self.normal[rows], self.ray_count[rows],
+                self.hit_count[rows], self.steps[rows], self.finest_lod[rows])
+
     @property
     def shape(self) -> tuple[int, int]:
         return self.image.shape[:2]
