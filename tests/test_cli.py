@@ -13,7 +13,7 @@ from PIL import Image
 from voxfield.cli import build_parser, main
 from voxfield.render.image_io import load_exr
 
-COMMANDS = ["render", "info", "build", "scenes", "errors", "calibrate", "sweep", "compare"]
+COMMANDS = ["render", "info", "build", "scenes", "errors", "calibrate", "sweep", "compare", "study"]
 ERROR_ACTIONS = ["build", "info", "show"]
 
 

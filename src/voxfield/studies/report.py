@@ -20,6 +20,7 @@ import numpy as np
 
 from voxfield.atomic import atomic_path
 from voxfield.errors import VoxfieldError
+from voxfield.metrics import compare_images
 from voxfield.render.result import RenderResult
 
 #: Bump when the cached item layout changes, so old caches are recomputed, not misread.
@@ -201,3 +202,22 @@ def fmt(value, spec: str = ",") -> str:
     if isinstance(value, float) and math.isnan(value):
         return "—"
     return format(value, spec)
+
+
+def scene_fingerprint(octree) -> str:
+    """Identifies the octree's structure and albedo in cache keys."""
+    return array_fingerprint(octree.level_offsets, octree.child_mask, octree.channel("albedo"))
+
+
+def costs(result) -> dict:
+    """``rays`` (all cast, discarded included), ``rays_hit_pixels`` (rays of pixels that hit
+    geometry), ``steps`` (traversal steps) and ``rays_per_pixel`` (all cast / pixels)."""
+    hit = result.hit_count > 0
+    pixels = result.ray_count.size
+    return {"rays": result.total_rays, "rays_hit_pixels": int(result.ray_count[hit].sum()),
+            "steps": result.total_steps, "rays_per_pixel": result.total_rays / pixels}
+
+
+def costs_and_quality(reference, result) -> dict:
+    """``costs`` plus PSNR/RMSE/SSIM/FLIP against the reference (linear RGB)."""
+    return {**costs(result), **compare_images(reference.image, result.image)}

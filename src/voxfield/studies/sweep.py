@@ -7,13 +7,18 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.metrics import compare_images
 from voxfield.progress import progress_bar
 from voxfield.render.adaptive import render_adaptive
 from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.renderers import render_reference
-from voxfield.studies.report import StudyFolder, fmt, markdown_table
+from voxfield.studies.report import (
+    StudyFolder,
+    costs_and_quality,
+    fmt,
+    markdown_table,
+    scene_fingerprint,
+)
 from voxfield.svo.octree import Octree
 
 #: The thesis's grid (§5.1.4): decay 0.05–0.3, thresholds 0.175 down to 0.05.
@@ -29,11 +34,12 @@ def run_sweep(
     """Render the grid (resumable: finished cells are reused) and write results.json,
     results.md and sweep.png into ``out_dir``."""
     folder = StudyFolder(out_dir, fresh=fresh)
-    view = {"scene": scene_name, "camera": camera.params.tolist(), "size": camera.width,
-            "seed": seed, "base_lod": base_lod}
+    view = {"scene": scene_name, "fingerprint": scene_fingerprint(octree),
+            "camera": camera.params.tolist(), "size": camera.width, "seed": seed,
+            "base_lod": base_lod}
     reference = folder.render_item("reference", view, lambda: render_reference(
         octree, camera, side=4, seed=seed))
-    adaptive = folder.value_item("adaptive", view, lambda: _costs_and_quality(
+    adaptive = folder.value_item("adaptive", view, lambda: costs_and_quality(
         reference, render_adaptive(octree, camera, base_lod=base_lod, seed=seed)))
     cells = []
     with progress_bar(total=len(decays) * len(thresholds), desc="sweep", unit="render",
@@ -43,7 +49,7 @@ def run_sweep(
                 params = {**view, "decay": decay, "threshold": threshold}
                 cell = folder.value_item(
                     f"ea-d{decay:g}-t{threshold:g}", params,
-                    lambda d=decay, t=threshold: _costs_and_quality(reference, render_error_aware(
+                    lambda d=decay, t=threshold: costs_and_quality(reference, render_error_aware(
                         octree, camera, threshold=t, decay=d, base_lod=base_lod, seed=seed)),
                 )
                 cells.append({"decay": decay, "threshold": threshold, **cell})
@@ -56,13 +62,6 @@ def run_sweep(
     folder.write_text("results.md", _markdown(report, decays, thresholds))
     folder.write_figure("sweep.png", _figure(report, decays, thresholds))
     return report
-
-
-def _costs_and_quality(reference, result) -> dict:
-    hit = result.hit_count > 0
-    quality = compare_images(reference.image, result.image)
-    return {"rays": result.total_rays, "rays_hit_pixels": int(result.ray_count[hit].sum()),
-            "steps": result.total_steps, **quality}
 
 
 def _closest_to_adaptive(cells, adaptive_rays, decays) -> list[dict]:

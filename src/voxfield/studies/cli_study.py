@@ -1,0 +1,121 @@
+"""``voxfield study thresholds|resolution``: the EA thesis §5.4 and §5.5 studies."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from pathlib import Path
+
+
+def add_study_parser(subparsers) -> argparse.ArgumentParser:
+    """Register ``study`` with its ``thresholds`` and ``resolution`` actions."""
+    from voxfield.cli import (
+        _add_scene_options,
+        _add_view_options,
+        _float_list,
+        _lod_arg,
+    )
+    from voxfield.studies.resolution_study import THESIS_SIZES
+    from voxfield.studies.threshold_study import THESIS_THRESHOLDS
+
+    p = subparsers.add_parser(
+        "study", help="thesis studies: error threshold (§5.4), resolution (§5.5)",
+        description="Resumable studies writing results.json, results.md and a plot.",
+    )
+    actions = p.add_subparsers(dest="study", required=True, metavar="STUDY")
+
+    t = actions.add_parser(
+        "thresholds", help="error-aware cost and quality per threshold (EA Tables 5.27-5.28)",
+        description="Render the error-aware renderer at each threshold beside the adaptive "
+        "renderer and the 4×4 reference; rays, steps, PSNR, RMSE, SSIM. Resumable.",
+    )
+    _add_scene_options(t)
+    t.add_argument("--thresholds", type=_float_list, default=THESIS_THRESHOLDS,
+                   help="comma-separated thresholds (default 0.05..0.3)")
+    t.add_argument("--decay", type=float, default=0.2, help="error-aware decay (default 0.2)")
+    t.add_argument("--base-lod", type=_lod_arg, default=2, help="LOD of the first ray (2)")
+    t.add_argument("--out", default=None, help="output folder (default out/thresholds_SCENE)")
+    t.add_argument("--fresh", action="store_true", help="ignore cached cells")
+    _add_view_options(t)
+    t.set_defaults(func=cmd_study_thresholds)
+
+    r = actions.add_parser(
+        "resolution", help="reference/adaptive/error-aware per image size (EA Tables "
+        "5.29-5.30)",
+        description="Render the top-down 90° view at each size; the base LOD follows the "
+        "resolution (one base-LOD node ≈ one pixel). Resumable.",
+    )
+    _add_scene_options(r)
+    r.add_argument("--sizes", type=_int_list, default=THESIS_SIZES,
+                   help="comma-separated image sides (default 128,256,512,1024)")
+    r.add_argument("--threshold", type=float, default=0.154,
+                   help="error-aware threshold (default 0.154)")
+    r.add_argument("--decay", type=float, default=0.2, help="error-aware decay (default 0.2)")
+    r.add_argument("--out", default=None, help="output folder (default out/resolution_SCENE)")
+    r.add_argument("--fresh", action="store_true", help="ignore cached cells")
+    r.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress bars or summaries")
+    r.set_defaults(func=cmd_study_resolution)
+    return p
+
+
+def _int_list(text: str) -> tuple[int, ...]:
+    try:
+        values = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected sizes like 128,256, got {text!r}") from None
+    if any(v < 1 for v in values):
+        raise argparse.ArgumentTypeError(f"sizes must be positive, got {text!r}")
+    return values
+
+
+def default_out(prefix: str, scene: str) -> Path:
+    """``out/PREFIX_NAME``, NAME the scene's file stem or builtin name, made path-safe."""
+    name = scene.split(":", 1)[1] if ":" in scene and not Path(scene).exists() else scene
+    name = Path(name).stem or "scene"
+    return Path("out") / f"{prefix}_{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}"
+
+
+def cmd_study_thresholds(args) -> int:
+    from voxfield.cli import _camera, _open_octree
+    from voxfield.studies.report import fmt
+    from voxfield.studies.threshold_study import run_threshold_study
+
+    octree = _open_octree(args)
+    camera = _camera(args, octree)
+    out = args.out or default_out("thresholds", args.scene)
+    report = run_threshold_study(
+        octree, camera, out, thresholds=args.thresholds, decay=args.decay,
+        base_lod=args.base_lod, seed=args.seed, scene_name=args.scene,
+        progress=not args.quiet, fresh=args.fresh)
+    if not args.quiet:
+        a = report["adaptive"]
+        print(f"adaptive: {a['rays']:,} rays, {a['steps']:,} steps, "
+              f"PSNR {fmt(a['psnr'], '.2f')} dB")
+        for row in report["rows"]:
+            e = row["error_aware"]
+            print(f"  t={row['threshold']:g}: {e['rays']:,} rays, {e['steps']:,} steps, "
+                  f"PSNR {fmt(e['psnr'], '.2f')} dB")
+        print(f"wrote {out}/results.md, results.json, thresholds.png")
+    return 0
+
+
+def cmd_study_resolution(args) -> int:
+    from voxfield.cli import _open_octree
+    from voxfield.studies.report import fmt
+    from voxfield.studies.resolution_study import run_resolution_study
+
+    octree = _open_octree(args)
+    out = args.out or default_out("resolution", args.scene)
+    report = run_resolution_study(
+        octree, out, sizes=args.sizes, threshold=args.threshold, decay=args.decay,
+        seed=args.seed, scene_name=args.scene, progress=not args.quiet, fresh=args.fresh)
+    if not args.quiet:
+        for row in report["rows"]:
+            a, e = row["adaptive"], row["error_aware"]
+            print(f"{row['size']}² (base LOD {row['base_lod']}): adaptive "
+                  f"{a['rays_per_pixel']:.2f} rays/px, PSNR {fmt(a['psnr'], '.2f')} dB; "
+                  f"error-aware {e['rays_per_pixel']:.2f} rays/px, "
+                  f"PSNR {fmt(e['psnr'], '.2f')} dB")
+        print(f"wrote {out}/results.md, results.json, resolution.png")
+    return 0
