@@ -1,5 +1,6 @@
 """Cameras, renderers and their results."""
 
+from voxfield.render.adaptive import render_adaptive
 from voxfield.render.camera import (
     Camera,
     cube_cameras,
@@ -7,7 +8,6 @@ from voxfield.render.camera import (
     orbit_camera,
     top_down_camera,
 )
-from voxfield.render.adaptive import render_adaptive
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.renderers import render, render_lod, render_reference
 from voxfield.render.result import RenderResult
