@@ -20,7 +20,7 @@ from numba import njit, prange
 
 from voxfield.error_table.table import oct_error, sh_error
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
-from voxfield.kernels.primary import normal_from_code
+from voxfield.kernels.primary import normal_from_code, store_pixel
 from voxfield.kernels.sampling import cmj_sample, pixel_pattern
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
@@ -156,27 +156,7 @@ def render_error_aware_rows(
                 if lod < finest:
                     finest = lod
             i = row - row0
-            out_color[i, col, 0] = r
-            out_color[i, col, 1] = g
-            out_color[i, col, 2] = b
-            out_rays[i, col] = rays
-            out_hits[i, col] = hits
-            out_steps[i, col] = steps_sum
             out_refined[i, col] = refined
-            if hits > 0:
-                out_depth[i, col] = t_sum / t_weight
-                length = math.sqrt(nx * nx + ny * ny + nz * nz)
-                if length > 0.0:
-                    nx /= length
-                    ny /= length
-                    nz /= length
-                out_normal[i, col, 0] = nx
-                out_normal[i, col, 1] = ny
-                out_normal[i, col, 2] = nz
-                out_lod[i, col] = finest
-            else:
-                out_depth[i, col] = math.inf
-                out_normal[i, col, 0] = 0.0
-                out_normal[i, col, 1] = 0.0
-                out_normal[i, col, 2] = 0.0
-                out_lod[i, col] = -1
+            store_pixel(out_color[i], out_depth[i], out_normal[i], out_rays[i], out_hits[i],
+                        out_steps[i], out_lod[i], col, r, g, b, t_sum, t_weight, nx, ny, nz,
+                        rays, hits, steps_sum, finest)

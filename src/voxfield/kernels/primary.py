@@ -21,6 +21,40 @@ def normal_from_code(code: int) -> tuple[float, float, float]:
     return (sign if axis == 0 else 0.0), (sign if axis == 1 else 0.0), (sign if axis == 2 else 0.0)
 
 
+@njit(cache=True, nogil=True)
+def store_pixel(
+    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
+    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
+    i: int, r: float, g: float, b: float, t_sum: float, t_norm: float,
+    nx: float, ny: float, nz: float, rays: int, hits: int, steps: int, finest: int,
+) -> None:
+    """Write one pixel's accumulated results at index ``i``: mean depth ``t_sum / t_norm``
+    and unit mean normal where something was hit, inf / zero / LOD -1 where nothing was."""
+    out_color[i, 0] = r
+    out_color[i, 1] = g
+    out_color[i, 2] = b
+    out_rays[i] = rays
+    out_hits[i] = hits
+    out_steps[i] = steps
+    if hits > 0:
+        out_depth[i] = t_sum / t_norm
+        length = math.sqrt(nx * nx + ny * ny + nz * nz)
+        if length > 0.0:
+            nx /= length
+            ny /= length
+            nz /= length
+        out_normal[i, 0] = nx
+        out_normal[i, 1] = ny
+        out_normal[i, 2] = nz
+        out_lod[i] = finest
+    else:
+        out_depth[i] = math.inf
+        out_normal[i, 0] = 0.0
+        out_normal[i, 1] = 0.0
+        out_normal[i, 2] = 0.0
+        out_lod[i] = -1
+
+
 @njit(parallel=True, cache=True, nogil=True)
 def render_pixels(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray,
@@ -86,29 +120,9 @@ def render_pixels(
                 lod = depth - level
                 if lod < finest:
                     finest = lod
-            out_color[i, 0] = r / spp
-            out_color[i, 1] = g / spp
-            out_color[i, 2] = b / spp
-            out_rays[i] = spp
-            out_hits[i] = hits
-            out_steps[i] = steps_sum
-            if hits > 0:
-                out_depth[i] = t_sum / hits
-                length = math.sqrt(nx * nx + ny * ny + nz * nz)
-                if length > 0.0:
-                    nx /= length
-                    ny /= length
-                    nz /= length
-                out_normal[i, 0] = nx
-                out_normal[i, 1] = ny
-                out_normal[i, 2] = nz
-                out_lod[i] = finest
-            else:
-                out_depth[i] = math.inf
-                out_normal[i, 0] = 0.0
-                out_normal[i, 1] = 0.0
-                out_normal[i, 2] = 0.0
-                out_lod[i] = -1
+            store_pixel(out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
+                        i, r / spp, g / spp, b / spp, t_sum, hits, nx, ny, nz, spp, hits,
+                        steps_sum, finest)
 
 
 @njit(parallel=True, cache=True, nogil=True)
