@@ -134,7 +134,7 @@ def cmd_render(args) -> int:
         result = render_error_aware(
             octree, camera, threshold=args.threshold, decay=args.decay, base_lod=args.base_lod,
             cone_scale=args.cone_scale, max_refinements=args.refinements,
-            encoding=args.encoding, **options,
+            encoding=args.encoding, reuse_parent=args.reuse_parent, **options,
         )
     else:
         from voxfield.render.adaptive import render_adaptive
@@ -494,6 +494,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="error-aware: maximum 2×2 refinements per pixel (default 2 → ≤ 21 rays)")
     p.add_argument("--encoding", choices=("oct", "sh"), default=None,
                    help="error-aware: error-table encoding (default: the table's)")
+    p.add_argument("--reuse-parent", action="store_true",
+                   help="error-aware: continue a refined ray as one of its 4 sub-rays (EA §6.2)")
     p.add_argument("--iterations", type=int, default=1,
                    help="adaptive: refinement iterations (default 1, as the thesis)")
     p.add_argument("--channel", default="albedo", help="colour channel to show (default albedo)")

@@ -157,9 +157,9 @@ def _check_result(result: RenderResult) -> tuple[int, int]:
 
 
 def discarded_rays(result: RenderResult) -> np.ndarray:
-    """Rays per pixel that hit a node but were discarded for finer ones (error-aware renderer's
-    ``maps["refined"]``; zero for renderers that keep every ray)."""
-    refined = result.maps.get("refined")
+    """Rays per pixel that hit a node but were discarded for finer ones (``maps["discarded"]``,
+    else ``maps["refined"]``; zero for renderers that keep every ray)."""
+    refined = result.maps.get("discarded", result.maps.get("refined"))
     if refined is None:
         return np.zeros(result.shape, np.int64)
     refined = np.asarray(refined)

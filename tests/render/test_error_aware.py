@@ -102,3 +102,39 @@ def test_bad_options_raise(table, terrain):
         render_error_aware(terrain, cam, table, encoding="wavelet")
     with pytest.raises(VoxfieldError):
         render_error_aware(terrain, cam, table, decay=-1)
+
+
+def test_parent_reuse_reproduces_the_reference_with_16_rays(table, terrain):
+    # Refined everywhere, every finest cell ends with one ray through its CMJ sample at
+    # LOD 0, whether new or continued from its parent: the reference, at 16 rays not 21.
+    cam = _top(terrain)
+    reference = render_reference(terrain, cam, side=4, seed=3)
+    reused = render_error_aware(terrain, cam, table, threshold=-1.0, base_lod=2,
+                                max_refinements=2, reuse_parent=True, seed=3)
+    fresh = render_error_aware(terrain, cam, table, threshold=-1.0, base_lod=2,
+                               max_refinements=2, seed=3)
+    assert np.allclose(reused.image, reference.image, atol=1e-6)
+    assert np.allclose(reused.depth, reference.depth)
+    assert np.all(reused.ray_count == 16)  # 1 + 3 + 4·3
+    assert np.all(reused.maps["refined"] == 5)
+    assert reused.total_steps < fresh.total_steps
+
+
+def test_parent_reuse_costs_three_new_rays_per_refinement(table, terrain):
+    cam = Camera.look_at((70, 60, 90), (32, 10, 32), fov_deg=50, width=48)
+    for threshold in (0.05, 0.2):
+        reused = render_error_aware(terrain, cam, table, threshold=threshold, reuse_parent=True)
+        refined = reused.maps["refined"]
+        assert np.array_equal(reused.ray_count, 1 + 3 * refined)
+        assert refined.max() > 0
+        # Without reuse every refined ray is discarded; with it only continued rays that miss.
+        fresh = render_error_aware(terrain, cam, table, threshold=threshold)
+        assert np.array_equal(fresh.maps["discarded"], fresh.maps["refined"])
+        assert np.all(reused.maps["discarded"] <= refined)
+
+
+def test_parent_reuse_is_thread_count_independent(table, terrain):
+    cam = _top(terrain)
+    a = render_error_aware(terrain, cam, table, threshold=0.1, reuse_parent=True, threads=1)
+    b = render_error_aware(terrain, cam, table, threshold=0.1, reuse_parent=True, threads=2)
+    assert np.array_equal(a.image, b.image) and np.array_equal(a.steps, b.steps)

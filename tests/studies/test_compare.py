@@ -153,6 +153,18 @@ def test_with_the_real_renderers(scene, tmp_path):
         assert rows[name]["quality"]["rmse"] > 0 and rows[name]["quality"]["psnr"] > 10
 
 
+def test_parent_reuse_row(scene, tmp_path):
+    octree, camera = scene
+    report = compare.run_compare(octree, camera, tmp_path, threshold=0.05, decay=0.2,
+                                 base_lod=2, seed=0, reuse_parent=True)
+    rows = {row["renderer"]: row for row in report["rows"]}
+    fresh, reused = rows["error-aware"]["cost"], rows[compare.REUSE_ROW]["cost"]
+    assert reused["rays"] < fresh["rays"]  # 3 new rays per refinement instead of 4
+    assert rows[compare.REUSE_ROW]["quality"]["psnr"] > 10
+    assert compare.REUSE_ROW in (tmp_path / "results.md").read_text()
+    assert (tmp_path / "error_aware_reuse.png").is_file()
+
+
 def test_command_line_entry(scene, stub_renderers, tmp_path, capsys):
     from voxfield.cli import build_parser
 

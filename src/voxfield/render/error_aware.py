@@ -26,14 +26,17 @@ def render_error_aware(
     octree: Octree, camera: Camera, table: ErrorTable | None = None, *,
     threshold: float = THESIS_THRESHOLD, decay: float = THESIS_DECAY,
     base_lod: int | None = 2, cone_scale: float = 1.0, max_refinements: int = 2,
-    encoding: str | None = None, seed: int = 0, channel: str = "albedo",
-    threads: int | None = None, progress: bool = False,
+    encoding: str | None = None, reuse_parent: bool = False, seed: int = 0,
+    channel: str = "albedo", threads: int | None = None, progress: bool = False,
 ) -> RenderResult:
     """One ray per pixel at ``base_lod`` (or, with ``base_lod=None``, the LOD whose nodes match
     ``cone_scale`` pixel footprints), refined 2×2 one LOD finer wherever
     ``E_N(r) = e(r, N) + decay · mean_c e(r, c)`` exceeds ``threshold``.
 
-    ``maps["refined"]`` counts the discarded (refined) rays per pixel.
+    With ``reuse_parent`` (thesis §6.2) a refined ray is continued one LOD finer as one of
+    its four sub-rays, so refining costs 3 new rays instead of 4.
+    ``maps["refined"]`` counts refinements per pixel, ``maps["discarded"]`` the rays that hit
+    but left no sample (all refined rays without reuse; with it, continued rays that missed).
     """
     table = load_error_table() if table is None else table
     encoding = encoding or table.default_encoding
@@ -51,10 +54,11 @@ def render_error_aware(
     h, w = camera.height, camera.width
     result = RenderResult.allocate(h, w, renderer="error-aware")
     refined = np.empty((h, w), np.int32)
+    discarded = np.empty((h, w), np.int32)
     stop_level = octree.depth - (0 if base_lod is None else base_lod)
     args = (
         octree.inner_nodes, octree.depth, stop_level, cone_scale if base_lod is None else 0.0,
-        max_refinements, float(threshold), float(decay),
+        max_refinements, float(threshold), float(decay), bool(reuse_parent),
         ENCODING_SH if encoding == "sh" else ENCODING_OCT,
         np.ascontiguousarray(table.oct_map, np.float64), np.ascontiguousarray(table.sh, np.float64),
         colors,
@@ -63,14 +67,17 @@ def render_error_aware(
 
     def band(rows: slice) -> None:
         render_error_aware_rows(cam, w, h, rows.start, rows.stop, seed, *args,
-                                *result.buffers(rows), refined[rows])
+                                *result.buffers(rows), refined[rows],
+                                discarded[rows])
 
     result.seconds = run_in_bands(h, band, label="error-aware", threads=threads,
                                   progress=progress)
     result.params = {
         "threshold": float(threshold), "decay": float(decay),
         "base_lod": "cone" if base_lod is None else base_lod, "max_refinements": max_refinements,
-        "encoding": encoding, "seed": seed, "channel": channel,
+        "encoding": encoding, "reuse_parent": bool(reuse_parent), "seed": seed,
+        "channel": channel,
     }
     result.maps["refined"] = refined
+    result.maps["discarded"] = discarded
     return result

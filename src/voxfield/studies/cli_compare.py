@@ -28,6 +28,9 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--base-lod", type=_lod_arg, default=2,
                    help="LOD of the first ray per pixel in both cheap renderers, or 'cone' "
                    "(default 2, the thesis's setup)")
+    p.add_argument("--reuse-parent", action="store_true",
+                   help="add a row: error-aware with parent-ray reuse (3 new rays per "
+                   "refinement, EA §6.2)")
     p.add_argument("--channel", default="albedo", help="colour channel (default albedo)")
     p.add_argument("--threads", type=_positive_int, default=None, help="kernel threads")
     p.add_argument("--fresh", action="store_true",
@@ -55,6 +58,7 @@ def cmd_compare(args) -> int:
     report = run_compare(
         octree, camera, args.out or default_out(args.scene), threshold=args.threshold,
         decay=args.decay, base_lod=args.base_lod, seed=args.seed, channel=args.channel,
+        reuse_parent=args.reuse_parent,
         camera_label=label, threads=args.threads, fresh=args.fresh, progress=not args.quiet,
     )
     if not args.quiet:

@@ -33,6 +33,8 @@ ADAPTIVE_ITERATIONS = 1
 #: Two refinements: at most 1 + 4 + 16 = 21 rays per pixel (§5.1.3).
 MAX_REFINEMENTS = 2
 RENDERERS = ("reference", "adaptive", "error-aware")
+#: The optional fourth row: error-aware with parent-ray reuse (EA §6.2).
+REUSE_ROW = "error-aware+reuse"
 METRIC_NOTE = ("PSNR, RMSE and SSIM on linear RGB in [0, 1] against the reference; "
                "FLIP (LDR) on sRGB-encoded copies, 0 = identical.")
 RAY_NOTE = ("Rays are counted as in the thesis: only rays that hit a voxel (discarded "
@@ -50,19 +52,20 @@ def _renderers() -> dict:
         raise VoxfieldError(f"the comparison needs the adaptive and error-aware renderers: "
                             f"{exc}") from None
     return {"reference": render_reference, "adaptive": render_adaptive,
-            "error-aware": render_error_aware}
+            "error-aware": render_error_aware, REUSE_ROW: render_error_aware}
 
 
 def run_compare(
     octree: Octree, camera: Camera, out_dir: str | Path, *, threshold: float = 0.154,
     decay: float = 0.2, base_lod: int | None = 2, seed: int = 0, channel: str = "albedo",
-    camera_label: str = "", threads: int | None = None, fresh: bool = False,
-    progress: bool = False,
+    reuse_parent: bool = False, camera_label: str = "", threads: int | None = None,
+    fresh: bool = False, progress: bool = False,
 ) -> dict:
     """Render, measure and write the comparison into ``out_dir``; returns the results as in
     ``results.json`` plus ``written`` (paths) and ``computed`` / ``reused`` (item names).
 
     ``base_lod=None`` lets both cheap renderers pick the first ray's LOD from the pixel cone.
+    ``reuse_parent`` adds a row for the error-aware renderer with parent-ray reuse.
     """
     if base_lod is not None and not 0 <= base_lod <= octree.depth:
         raise VoxfieldError(f"base LOD must be between 0 and {octree.depth}, got {base_lod}")
@@ -80,9 +83,13 @@ def run_compare(
         "error-aware": {"threshold": threshold, "decay": decay, "base_lod": base_lod,
                         "max_refinements": MAX_REFINEMENTS},
     }
+    names = list(RENDERERS)
+    if reuse_parent:
+        settings[REUSE_ROW] = {**settings["error-aware"], "reuse_parent": True}
+        names.append(REUSE_ROW)
     results: dict[str, RenderResult] = {}
     keys: dict[str, dict] = {}
-    for name in RENDERERS:
+    for name in names:
         keys[name] = {**common, "renderer": name, **settings[name]}
         results[name] = folder.render_item(
             _slug(name), keys[name],
@@ -121,7 +128,7 @@ def run_compare(
 
 
 def _slug(name: str) -> str:
-    return name.replace("-", "_")
+    return name.replace("-", "_").replace("+", "_")
 
 
 def _lod(base_lod: int | None) -> str:
@@ -185,18 +192,18 @@ def _summary_text(report: dict) -> str:
     lines = [
         f"threshold {ea['threshold']}, decay {ea['decay']}, base LOD {_lod(ea['base_lod'])}",
         "",
-        f"{'':<12}{'rays':>10}{'r/px':>6}{'steps':>11}",
+        f"{'':<18}{'rays':>10}{'r/px':>6}{'steps':>11}",
     ]
     for row in report["rows"]:
         c = row["cost"]
-        lines.append(f"{row['renderer']:<12}{c['rays_hit']:>10,}{c['rays_per_pixel']:>6.2f}"
+        lines.append(f"{row['renderer']:<18}{c['rays_hit']:>10,}{c['rays_per_pixel']:>6.2f}"
                      f"{c['traversal_steps']:>11,}")
-    lines += ["", f"{'':<12}{'PSNR':>7}{'RMSE':>9}{'SSIM':>7}{'FLIP':>7}"]
+    lines += ["", f"{'':<18}{'PSNR':>7}{'RMSE':>9}{'SSIM':>7}{'FLIP':>7}"]
     for row in report["rows"]:
         q = row["quality"]
         if q is None:
             continue
-        lines.append(f"{row['renderer']:<12}{fmt(q['psnr'], '.2f'):>7}{fmt(q['rmse'], '.5f'):>9}"
+        lines.append(f"{row['renderer']:<18}{fmt(q['psnr'], '.2f'):>7}{fmt(q['rmse'], '.5f'):>9}"
                      f"{fmt(q['ssim'], '.3f'):>7}{fmt(q['flip'], '.3f'):>7}")
     lines += ["", "metrics: linear RGB vs reference;", "FLIP on sRGB. Rays: hit rays only."]
     return "\n".join(lines)
@@ -218,6 +225,9 @@ def results_markdown(report: dict) -> str:
         "pass of 2×2 or 4×4 rays at LOD 0 by normalised 3×3 luminance variance (EA §5.1.2)",
         f"- error-aware: threshold {ea['threshold']}, decay {ea['decay']}, base LOD "
         f"{_lod(ea['base_lod'])}, at most {ea['max_refinements']} refinements (EA §5.1.3–5.1.4)\n",
+        *([f"- {REUSE_ROW}: the same, a refined ray continued one LOD finer as one of its "
+           "four sub-rays, so 3 new rays per refinement (EA §6.2)\n"]
+          if REUSE_ROW in settings else []),
         *[f"{note}\n" for note in report["notes"]],
         "## Cost and quality (EA Tables 5.2 and 5.5)\n",
         markdown_table(
