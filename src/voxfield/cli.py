@@ -134,7 +134,8 @@ def cmd_render(args) -> int:
         result = render_error_aware(
             octree, camera, threshold=args.threshold, decay=args.decay, base_lod=args.base_lod,
             cone_scale=args.cone_scale, max_refinements=args.refinements,
-            encoding=args.encoding, reuse_parent=args.reuse_parent, **options,
+            encoding=args.encoding, reuse_parent=args.reuse_parent,
+            lighting_aware=args.lighting_aware, bright_ratio=args.bright_ratio, **options,
         )
     else:
         from voxfield.render.adaptive import render_adaptive
@@ -272,6 +273,26 @@ def cmd_errors_build(args) -> int:
               f"texels) at {p['resolution']}² rays in {p['build_seconds']:.1f} s; wrote {out}")
         if args.report:
             _print_fit_report(fit_report(table))
+    return 0
+
+
+def cmd_errors_build_lighting(args) -> int:
+    from voxfield.error_table.lighting import (
+        DEFAULT_LIGHTING_TABLE,
+        build_lighting_error_table,
+        save_lighting_error_table,
+    )
+
+    table = build_lighting_error_table(resolution=args.resolution,
+                                       oct_resolution=args.oct_resolution, seed=args.seed,
+                                       progress=not args.quiet)
+    out = Path(args.out) if args.out else DEFAULT_LIGHTING_TABLE
+    save_lighting_error_table(table, out)
+    if not args.quiet:
+        p = table.params
+        print(f"{p['configurations']} bright-flag configurations in {p['classes']} symmetry "
+              f"classes × {p['oct_resolution']}² octahedral texels at {p['resolution']}² rays "
+              f"in {p['build_seconds']:.1f} s; wrote {out}")
     return 0
 
 
@@ -441,6 +462,20 @@ def _add_errors_parser(sub) -> None:
     p.add_argument("--quiet", **quiet)
     p.set_defaults(func=cmd_errors_build)
 
+    p = esub.add_parser(
+        "build-lighting", help="ray-cast the lighting-aware (bright-flag) colour error table",
+        description="Ray-cast the colour error of every child mask with every subset of "
+        "children flagged bright (EA §6.1), one octahedral map per cube-symmetry class.")
+    p.add_argument("--resolution", type=_positive_int, default=512,
+                   help="framebuffer side in rays per direction (default 512)")
+    p.add_argument("--oct-resolution", type=_positive_int, default=32,
+                   help="octahedral map side in texels (default 32)")
+    p.add_argument("--seed", type=int, default=0, help="CMJ jitter seed")
+    p.add_argument("--out", default=None,
+                   help="output file (default: the lighting table shipped with the package)")
+    p.add_argument("--quiet", **quiet)
+    p.set_defaults(func=cmd_errors_build_lighting)
+
     p = esub.add_parser("info", help="parameters of a table, symmetry classes, fit quality",
                         description="Describe an error table.")
     p.add_argument("--table", default=None, help="table file (default: the packaged one)")
@@ -496,6 +531,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="error-aware: error-table encoding (default: the table's)")
     p.add_argument("--reuse-parent", action="store_true",
                    help="error-aware: continue a refined ray as one of its 4 sub-rays (EA §6.2)")
+    p.add_argument("--lighting-aware", action="store_true",
+                   help="error-aware: add the bright-flag colour error (EA §6.1)")
+    p.add_argument("--bright-ratio", type=float, default=0.25,
+                   help="lighting-aware: a child is bright above (1 + R) × its parent's "
+                   "luminance (default 0.25)")
     p.add_argument("--iterations", type=int, default=1,
                    help="adaptive: refinement iterations (default 1, as the thesis)")
     p.add_argument("--channel", default="albedo", help="colour channel to show (default albedo)")

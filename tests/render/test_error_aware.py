@@ -138,3 +138,42 @@ def test_parent_reuse_is_thread_count_independent(table, terrain):
     a = render_error_aware(terrain, cam, table, threshold=0.1, reuse_parent=True, threads=1)
     b = render_error_aware(terrain, cam, table, threshold=0.1, reuse_parent=True, threads=2)
     assert np.array_equal(a.image, b.image) and np.array_equal(a.steps, b.steps)
+
+
+def _lit_block():
+    """A solid 16³ block (no geometric error anywhere) whose top layer is bright."""
+    coords = np.argwhere(np.ones((16, 16, 16), bool))
+    color = np.where((coords[:, 1] == 15)[:, None], 0.9, 0.1) * np.ones(3)
+    return build_octree(VoxelScene(coords, color))
+
+
+def test_lighting_aware_refines_where_only_colour_differs(table):
+    octree = _lit_block()
+    cam = Camera.orthographic((8, 20, 8), (0, -1, 0), (0, 0, -1), view_height=15.0, width=16)
+    plain = render_error_aware(octree, cam, table, threshold=0.2, decay=0.0, base_lod=1)
+    lit = render_error_aware(octree, cam, table, threshold=0.2, decay=0.0, base_lod=1,
+                             lighting_aware=True)
+    reference = render_reference(octree, cam)
+    assert plain.maps["refined"].max() == 0
+    # LOD 1 nodes on top: 4 bright children over 4 dark ones, colour error 0.5 from above.
+    assert np.all(lit.maps["refined"] >= 1)
+    assert _psnr(reference.image, lit.image) > _psnr(reference.image, plain.image) + 10
+
+
+def test_lighting_aware_never_casts_fewer_rays(table, terrain):
+    cam = Camera.look_at((70, 60, 90), (32, 10, 32), fov_deg=50, width=48)
+    for threshold in (0.1, 0.3):
+        plain = render_error_aware(terrain, cam, table, threshold=threshold)
+        lit = render_error_aware(terrain, cam, table, threshold=threshold, lighting_aware=True)
+        assert np.all(lit.ray_count >= plain.ray_count)
+
+
+def test_lighting_aware_on_one_colour_is_the_plain_renderer(table):
+    coords = np.argwhere(np.indices((12, 12, 12)).sum(axis=0) % 3 != 0)
+    octree = build_octree(VoxelScene(coords, np.full((len(coords), 3), 0.4)))
+    cam = Camera.look_at((25, 20, 30), (6, 6, 6), fov_deg=45, width=32)
+    plain = render_error_aware(octree, cam, table, threshold=0.1)
+    lit = render_error_aware(octree, cam, table, threshold=0.1, lighting_aware=True)
+    assert np.array_equal(plain.image, lit.image) and np.array_equal(plain.steps, lit.steps)
+    with pytest.raises(VoxfieldError):
+        render_error_aware(octree, cam, table, lighting_aware=True, bright_ratio=-1)

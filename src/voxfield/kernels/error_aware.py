@@ -24,6 +24,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from voxfield.error_table.lighting import colour_error
 from voxfield.error_table.table import oct_error, sh_error
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.primary import normal_from_code, store_pixel
@@ -89,17 +90,74 @@ def node_error(
     return error + decay * total / count
 
 
+@njit(cache=True, nogil=True)
+def luminance(colors: np.ndarray, node: int) -> float:
+    return 0.2126 * colors[node, 0] + 0.7152 * colors[node, 1] + 0.0722 * colors[node, 2]
+
+
+@njit(cache=True, nogil=True)
+def node_colour_error(
+    node: int, inner_nodes: np.ndarray, colors: np.ndarray, bright_ratio: float,
+    light_map: np.ndarray, class_of: np.ndarray, symmetry_of: np.ndarray,
+    symmetries: np.ndarray, x: float, y: float, z: float,
+) -> float:
+    """Colour error of an inner node: its children brighter than ``(1 + bright_ratio)`` times
+    its own luminance are flagged bright, and the configuration's table error is read."""
+    descriptor = inner_nodes[node]
+    mask = descriptor & 0xFF
+    first = descriptor >> 8
+    limit = (1.0 + bright_ratio) * luminance(colors, node)
+    bright = 0
+    slot = 0
+    for octant in range(8):
+        if (mask >> octant) & 1:
+            if luminance(colors, first + slot) > limit:
+                bright |= 1 << octant
+            slot += 1
+    if bright == 0 or bright == mask:
+        return 0.0  # one luminance class: no colour error in the binary model
+    return colour_error(light_map, class_of, symmetry_of, symmetries, mask, bright, x, y, z)
+
+
+@njit(cache=True, nogil=True)
+def lighting_node_error(
+    node: int, level: int, depth: int, inner_nodes: np.ndarray, decay: float,
+    colors: np.ndarray, bright_ratio: float, light_map: np.ndarray, class_of: np.ndarray,
+    symmetry_of: np.ndarray, symmetries: np.ndarray, x: float, y: float, z: float,
+) -> float:
+    """The colour part of the lighting-aware ``E_N(r)`` (EA §6.1), decayed over children like
+    the geometric part; children on the voxel level have no colour error."""
+    error = node_colour_error(node, inner_nodes, colors, bright_ratio, light_map, class_of,
+                              symmetry_of, symmetries, x, y, z)
+    if decay == 0.0 or level + 1 >= depth:
+        return error
+    descriptor = inner_nodes[node]
+    mask = descriptor & 0xFF
+    first = descriptor >> 8
+    total = 0.0
+    count = 0
+    for octant in range(8):
+        if (mask >> octant) & 1:
+            total += node_colour_error(first + count, inner_nodes, colors, bright_ratio,
+                                       light_map, class_of, symmetry_of, symmetries, x, y, z)
+            count += 1
+    return error + decay * total / count
+
+
 @njit(parallel=True, cache=True, nogil=True)
 def render_error_aware_rows(
     cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
     inner_nodes: np.ndarray, depth: int, base_stop_level: int, cone_scale: float,
     max_refinements: int, threshold: float, decay: float, reuse_parent: bool,
     encoding: int, oct_map: np.ndarray, sh: np.ndarray, colors: np.ndarray,
+    lighting_aware: bool, bright_ratio: float, light_map: np.ndarray, class_of: np.ndarray,
+    symmetry_of: np.ndarray, symmetries: np.ndarray,
     out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
     out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
     out_refined: np.ndarray, out_discarded: np.ndarray,
 ) -> None:
-    """Trace rows ``[row0, row1)``; ``cone_scale`` > 0 picks the base LOD by pixel cone."""
+    """Trace rows ``[row0, row1)``; ``cone_scale`` > 0 picks the base LOD by pixel cone;
+    ``lighting_aware`` adds the bright-flag colour error to the geometric one."""
     fine = 1 << max_refinements  # finest cells per pixel side
     radius, spread = pixel_cone(cam, height)
     radius *= cone_scale
@@ -175,6 +233,10 @@ def render_error_aware_rows(
                 if k < max_refinements and level < depth:
                     error = node_error(node, level, depth, inner_nodes, decay, encoding,
                                        oct_map, sh, dx, dy, dz)
+                    if lighting_aware:
+                        error += lighting_node_error(
+                            node, level, depth, inner_nodes, decay, colors, bright_ratio,
+                            light_map, class_of, symmetry_of, symmetries, dx, dy, dz)
                     if error > threshold:
                         # Discard this sample; its cell is covered by four finer rays.
                         refined += 1

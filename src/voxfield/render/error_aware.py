@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from voxfield.error_table.lighting import LightingErrorTable, load_lighting_error_table
 from voxfield.error_table.table import ENCODINGS, ErrorTable, load_error_table
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.error_aware import (
@@ -20,14 +21,17 @@ from voxfield.svo.octree import Octree
 #: The thesis's calibration on its Desert terrain (§5.1.4).
 THESIS_DECAY = 0.2
 THESIS_THRESHOLD = 0.154
+#: Lighting-aware error: a child is bright above this luminance ratio to its parent, minus 1.
+DEFAULT_BRIGHT_RATIO = 0.25
 
 
 def render_error_aware(
     octree: Octree, camera: Camera, table: ErrorTable | None = None, *,
     threshold: float = THESIS_THRESHOLD, decay: float = THESIS_DECAY,
     base_lod: int | None = 2, cone_scale: float = 1.0, max_refinements: int = 2,
-    encoding: str | None = None, reuse_parent: bool = False, seed: int = 0,
-    channel: str = "albedo", threads: int | None = None, progress: bool = False,
+    encoding: str | None = None, reuse_parent: bool = False, lighting_aware: bool = False,
+    bright_ratio: float = DEFAULT_BRIGHT_RATIO, lighting_table: LightingErrorTable | None = None,
+    seed: int = 0, channel: str = "albedo", threads: int | None = None, progress: bool = False,
 ) -> RenderResult:
     """One ray per pixel at ``base_lod`` (or, with ``base_lod=None``, the LOD whose nodes match
     ``cone_scale`` pixel footprints), refined 2×2 one LOD finer wherever
@@ -35,6 +39,9 @@ def render_error_aware(
 
     With ``reuse_parent`` (thesis §6.2) a refined ray is continued one LOD finer as one of
     its four sub-rays, so refining costs 3 new rays instead of 4.
+    ``lighting_aware`` (EA §6.1) adds a colour error: children of the hit node brighter than
+    ``1 + bright_ratio`` times its luminance (in ``channel``) are flagged bright, and the
+    lighting table's error for that configuration joins ``E_N(r)``, decayed alike.
     ``maps["refined"]`` counts refinements per pixel, ``maps["discarded"]`` the rays that hit
     but left no sample (all refined rays without reuse; with it, continued rays that missed).
     """
@@ -48,9 +55,12 @@ def render_error_aware(
         raise VoxfieldError(f"base LOD must be between 0 and {octree.depth}, got {base_lod}")
     if np.isnan(threshold) or not (np.isfinite(decay) and decay >= 0):
         raise VoxfieldError("threshold must be a number (inf: never refine) and decay >= 0")
+    if lighting_aware and not (np.isfinite(bright_ratio) and bright_ratio >= 0):
+        raise VoxfieldError(f"bright ratio must be a number >= 0, got {bright_ratio}")
     if base_lod is None and not cone_scale > 0:
         raise VoxfieldError("cone LOD selection needs a positive cone scale")
     colors = octree.channel(channel)
+    light = _lighting_arrays(lighting_table, lighting_aware)
     h, w = camera.height, camera.width
     result = RenderResult.allocate(h, w, renderer="error-aware")
     refined = np.empty((h, w), np.int32)
@@ -61,7 +71,7 @@ def render_error_aware(
         max_refinements, float(threshold), float(decay), bool(reuse_parent),
         ENCODING_SH if encoding == "sh" else ENCODING_OCT,
         np.ascontiguousarray(table.oct_map, np.float64), np.ascontiguousarray(table.sh, np.float64),
-        colors,
+        colors, bool(lighting_aware), float(bright_ratio), *light,
     )
     cam = camera.params
 
@@ -75,9 +85,21 @@ def render_error_aware(
     result.params = {
         "threshold": float(threshold), "decay": float(decay),
         "base_lod": "cone" if base_lod is None else base_lod, "max_refinements": max_refinements,
-        "encoding": encoding, "reuse_parent": bool(reuse_parent), "seed": seed,
-        "channel": channel,
+        "encoding": encoding, "reuse_parent": bool(reuse_parent),
+        "lighting_aware": bool(lighting_aware), "seed": seed, "channel": channel,
     }
+    if lighting_aware:
+        result.params["bright_ratio"] = float(bright_ratio)
     result.maps["refined"] = refined
     result.maps["discarded"] = discarded
     return result
+
+
+def _lighting_arrays(table: LightingErrorTable | None, needed: bool) -> tuple:
+    """The lighting table's kernel arrays; tiny stand-ins when the option is off."""
+    if not needed:
+        return (np.zeros((1, 3, 3), np.float32), np.full(1 << 16, -1, np.int16),
+                np.zeros(1 << 16, np.int8), np.zeros((48, 3, 3)))
+    table = load_lighting_error_table() if table is None else table
+    return (np.ascontiguousarray(table.oct_map, np.float32), table.class_of,
+            table.symmetry_of, np.ascontiguousarray(table.symmetries, np.float64))

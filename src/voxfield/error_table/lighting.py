@@ -1,0 +1,219 @@
+"""Lighting-aware error (EA thesis §6.1): child masks extended with per-child bright flags.
+
+The geometric table knows which children exist; under lighting a node can also be wrong
+because the children a ray would see first are lit and the ones it averages in are not.
+A configuration adds to the mask the subset of children whose luminance is well above the
+parent's, and the table stores its colour error (``kernels.lighting_error``) per direction
+as an octahedral map. The 3^8 = 6561 configurations collapse under the 48 cube symmetries;
+only configurations with both bright and other children have colour error, and one map per
+symmetry class is stored with, per configuration, its class and the symmetry that carries
+it onto the class representative: ``e(C, d) = e(R, g·d)`` where ``g·C = R``.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from numba import njit
+
+from voxfield.atomic import atomic_path
+from voxfield.error_table.symmetry import cube_symmetries, octant_permutation
+from voxfield.error_table.table import ErrorTableError, _checksum
+from voxfield.errors import VoxfieldError
+from voxfield.kernels.error_raycast import image_plane_samples
+from voxfield.kernels.lighting_error import configuration_colour_errors
+from voxfield.kernels.octahedral import add_border, oct_bilinear, oct_encode, texel_directions
+
+FORMAT = "voxfield-lighting-error-table"
+FORMAT_VERSION = 1
+DEFAULT_LIGHTING_TABLE = Path(__file__).parent / "data" / "lighting_error_table.npz"
+REBUILD_COMMAND = ("voxfield errors build-lighting --out "
+                   "src/voxfield/error_table/data/lighting_error_table.npz")
+#: Configuration index: ``mask | bright << 8`` with ``bright ⊆ mask``.
+N_INDICES = 1 << 16
+NO_COLOUR_ERROR = -1
+
+
+def configuration_index(mask, bright):
+    return np.asarray(mask, np.int64) | (np.asarray(bright, np.int64) << 8)
+
+
+def _transform_bits(perm: np.ndarray, bits: np.ndarray) -> np.ndarray:
+    out = np.zeros_like(bits)
+    for c in range(8):
+        out |= ((bits >> c) & 1) << perm[c]
+    return out
+
+
+def configuration_classes() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(class_of, symmetry_of, representatives)`` over all 2^16 configuration indices.
+
+    ``class_of[i]`` is the map index of configuration ``i`` (``NO_COLOUR_ERROR`` where the
+    index is not a configuration or it has no colour error: no bright child, or all bright);
+    ``symmetry_of[i]`` the cube symmetry ``g`` with ``g·C = R``; ``representatives`` the
+    class representatives' indices, in map order.
+    """
+    index = np.arange(N_INDICES, dtype=np.int64)
+    mask, bright = index & 0xFF, index >> 8
+    valid = ((bright & ~mask) == 0) & (bright != 0) & (bright != mask)
+    symmetries = cube_symmetries()
+    images = np.stack([
+        configuration_index(_transform_bits(p, mask), _transform_bits(p, bright))
+        for p in (octant_permutation(g) for g in symmetries)
+    ])  # (48, N)
+    symmetry_of = np.argmin(images, axis=0).astype(np.int8)
+    rep = images[symmetry_of, index]
+    representatives = np.unique(rep[valid])
+    class_of = np.full(N_INDICES, NO_COLOUR_ERROR, np.int16)
+    class_of[valid] = np.searchsorted(representatives, rep[valid])
+    return class_of, symmetry_of, representatives
+
+
+@dataclass(frozen=True)
+class LightingErrorTable:
+    """Colour error per (mask, bright) configuration and direction; ``colour_error`` is the
+    one interface, the arrays are what kernels read."""
+
+    oct_map: np.ndarray  # (classes, R + 2, R + 2) float32
+    class_of: np.ndarray  # (65536,) int16
+    symmetry_of: np.ndarray  # (65536,) int8
+    symmetries: np.ndarray  # (48, 3, 3) float64
+    params: dict = field(default_factory=dict)
+
+    @property
+    def class_count(self) -> int:
+        return self.oct_map.shape[0]
+
+    def colour_error(self, mask, bright, direction) -> np.ndarray:
+        """Colour error for masks, bright subsets (ints or arrays) and directions (…×3)."""
+        masks = np.asarray(mask, np.int64)
+        brights = np.asarray(bright, np.int64)
+        dirs = np.asarray(direction, np.float64)
+        if dirs.shape[-1] != 3 or not np.all(np.isfinite(dirs)):
+            raise VoxfieldError("directions must be finite and end in 3 components")
+        if np.any((masks < 0) | (masks > 255)) or np.any(brights & ~masks):
+            raise VoxfieldError("masks are 0..255 and bright flags a subset of the mask")
+        norms = np.linalg.norm(dirs, axis=-1, keepdims=True)
+        if np.any(norms == 0):
+            raise VoxfieldError("directions must be non-zero")
+        masks, brights, dx, dy, dz = np.broadcast_arrays(
+            masks, brights, *np.moveaxis(dirs / norms, -1, 0))
+        out = _colour_error_many(
+            self.oct_map, self.class_of, self.symmetry_of, self.symmetries,
+            np.array(masks.ravel()), np.array(brights.ravel()),
+            np.array(dx.ravel()), np.array(dy.ravel()), np.array(dz.ravel()))
+        return out.reshape(masks.shape)
+
+
+@njit(cache=True, nogil=True)
+def colour_error(
+    oct_map: np.ndarray, class_of: np.ndarray, symmetry_of: np.ndarray,
+    symmetries: np.ndarray, mask: int, bright: int, x: float, y: float, z: float,
+) -> float:
+    """Kernel form of ``LightingErrorTable.colour_error`` for one configuration and ray."""
+    index = mask | (bright << 8)
+    cls = class_of[index]
+    if cls < 0:
+        return 0.0
+    g = symmetries[symmetry_of[index]]
+    u, v = oct_encode(
+        g[0, 0] * x + g[0, 1] * y + g[0, 2] * z,
+        g[1, 0] * x + g[1, 1] * y + g[1, 2] * z,
+        g[2, 0] * x + g[2, 1] * y + g[2, 2] * z,
+    )
+    return max(0.0, oct_bilinear(oct_map[cls], u, v))
+
+
+@njit(cache=True)
+def _colour_error_many(oct_map, class_of, symmetry_of, symmetries, masks, brights, x, y, z):
+    out = np.empty(masks.shape[0])
+    for i in range(masks.shape[0]):
+        out[i] = colour_error(oct_map, class_of, symmetry_of, symmetries,
+                              masks[i], brights[i], x[i], y[i], z[i])
+    return out
+
+
+def raycast_colour_errors(masks, brights, directions, resolution: int = 512,
+                          seed: int = 0) -> np.ndarray:
+    """(n_configurations, n_directions) ray-cast colour errors (the table's ground truth)."""
+    if not 2 <= int(resolution) <= 4096:
+        raise VoxfieldError(f"framebuffer resolution must be in 2..4096, got {resolution}")
+    dirs = np.ascontiguousarray(directions, np.float64)
+    dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    samples = image_plane_samples(int(resolution), int(seed))
+    return configuration_colour_errors(dirs, samples, np.asarray(masks, np.int64),
+                                       np.asarray(brights, np.int64))
+
+
+def build_lighting_error_table(
+    resolution: int = 512, oct_resolution: int = 32, seed: int = 0, progress: bool = False,
+) -> LightingErrorTable:
+    """Ray-cast one octahedral map per symmetry class at the texel-centre directions."""
+    from voxfield.progress import progress_bar
+
+    if not 2 <= oct_resolution <= 256:
+        raise VoxfieldError(f"octahedral map resolution must be in 2..256, got {oct_resolution}")
+    start = time.perf_counter()
+    class_of, symmetry_of, reps = configuration_classes()
+    texels = texel_directions(oct_resolution)
+    chunk = 64
+    parts = []
+    with progress_bar(total=len(texels), desc="lighting table", unit="dir",
+                      enabled=progress) as bar:
+        for i in range(0, len(texels), chunk):
+            parts.append(raycast_colour_errors(reps & 0xFF, reps >> 8, texels[i : i + chunk],
+                                               resolution, seed))
+            bar.update(min(chunk, len(texels) - i))
+    interior = np.concatenate(parts, axis=1).reshape(len(reps), oct_resolution, oct_resolution)
+    params = {
+        "resolution": int(resolution), "oct_resolution": int(oct_resolution), "seed": int(seed),
+        "classes": int(len(reps)), "configurations": int(np.count_nonzero(class_of >= 0)),
+        "build_seconds": round(time.perf_counter() - start, 2),
+    }
+    return LightingErrorTable(
+        oct_map=add_border(interior).astype(np.float32), class_of=class_of,
+        symmetry_of=symmetry_of, symmetries=cube_symmetries().astype(np.float64), params=params,
+    )
+
+
+def save_lighting_error_table(table: LightingErrorTable, path: str | Path) -> Path:
+    """Write the table with its parameters and a SHA-256 of its arrays (atomically)."""
+    arrays = {"oct_map": table.oct_map, "class_of": table.class_of,
+              "symmetry_of": table.symmetry_of, "symmetries": table.symmetries}
+    header = {"format": FORMAT, "version": FORMAT_VERSION, "params": table.params,
+              "sha256": _checksum(arrays)}
+    path = Path(path)
+    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, header=np.frombuffer(json.dumps(header).encode(), np.uint8),
+                            **arrays)
+    return path
+
+
+def load_lighting_error_table(path: str | Path | None = None) -> LightingErrorTable:
+    """Read a lighting table (the packaged one by default), verifying its checksum."""
+    path = DEFAULT_LIGHTING_TABLE if path is None else Path(path)
+    hint = f"rebuild it with `{REBUILD_COMMAND}`" if path == DEFAULT_LIGHTING_TABLE else (
+        f"rebuild it with `voxfield errors build-lighting --out {path}`")
+    if not path.is_file():
+        raise ErrorTableError(f"lighting error table {path} is missing; {hint}")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            header = json.loads(bytes(data["header"]).decode())
+            arrays = {k: data[k] for k in ("oct_map", "class_of", "symmetry_of", "symmetries")}
+    except Exception as exc:  # noqa: BLE001 - zip/zlib/json can fail many ways on a bad file
+        raise ErrorTableError(f"lighting error table {path} is unreadable ({exc!r}); {hint}") \
+            from exc
+    if header.get("format") != FORMAT or header.get("version") != FORMAT_VERSION:
+        raise ErrorTableError(f"{path} is not a version-{FORMAT_VERSION} lighting table; {hint}")
+    if _checksum(arrays) != header.get("sha256"):
+        raise ErrorTableError(f"lighting error table {path} fails its checksum; {hint}")
+    classes = arrays["oct_map"].shape[0] if arrays["oct_map"].ndim == 3 else -1
+    if (arrays["class_of"].shape != (N_INDICES,) or arrays["symmetries"].shape != (48, 3, 3)
+            or arrays["symmetry_of"].shape != (N_INDICES,) or classes < 1
+            or int(arrays["class_of"].max()) >= classes):
+        raise ErrorTableError(f"lighting error table {path} has inconsistent arrays; {hint}")
+    return LightingErrorTable(**arrays, params=header.get("params", {}))
