@@ -1,0 +1,239 @@
+"""Sun and sky visibility of surface voxels: shadow rays and cosine-weighted sky rays.
+
+A voxel is a unit cube whose exposed faces (no neighbour voxel behind them) are its surface.
+Each exposed face ``f`` (codes 0..5 = −x, +x, −y, +y, −z, +z, the traversal's normal codes)
+is treated as a small Lambertian square and gets
+
+* sky visibility ``S_f``: the fraction of cosine-weighted hemisphere rays about its normal,
+  started at stratified points of the face, that leave the octree *upwards* (a ray leaving
+  downwards sees the ground, not the sky), so an open upward face has 1, an open wall 1/2
+  and a face looking down 0;
+* sun visibility ``V_f`` per sun: the fraction of shadow rays towards the sun, started at
+  stratified points of the face, that hit nothing at LOD 0; only faces turned to the sun
+  (``n_f · l > 0``) of a sun above the horizon cast them.
+
+A voxel has one colour, so its faces are averaged, each weighted by how much of the sky it
+sees, ``w_f = S_f`` (by reciprocity, how much of it a viewer above sees). The bottom face of a
+one-voxel-thick terrain shell or a cave floor's underside thus does not dim the voxel's
+top. ``sky_rays = 0`` turns sky light off and weights faces as if nothing occluded them,
+``w_f = (1 + n_f.y) / 2``. Where no face sees the sky the faces weigh equally. Per voxel::
+
+    direct[s] = Σ_f w_f · max(0, n_f · l_s) · V_f / Σ_f w_f      sky = Σ_f w_f · S_f / Σ_f w_f
+
+and ``Σ_f w_f`` is returned as the voxel's weight in coarse-level averages.
+
+Rays start exactly on the face plane with ``tmin = 0``: under the traversal's half-open slab
+contract the voxel's own interval ends at exactly ``t = 0``, so a ray leaving a face never
+hits its own voxel and needs no offset, while a neighbour touching the start point still
+blocks it. Rays stop where they rise above the highest voxel (``y_top``): nothing can block
+them there. A face looking down and a sky ray heading down cannot see the sky, so they are
+counted without being traced. All sampling is hashed from the voxel's index and the seed:
+results are the same for any thread count and any chunking.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
+from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
+
+_GOLDEN = 0x9E3779B9
+_POSITION_SALT = 0x68E31DA4
+_SHADOW_SALT = 0xB5297A4D
+#: Code of the face looking down (−y).
+FACE_DOWN = 2
+
+
+@njit(cache=True, nogil=True)
+def face_axis_sign(face: int) -> tuple[int, float]:
+    """Axis (0 x, 1 y, 2 z) and outward sign of face code ``face``."""
+    return face // 2, (1.0 if face % 2 == 1 else -1.0)
+
+
+@njit(cache=True, nogil=True)
+def face_point(
+    x: int, y: int, z: int, face: int, u: float, v: float
+) -> tuple[float, float, float]:
+    """The point ``(u, v)`` in ``[0, 1)²`` of face ``face`` of voxel ``(x, y, z)``: exactly
+    on the face's plane, ``u`` and ``v`` along the next two axes in cyclic order."""
+    axis, sign = face_axis_sign(face)
+    c0 = float(x)
+    c1 = float(y)
+    c2 = float(z)
+    plane = 1.0 if sign > 0.0 else 0.0
+    if axis == 0:
+        return c0 + plane, c1 + u, c2 + v
+    if axis == 1:
+        return c0 + v, c1 + plane, c2 + u
+    return c0 + u, c1 + v, c2 + plane
+
+
+@njit(cache=True, nogil=True)
+def cosine_direction(face: int, u1: float, u2: float) -> tuple[float, float, float]:
+    """A cosine-weighted direction about face ``face``'s outward normal (Malley's method:
+    uniform on the disk, lifted to the hemisphere)."""
+    axis, sign = face_axis_sign(face)
+    r = math.sqrt(u1)
+    phi = 2.0 * math.pi * u2
+    a = r * math.cos(phi)
+    b = r * math.sin(phi)
+    n = sign * math.sqrt(max(0.0, 1.0 - u1))
+    if axis == 0:
+        return n, a, b
+    if axis == 1:
+        return b, n, a
+    return a, b, n
+
+
+@njit(cache=True, nogil=True)
+def pattern_shape(count: int) -> tuple[int, int]:
+    """An m×n CMJ grid with at least ``count`` cells, as square as possible."""
+    m = max(1, int(math.sqrt(count)))
+    while m * m > count and m > 1:
+        m -= 1
+    return m, (count + m - 1) // m
+
+
+@njit(cache=True, nogil=True)
+def face_sample(s: int, count: int, pattern: int) -> tuple[float, float]:
+    """Sample ``s`` of ``count`` stratified points in ``[0, 1)²``; one sample is the centre."""
+    if count == 1:
+        return 0.5, 0.5
+    m, n = pattern_shape(count)
+    return cmj_sample(s, m, n, pattern)
+
+
+@njit(cache=True, nogil=True)
+def bake_voxel(
+    i: int, x: int, y: int, z: int, voxel_id: int, faces: int,
+    sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
+    inner_nodes: np.ndarray, depth: int, y_top: float,
+    face_sky: np.ndarray, face_weight: np.ndarray,
+    s_node: np.ndarray, s_level: np.ndarray, s_pos: np.ndarray, s_t: np.ndarray,
+    out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
+    out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
+) -> None:
+    """Bake one voxel (``faces``: bit ``f`` set for exposed face ``f``) into row ``i`` of the
+    outputs; see the module docstring for the quantities."""
+    voxel_pattern = pixel_pattern(voxel_id, seed)  # a hash of an index and the seed
+    # A face looking down (−y) sees no sky and no sun above the horizon: it gets no rays.
+    exposed = 0
+    open_faces = 0
+    for f in range(6):
+        if (faces >> f) & 1:
+            exposed += 1
+            if f != FACE_DOWN:
+                open_faces += 1
+    steps = 0
+    sky_cast = 0
+    shadow_cast = 0
+    # Sky: ``sky_rays`` per voxel shared among its faces that can see up, at least one each.
+    k = 0
+    total_weight = 0.0
+    for f in range(6):
+        face_sky[f] = 0.0
+        face_weight[f] = 0.0
+        if not (faces >> f) & 1 or f == FACE_DOWN:
+            continue
+        axis, sign = face_axis_sign(f)
+        if sky_rays == 0:
+            face_weight[f] = 0.5 * (1.0 + (sign if axis == 1 else 0.0))
+        else:
+            count = max(1, sky_rays // open_faces + (1 if k < sky_rays % open_faces else 0))
+            face_pattern = hash_u32(voxel_pattern ^ ((f + 1) * _GOLDEN))
+            position_pattern = hash_u32(face_pattern + _POSITION_SALT)
+            m, n = pattern_shape(count)
+            escaped = 0
+            for s in range(count):
+                u1, u2 = cmj_sample(s, m, n, face_pattern)
+                dx, dy, dz = cosine_direction(f, u1, u2)
+                if dy <= 0.0:
+                    continue  # it would see the ground at best: no sky, no need to trace
+                pu, pv = face_sample(s, count, position_pattern)
+                ox, oy, oz = face_point(x, y, z, f, pu, pv)
+                node, _, _, _, ray_steps = trace_ray(
+                    ox, oy, oz, dx, dy, dz, 0.0, (y_top - oy) / dy, inner_nodes, depth,
+                    depth, 0.0, 0.0, s_node, s_level, s_pos, s_t,
+                )
+                steps += ray_steps
+                sky_cast += 1
+                if node == MISS:
+                    escaped += 1
+            face_sky[f] = escaped / count
+            face_weight[f] = face_sky[f]
+            k += 1
+        total_weight += face_weight[f]
+    out_weight[i] = total_weight
+    if total_weight == 0.0:
+        # No face sees the sky (a cave, an underside): its faces count equally.
+        for f in range(6):
+            face_weight[f] = 1.0 if (faces >> f) & 1 else 0.0
+        total_weight = float(exposed)
+    sky = 0.0
+    for f in range(6):
+        sky += face_weight[f] * face_sky[f]
+    out_sky[i] = sky / total_weight
+    # Sun: shadow rays from the faces turned to each sun (above the horizon only).
+    for sun in range(sun_dirs.shape[0]):
+        lx = sun_dirs[sun, 0]
+        ly = sun_dirs[sun, 1]
+        lz = sun_dirs[sun, 2]
+        direct = 0.0
+        if ly > 0.0:
+            for f in range(6):
+                if face_weight[f] == 0.0:
+                    continue
+                axis, sign = face_axis_sign(f)
+                cos_theta = sign * (lx if axis == 0 else (ly if axis == 1 else lz))
+                if cos_theta <= 0.0:
+                    continue
+                shadow_pattern = hash_u32(
+                    hash_u32(voxel_pattern ^ ((f + 1) * _GOLDEN)) + _SHADOW_SALT
+                )
+                unblocked = 0
+                for s in range(shadow_rays):
+                    pu, pv = face_sample(s, shadow_rays, shadow_pattern)
+                    ox, oy, oz = face_point(x, y, z, f, pu, pv)
+                    node, _, _, _, ray_steps = trace_ray(
+                        ox, oy, oz, lx, ly, lz, 0.0, (y_top - oy) / ly, inner_nodes, depth,
+                        depth, 0.0, 0.0, s_node, s_level, s_pos, s_t,
+                    )
+                    steps += ray_steps
+                    if node == MISS:
+                        unblocked += 1
+                shadow_cast += shadow_rays
+                direct += face_weight[f] * cos_theta * (unblocked / shadow_rays)
+        out_direct[sun, i] = direct / total_weight
+    out_sky_rays[i] = sky_cast
+    out_shadow_rays[i] = shadow_cast
+    out_steps[i] = steps
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def bake_sun_visibility(
+    coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
+    sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
+    inner_nodes: np.ndarray, depth: int, y_top: float,
+    out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
+    out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
+) -> None:
+    """Bake the listed surface voxels: ``coords[k]`` (octree voxel units), their leaf index
+    ``voxel_ids[k]`` (seeds the sampling) and exposed-face bits ``faces[k]``; row ``k`` of
+    every output (column ``k`` of ``out_direct``, one row per sun) belongs to voxel ``k``."""
+    n = coords.shape[0]
+    block = 32
+    for b in prange((n + block - 1) // block):
+        s_node, s_level, s_pos, s_t = new_scratch(depth)
+        face_sky = np.empty(6, np.float64)
+        face_weight = np.empty(6, np.float64)
+        for i in range(b * block, min(n, (b + 1) * block)):
+            bake_voxel(
+                i, coords[i, 0], coords[i, 1], coords[i, 2], voxel_ids[i], faces[i],
+                sun_dirs, sky_rays, shadow_rays, seed, inner_nodes, depth, y_top,
+                face_sky, face_weight, s_node, s_level, s_pos, s_t,
+                out_direct, out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps,
+            )

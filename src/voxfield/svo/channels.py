@@ -1,0 +1,115 @@
+"""Extra colour channels on an existing octree (lit colours per time of day, ...).
+
+A channel is one RGB value per node, like the albedo: given per voxel, its inner levels are
+derived bottom-up the way the build derives albedo (a parent is the float64 mean of its
+children's float32 values, stored as float32), so a channel made from the albedo's own leaf
+values reproduces the albedo bit for bit.
+
+An optional per-voxel weight turns the parent mean into a weighted mean. The lighting bake
+uses it so that voxels nobody can see (buried under the surface, facing the ground) do not
+darken the coarse levels: a node's lit colour is then the colour of its visible surface.
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+from voxfield.svo.octree import Octree
+
+__all__ = ["check_channel_name", "propagate_channel", "with_channel", "with_channels"]
+
+#: Channel names become ``attr_NAME`` keys in octree files and file-name parts of previews.
+_NAME = re.compile(r"[A-Za-z0-9_-]{1,64}")
+_RESERVED = ("color", "albedo")
+
+
+def check_channel_name(name: str) -> str:
+    """``name`` if it can name a new channel; VoxfieldError otherwise."""
+    if not isinstance(name, str) or not _NAME.fullmatch(name):
+        raise VoxfieldError(
+            f"channel name {name!r} must be 1-64 letters, digits, '_' or '-'"
+        )
+    if name in _RESERVED:
+        raise VoxfieldError(f"channel {name!r} is the albedo; choose another name")
+    return name
+
+
+def _leaf_array(octree: Octree, values, what: str, columns: int | None) -> np.ndarray:
+    """``values`` as a finite float array with one row per voxel, or VoxfieldError."""
+    array = np.asarray(values)
+    shape = (octree.voxel_count,) if columns is None else (octree.voxel_count, columns)
+    if array.shape != shape:
+        raise VoxfieldError(
+            f"{what} must have shape {shape} (one per voxel, in leaf order), got {array.shape}"
+        )
+    if not np.issubdtype(array.dtype, np.number) or np.issubdtype(array.dtype, np.complexfloating):
+        raise VoxfieldError(f"{what} must be real numbers, got {array.dtype}")
+    if not np.all(np.isfinite(array)):
+        raise VoxfieldError(f"{what} holds NaN or infinite values")
+    return array
+
+
+def propagate_channel(
+    octree: Octree, leaf_values: np.ndarray, leaf_weights: np.ndarray | None = None
+) -> np.ndarray:
+    """``(nodes, 3)`` float32 values for every node from ``(voxels, 3)`` leaf values.
+
+    Without weights a parent is the mean of its children (as the build averages albedo).
+    With weights (non-negative, one per voxel) a parent is the weighted mean of its
+    children and carries the sum of their weights; a parent whose children all weigh
+    zero takes their plain mean.
+    """
+    depth = octree.depth
+    out = np.empty((octree.node_count, 3), np.float32)
+    out[octree.level_slice(depth)] = leaf_values
+    weights = None if leaf_weights is None else np.asarray(leaf_weights, np.float64)
+    for level in range(depth - 1, -1, -1):
+        parents = octree.level_slice(level)
+        children = octree.level_slice(level + 1)
+        starts = octree.first_child[parents].astype(np.int64) - int(octree.level_offsets[level + 1])
+        child_values = out[children]
+        counts = np.diff(np.append(starts, len(child_values)))
+        mean = np.add.reduceat(child_values, starts, axis=0, dtype=np.float64) / counts[:, None]
+        if weights is not None:
+            weighted = np.add.reduceat(
+                child_values * weights[:, None], starts, axis=0, dtype=np.float64
+            )
+            weights = np.add.reduceat(weights, starts)
+            seen = weights > 0.0
+            mean[seen] = weighted[seen] / weights[seen, None]
+        out[parents] = mean.astype(np.float32)
+    return out
+
+
+def with_channels(
+    octree: Octree, channels: dict[str, np.ndarray], *, weights: np.ndarray | None = None
+) -> Octree:
+    """A new octree sharing ``octree``'s structure, with each ``name -> (voxels, 3)`` leaf
+    array added as a channel (replacing a channel of that name, never the albedo).
+
+    ``weights`` (one non-negative number per voxel) weights the parent averages of every
+    added channel (see ``propagate_channel``); by default a parent is the plain mean.
+    Leaf values are in leaf order: row ``i`` belongs to node ``level_offsets[depth] + i``.
+    """
+    leaf_weights = None
+    if weights is not None:
+        leaf_weights = _leaf_array(octree, weights, "channel weights", None)
+        if np.any(leaf_weights < 0):
+            raise VoxfieldError("channel weights must not be negative")
+    attributes = dict(octree.attributes)
+    for name, values in channels.items():
+        check_channel_name(name)
+        leaves = _leaf_array(octree, values, f"channel {name!r}", 3).astype(np.float32)
+        attributes[name] = propagate_channel(octree, leaves, leaf_weights)
+    return replace(octree, attributes=attributes)
+
+
+def with_channel(
+    octree: Octree, name: str, leaf_values: np.ndarray, *, weights: np.ndarray | None = None
+) -> Octree:
+    """A new octree with one more channel; see ``with_channels``."""
+    return with_channels(octree, {name: leaf_values}, weights=weights)

@@ -1,0 +1,267 @@
+"""The sun bake against analytic cases, a brute-force shadow oracle and its own invariants."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+
+import numpy as np
+import pytest
+
+from conftest import random_scene
+from ray_oracle import first_hits
+from voxfield.errors import VoxfieldError
+from voxfield.kernels.sampling import cmj_sample
+from voxfield.kernels.sun_bake import cosine_direction
+from voxfield.lighting import (
+    TIMES_OF_DAY,
+    SunLight,
+    bake_sun_lighting,
+    parse_suns,
+    sun_at,
+    sun_visibility,
+)
+from voxfield.lighting import bake as bake_module
+from voxfield.lighting.cli_light import add_light_parser
+from voxfield.scene.voxel_scene import VoxelScene
+from voxfield.svo import build_octree
+from voxfield.svo.io import load_octree
+
+ALBEDO = np.array([0.5, 0.4, 0.3])
+#: Face normals in the kernel's face order: −x, +x, −y, +y, −z, +z.
+NORMALS = np.array([[-1, 0, 0], [1, 0, 0], [0, -1, 0], [0, 1, 0], [0, 0, -1], [0, 0, 1]])
+
+
+def slab(x: range, y: int, z: range) -> np.ndarray:
+    xs, zs = np.meshgrid(np.asarray(x), np.asarray(z), indexing="ij")
+    return np.stack([xs.ravel(), np.full(xs.size, y), zs.ravel()], axis=1)
+
+
+def octree_of(*parts: np.ndarray, name: str = "test"):
+    coords = np.unique(np.concatenate(parts), axis=0)
+    assert coords.min() == 0  # the build moves the scene to the origin; keep coordinates
+    return build_octree(VoxelScene(coords, np.tile(ALBEDO, (len(coords), 1)), name=name))
+
+
+def leaf_index(octree, xyz) -> int:
+    leaves = octree.node_coord[octree.level_slice(octree.depth)]
+    (index,) = np.flatnonzero((leaves == np.asarray(xyz)).all(axis=1))
+    return int(index)
+
+
+def leaf_channel(octree, name: str) -> np.ndarray:
+    return octree.channel(name)[octree.level_slice(octree.depth)]
+
+
+def test_a_floor_voxel_open_to_the_sky_is_lit_by_sun_and_sky():
+    floor = octree_of(slab(range(9), 0, range(9)))
+    sun = SunLight("test", azimuth_deg=30.0, elevation_deg=60.0,
+                   irradiance=(0.9, 0.8, 0.7), sky=(0.1, 0.2, 0.3))
+    lit, report = bake_sun_lighting(floor, [sun], sky_rays=16, shadow_rays=4)
+    centre = leaf_index(floor, (4, 0, 4))
+    expected = ALBEDO * (np.array(sun.irradiance) * math.sin(math.radians(60.0)) + sun.sky)
+    assert np.allclose(leaf_channel(lit, "test")[centre], expected, rtol=1e-6)
+    assert report.surface_voxels == 81 and report.sunlit_fraction["test"] == 1.0
+    assert report.shadow_rays > 0 and report.sky_rays > 0 and report.traversal_steps > 0
+
+
+def test_a_floor_voxel_under_a_roof_gets_no_sun_and_little_sky():
+    floor = slab(range(2, 11), 0, range(2, 11))
+    roof = slab(range(13), 3, range(13))  # larger than the floor, two voxels of air between
+    octree = octree_of(floor, roof)
+    suns = [SunLight("overhead", 0.0, 90.0, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0)),
+            SunLight("high", 200.0, 60.0, (1.0, 1.0, 1.0), (0.2, 0.2, 0.2))]
+    vis, _ = sun_visibility(octree, np.array([s.direction() for s in suns]), sky_rays=64)
+    centre = leaf_index(octree, (6, 0, 6))
+    assert vis.direct[0, centre] == 0.0 and vis.direct[1, centre] == 0.0
+    # Only rays flatter than atan(2/6) ≈ 18° pass under the roof's edge: sin²(18.4°) ≈ 0.1.
+    assert 0.0 < vis.sky[centre] < 0.2
+    lit, _ = bake_sun_lighting(octree, suns, sky_rays=64)
+    assert np.all(leaf_channel(lit, "overhead")[centre] == 0.0)
+    # The roof's top is lit by both suns.
+    top = leaf_index(octree, (6, 3, 6))
+    assert vis.direct[0, top] == 1.0 and vis.sky[top] == 1.0
+
+
+def test_a_voxel_inside_a_closed_box_is_black():
+    cube = np.stack(np.meshgrid(*[np.arange(7)] * 3, indexing="ij"), -1).reshape(-1, 3)
+    shell = cube[(cube == 0).any(axis=1) | (cube == 6).any(axis=1)]
+    octree = octree_of(shell)
+    lit, _ = bake_sun_lighting(octree, list(TIMES_OF_DAY.values()), sky_rays=32)
+    inner_floor = leaf_index(octree, (3, 0, 3))
+    for name in TIMES_OF_DAY:
+        assert np.all(leaf_channel(lit, name)[inner_floor] == 0.0)
+
+
+def test_a_sun_below_the_horizon_leaves_only_sky_light():
+    floor = octree_of(slab(range(9), 0, range(9)))
+    night = SunLight("night", 0.0, -10.0, (1.0, 1.0, 1.0), (0.2, 0.2, 0.2))
+    horizon = SunLight("horizon", 90.0, 0.0, (1.0, 1.0, 1.0), (0.2, 0.2, 0.2))
+    lit, report = bake_sun_lighting(floor, [night, horizon], sky_rays=16)
+    centre = leaf_index(floor, (4, 0, 4))
+    for name in ("night", "horizon"):
+        assert np.allclose(leaf_channel(lit, name)[centre], ALBEDO * 0.2, rtol=1e-6)
+        assert report.sunlit_fraction[name] == 0.0
+    assert report.shadow_rays == 0
+
+
+def exposed_faces_by_hand(coords: np.ndarray) -> np.ndarray:
+    occupied = {tuple(c) for c in coords}
+    return np.array([[tuple(c + n) not in occupied for n in NORMALS] for c in coords])
+
+
+def test_shadow_rays_agree_with_a_brute_force_oracle():
+    """One ray from each face centre, faces weighted as if unoccluded ((1 + n_y) / 2)."""
+    octree = build_octree(random_scene(seed=11, n=350, size=10))
+    leaves = octree.node_coord[octree.level_slice(octree.depth)].astype(np.int64)
+    suns = np.array([sun_at("a", 130.0, 35.0).direction(), sun_at("b", 300.0, 70.0).direction()])
+    vis, _ = sun_visibility(octree, suns, sky_rays=0, shadow_rays=1)
+    exposed = exposed_faces_by_hand(leaves)
+    weight = np.where(exposed, (1.0 + NORMALS[:, 1]) / 2.0, 0.0)
+    assert np.allclose(vis.weight, weight.sum(axis=1))
+    for k, sun in enumerate(suns):
+        expected = np.zeros(len(leaves))
+        for f, normal in enumerate(NORMALS):
+            cos = float(normal @ sun)
+            rows = np.flatnonzero(exposed[:, f] & (weight[:, f] > 0))
+            if cos <= 0.0 or len(rows) == 0:
+                continue
+            centres = leaves[rows] + 0.5 + 0.5 * normal  # on the face plane
+            hit, _ = first_hits(centres, np.tile(sun, (len(rows), 1)), leaves, 1.0)
+            expected[rows] += weight[rows, f] * cos * (hit < 0)
+        total = weight.sum(axis=1)
+        seen = total > 0
+        expected[seen] /= total[seen]
+        assert np.allclose(vis.direct[k], expected, rtol=1e-6, atol=1e-7)
+        assert 0.0 < (expected > 0).mean() < 1.0  # some faces lit, some in shadow
+
+
+def test_an_isolated_voxel_sees_all_the_sky_above_and_half_from_its_sides():
+    octree = octree_of(np.zeros((1, 3), int))
+    vis, _ = sun_visibility(octree, np.array([[0.0, 1.0, 0.0]]), sky_rays=1000)
+    # Weights are the faces' sky visibility: top 1, four sides 1/2 each.
+    assert vis.weight[0] == pytest.approx(3.0, abs=0.06)
+    assert vis.sky[0] == pytest.approx((1.0 + 4 * 0.25) / 3.0, abs=0.02)
+
+
+def test_sky_directions_are_cosine_weighted_about_the_face_normal():
+    samples = np.array([cmj_sample(s, 32, 32, 12345) for s in range(1024)])
+    for face, normal in enumerate(NORMALS):
+        dirs = np.array([cosine_direction(face, u1, u2) for u1, u2 in samples])
+        assert np.allclose(np.linalg.norm(dirs, axis=1), 1.0)
+        cos = dirs @ normal
+        assert np.all(cos >= 0.0)
+        assert cos.mean() == pytest.approx(2.0 / 3.0, abs=0.01)  # E[cos θ] under cos weighting
+
+
+def test_buried_voxels_do_not_darken_coarse_levels():
+    # A two-voxel-thick floor: the lower layer sees no sky and stays black, but the
+    # 2×2×2 nodes above show the lit top layer's colour.
+    octree = octree_of(slab(range(8), 0, range(8)), slab(range(8), 1, range(8)))
+    lit, _ = bake_sun_lighting(octree, [TIMES_OF_DAY["noon"]], sky_rays=16)
+    top = leaf_channel(lit, "noon")[leaf_index(octree, (2, 1, 2))]
+    assert np.all(leaf_channel(lit, "noon")[leaf_index(octree, (2, 0, 2))] == 0.0)
+    parents = octree.level_slice(octree.depth - 1)
+    inner = (octree.node_coord[parents] == (1, 0, 1)).all(axis=1)
+    assert np.allclose(lit.channel("noon")[parents][inner], top, rtol=1e-6)
+
+
+def test_results_do_not_depend_on_threads_or_chunking(monkeypatch):
+    octree = build_octree(random_scene(seed=5, n=700, size=14))
+    suns = list(TIMES_OF_DAY.values())
+    one, report_one = bake_sun_lighting(octree, suns, sky_rays=8, seed=3, threads=1)
+    two, report_two = bake_sun_lighting(octree, suns, sky_rays=8, seed=3, threads=2)
+    monkeypatch.setattr(bake_module, "CHUNK_VOXELS", 7)
+    chunked, report_chunked = bake_sun_lighting(octree, suns, sky_rays=8, seed=3)
+    for name in TIMES_OF_DAY:
+        assert np.array_equal(one.channel(name), two.channel(name))
+        assert np.array_equal(one.channel(name), chunked.channel(name))
+    for key in ("sky_rays", "shadow_rays", "traversal_steps"):
+        assert getattr(report_one, key) == getattr(report_two, key)
+        assert getattr(report_one, key) == getattr(report_chunked, key)
+    other_seed, _ = bake_sun_lighting(octree, suns, sky_rays=8, seed=4)
+    assert not np.array_equal(one.channel("noon"), other_seed.channel("noon"))
+
+
+def test_sun_directions_follow_the_compass():
+    assert np.allclose(sun_at("e", 90.0, 0.0).direction(), [1.0, 0.0, 0.0], atol=1e-12)
+    assert np.allclose(sun_at("s", 180.0, 0.0).direction(), [0.0, 0.0, 1.0], atol=1e-12)
+    assert np.allclose(sun_at("n", 0.0, 45.0).direction(), [0.0, 0.5**0.5, -(0.5**0.5)])
+    assert np.allclose(sun_at("z", 123.0, 90.0).direction(), [0.0, 1.0, 0.0], atol=1e-12)
+    # Low suns are dimmer and redder than high ones; the sky fades after sunset.
+    noon, evening = TIMES_OF_DAY["noon"], TIMES_OF_DAY["evening"]
+    assert all(e < n for e, n in zip(evening.irradiance, noon.irradiance, strict=True))
+    assert evening.irradiance[0] > evening.irradiance[2]
+    assert sun_at("night", 0.0, -10.0).sky == (0.0, 0.0, 0.0)
+
+
+def test_sun_lists_parse_names_thesis_times_and_angles():
+    suns = parse_suns("morning,noon;dawn=90,5;135,-2.5")
+    assert [s.name for s in suns] == ["morning", "noon", "dawn", "sun_135_m2p5"]
+    assert (suns[2].azimuth_deg, suns[2].elevation_deg) == (90.0, 5.0)
+    assert [s.name for s in parse_suns("time0,time1,time2,time3")] == [
+        "morning", "evening", "noon", "afternoon"]
+    assert [s.name for s in parse_suns("all")] == list(TIMES_OF_DAY)
+    assert parse_suns("400,10")[0].azimuth_deg == 40.0
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ("midnight", "unknown time of day"),
+        ("10,95", "elevation"),
+        ("nan,30", "finite"),
+        ("noon,45", "mixes"),
+        ("10,20,30", "AZIMUTH,ELEVATION"),
+        ("", "no sun"),
+        ("noon;;evening", "empty"),
+        ("noon,time2", "more than once"),
+        ("bad name=10,20", "channel name"),
+        ("color=10,20", "albedo"),
+    ],
+)
+def test_bad_sun_lists_are_refused(spec, message):
+    with pytest.raises(VoxfieldError, match=message):
+        parse_suns(spec)
+
+
+def test_bad_bake_input_is_refused():
+    floor = octree_of(slab(range(2), 0, range(2)))
+    noon = TIMES_OF_DAY["noon"]
+    with pytest.raises(VoxfieldError, match="elevation"):
+        SunLight("x", 0.0, float("nan"), (1, 1, 1), (0, 0, 0))
+    with pytest.raises(VoxfieldError, match="colour"):
+        SunLight("x", 0.0, 10.0, (1, -1, 1), (0, 0, 0))
+    with pytest.raises(VoxfieldError, match="no sun"):
+        bake_sun_lighting(floor, [])
+    with pytest.raises(VoxfieldError, match="share"):
+        bake_sun_lighting(floor, [noon, noon])
+    with pytest.raises(VoxfieldError, match="sky rays"):
+        bake_sun_lighting(floor, [noon], sky_rays=-1)
+    with pytest.raises(VoxfieldError, match="shadow rays"):
+        bake_sun_lighting(floor, [noon], shadow_rays=0)
+    with pytest.raises(VoxfieldError, match="thread count"):
+        bake_sun_lighting(floor, [noon], threads=0)
+
+
+def run_light_command(argv):
+    parser = argparse.ArgumentParser()
+    add_light_parser(parser.add_subparsers(dest="command"))
+    args = parser.parse_args(["light", *argv])
+    return args.func(args)
+
+
+def test_the_light_command_writes_the_octree_report_and_previews(tmp_path, capsys):
+    out = tmp_path / "lit.npz"
+    argv = ["builtin:sphere", "--times", "noon;dawn=90,5", "--sky-rays", "4",
+            "--preview-size", "24", "--out", str(out)]
+    assert run_light_command(argv) == 0
+    lit = load_octree(out)
+    assert {"noon", "dawn"} <= set(lit.attributes)
+    report = json.loads(out.with_suffix(".json").read_text())
+    assert report["cost"]["rays"] > 0 and [s["name"] for s in report["suns"]] == ["noon", "dawn"]
+    assert (tmp_path / "lit_noon.png").is_file() and (tmp_path / "lit_dawn.png").is_file()
+    assert "sun bake" in capsys.readouterr().out
+    with pytest.raises(VoxfieldError, match="unknown time of day"):
+        run_light_command(["builtin:sphere", "--times", "dusk", "--out", str(out)])
