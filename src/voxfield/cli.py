@@ -68,6 +68,11 @@ def _add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed for sampling and scattering")
 
 
+def _add_channel_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--channel", default="albedo",
+                   help="colour channel: albedo or a baked time of day (`voxfield light`)")
+
+
 def _scene_options(args):
     from voxfield.scene.loaders import SceneOptions
 
@@ -341,7 +346,7 @@ def cmd_calibrate(args) -> int:
     cal = calibrate_threshold(
         octree, camera, target_rays=args.target_rays, target_psnr=args.target_psnr,
         decay=args.decay, base_lod=args.base_lod, iterations=args.iterations, seed=args.seed,
-        progress=not args.quiet,
+        channel=args.channel, progress=not args.quiet,
     )
     if args.out:
         with atomic_path(args.out) as tmp:
@@ -370,8 +375,8 @@ def cmd_sweep(args) -> int:
     camera = _camera(args, octree)
     out = args.out or f"out/sweep_{Path(args.scene).stem.replace(':', '_')}"
     report = run_sweep(octree, camera, out, decays=args.decays, thresholds=args.thresholds,
-                       base_lod=args.base_lod, seed=args.seed, scene_name=args.scene,
-                       progress=not args.quiet, fresh=args.fresh)
+                       base_lod=args.base_lod, seed=args.seed, channel=args.channel,
+                       scene_name=args.scene, progress=not args.quiet, fresh=args.fresh)
     if not args.quiet:
         print(f"adaptive: {report['adaptive']['rays']:,} rays; per decay, the threshold "
               "closest to it:")
@@ -412,6 +417,7 @@ def _add_sweep_parser(sub) -> None:
                    help="comma-separated thresholds (default the thesis's 0.175..0.05)")
     p.add_argument("--base-lod", type=_lod_arg, default=2, help="LOD of the first ray")
     p.add_argument("--out", default=None, help="output folder (default out/sweep_SCENE)")
+    _add_channel_option(p)
     p.add_argument("--fresh", action="store_true", help="ignore cached cells")
     _add_view_options(p)
     p.set_defaults(func=cmd_sweep)
@@ -431,6 +437,7 @@ def _add_calibrate_parser(sub) -> None:
     p.add_argument("--base-lod", type=_lod_arg, default=2, help="LOD of the first ray")
     p.add_argument("--iterations", type=_positive_int, default=14, help="bisection steps")
     p.add_argument("--out", default=None, help="write the result and trail as JSON")
+    _add_channel_option(p)
     _add_view_options(p)
     p.set_defaults(func=cmd_calibrate)
 

@@ -50,3 +50,19 @@ def test_study_cli_parses_thresholds():
                               "0.1,0.2", "--base-lod", "cone", "--size", "32"])
     assert args.thresholds == (0.1, 0.2) and args.base_lod is None and args.size == 32
     assert args.func.__name__ == "cmd_study_thresholds"
+
+
+def test_a_scaled_channel_is_studied_apart_with_the_same_costs(scene, tmp_path):
+    # A channel that is albedo × 0.5 changes colours, not geometry: the error-aware ray counts
+    # (geometric error) match albedo's; the cache keeps the two channels apart.
+    octree, camera = scene
+    octree.attributes["half"] = octree.attributes["color"] * 0.5
+    try:
+        kwargs = {"thresholds": (0.1,), "scene_name": "pillars"}
+        albedo = run_threshold_study(octree, camera, tmp_path, **kwargs)
+        half = run_threshold_study(octree, camera, tmp_path, channel="half", **kwargs)
+    finally:
+        del octree.attributes["half"]
+    assert half["rows"][0]["error_aware"]["rays"] == albedo["rows"][0]["error_aware"]["rays"]
+    assert half["rows"][0]["error_aware"]["psnr"] != albedo["rows"][0]["error_aware"]["psnr"]
+    assert len(list((tmp_path / "items").glob("*.json"))) == 2 * 3

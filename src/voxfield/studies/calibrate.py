@@ -39,6 +39,7 @@ def calibrate_threshold(
     octree: Octree, camera: Camera, *, target_rays: int | None = None,
     target_psnr: float | None = None, decay: float = 0.2, base_lod: int | None = 2,
     low: float = 0.0, high: float = 1.0, iterations: int = 14, table=None, seed: int = 0,
+    channel: str = "albedo",
     progress: bool = False,
 ) -> Calibration:
     """Bisection over ``[low, high]`` for ``target_rays`` (the smallest threshold whose ray
@@ -47,12 +48,13 @@ def calibrate_threshold(
         raise VoxfieldError("give exactly one of a ray budget or a PSNR target")
     if not low < high or iterations < 1:
         raise VoxfieldError("the threshold search needs low < high and at least one step")
-    reference = render_reference(octree, camera, side=4, seed=seed) if target_psnr else None
+    reference = (render_reference(octree, camera, side=4, seed=seed, channel=channel)
+                 if target_psnr else None)
     trail: list[dict] = []
 
     def evaluate(threshold: float) -> dict:
         result = render_error_aware(octree, camera, table, threshold=threshold, decay=decay,
-                                    base_lod=base_lod, seed=seed)
+                                    base_lod=base_lod, seed=seed, channel=channel)
         entry = {"threshold": threshold, "rays": result.total_rays, "steps": result.total_steps}
         entry["psnr"] = psnr(reference.image, result.image) if reference is not None else None
         trail.append(entry)

@@ -10,6 +10,7 @@ from pathlib import Path
 def add_study_parser(subparsers) -> argparse.ArgumentParser:
     """Register ``study`` with its ``thresholds`` and ``resolution`` actions."""
     from voxfield.cli import (
+        _add_channel_option,
         _add_scene_options,
         _add_view_options,
         _float_list,
@@ -36,6 +37,7 @@ def add_study_parser(subparsers) -> argparse.ArgumentParser:
     t.add_argument("--base-lod", type=_lod_arg, default=2, help="LOD of the first ray (2)")
     t.add_argument("--out", default=None, help="output folder (default out/thresholds_SCENE)")
     t.add_argument("--fresh", action="store_true", help="ignore cached cells")
+    _add_channel_option(t)
     _add_view_options(t)
     t.set_defaults(func=cmd_study_thresholds)
 
@@ -53,6 +55,7 @@ def add_study_parser(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--decay", type=float, default=0.2, help="error-aware decay (default 0.2)")
     r.add_argument("--out", default=None, help="output folder (default out/resolution_SCENE)")
     r.add_argument("--fresh", action="store_true", help="ignore cached cells")
+    _add_channel_option(r)
     r.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
                    help="no progress bars or summaries")
     r.set_defaults(func=cmd_study_resolution)
@@ -86,7 +89,7 @@ def cmd_study_thresholds(args) -> int:
     out = args.out or default_out("thresholds", args.scene)
     report = run_threshold_study(
         octree, camera, out, thresholds=args.thresholds, decay=args.decay,
-        base_lod=args.base_lod, seed=args.seed, scene_name=args.scene,
+        base_lod=args.base_lod, seed=args.seed, channel=args.channel, scene_name=args.scene,
         progress=not args.quiet, fresh=args.fresh)
     if not args.quiet:
         a = report["adaptive"]
@@ -109,7 +112,8 @@ def cmd_study_resolution(args) -> int:
     out = args.out or default_out("resolution", args.scene)
     report = run_resolution_study(
         octree, out, sizes=args.sizes, threshold=args.threshold, decay=args.decay,
-        seed=args.seed, scene_name=args.scene, progress=not args.quiet, fresh=args.fresh)
+        seed=args.seed, channel=args.channel, scene_name=args.scene, progress=not args.quiet,
+        fresh=args.fresh)
     if not args.quiet:
         for row in report["rows"]:
             a, e = row["adaptive"], row["error_aware"]

@@ -204,9 +204,9 @@ def fmt(value, spec: str = ",") -> str:
     return format(value, spec)
 
 
-def scene_fingerprint(octree) -> str:
-    """Identifies the octree's structure and albedo in cache keys."""
-    return array_fingerprint(octree.level_offsets, octree.child_mask, octree.channel("albedo"))
+def scene_fingerprint(octree, channel: str = "albedo") -> str:
+    """Identifies the octree's structure and the rendered colour channel in cache keys."""
+    return array_fingerprint(octree.level_offsets, octree.child_mask, octree.channel(channel))
 
 
 def costs(result) -> dict:

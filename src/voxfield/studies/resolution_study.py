@@ -51,7 +51,8 @@ def map_footprint(octree: Octree) -> int:
 
 def run_resolution_study(
     octree: Octree, out_dir: str | Path, *, sizes=THESIS_SIZES, threshold: float = 0.154,
-    decay: float = 0.2, seed: int = 0, scene_name: str = "scene", progress: bool = False,
+    decay: float = 0.2, seed: int = 0, channel: str = "albedo", scene_name: str = "scene",
+    progress: bool = False,
     fresh: bool = False,
 ) -> dict:
     """Render the three renderers at each size (resumable) and write results.json,
@@ -59,7 +60,7 @@ def run_resolution_study(
     folder = StudyFolder(out_dir, fresh=fresh)
     lo, hi = octree.voxel_bounds
     footprint = map_footprint(octree)
-    fingerprint = scene_fingerprint(octree)
+    fingerprint = scene_fingerprint(octree, channel)
     rows = []
     with progress_bar(total=3 * len(sizes), desc="resolution", unit="render",
                       enabled=progress) as bar:
@@ -69,25 +70,26 @@ def run_resolution_study(
             view = {"scene": scene_name, "fingerprint": fingerprint,
                     "camera": camera.params.tolist(), "size": size, "seed": seed}
             reference = folder.render_item(f"reference-s{size}", view, lambda c=camera: (
-                render_reference(octree, c, side=4, seed=seed)))
+                render_reference(octree, c, side=4, seed=seed, channel=channel)))
             bar.update(1)
             adaptive = folder.value_item(
                 f"adaptive-s{size}", {**view, "base_lod": base_lod},
                 lambda c=camera, b=base_lod, r=reference: costs_and_quality(
-                    r, render_adaptive(octree, c, base_lod=b, seed=seed)))
+                    r, render_adaptive(octree, c, base_lod=b, seed=seed, channel=channel)))
             bar.update(1)
             error_aware = folder.value_item(
                 f"ea-s{size}-d{decay:g}-t{threshold:g}",
                 {**view, "base_lod": base_lod, "decay": decay, "threshold": threshold},
                 lambda c=camera, b=base_lod, r=reference: costs_and_quality(
                     r, render_error_aware(octree, c, threshold=threshold, decay=decay,
-                                          base_lod=b, seed=seed)))
+                                          base_lod=b, seed=seed, channel=channel)))
             bar.update(1)
             rows.append({"size": size, "pixels": size * size, "base_lod": base_lod,
                          "reference": costs(reference), "adaptive": adaptive,
                          "error_aware": error_aware})
     report = {"scene": scene_name, "footprint": footprint, "depth": octree.depth,
-              "threshold": threshold, "decay": decay, "seed": seed, "camera": "top, 90°",
+              "threshold": threshold, "decay": decay, "seed": seed, "channel": channel,
+              "camera": "top, 90°",
               "base_lod_rule": "clamp(round(log2(footprint / size)), 0, depth)",
               "rows": rows, "metrics_on": "linear RGB in [0, 1]"}
     folder.write_json("results.json", report)

@@ -29,18 +29,20 @@ THESIS_THRESHOLDS = (0.175, 0.15, 0.125, 0.1, 0.075, 0.05)
 def run_sweep(
     octree: Octree, camera: Camera, out_dir: str | Path, *,
     decays=THESIS_DECAYS, thresholds=THESIS_THRESHOLDS, base_lod: int | None = 2,
-    seed: int = 0, scene_name: str = "scene", progress: bool = False, fresh: bool = False,
+    seed: int = 0, channel: str = "albedo", scene_name: str = "scene", progress: bool = False,
+    fresh: bool = False,
 ) -> dict:
     """Render the grid (resumable: finished cells are reused) and write results.json,
     results.md and sweep.png into ``out_dir``."""
     folder = StudyFolder(out_dir, fresh=fresh)
-    view = {"scene": scene_name, "fingerprint": scene_fingerprint(octree),
+    view = {"scene": scene_name, "fingerprint": scene_fingerprint(octree, channel),
             "camera": camera.params.tolist(), "size": camera.width, "seed": seed,
+            "channel": channel,
             "base_lod": base_lod}
     reference = folder.render_item("reference", view, lambda: render_reference(
-        octree, camera, side=4, seed=seed))
+        octree, camera, side=4, seed=seed, channel=channel))
     adaptive = folder.value_item("adaptive", view, lambda: costs_and_quality(
-        reference, render_adaptive(octree, camera, base_lod=base_lod, seed=seed)))
+        reference, render_adaptive(octree, camera, base_lod=base_lod, seed=seed, channel=channel)))
     cells = []
     with progress_bar(total=len(decays) * len(thresholds), desc="sweep", unit="render",
                       enabled=progress) as bar:
@@ -50,7 +52,8 @@ def run_sweep(
                 cell = folder.value_item(
                     f"ea-d{decay:g}-t{threshold:g}", params,
                     lambda d=decay, t=threshold: costs_and_quality(reference, render_error_aware(
-                        octree, camera, threshold=t, decay=d, base_lod=base_lod, seed=seed)),
+                        octree, camera, threshold=t, decay=d, base_lod=base_lod, seed=seed,
+                        channel=channel)),
                 )
                 cells.append({"decay": decay, "threshold": threshold, **cell})
                 bar.update(1)

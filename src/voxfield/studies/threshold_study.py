@@ -32,28 +32,31 @@ PANELS = (("rays", "rays", True), ("steps", "traversal steps", True),
 def run_threshold_study(
     octree: Octree, camera: Camera, out_dir: str | Path, *,
     thresholds=THESIS_THRESHOLDS, decay: float = 0.2, base_lod: int | None = 2,
-    seed: int = 0, scene_name: str = "scene", progress: bool = False, fresh: bool = False,
+    seed: int = 0, channel: str = "albedo", scene_name: str = "scene", progress: bool = False,
+    fresh: bool = False,
 ) -> dict:
     """Render the error-aware renderer per threshold (resumable) and write results.json,
     results.md and thresholds.png into ``out_dir``."""
     folder = StudyFolder(out_dir, fresh=fresh)
-    view = {"scene": scene_name, "fingerprint": scene_fingerprint(octree),
+    view = {"scene": scene_name, "fingerprint": scene_fingerprint(octree, channel),
             "camera": camera.params.tolist(), "size": camera.width, "height": camera.height,
-            "seed": seed, "base_lod": base_lod}
+            "seed": seed, "channel": channel, "base_lod": base_lod}
     with progress_bar(total=len(thresholds) + 2, desc="thresholds", unit="render",
                       enabled=progress) as bar:
         reference = folder.render_item("reference", view, lambda: render_reference(
-            octree, camera, side=4, seed=seed))
+            octree, camera, side=4, seed=seed, channel=channel))
         bar.update(1)
         adaptive = folder.value_item("adaptive", view, lambda: costs_and_quality(
-            reference, render_adaptive(octree, camera, base_lod=base_lod, seed=seed)))
+            reference, render_adaptive(octree, camera, base_lod=base_lod, seed=seed,
+                                       channel=channel)))
         bar.update(1)
         rows = []
         for threshold in thresholds:
             cell = folder.value_item(
                 f"ea-d{decay:g}-t{threshold:g}", {**view, "decay": decay, "threshold": threshold},
                 lambda t=threshold: costs_and_quality(reference, render_error_aware(
-                    octree, camera, threshold=t, decay=decay, base_lod=base_lod, seed=seed)),
+                    octree, camera, threshold=t, decay=decay, base_lod=base_lod, seed=seed,
+                    channel=channel)),
             )
             rows.append({"threshold": threshold, "error_aware": cell, "adaptive": adaptive})
             bar.update(1)
