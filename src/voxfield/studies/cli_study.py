@@ -59,6 +59,30 @@ def add_study_parser(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
                    help="no progress bars or summaries")
     r.set_defaults(func=cmd_study_resolution)
+
+    g = actions.add_parser(
+        "lighting", help="adaptive vs error-aware vs lighting-aware per time of day (EA "
+        "Tables 5.18-5.26)",
+        description="Per colour channel (albedo and each baked time of day): the 4×4 "
+        "reference, adaptive, error-aware and lighting-aware error-aware renderers; rays, "
+        "steps, average luminance, PSNR, RMSE, SSIM and a contact sheet. A scene without "
+        "baked channels is baked first (as `voxfield light`). Resumable.",
+    )
+    _add_scene_options(g)
+    g.add_argument("--channels", default=None,
+                   help="comma-separated channels (default albedo and every baked one)")
+    g.add_argument("--times", default=None, metavar="SUNS",
+                   help="times of day to bake when the scene has none (default all four)")
+    g.add_argument("--threshold", type=float, default=0.154,
+                   help="error-aware threshold (default 0.154)")
+    g.add_argument("--decay", type=float, default=0.2, help="error-aware decay (default 0.2)")
+    g.add_argument("--base-lod", type=_lod_arg, default=2, help="LOD of the first ray (2)")
+    g.add_argument("--bright-ratio", type=float, default=0.25,
+                   help="lighting-aware: bright above (1 + R) × the parent's luminance")
+    g.add_argument("--out", default=None, help="output folder (default out/lighting_SCENE)")
+    g.add_argument("--fresh", action="store_true", help="ignore cached renders")
+    _add_view_options(g)
+    g.set_defaults(func=cmd_study_lighting)
     return p
 
 
@@ -122,4 +146,31 @@ def cmd_study_resolution(args) -> int:
                   f"error-aware {e['rays_per_pixel']:.2f} rays/px, "
                   f"PSNR {fmt(e['psnr'], '.2f')} dB")
         print(f"wrote {out}/results.md, results.json, resolution.png")
+    return 0
+
+
+def cmd_study_lighting(args) -> int:
+    from voxfield.cli import _camera, _open_octree
+    from voxfield.lighting import bake_sun_lighting, parse_suns
+    from voxfield.studies.lighting_study import lighting_channels, run_lighting_study
+    from voxfield.studies.report import fmt
+
+    octree = _open_octree(args)
+    if len(lighting_channels(octree)) < 2:
+        suns = parse_suns(args.times or "all")
+        octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet)
+    camera = _camera(args, octree)
+    channels = args.channels.split(",") if args.channels else None
+    out = args.out or default_out("lighting", args.scene)
+    report = run_lighting_study(
+        octree, camera, out, channels=channels, threshold=args.threshold, decay=args.decay,
+        base_lod=args.base_lod, bright_ratio=args.bright_ratio, seed=args.seed,
+        scene_name=args.scene, progress=not args.quiet, fresh=args.fresh)
+    if not args.quiet:
+        for row in report["rows"]:
+            parts = [f"{label} {row[key]['steps']:,} steps {fmt(row[key]['psnr'], '.2f')} dB"
+                     for key, label in (("adaptive", "A"), ("error_aware", "EA"),
+                                        ("lighting_aware", "EA-L"))]
+            print(f"{row['channel']:>10}: " + "; ".join(parts))
+        print(f"wrote {out}/results.md, results.json, lighting.png, contact_sheet.png")
     return 0

@@ -1,0 +1,55 @@
+"""The lighting study (EA §5.3): per-channel rows, the geometric renderer's channel-blind cost,
+tables and files, resumption, and a clear refusal without baked channels."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from voxfield.errors import VoxfieldError
+from voxfield.lighting import bake_sun_lighting, parse_suns
+from voxfield.render import Camera
+from voxfield.scene.builtin import pillars
+from voxfield.studies.lighting_study import image_luminance, run_lighting_study
+from voxfield.svo import build_octree
+
+
+@pytest.fixture(scope="module")
+def lit():
+    octree, _ = bake_sun_lighting(build_octree(pillars(32)), parse_suns("noon,evening"),
+                                  sky_rays=4)
+    return octree, Camera.look_at((40, 30, 45), (16, 4, 16), fov_deg=55, width=24)
+
+
+def test_rows_tables_and_resumption(lit, tmp_path):
+    octree, camera = lit
+    report = run_lighting_study(octree, camera, tmp_path, threshold=0.2)
+    rows = {r["channel"]: r for r in report["rows"]}
+    assert list(rows) == ["albedo", "evening", "noon"]
+    # The geometric error ignores colour: EA casts the same rays whatever the lighting
+    # (thesis §4: "ray counts ... are therefore identical"); colour-aware ones may differ.
+    assert len({r["error_aware"]["rays"] for r in rows.values()}) == 1
+    for row in rows.values():
+        assert row["lighting_aware"]["rays"] >= row["error_aware"]["rays"]
+    assert rows["evening"]["luminance"] < rows["noon"]["luminance"]
+    text = (tmp_path / "results.md").read_text()
+    assert "Table 5.19" in text and "EA-L" in text
+    for name in ("results.json", "lighting.png", "contact_sheet.png"):
+        assert (tmp_path / name).is_file()
+    again = run_lighting_study(octree, camera, tmp_path, threshold=0.2)
+    assert again["rows"] == report["rows"]
+
+
+def test_without_baked_channels_it_says_how_to_bake(tmp_path):
+    octree = build_octree(pillars(16))
+    camera = Camera.look_at((20, 15, 25), (8, 2, 8), fov_deg=55, width=8)
+    with pytest.raises(VoxfieldError, match="voxfield light"):
+        run_lighting_study(octree, camera, tmp_path)
+    with pytest.raises(VoxfieldError):
+        run_lighting_study(octree, camera, tmp_path, channels=["albedo", "dusk"])
+
+
+def test_image_luminance_is_rec709():
+    image = np.zeros((2, 2, 3))
+    image[..., 1] = 1.0
+    assert image_luminance(image) == pytest.approx(0.7152)
