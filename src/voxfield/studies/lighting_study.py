@@ -94,7 +94,7 @@ def run_lighting_study(
                 row[name] = folder.value_item(
                     f"quality_{name}-{channel}", {**view, **settings, "renderer": name,
                                                   "bright_ratio": bright_ratio},
-                    lambda r=results[name]: costs_and_quality(reference, r))
+                    lambda r=results[name], ref=reference: costs_and_quality(ref, r))
             rows.append(row)
             sheet.append((channel, results))
     report = {
