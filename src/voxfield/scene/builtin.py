@@ -7,6 +7,7 @@ from collections.abc import Callable
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.scene.shadow_box import shadow_box
 from voxfield.scene.voxel_scene import VoxelScene
 
 
@@ -98,6 +99,7 @@ BUILTIN_SCENES: dict[str, Callable[[], VoxelScene]] = {
     "menger": menger,
     "sphere": sphere,
     "cornell": cornell,
+    "shadowbox": shadow_box,
 }
 
 
