@@ -574,12 +574,14 @@ def build_parser() -> argparse.ArgumentParser:
     _add_calibrate_parser(sub)
     _add_sweep_parser(sub)
     from voxfield.lighting.cli_light import add_light_parser
+    from voxfield.render.cli_shadow import add_shadow_parser
     from voxfield.studies.cli_compare import add_compare_parser
     from voxfield.studies.cli_study import add_study_parser
 
     add_compare_parser(sub)
     add_study_parser(sub)
     add_light_parser(sub)
+    add_shadow_parser(sub)
 
     p = sub.add_parser("scenes", help="list built-in scenes and terrain recipes",
                        description="Scenes that need no files, and terrain recipes.")
