@@ -77,3 +77,31 @@ def test_top_down_camera_spans_the_map_at_ground_level():
 def test_invalid_cameras_raise_camera_error(make):
     with pytest.raises(CameraError):
         make()
+
+
+def test_octahedral_camera_casts_the_texel_centre_directions():
+    from voxfield.kernels.octahedral import texel_directions
+
+    cam = Camera.octahedral((1.0, 2.0, 3.0), resolution=8)
+    origins, directions = cam.rays(side=1)
+    assert np.allclose(origins, (1.0, 2.0, 3.0))
+    assert np.allclose(directions, texel_directions(8), atol=1e-12)
+
+
+def test_octahedral_render_depth_is_the_ray_cast_distance():
+    # A probe inside a hollow box: each texel's depth is the distance along its direction to
+    # the first wall, computed independently by the ray query.
+    from voxfield.render import render_lod
+    from voxfield.render.ray_query import trace
+    from voxfield.scene.voxel_scene import VoxelScene
+    from voxfield.svo import build_octree
+
+    grid = np.indices((12, 12, 12)).reshape(3, -1).T
+    shell = grid[(grid.min(axis=1) == 0) | (grid.max(axis=1) == 11)]
+    octree = build_octree(VoxelScene(shell, np.full((len(shell), 3), 0.5)))
+    cam = Camera.octahedral((4.3, 6.1, 5.2), resolution=16)
+    result = render_lod(octree, cam, lod=0)
+    origins, directions = cam.rays()
+    hits = trace(octree, origins, directions)
+    assert np.all(hits.hit)
+    assert np.allclose(result.depth.ravel(), hits.t)

@@ -2,7 +2,10 @@
 
 Camera parameters are a float64 array: ``[kind, position(3), forward(3), right(3), up(3),
 half_width, half_height]``; kind 0 is pinhole (half sizes are tangents of the half field of
-view), kind 1 orthographic (half sizes in world units).
+view), kind 1 orthographic (half sizes in world units), kind 2 octahedral: a light probe's
+full sphere of directions from ``position``, image position (x, y) / size being the
+octahedral (u, v) of ``kernels.octahedral`` — so every renderer bakes probe texels straight
+from the octree, with no cube-map resampling.
 """
 
 from __future__ import annotations
@@ -12,10 +15,15 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from voxfield.kernels.octahedral import oct_decode
 from voxfield.kernels.sampling import subpixel
 
 PINHOLE = 0
 ORTHOGRAPHIC = 1
+OCTAHEDRAL = 2
+#: Cone spread of one texel of an R×R octahedral map: the side of a square of the mean
+#: texel solid angle, sqrt(4π) / R, per unit distance.
+OCTAHEDRAL_TEXEL_SPREAD = math.sqrt(4.0 * math.pi)
 CAMERA_PARAMS = 15
 
 
@@ -24,6 +32,9 @@ def camera_ray(
     cam: np.ndarray, x: float, y: float, width: int, height: int
 ) -> tuple[float, float, float, float, float, float]:
     """Ray through image position (x, y) in pixels (0, 0 is the top-left corner)."""
+    if cam[0] == OCTAHEDRAL:
+        dx, dy, dz = oct_decode(x / width, y / height)
+        return cam[1], cam[2], cam[3], dx, dy, dz
     a = (2.0 * x / width - 1.0) * cam[13]
     b = (1.0 - 2.0 * y / height) * cam[14]
     if cam[0] == ORTHOGRAPHIC:
@@ -41,6 +52,8 @@ def camera_ray(
 @njit(cache=True, nogil=True)
 def pixel_cone(cam: np.ndarray, height: int) -> tuple[float, float]:
     """Cone radius at the origin and spread per unit distance covering one pixel."""
+    if cam[0] == OCTAHEDRAL:
+        return 0.0, OCTAHEDRAL_TEXEL_SPREAD / height
     pixel = 2.0 * cam[14] / height
     if cam[0] == ORTHOGRAPHIC:
         return pixel, 0.0

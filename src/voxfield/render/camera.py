@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from voxfield.errors import CameraError
-from voxfield.kernels.camera_rays import ORTHOGRAPHIC, PINHOLE, camera_ray_arrays
+from voxfield.kernels.camera_rays import OCTAHEDRAL, ORTHOGRAPHIC, PINHOLE, camera_ray_arrays
 
 #: Cube-map faces in the OpenGL/DirectX order and orientation: (name, forward, up).
 CUBE_FACES = (
@@ -111,6 +111,15 @@ class Camera:
                 return cls(PINHOLE, _vector(position, "position"), f, r, u, 1.0, 1.0, size, size)
         names = ", ".join(n for n, _, _ in CUBE_FACES)
         raise CameraError(f"unknown cube face {face!r}; use one of {names}")
+
+    @classmethod
+    def octahedral(cls, position, resolution: int = 64) -> Camera:
+        """A light probe at ``position``: an R×R octahedral map of every direction; pixel
+        (row, col) is texel (v, u) of ``kernels.octahedral`` (y up)."""
+        resolution = int(resolution)
+        f, r, u = _basis((0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
+        return cls(OCTAHEDRAL, _vector(position, "probe position"), f, r, u, 1.0, 1.0,
+                   resolution, resolution)
 
     @property
     def params(self) -> np.ndarray:
