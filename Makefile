@@ -3,8 +3,11 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
-# Numba compiles once per machine; keep its cache inside the checkout.
-export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
+# Numba compiles once per machine; keep its cache inside the checkout. Numba checks only a
+# cached function's own file, not the kernels it inlines from other files, so the cache
+# folder is keyed on the text of every file with a kernel: an edit anywhere recompiles.
+KERNEL_HASH := $(shell grep -rl --include='*.py' njit src | sort | xargs cat | sha1sum | cut -c1-12)
+export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache/$(KERNEL_HASH)
 
 .PHONY: demo test lint bench clean
 

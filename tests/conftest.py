@@ -10,7 +10,23 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).parent))
-os.environ.setdefault("NUMBA_CACHE_DIR", str(Path(__file__).parents[1] / ".numba_cache"))
+
+
+def _kernel_cache_dir() -> Path:
+    """``.numba_cache/<hash of every file with a kernel>``: Numba revalidates a cached function
+    against its own file only, so an edited kernel inlined elsewhere needs a fresh folder."""
+    import hashlib
+
+    src = Path(__file__).parents[1] / "src"
+    digest = hashlib.sha1()
+    for path in sorted(src.rglob("*.py")):
+        text = path.read_bytes()
+        if b"njit" in text:
+            digest.update(text)
+    return Path(__file__).parents[1] / ".numba_cache" / digest.hexdigest()[:12]
+
+
+os.environ.setdefault("NUMBA_CACHE_DIR", str(_kernel_cache_dir()))
 
 from voxfield.data import data_root  # noqa: E402
 from voxfield.scene.voxel_scene import VoxelScene  # noqa: E402
