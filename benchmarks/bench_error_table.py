@@ -36,11 +36,13 @@ def per_mask_passes(directions, samples):
         ix, iy, iz = safe_inverse(dx), safe_inverse(dy), safe_inverse(dz)
         for m in prange(256):
             count = 0
+            entries = np.empty(8)
             for s in range(samples.shape[0]):
                 a = samples[s, 0] * 2.0 - 1.0
                 b = samples[s, 1] * 2.0 - 1.0
                 bits = child_hit_bits(-2.0 * dx + a * rx + b * ux, -2.0 * dy + a * ry + b * uy,
-                                      -2.0 * dz + a * rz + b * uz, dx, dy, dz, ix, iy, iz)
+                                      -2.0 * dz + a * rz + b * uz, dx, dy, dz, ix, iy, iz,
+                                      entries)
                 if bits & m:
                     count += 1
             hits[k, m] = count

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import re
 import sys
 import time
 from pathlib import Path
@@ -43,14 +44,29 @@ def _lod_arg(text: str) -> int | None:
     return value
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
-    return value
+def _int_at_least(low: int):
+    """An argparse type: a whole number no smaller than ``low``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"expected {low} or more, got {text!r}")
+        return value
+
+    return parse
+
+
+_positive_int = _int_at_least(1)
+
+
+def default_output(prefix: str, scene: str, suffix: str = "") -> Path:
+    """``out/PREFIX_NAME[SUFFIX]``, NAME the scene's file stem or ``kind:NAME`` name, made
+    path-safe: where a command writes when no ``--out`` is given."""
+    name = scene.split(":", 1)[1] if ":" in scene and not Path(scene).exists() else scene
+    name = Path(name).stem or "scene"
+    return Path("out") / f"{prefix}_{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}{suffix}"
 
 
 def _add_scene_options(p: argparse.ArgumentParser) -> None:
@@ -442,6 +458,14 @@ def _add_calibrate_parser(sub) -> None:
     p.set_defaults(func=cmd_calibrate)
 
 
+def _add_table_raycast_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--resolution", type=_positive_int, default=512,
+                   help="framebuffer side in rays per direction (default 512, as the thesis)")
+    p.add_argument("--oct-resolution", type=_positive_int, default=32,
+                   help="octahedral map side in texels (default 32)")
+    p.add_argument("--seed", type=int, default=0, help="CMJ jitter seed")
+
+
 def _add_errors_parser(sub) -> None:
     errors = sub.add_parser(
         "errors", help="error tables: build, inspect, picture one mask",
@@ -457,11 +481,7 @@ def _add_errors_parser(sub) -> None:
                         "orthographic rays), fit 9 SH coefficients and octahedral maps.")
     p.add_argument("--directions", type=_positive_int, default=1024,
                    help="Fibonacci directions for the SH fit (default 1024; thesis 256)")
-    p.add_argument("--resolution", type=_positive_int, default=512,
-                   help="framebuffer side in rays per direction (default 512, as the thesis)")
-    p.add_argument("--oct-resolution", type=_positive_int, default=32,
-                   help="octahedral map side in texels (default 32)")
-    p.add_argument("--seed", type=int, default=0, help="CMJ jitter seed")
+    _add_table_raycast_options(p)
     p.add_argument("--out", default=None,
                    help="output file (default: the table shipped with the package)")
     p.add_argument("--report", action="store_true",
@@ -473,11 +493,7 @@ def _add_errors_parser(sub) -> None:
         "build-lighting", help="ray-cast the lighting-aware (bright-flag) colour error table",
         description="Ray-cast the colour error of every child mask with every subset of "
         "children flagged bright (EA §6.1), one octahedral map per cube-symmetry class.")
-    p.add_argument("--resolution", type=_positive_int, default=512,
-                   help="framebuffer side in rays per direction (default 512)")
-    p.add_argument("--oct-resolution", type=_positive_int, default=32,
-                   help="octahedral map side in texels (default 32)")
-    p.add_argument("--seed", type=int, default=0, help="CMJ jitter seed")
+    _add_table_raycast_options(p)
     p.add_argument("--out", default=None,
                    help="output file (default: the lighting table shipped with the package)")
     p.add_argument("--quiet", **quiet)

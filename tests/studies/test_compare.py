@@ -9,11 +9,12 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from voxfield.cli import default_output
 from voxfield.errors import VoxfieldError
 from voxfield.render import Camera, render_lod, render_reference
 from voxfield.scene.builtin import pillars
 from voxfield.studies import compare
-from voxfield.studies.cli_compare import add_compare_parser, default_out
+from voxfield.studies.cli_compare import add_compare_parser
 from voxfield.studies.report import StudyFolder, markdown_table, params_key
 from voxfield.svo import build_octree
 
@@ -182,8 +183,8 @@ def test_command_line_entry(scene, stub_renderers, tmp_path, capsys):
     assert (out / "results.md").is_file()
     with pytest.raises(SystemExit):
         parser.parse_args(["compare", "builtin:sphere", "--base-lod", "fine"])
-    assert default_out("builtin:menger").as_posix() == "out/compare_menger"
-    assert default_out("../data/vox/monu 1.vox").as_posix() == "out/compare_monu_1"
+    assert default_output("compare", "builtin:menger").as_posix() == "out/compare_menger"
+    assert default_output("compare", "../data/vox/monu 1.vox").as_posix() == "out/compare_monu_1"
 
 
 def test_report_helpers():

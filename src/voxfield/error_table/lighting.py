@@ -22,7 +22,7 @@ from numba import njit
 
 from voxfield.atomic import atomic_path
 from voxfield.error_table.symmetry import cube_symmetries, octant_permutation
-from voxfield.error_table.table import ErrorTableError, _checksum
+from voxfield.error_table.table import ErrorTableError, _checksum, read_table_file
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.error_raycast import image_plane_samples
 from voxfield.kernels.lighting_error import configuration_colour_errors
@@ -200,17 +200,9 @@ def load_lighting_error_table(path: str | Path | None = None) -> LightingErrorTa
         f"rebuild it with `voxfield errors build-lighting --out {path}`")
     if not path.is_file():
         raise ErrorTableError(f"lighting error table {path} is missing; {hint}")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            header = json.loads(bytes(data["header"]).decode())
-            arrays = {k: data[k] for k in ("oct_map", "class_of", "symmetry_of", "symmetries")}
-    except Exception as exc:  # noqa: BLE001 - zip/zlib/json can fail many ways on a bad file
-        raise ErrorTableError(f"lighting error table {path} is unreadable ({exc!r}); {hint}") \
-            from exc
-    if header.get("format") != FORMAT or header.get("version") != FORMAT_VERSION:
-        raise ErrorTableError(f"{path} is not a version-{FORMAT_VERSION} lighting table; {hint}")
-    if _checksum(arrays) != header.get("sha256"):
-        raise ErrorTableError(f"lighting error table {path} fails its checksum; {hint}")
+    header, arrays = read_table_file(
+        path, ("oct_map", "class_of", "symmetry_of", "symmetries"), FORMAT, FORMAT_VERSION,
+        "lighting error table", hint)
     classes = arrays["oct_map"].shape[0] if arrays["oct_map"].ndim == 3 else -1
     if (arrays["class_of"].shape != (N_INDICES,) or arrays["symmetries"].shape != (48, 3, 3)
             or arrays["symmetry_of"].shape != (N_INDICES,) or classes < 1

@@ -190,6 +190,23 @@ def save_error_table(table: ErrorTable, path: str | Path) -> Path:
     return path
 
 
+def read_table_file(path: Path, keys: tuple[str, ...], fmt: str, version: int, what: str,
+                    hint: str) -> tuple[dict, dict[str, np.ndarray]]:
+    """The JSON header and ``keys`` arrays of a table file whose format, version and SHA-256
+    match; ErrorTableError naming ``what`` and the rebuild ``hint`` otherwise."""
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            header = json.loads(bytes(data["header"]).decode())
+            arrays = {k: data[k] for k in keys}
+    except Exception as exc:  # noqa: BLE001 - zip/zlib/json can fail many ways on a bad file
+        raise ErrorTableError(f"{what} {path} is unreadable ({exc!r}); {hint}") from exc
+    if header.get("format") != fmt or header.get("version") != version:
+        raise ErrorTableError(f"{path} is not a version-{version} {what}; {hint}")
+    if _checksum(arrays) != header.get("sha256"):
+        raise ErrorTableError(f"{what} {path} fails its checksum (corrupt?); {hint}")
+    return header, arrays
+
+
 def load_error_table(path: str | Path | None = None) -> ErrorTable:
     """Read a table (the packaged one by default), verifying its checksum."""
     path = DEFAULT_TABLE if path is None else Path(path)
@@ -198,16 +215,8 @@ def load_error_table(path: str | Path | None = None) -> ErrorTable:
     )
     if not path.is_file():
         raise ErrorTableError(f"error table {path} is missing; {hint}")
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            header = json.loads(bytes(data["header"]).decode())
-            arrays = {k: data[k] for k in ("directions", "raw", "sh", "oct_map")}
-    except Exception as exc:  # noqa: BLE001 - zip/zlib/json can fail many ways on a bad file
-        raise ErrorTableError(f"error table {path} is unreadable ({exc!r}); {hint}") from exc
-    if header.get("format") != FORMAT or header.get("version") != FORMAT_VERSION:
-        raise ErrorTableError(f"{path} is not a version-{FORMAT_VERSION} error table; {hint}")
-    if _checksum(arrays) != header.get("sha256"):
-        raise ErrorTableError(f"error table {path} fails its checksum (corrupt?); {hint}")
+    header, arrays = read_table_file(path, ("directions", "raw", "sh", "oct_map"), FORMAT,
+                                     FORMAT_VERSION, "error table", hint)
     n = len(arrays["directions"])
     if arrays["raw"].shape != (256, n) or arrays["sh"].shape != (256, 9):
         raise ErrorTableError(f"error table {path} has inconsistent array shapes; {hint}")

@@ -46,22 +46,30 @@ def orthonormal_basis(dx: float, dy: float, dz: float):
 
 
 @njit(cache=True, nogil=True)
-def child_hit_bits(ox, oy, oz, dx, dy, dz, ix, iy, iz) -> int:
-    """Mask of the child octants of ``[-0.5, 0.5]^3`` a ray passes through (open intervals)."""
+def child_entries(ox, oy, oz, dx, dy, dz, ix, iy, iz, entries: np.ndarray) -> None:
+    """``entries[c]``: when a ray enters child octant ``c`` of ``[-0.5, 0.5]^3`` (open
+    intervals), ``inf`` when it misses it."""
     lx0, lx1 = axis_interval(ox, dx, ix, -0.5, 0.0)
     hx0, hx1 = axis_interval(ox, dx, ix, 0.0, 0.5)
     ly0, ly1 = axis_interval(oy, dy, iy, -0.5, 0.0)
     hy0, hy1 = axis_interval(oy, dy, iy, 0.0, 0.5)
     lz0, lz1 = axis_interval(oz, dz, iz, -0.5, 0.0)
     hz0, hz1 = axis_interval(oz, dz, iz, 0.0, 0.5)
-    bits = 0
     for c in range(8):
         e0, e1 = (hx0, hx1) if c & 1 else (lx0, lx1)
         f0, f1 = (hy0, hy1) if c & 2 else (ly0, ly1)
         g0, g1 = (hz0, hz1) if c & 4 else (lz0, lz1)
         enter = max(e0, f0, g0)
-        leave = min(e1, f1, g1)
-        if enter < leave:
+        entries[c] = enter if enter < min(e1, f1, g1) else np.inf
+
+
+@njit(cache=True, nogil=True)
+def child_hit_bits(ox, oy, oz, dx, dy, dz, ix, iy, iz, entries: np.ndarray) -> int:
+    """Mask of the child octants a ray passes through (``entries`` is scratch of 8)."""
+    child_entries(ox, oy, oz, dx, dy, dz, ix, iy, iz, entries)
+    bits = 0
+    for c in range(8):
+        if entries[c] < np.inf:
             bits |= 1 << c
     return bits
 
@@ -79,13 +87,14 @@ def child_hit_histograms(directions: np.ndarray, samples: np.ndarray) -> np.ndar
         ix = safe_inverse(dx)
         iy = safe_inverse(dy)
         iz = safe_inverse(dz)
+        entries = np.empty(8)
         for s in range(samples.shape[0]):
             a = samples[s, 0] * 2.0 - 1.0
             b = samples[s, 1] * 2.0 - 1.0
             ox = -2.0 * dx + a * rx + b * ux
             oy = -2.0 * dy + a * ry + b * uy
             oz = -2.0 * dz + a * rz + b * uz
-            hist[k, child_hit_bits(ox, oy, oz, dx, dy, dz, ix, iy, iz)] += 1
+            hist[k, child_hit_bits(ox, oy, oz, dx, dy, dz, ix, iy, iz, entries)] += 1
     return hist
 
 

@@ -17,43 +17,28 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from voxfield.kernels.error_raycast import orthonormal_basis
-from voxfield.kernels.traversal import axis_interval, safe_inverse
+from voxfield.kernels.error_raycast import child_entries, orthonormal_basis
+from voxfield.kernels.traversal import safe_inverse
 
 #: Sequence keys hold up to 4 octants front to back, 4 bits each (octant + 1, 0 = none).
 _KEYS = 1 << 16
 
 
 @njit(cache=True, nogil=True)
-def child_sequence_key(ox, oy, oz, dx, dy, dz, ix, iy, iz) -> int:
-    """The children of ``[-0.5, 0.5]^3`` a ray crosses, front to back, packed as a key."""
-    lx0, lx1 = axis_interval(ox, dx, ix, -0.5, 0.0)
-    hx0, hx1 = axis_interval(ox, dx, ix, 0.0, 0.5)
-    ly0, ly1 = axis_interval(oy, dy, iy, -0.5, 0.0)
-    hy0, hy1 = axis_interval(oy, dy, iy, 0.0, 0.5)
-    lz0, lz1 = axis_interval(oz, dz, iz, -0.5, 0.0)
-    hz0, hz1 = axis_interval(oz, dz, iz, 0.0, 0.5)
-    octants = np.empty(8, np.int64)
-    entries = np.empty(8, np.float64)
-    n = 0
-    for c in range(8):
-        e0, e1 = (hx0, hx1) if c & 1 else (lx0, lx1)
-        f0, f1 = (hy0, hy1) if c & 2 else (ly0, ly1)
-        g0, g1 = (hz0, hz1) if c & 4 else (lz0, lz1)
-        enter = max(e0, f0, g0)
-        if enter < min(e1, f1, g1):
-            # Insertion by entry time (children's open intervals are disjoint).
-            j = n
-            while j > 0 and entries[j - 1] > enter:
-                entries[j] = entries[j - 1]
-                octants[j] = octants[j - 1]
-                j -= 1
-            entries[j] = enter
-            octants[j] = c
-            n += 1
+def child_sequence_key(ox, oy, oz, dx, dy, dz, ix, iy, iz, entries: np.ndarray) -> int:
+    """The children of ``[-0.5, 0.5]^3`` a ray crosses, front to back, packed as a key
+    (``entries`` is scratch of 8)."""
+    child_entries(ox, oy, oz, dx, dy, dz, ix, iy, iz, entries)
     key = 0
-    for j in range(min(n, 4)):
-        key |= (octants[j] + 1) << (4 * j)
+    for slot in range(4):  # a line crosses at most 4 of the 8 octants
+        first = -1
+        for c in range(8):
+            if entries[c] < np.inf and (first < 0 or entries[c] < entries[first]):
+                first = c
+        if first < 0:
+            break
+        key |= (first + 1) << (4 * slot)
+        entries[first] = np.inf
     return key
 
 
@@ -93,13 +78,14 @@ def configuration_colour_errors(
         iy = safe_inverse(dy)
         iz = safe_inverse(dz)
         hist = np.zeros(_KEYS, np.int64)
+        entries = np.empty(8)
         for s in range(samples.shape[0]):
             a = samples[s, 0] * 2.0 - 1.0
             b = samples[s, 1] * 2.0 - 1.0
             ox = -2.0 * dx + a * rx + b * ux
             oy = -2.0 * dy + a * ry + b * uy
             oz = -2.0 * dz + a * rz + b * uz
-            hist[child_sequence_key(ox, oy, oz, dx, dy, dz, ix, iy, iz)] += 1
+            hist[child_sequence_key(ox, oy, oz, dx, dy, dz, ix, iy, iz, entries)] += 1
         keys = np.flatnonzero(hist[1:]) + 1
         parent_hits = 0
         for key in keys:

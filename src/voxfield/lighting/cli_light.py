@@ -4,23 +4,12 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 from pathlib import Path
-
-
-def _ray_count(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"expected 0 or more, got {value}")
-    return value
 
 
 def add_light_parser(subparsers) -> argparse.ArgumentParser:
     """Register ``light`` on the main parser's sub-commands (scene options as ``render``)."""
-    from voxfield.cli import _add_scene_options, _positive_int
+    from voxfield.cli import _add_scene_options, _int_at_least, _positive_int
 
     p = subparsers.add_parser(
         "light", help="bake sun and sky lighting for times of day into colour channels",
@@ -37,7 +26,7 @@ def add_light_parser(subparsers) -> argparse.ArgumentParser:
         "comma-separated; or suns as AZ,EL / NAME=AZ,EL in degrees (azimuth clockwise from "
         "north = -z, east = +x), ';'-separated (default all four times)",
     )
-    p.add_argument("--sky-rays", type=_ray_count, default=16, metavar="K",
+    p.add_argument("--sky-rays", type=_int_at_least(0), default=16, metavar="K",
                    help="cosine-weighted sky rays per surface voxel; 0 turns sky light off "
                    "(black shadows, as the thesis's data) (default 16)")
     p.add_argument("--shadow-rays", type=_positive_int, default=4, metavar="R",
@@ -55,16 +44,9 @@ def add_light_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-def default_out(scene: str) -> Path:
-    """``out/lit_NAME.npz``: the scene's file stem or ``kind:NAME`` name, made path-safe."""
-    name = scene.split(":", 1)[1] if ":" in scene and not Path(scene).exists() else scene
-    name = Path(name).stem or "scene"
-    return Path("out") / f"lit_{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}.npz"
-
-
 def cmd_light(args) -> int:
     from voxfield.atomic import atomic_path
-    from voxfield.cli import _open_octree
+    from voxfield.cli import _open_octree, default_output
     from voxfield.lighting.bake import bake_sun_lighting
     from voxfield.lighting.sun import parse_suns
     from voxfield.svo.io import save_octree
@@ -76,7 +58,7 @@ def cmd_light(args) -> int:
         octree, suns, sky_rays=args.sky_rays, shadow_rays=args.shadow_rays, seed=args.seed,
         threads=args.threads, progress=not quiet,
     )
-    out = Path(args.out) if args.out else default_out(args.scene)
+    out = Path(args.out) if args.out else default_output("lit", args.scene, ".npz")
     written = [save_octree(lit, out)]
     details = {
         "scene": args.scene,

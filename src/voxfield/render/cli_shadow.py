@@ -12,7 +12,6 @@ folder, so a re-run resumes.
 from __future__ import annotations
 
 import argparse
-import re
 from pathlib import Path
 
 import numpy as np
@@ -87,13 +86,6 @@ def add_shadow_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-def default_out(scene: str) -> Path:
-    """``out/shadows_NAME``: the scene's file stem or built-in name, made path-safe."""
-    name = scene.split(":", 1)[1] if ":" in scene and not Path(scene).exists() else scene
-    name = Path(name).stem or "scene"
-    return Path("out") / f"shadows_{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}"
-
-
 def beam_camera(octree, size: int = 256, fov_deg: float = 58.0):
     """In front of the scene (+z), above the floor, looking down at the floor in front of the
     scene's middle: for the shadow box, the grid and the whole beam."""
@@ -108,7 +100,7 @@ def beam_camera(octree, size: int = 256, fov_deg: float = 58.0):
 
 
 def cmd_shadows(args) -> int:
-    from voxfield.cli import _camera, _open_octree
+    from voxfield.cli import _camera, _open_octree, default_output
 
     octree = _open_octree(args)
     if args.camera == "beam" and args.eye is None and args.target is None:
@@ -116,7 +108,7 @@ def cmd_shadows(args) -> int:
     else:
         camera = _camera(args, octree)
     report = run_shadow_study(
-        octree, camera, args.out or default_out(args.scene),
+        octree, camera, args.out or default_output("shadows", args.scene),
         light_samples=args.light_samples, reference_samples=args.reference_samples,
         floor_samples=args.floor_samples, lod_distance=args.lod_distance,
         threshold=args.threshold, decay=args.decay, max_refinements=args.refinements,

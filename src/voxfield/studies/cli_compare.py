@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import re
-from pathlib import Path
 
 
 def add_compare_parser(subparsers) -> argparse.ArgumentParser:
@@ -41,24 +39,17 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
     return p
 
 
-def default_out(scene: str) -> Path:
-    """``out/compare_NAME``: the scene's file stem or ``builtin:NAME`` name, made path-safe."""
-    name = scene.split(":", 1)[1] if ":" in scene and not Path(scene).exists() else scene
-    name = Path(name).stem or "scene"
-    return Path("out") / f"compare_{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}"
-
-
 def cmd_compare(args) -> int:
-    from voxfield.cli import _camera, _open_octree
+    from voxfield.cli import _camera, _open_octree, default_output
     from voxfield.studies.compare import run_compare
 
     octree = _open_octree(args)
     camera = _camera(args, octree)
     label = "custom" if args.eye is not None else args.camera
     report = run_compare(
-        octree, camera, args.out or default_out(args.scene), threshold=args.threshold,
-        decay=args.decay, base_lod=args.base_lod, seed=args.seed, channel=args.channel,
-        reuse_parent=args.reuse_parent,
+        octree, camera, args.out or default_output("compare", args.scene),
+        threshold=args.threshold, decay=args.decay, base_lod=args.base_lod, seed=args.seed,
+        channel=args.channel, reuse_parent=args.reuse_parent,
         camera_label=label, threads=args.threads, fresh=args.fresh, progress=not args.quiet,
     )
     if not args.quiet:

@@ -3,8 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import re
-from pathlib import Path
 
 
 def add_study_parser(subparsers) -> argparse.ArgumentParser:
@@ -96,21 +94,14 @@ def _int_list(text: str) -> tuple[int, ...]:
     return values
 
 
-def default_out(prefix: str, scene: str) -> Path:
-    """``out/PREFIX_NAME``, NAME the scene's file stem or builtin name, made path-safe."""
-    name = scene.split(":", 1)[1] if ":" in scene and not Path(scene).exists() else scene
-    name = Path(name).stem or "scene"
-    return Path("out") / f"{prefix}_{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}"
-
-
 def cmd_study_thresholds(args) -> int:
-    from voxfield.cli import _camera, _open_octree
+    from voxfield.cli import _camera, _open_octree, default_output
     from voxfield.studies.report import fmt
     from voxfield.studies.threshold_study import run_threshold_study
 
     octree = _open_octree(args)
     camera = _camera(args, octree)
-    out = args.out or default_out("thresholds", args.scene)
+    out = args.out or default_output("thresholds", args.scene)
     report = run_threshold_study(
         octree, camera, out, thresholds=args.thresholds, decay=args.decay,
         base_lod=args.base_lod, seed=args.seed, channel=args.channel, scene_name=args.scene,
@@ -128,12 +119,12 @@ def cmd_study_thresholds(args) -> int:
 
 
 def cmd_study_resolution(args) -> int:
-    from voxfield.cli import _open_octree
+    from voxfield.cli import _open_octree, default_output
     from voxfield.studies.report import fmt
     from voxfield.studies.resolution_study import run_resolution_study
 
     octree = _open_octree(args)
-    out = args.out or default_out("resolution", args.scene)
+    out = args.out or default_output("resolution", args.scene)
     report = run_resolution_study(
         octree, out, sizes=args.sizes, threshold=args.threshold, decay=args.decay,
         seed=args.seed, channel=args.channel, scene_name=args.scene, progress=not args.quiet,
@@ -150,7 +141,7 @@ def cmd_study_resolution(args) -> int:
 
 
 def cmd_study_lighting(args) -> int:
-    from voxfield.cli import _camera, _open_octree
+    from voxfield.cli import _camera, _open_octree, default_output
     from voxfield.lighting import bake_sun_lighting, parse_suns
     from voxfield.studies.lighting_study import lighting_channels, run_lighting_study
     from voxfield.studies.report import fmt
@@ -161,7 +152,7 @@ def cmd_study_lighting(args) -> int:
         octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet)
     camera = _camera(args, octree)
     channels = args.channels.split(",") if args.channels else None
-    out = args.out or default_out("lighting", args.scene)
+    out = args.out or default_output("lighting", args.scene)
     report = run_lighting_study(
         octree, camera, out, channels=channels, threshold=args.threshold, decay=args.decay,
         base_lod=args.base_lod, bright_ratio=args.bright_ratio, seed=args.seed,
