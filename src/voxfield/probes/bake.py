@@ -1,0 +1,156 @@
+"""Probe baking straight from the octree (probe thesis §5.2 without its cube-map conversion).
+
+The probe thesis rasterises six cube faces per probe and converts them to an octahedral map,
+and names that conversion the bottleneck. Here the octahedral camera (``Camera.octahedral``)
+casts one ray family per texel directly, so any renderer bakes the map in one pass and the
+texel-footprint cone chooses the LOD — the EA thesis's motivating use (§1.3, §5.5).
+
+Each probe costs two passes: the radiance pass (the chosen renderer) and the geometry pass —
+one LOD-0 ray through every texel centre, giving the exact radial distance and face normal.
+When the radiance pass is itself that pass (``lod`` at LOD 0, or ``reference`` with 1 sample)
+it is reused and the geometry pass costs nothing. Both passes are counted in ``BakeCost``.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+from voxfield.probes.probe_set import BakeCost, BakeOptions, ProbeMaps, ProbeSet, encode_normals
+from voxfield.progress import progress_bar
+from voxfield.render.adaptive import render_adaptive
+from voxfield.render.camera import Camera, cube_cameras
+from voxfield.render.error_aware import render_error_aware
+from voxfield.render.renderers import render_lod, render_reference
+from voxfield.render.result import RenderResult
+from voxfield.svo.octree import Octree
+
+
+def bake_probe(octree: Octree, position, options: BakeOptions, *,
+               threads: int | None = None) -> ProbeMaps:
+    """Bake one probe at ``position`` (world units): a pure function of the octree, position
+    and options — the same inputs give bit-identical maps and counts on any thread count, so
+    it may run in any process (arguments and result pickle) and be retried or resumed."""
+    _check(octree, options)
+    camera = Camera.octahedral(position, options.resolution)
+    radiance, geometry = _passes(octree, camera, options, threads)
+    cost = BakeCost(
+        radiance_rays=radiance.total_rays, radiance_steps=radiance.total_steps,
+        radiance_seconds=float(radiance.seconds),
+        geometry_rays=0 if geometry is radiance else geometry.total_rays,
+        geometry_steps=0 if geometry is radiance else geometry.total_steps,
+        geometry_seconds=0.0 if geometry is radiance else float(geometry.seconds),
+    )
+    return ProbeMaps(
+        radiance=radiance.image.astype(np.float16),
+        distance=geometry.depth.astype(np.float32, copy=True),
+        normal=encode_normals(geometry.normal),
+        cost=cost,
+    )
+
+
+def bake_probes(octree: Octree, grid, options: BakeOptions, *, progress: bool = False,
+                threads: int | None = None) -> ProbeSet:
+    """Bake every enabled probe of ``grid`` (anything with ``positions`` (N, 3) and
+    ``enabled`` (N,) or None, e.g. ``ProbeGrid``) in grid order; disabled probes hold
+    ``ProbeMaps.empty`` and are flagged in ``ProbeSet.enabled``."""
+    _check(octree, options)
+    positions = np.asarray(grid.positions, np.float64).reshape(-1, 3)
+    enabled = getattr(grid, "enabled", None)
+    enabled = (np.ones(len(positions), bool) if enabled is None
+               else np.asarray(enabled, bool).reshape(-1))
+    if len(enabled) != len(positions):
+        raise VoxfieldError(f"the grid has {len(positions)} probes but {len(enabled)} "
+                            "enabled flags")
+    if not np.isfinite(positions).all():
+        raise VoxfieldError("probe positions hold NaN or infinity")
+    probes: list[ProbeMaps | None] = []
+    with progress_bar(total=int(enabled.sum()), desc="bake", unit="probe",
+                      enabled=progress) as bar:
+        for position, on in zip(positions, enabled, strict=True):
+            if not on:
+                probes.append(None)
+                continue
+            probes.append(bake_probe(octree, position, options, threads=threads))
+            bar.update(1)
+    return ProbeSet.assemble(grid, options, probes, octree_fingerprint(octree, options.channel),
+                             positions=positions)
+
+
+def bake_cube_faces(octree: Octree, position, size: int, options: BakeOptions, *,
+                    threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Six 90° cube faces at ``position`` in GL order (+x, -x, +y, -y, +z, -z; orientation of
+    ``render.camera.CUBE_FACES``): radiance (6, S, S, 3) float16 from the options' renderer,
+    radial distance (6, S, S) float32 from the exact LOD-0 pixel-centre ray (inf: no surface).
+
+    Traced from the octree rather than resampled from the octahedral map: exact, no second
+    filtering, and the pixel cone picks each face's LOD just as the texel cone does for the
+    map. Distance is radial (the probe thesis's r_P), not the camera's z-depth."""
+    _check(octree, options)
+    if not isinstance(size, (int, np.integer)) or not 1 <= size <= 16384:
+        raise VoxfieldError(f"cube face size must be an integer in 1..16384, got {size!r}")
+    radiance = np.empty((6, size, size, 3), np.float16)
+    distance = np.empty((6, size, size), np.float32)
+    for k, camera in enumerate(cube_cameras(position, int(size))):
+        colour, geometry = _passes(octree, camera, options, threads)
+        radiance[k] = colour.image
+        distance[k] = geometry.depth
+    return radiance, distance
+
+
+def octree_fingerprint(octree: Octree, channel: str) -> str:
+    """``studies.report.scene_fingerprint``: identifies the octree and baked channel."""
+    from voxfield.studies.report import scene_fingerprint
+
+    return scene_fingerprint(octree, channel)
+
+
+def _check(octree: Octree, options: BakeOptions) -> None:
+    if not isinstance(options, BakeOptions):
+        raise VoxfieldError(f"bake options must be BakeOptions, got {type(options).__name__}")
+    if options.lod is not None and options.lod > octree.depth:
+        raise VoxfieldError(f"lod {options.lod} is deeper than this octree allows "
+                            f"(0..{octree.depth})")
+    octree.channel(options.channel)
+
+
+def _exact_pass_is_radiance(options: BakeOptions) -> bool:
+    return ((options.renderer == "lod" and options.lod == 0)
+            or (options.renderer == "reference" and options.samples == 1))
+
+
+def _passes(octree: Octree, camera: Camera, options: BakeOptions,
+            threads: int | None) -> tuple[RenderResult, RenderResult]:
+    """(radiance render, exact geometry render) of one camera; the same object when shared."""
+    radiance = _radiance(octree, camera, options, threads)
+    if _exact_pass_is_radiance(options):
+        return radiance, radiance
+    geometry = render_lod(octree, camera, lod=0, side=1, seed=options.seed,
+                          channel=options.channel, threads=threads)
+    return radiance, geometry
+
+
+def _radiance(octree: Octree, camera: Camera, options: BakeOptions,
+              threads: int | None) -> RenderResult:
+    common = {"seed": options.seed, "channel": options.channel, "threads": threads}
+    if options.renderer == "reference":
+        return render_reference(octree, camera, side=options.samples, **common)
+    if options.renderer == "lod":
+        return render_lod(octree, camera, lod=options.lod, cone_scale=options.cone_scale,
+                          **common)
+    if options.renderer == "adaptive":
+        # Its first pass picks the cone LOD at scale 1 (render_adaptive has no scale option).
+        return render_adaptive(octree, camera, base_lod=options.lod, **common)
+    return render_error_aware(octree, camera, _error_table(), threshold=options.threshold,
+                              decay=options.decay, base_lod=options.lod,
+                              cone_scale=options.cone_scale, **common)
+
+
+@functools.lru_cache(maxsize=1)
+def _error_table():
+    """The packaged error table, read (and checksummed) once per process, not per probe."""
+    from voxfield.error_table.table import load_error_table
+
+    return load_error_table()

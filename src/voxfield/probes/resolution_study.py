@@ -1,0 +1,138 @@
+"""Probe bake cost and quality per map resolution (EA §5.5, Tables 5.29–5.30, for probes).
+
+The EA thesis motivates error-aware rendering with low-resolution probe baking (§1.3) and
+measures its scaling over image sizes on a top-down view (§5.5). This study asks the same of
+probes: at each octahedral resolution, bake the same probes with the reference baker (4×4 CMJ
+rays per texel at LOD 0) and with cheaper bakers whose LOD follows the texel-footprint cone
+(``lod``, ``adaptive``, ``error-aware``), and compare radiance cost and quality.
+
+Costs are the radiance pass (the renderer's rays, discarded ones included, and traversal
+steps); every baker also pays the same exact geometry pass (one LOD-0 ray per texel, for
+distance and normal), reported once per resolution. Quality is PSNR/RMSE/SSIM of the stored
+float16 radiance against the reference bake's, on linear RGB clipped to [0, 1]; over several
+probes RMSE is pooled (root of the mean squared error), PSNR derived from it, SSIM averaged.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+from voxfield.metrics import compare_images
+from voxfield.probes.bake import bake_probe
+from voxfield.probes.probe_set import BakeOptions
+from voxfield.progress import progress_bar
+from voxfield.render.error_aware import THESIS_DECAY, THESIS_THRESHOLD
+from voxfield.studies.report import fmt, markdown_table, scene_fingerprint
+from voxfield.svo.octree import Octree
+
+STUDY_RESOLUTIONS = (64, 128, 256)
+CHEAP_BAKERS = ("lod", "adaptive", "error-aware")
+
+
+def probe_resolution_study(
+    octree: Octree, positions, resolutions: Sequence[int] = STUDY_RESOLUTIONS, *,
+    bakers: Sequence[str] = CHEAP_BAKERS, threshold: float = THESIS_THRESHOLD,
+    decay: float = THESIS_DECAY, samples: int = 4, seed: int = 0, channel: str = "albedo",
+    threads: int | None = None, scene_name: str = "scene", progress: bool = False,
+) -> dict:
+    """Bake the probes at ``positions`` (N, 3) with the reference and each of ``bakers`` at
+    every resolution; returns a JSON-friendly report (``rows``: one per resolution and baker,
+    the reference's included) that ``probe_resolution_markdown`` formats."""
+    positions = np.asarray(positions, np.float64).reshape(-1, 3)
+    if len(positions) == 0:
+        raise VoxfieldError("the study needs at least one probe position")
+    unknown = [b for b in bakers if b not in CHEAP_BAKERS]
+    if unknown:
+        raise VoxfieldError(f"unknown baker(s) {unknown}; choose from {', '.join(CHEAP_BAKERS)}")
+    common = {"channel": channel, "seed": seed, "threshold": threshold, "decay": decay,
+              "samples": samples}
+    rows = []
+    total = len(resolutions) * (1 + len(bakers)) * len(positions)
+    with progress_bar(total=total, desc="probe resolution", unit="bake",
+                      enabled=progress) as bar:
+        for resolution in resolutions:
+            reference = []
+            for p in positions:
+                reference.append(bake_probe(
+                    octree, p, BakeOptions(resolution=resolution, renderer="reference",
+                                           **common), threads=threads))
+                bar.update(1)
+            rows.append(_row(resolution, "reference", reference, None))
+            for baker in bakers:
+                options = BakeOptions(resolution=resolution, renderer=baker, **common)
+                maps = []
+                for p in positions:
+                    maps.append(bake_probe(octree, p, options, threads=threads))
+                    bar.update(1)
+                rows.append(_row(resolution, baker, maps, reference))
+    return {
+        "scene": scene_name, "fingerprint": scene_fingerprint(octree, channel),
+        "depth": octree.depth, "probes": positions.tolist(), "resolutions": list(resolutions),
+        "threshold": threshold, "decay": decay, "reference_samples": samples * samples,
+        "seed": seed, "channel": channel, "lod_rule": "texel-footprint cone, scale 1",
+        "metrics_on": "float16 radiance as linear RGB clipped to [0, 1]", "rows": rows,
+    }
+
+
+def _row(resolution: int, baker: str, maps, reference) -> dict:
+    texels = len(maps) * resolution * resolution
+    rays = sum(m.cost.radiance_rays for m in maps)
+    steps = sum(m.cost.radiance_steps for m in maps)
+    row = {
+        "resolution": resolution, "baker": baker, "probes": len(maps), "texels": texels,
+        "rays": rays, "rays_per_texel": rays / texels, "steps": steps,
+        "steps_per_texel": steps / texels,
+        "seconds": sum(m.cost.radiance_seconds for m in maps),
+        "geometry_rays": sum(m.cost.geometry_rays for m in maps),
+        "geometry_steps": sum(m.cost.geometry_steps for m in maps),
+        "geometry_seconds": sum(m.cost.geometry_seconds for m in maps),
+        "covered_texels": int(sum(np.isfinite(m.distance).sum() for m in maps)),
+    }
+    if reference is not None:
+        scores = [compare_images(_linear(r.radiance), _linear(m.radiance))
+                  for r, m in zip(reference, maps, strict=True)]
+        rmse = math.sqrt(sum(s["rmse"] ** 2 for s in scores) / len(scores))
+        row.update({"rmse": rmse, "psnr": -20.0 * math.log10(rmse) if rmse > 0 else math.inf,
+                    "ssim": sum(s["ssim"] for s in scores) / len(scores)})
+    return row
+
+
+def _linear(radiance: np.ndarray) -> np.ndarray:
+    return np.clip(radiance.astype(np.float32), 0.0, 1.0)
+
+
+def probe_resolution_markdown(report: dict) -> str:
+    """The report as two Markdown tables (cost like EA Table 5.29, quality like 5.30)."""
+    rows = sorted(report["rows"], key=lambda r: (-r["resolution"], r["baker"] != "reference"))
+    cost = [[f"{r['resolution']}²", r["baker"], fmt(r["rays"]), fmt(r["rays_per_texel"], ".3f"),
+             fmt(r["steps"]), fmt(r["steps_per_texel"], ".2f"), fmt(r["seconds"], ".4f")]
+            for r in rows]
+    geometry = [[f"{r['resolution']}²", fmt(r["geometry_rays"]), fmt(r["geometry_steps"]),
+                 fmt(r["geometry_seconds"], ".4f")]
+                for r in rows if r["baker"] == "reference"]
+    quality = [[f"{r['resolution']}²", r["baker"], fmt(r["psnr"], ".3f"), fmt(r["rmse"], ".5f"),
+                fmt(r["ssim"], ".4f")] for r in rows if r["baker"] != "reference"]
+    return "\n".join([
+        f"# Probe bake resolution study — {report['scene']}",
+        "",
+        f"{len(report['probes'])} probe(s); octree depth {report['depth']}; reference: "
+        f"{report['reference_samples']} CMJ rays per texel at LOD 0; cheaper bakers: "
+        f"{report['lod_rule']}; error-aware threshold {report['threshold']}, decay "
+        f"{report['decay']}; seed {report['seed']}. Radiance pass only (rays include "
+        f"discarded ones); metrics on {report['metrics_on']}.",
+        "",
+        "## Radiance pass cost (like EA Table 5.29)",
+        "",
+        markdown_table(["map", "baker", "rays", "rays/texel", "steps", "steps/texel",
+                        "seconds"], cost, align="llrrrrr"),
+        "## Geometry pass (distance + normal, every baker alike)",
+        "",
+        markdown_table(["map", "rays", "steps", "seconds"], geometry),
+        "## Radiance similarity to the reference bake (like EA Table 5.30)",
+        "",
+        markdown_table(["map", "baker", "PSNR", "RMSE", "SSIM"], quality, align="llrrr"),
+    ])
