@@ -82,6 +82,9 @@ def _add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vertical-scale", type=float, default=None, metavar="S",
                    help="terrain height multiplier (default: true scale)")
     p.add_argument("--seed", type=int, default=0, help="seed for sampling and scattering")
+    p.add_argument("--lod-colour", choices=("mean", "surface"), default="mean",
+                   help="inner-node colours: mean of the children (default, as the EA thesis) "
+                   "or mean of the voxels with an exposed face")
 
 
 def _add_channel_option(p: argparse.ArgumentParser) -> None:
@@ -101,7 +104,8 @@ def _scene_options(args):
 def _open_octree(args):
     from voxfield.svo.io import open_octree
 
-    return open_octree(args.scene, _scene_options(args), progress=not args.quiet)
+    return open_octree(args.scene, _scene_options(args), progress=not args.quiet,
+                       lod_colour=args.lod_colour)
 
 
 def _camera(args, octree):

@@ -123,3 +123,22 @@ def test_corrupt_octree_files_give_clear_errors(tmp_path):
     save_octree(type(octree)(**{**octree.__dict__, "first_child": first}), broken)
     with pytest.raises(OctreeFormatError, match="child pointers"):
         load_octree(broken)
+
+
+def test_surface_lod_colour_ignores_buried_voxels():
+    # A solid 4³ block, bright outside and black inside: the mean darkens the root, the
+    # surface rule gives the colour of the voxels a ray can see.
+    coords = np.argwhere(np.ones((4, 4, 4), bool))
+    inside = np.all((coords > 0) & (coords < 3), axis=1)
+    color = np.where(inside[:, None], 0.0, 0.8) * np.ones(3)
+    scene = VoxelScene(coords, color)
+    mean = build_octree(scene)
+    surface = build_octree(scene, lod_colour="surface")
+    assert mean.color[0] == pytest.approx(0.8 * 56 / 64)
+    assert np.allclose(surface.color[0], 0.8)
+    # Leaves and structure are untouched; a node with no buried voxel keeps its plain mean.
+    assert np.array_equal(surface.child_mask, mean.child_mask)
+    leaves = mean.level_slice(mean.depth)
+    assert np.array_equal(surface.color[leaves], mean.color[leaves])
+    with pytest.raises(VoxfieldError):
+        build_octree(scene, lod_colour="median")

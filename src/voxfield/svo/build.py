@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -68,10 +69,20 @@ def _add_parent_level(codes, level_masks, level_first, level_coords, level_attrs
     return parent_codes[starts]
 
 
+#: How inner nodes get their colours: the plain mean of their children (the EA thesis), or the
+#: mean over the voxels with an exposed face (buried voxels, which no ray ever sees at LOD 0,
+#: then do not darken coarse levels).
+LOD_COLOURS = ("mean", "surface")
+
+
 def build_octree(
-    scene: VoxelScene, *, memory_limit_bytes: int | None = None, progress: bool = False
+    scene: VoxelScene, *, memory_limit_bytes: int | None = None, progress: bool = False,
+    lod_colour: str = "mean",
 ) -> Octree:
     """Build the SVO of a scene; the scene is moved so its minimum corner is the origin."""
+    if lod_colour not in LOD_COLOURS:
+        raise VoxfieldError(f"unknown LOD colour rule {lod_colour!r}; choose one of "
+                            f"{', '.join(LOD_COLOURS)}")
     if len(scene) == 0:
         raise VoxfieldError(f"scene {scene.name!r} has no voxels; nothing to build")
     start = time.perf_counter()
@@ -133,4 +144,19 @@ def build_octree(
         build_seconds=time.perf_counter() - start,
         name=scene.name,
     )
+    if lod_colour == "surface":
+        octree = _surface_weighted(octree)
     return octree
+
+
+def _surface_weighted(octree: Octree) -> Octree:
+    """Every attribute's inner levels re-averaged over the voxels with an exposed face."""
+    from voxfield.scene.surface import face_mask
+    from voxfield.svo.channels import propagate_channel
+
+    leaves = octree.level_slice(octree.depth)
+    exposed = face_mask(octree.node_coord[leaves].astype(np.int64)).any(axis=1)
+    weights = exposed.astype(np.float64)
+    attributes = {k: propagate_channel(octree, v[leaves], weights)
+                  for k, v in octree.attributes.items()}
+    return replace(octree, attributes=attributes)

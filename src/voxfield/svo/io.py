@@ -107,12 +107,15 @@ def validate_octree(octree: Octree, where: str = "octree") -> None:
             raise OctreeFormatError(f"{where}: child pointers of level {level} are not contiguous")
 
 
-def open_octree(spec: str, options=None, *, progress: bool = False) -> Octree:
-    """An octree from a saved octree file, or built from any scene description."""
+def open_octree(spec: str, options=None, *, progress: bool = False,
+                lod_colour: str = "mean") -> Octree:
+    """An octree from a saved octree file, or built from any scene description (inner-node
+    colours by ``lod_colour``, see ``build.LOD_COLOURS``; a saved octree keeps its own)."""
     from voxfield.scene.loaders import load_scene, npz_kind
     from voxfield.svo.build import build_octree
 
     path = Path(spec)
     if path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree":
         return load_octree(path)
-    return build_octree(load_scene(spec, options), progress=progress)
+    return build_octree(load_scene(spec, options), progress=progress,
+                        lod_colour=lod_colour)
