@@ -81,6 +81,29 @@ def add_study_parser(subparsers) -> argparse.ArgumentParser:
     g.add_argument("--fresh", action="store_true", help="ignore cached renders")
     _add_view_options(g)
     g.set_defaults(func=cmd_study_lighting)
+
+    b = actions.add_parser(
+        "probe-resolution", help="probe bakers' cost and quality per map size (EA Tables "
+        "5.29-5.30, for probes)",
+        description="Bake probes at each octahedral map size with the 4×4 reference baker "
+        "and the cheap bakers (LOD cone, adaptive, error-aware); rays and steps per texel, "
+        "PSNR/RMSE/SSIM of radiance against the reference.",
+    )
+    _add_scene_options(b)
+    b.add_argument("--grid", default="1x1x1",
+                   help="probe grid: NXxNYxNZ fitted to the scene, or origin=..;spacing=..;"
+                   "counts=.. (default one probe at the centre)")
+    b.add_argument("--resolutions", type=_int_list, default=(64, 128, 256),
+                   help="comma-separated map sides (default 64,128,256)")
+    b.add_argument("--threshold", type=float, default=0.154,
+                   help="error-aware threshold (default 0.154)")
+    b.add_argument("--decay", type=float, default=0.2, help="error-aware decay (default 0.2)")
+    _add_channel_option(b)
+    b.add_argument("--out", default=None,
+                   help="output folder (default out/probe_resolution_SCENE)")
+    b.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
+                   help="no progress bars or summaries")
+    b.set_defaults(func=cmd_study_probe_resolution)
     return p
 
 
@@ -164,4 +187,28 @@ def cmd_study_lighting(args) -> int:
                                         ("lighting_aware", "EA-L"))]
             print(f"{row['channel']:>10}: " + "; ".join(parts))
         print(f"wrote {out}/results.md, results.json, lighting.png, contact_sheet.png")
+    return 0
+
+
+def cmd_study_probe_resolution(args) -> int:
+    from voxfield.cli import _open_octree, default_output
+    from voxfield.probes.grid import parse_grid
+    from voxfield.probes.resolution_study import (
+        probe_resolution_markdown,
+        probe_resolution_study,
+    )
+    from voxfield.studies.report import StudyFolder
+
+    octree = _open_octree(args)
+    grid = parse_grid(args.grid, octree.voxel_bounds)
+    report = probe_resolution_study(
+        octree, grid.positions[grid.enabled], args.resolutions, threshold=args.threshold,
+        decay=args.decay, seed=args.seed, channel=args.channel, scene_name=args.scene,
+        progress=not args.quiet)
+    folder = StudyFolder(args.out or default_output("probe_resolution", args.scene))
+    folder.write_json("results.json", report)
+    path = folder.write_text("results.md", probe_resolution_markdown(report))
+    if not args.quiet:
+        print(probe_resolution_markdown(report))
+        print(f"wrote {path} and results.json")
     return 0
