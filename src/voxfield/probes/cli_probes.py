@@ -1,0 +1,223 @@
+"""``voxfield bake`` (a probe grid into a resumable probe-set folder) and ``voxfield probes
+show`` (a PNG to check it by eye)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+
+
+def add_probe_parsers(subparsers) -> None:
+    """Register ``bake`` and ``probes show`` on the main parser's sub-commands."""
+    from voxfield.cli import _add_channel_option, _add_scene_options, _lod_arg, _positive_int
+    from voxfield.probes.probe_set import BAKE_RENDERERS, BakeOptions
+
+    defaults = BakeOptions()
+    quiet = {"action": "store_true", "default": argparse.SUPPRESS,
+             "help": "no progress bars or summaries"}
+
+    p = subparsers.add_parser(
+        "bake", help="bake a grid of light probes (radiance, distance, normals)",
+        description="Bake octahedral light probes straight from the octree into a probe-set "
+        "folder (probes.json, one .npz per probe, EXR atlases). Probes are written as they "
+        "finish: re-running the same command resumes a stopped bake. Probes run through Dask: "
+        "local threads by default, --scheduler processes or a cluster address.",
+    )
+    _add_scene_options(p)
+    p.add_argument("--grid", required=True, metavar="SPEC",
+                   help='probe grid: "NXxNYxNZ" fitted to the scene (e.g. 4x2x4), or '
+                   '"origin=x,y,z;spacing=s or sx,sy,sz;counts=nx,ny,nz" in voxels')
+    p.add_argument("--resolution", type=_positive_int, default=defaults.resolution,
+                   metavar="R", help=f"octahedral map side in texels, even "
+                   f"(default {defaults.resolution})")
+    p.add_argument("--renderer", choices=BAKE_RENDERERS, default=defaults.renderer,
+                   help=f"radiance renderer (default {defaults.renderer}); distance and "
+                   "normals always come from one exact LOD-0 ray per texel")
+    p.add_argument("--samples", type=_positive_int, default=defaults.samples,
+                   help=f"reference: CMJ rays per texel side (default {defaults.samples})")
+    p.add_argument("--lod", type=_lod_arg, default=defaults.lod,
+                   help="lod renderer: fixed LOD; adaptive/error-aware: base LOD; 'cone' "
+                   "(default) picks it from the texel footprint")
+    p.add_argument("--cone-scale", type=float, default=defaults.cone_scale,
+                   help="node size accepted per texel footprint (default 1)")
+    p.add_argument("--threshold", type=float, default=defaults.threshold,
+                   help=f"error-aware: refinement threshold (default {defaults.threshold})")
+    p.add_argument("--decay", type=float, default=defaults.decay,
+                   help=f"error-aware: weight of the children's error (default {defaults.decay})")
+    _add_channel_option(p)
+    p.add_argument("--relocate", action="store_true",
+                   help="move probes out of and away from geometry first; probes that cannot "
+                   "move clear are disabled")
+    p.add_argument("--scheduler", default="threads", metavar="WHERE",
+                   help="threads (default), processes, serial, or a Dask scheduler address "
+                   "(tcp://host:8786) for a cluster; results are identical on each")
+    p.add_argument("--out", default=None,
+                   help="probe-set folder (default out/probes_NAME, NAME from the scene)")
+    p.add_argument("--fresh", action="store_true",
+                   help="discard what the folder holds (even from another scene) and start over")
+    p.add_argument("--quiet", **quiet)
+    p.set_defaults(func=cmd_bake)
+
+    probes = subparsers.add_parser("probes", help="inspect a baked probe set",
+                                   description="Look at a probe-set folder.")
+    sub = probes.add_subparsers(dest="probes_command", required=True, metavar="ACTION")
+    s = sub.add_parser(
+        "show", help="PNG of the radiance, distance and normal atlases and a 3D overview",
+        description="Write one PNG: atlases of every probe's radiance (sRGB), distance "
+        "(colour-mapped, legend in voxels) and normals, and the probe positions drawn over an "
+        "orbit render of the scene (hidden, moved and disabled probes marked). The scene is "
+        "reopened as it was baked unless --scene names it.",
+    )
+    s.add_argument("folder", help="probe-set folder written by voxfield bake")
+    s.add_argument("--out", default=None, help="output PNG (default FOLDER/show.png)")
+    s.add_argument("--scene", default=None,
+                   help="scene for the overview render (default: the one the bake recorded)")
+    s.add_argument("--no-scene", action="store_true",
+                   help="draw the probe positions without rendering the scene")
+    s.add_argument("--size", type=_positive_int, default=512,
+                   help="overview render size in pixels (default 512)")
+    s.add_argument("--quiet", **quiet)
+    s.set_defaults(func=cmd_probes_show)
+
+
+def _bake_options(args):
+    from voxfield.probes.probe_set import BakeOptions
+
+    return BakeOptions(
+        resolution=args.resolution, renderer=args.renderer, channel=args.channel,
+        samples=args.samples, lod=args.lod, cone_scale=args.cone_scale,
+        threshold=args.threshold, decay=args.decay, seed=args.seed,
+    )
+
+
+def _source(args) -> dict:
+    """How to reopen the scene later (``probes show``): the scene argument and its options."""
+    spec = args.scene
+    path = Path(spec)
+    if ":" not in spec or path.exists():
+        spec = str(path.resolve())
+    return {"scene": spec, "mesh_resolution": args.mesh_resolution,
+            "footprint": args.footprint, "vertical_scale": args.vertical_scale,
+            "seed": args.seed}
+
+
+def cmd_bake(args) -> int:
+    from voxfield.cli import _open_octree, default_output
+    from voxfield.probes.grid import parse_grid, relocate
+    from voxfield.probes.storage import bake_to_folder, read_header
+
+    options = _bake_options(args)  # bad options fail before the scene is built
+    out = Path(args.out) if args.out else default_output("probes", args.scene)
+    octree = _open_octree(args)
+    grid = parse_grid(args.grid, octree.voxel_bounds)
+    report = None
+    if args.relocate:
+        grid, report = relocate(grid, octree, seed=args.seed)
+        if not args.quiet:
+            print(report.summary())
+    start = time.perf_counter()
+    probe_set = bake_to_folder(
+        octree, grid, options, out, scheduler=args.scheduler, fresh=args.fresh,
+        progress=not args.quiet, source=_source(args), relocation=report,
+    )
+    wall = time.perf_counter() - start
+    if not args.quiet:
+        run = read_header(out).get("last_run", {})
+        print(bake_summary(probe_set, run, wall, out))
+    return 0
+
+
+def bake_summary(probe_set, run: dict, wall: float, out) -> str:
+    """Cost per probe and per texel, and what this run did."""
+    s = probe_set.cost_summary()
+    cost = probe_set.cost
+    rays = cost["radiance_rays"] + cost["geometry_rays"]
+    steps = cost["radiance_steps"] + cost["geometry_steps"]
+    seconds = cost["radiance_seconds"] + cost["geometry_seconds"]
+    texels = probe_set.resolution ** 2
+    lines = [
+        f"{s['baked']} of {s['probes']} probes, {s['resolution']}² texels, {s['renderer']}: "
+        f"this run baked {run.get('baked', '?')} and reused {run.get('reused', '?')} "
+        f"({run.get('scheduler') or 'threads'}, {wall:.2f} s wall)",
+        f"total: {s['rays']:,} rays, {s['steps']:,} steps, {s['seconds']:.3f} s kernel time",
+        f"per probe: {s['rays'] / max(s['baked'], 1):,.0f} rays, "
+        f"{s['steps'] / max(s['baked'], 1):,.0f} steps, {s['seconds_per_probe'] * 1e3:.2f} ms",
+        f"per texel: {s['rays_per_texel']:.3f} rays ({s['radiance_rays_per_texel']:.3f} "
+        f"radiance), {s['steps_per_texel']:.2f} steps, {s['nanoseconds_per_texel']:.0f} ns",
+    ]
+    enabled = np.flatnonzero(probe_set.enabled)
+    if 0 < len(enabled) <= 32:
+        lines.append(f"{'probe':>6}{'position':>26}{'rays/texel':>12}{'steps/texel':>13}"
+                     f"{'ms':>9}")
+        for i in enabled:
+            x, y, z = probe_set.positions[i]
+            lines.append(f"{i:>6}{f'({x:.1f}, {y:.1f}, {z:.1f})':>26}"
+                         f"{rays[i] / texels:>12.3f}{steps[i] / texels:>13.2f}"
+                         f"{seconds[i] * 1e3:>9.2f}")
+    lines.append(f"wrote {out}/probes.json, {len(enabled)} probe files and radiance.exr, "
+                 "distance.exr, normal.exr")
+    return "\n".join(lines)
+
+
+def cmd_probes_show(args) -> int:
+    from voxfield.probes.show import write_show
+    from voxfield.probes.storage import open_probe_set, read_header
+
+    folder = Path(args.folder)
+    probe_set = open_probe_set(folder)
+    header = read_header(folder)
+    out = Path(args.out) if args.out else folder / "show.png"
+    if out.suffix.lower() != ".png":
+        raise VoxfieldError(f"probes show writes PNG; name the output .png, not {out.name!r}")
+    octree = None if args.no_scene else _reopen_scene(header, args.scene, args.quiet)
+    s = probe_set.cost_summary()
+    title = (f"{header['scene'].get('name', 'scene')}: {s['baked']} of {s['probes']} probes, "
+             f"{s['resolution']}² texels, {s['renderer']}, {s['rays_per_texel']:.2f} rays/texel")
+    write_show(probe_set, out, octree=octree, title=title, size=args.size)
+    if not args.quiet:
+        print(f"wrote {out}")
+    return 0
+
+
+def _reopen_scene(header: dict, scene: str | None, quiet: bool):
+    """The baked scene for the overview: ``scene`` if given, else the recorded source; None
+    (probes drawn without the render) when it cannot be opened or is not the baked one."""
+    from voxfield.probes.bake import octree_fingerprint
+    from voxfield.scene.loaders import SceneOptions
+    from voxfield.svo.io import open_octree
+
+    source = dict(header["scene"].get("source") or {})
+    spec = scene or source.get("scene")
+    if not spec:
+        _note("no scene recorded; pass --scene to draw probes over a render", quiet)
+        return None
+    options = SceneOptions(
+        mesh_resolution=source.get("mesh_resolution", 256),
+        terrain_footprint=source.get("footprint", 512),
+        vertical_scale=source.get("vertical_scale"), seed=source.get("seed", 0),
+    )
+    try:
+        octree = open_octree(spec, options, progress=not quiet)
+    except VoxfieldError as exc:
+        _note(f"cannot open the scene {spec!r} ({exc}); drawing probes without it", quiet)
+        return None
+    channel = header["scene"].get("channel", "albedo")
+    try:
+        same = octree_fingerprint(octree, channel) == header["scene"]["fingerprint"]
+    except VoxfieldError:
+        same = False
+    if not same:
+        _note(f"{spec!r} is not the scene these probes were baked from; drawing it anyway",
+              quiet)
+    return octree
+
+
+def _note(text: str, quiet: bool) -> None:
+    if not quiet:
+        print(f"voxfield: note: {text}", file=sys.stderr)

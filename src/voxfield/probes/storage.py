@@ -1,0 +1,485 @@
+"""A baked ProbeSet on disk: one folder, a JSON header, one file per probe, EXR atlases.
+
+Layout of a probe-set folder (format ``voxfield-probes``, version 1)::
+
+    DIR/
+      probes.json        the header (below); written first, rewritten as probes complete
+      probe_00000.npz    probe 0: arrays ``radiance``, ``distance``, ``normal`` (below)
+      probe_00001.npz    ...
+      radiance.exr       once complete: atlas of every probe's radiance, RGB half, linear
+      distance.exr       once complete: atlas of radial distances, channel ``Z``, float32
+      normal.exr         once complete: atlas of octahedral normals, channels ``U``, ``V``, float32
+
+The header ``probes.json`` holds:
+
+- ``format`` (``"voxfield-probes"``) and ``version`` (1): readers refuse anything else;
+- ``scene``: ``fingerprint`` (a hash of the octree structure and the baked colour channel,
+  ``voxfield.studies.report.scene_fingerprint``), ``channel`` and ``name``;
+- ``grid``: ``ProbeGrid.to_dict()`` (origin, spacing, counts, per-probe offsets, enabled);
+- ``options``: ``BakeOptions.to_dict()`` (renderer, resolution, samples, threshold, seed, ...);
+- ``resolution`` R and ``probe_count`` N;
+- ``encodings``: per map its dtype, per-probe shape and meaning —
+  ``radiance`` float16 (R, R, 3) linear RGB; ``distance`` float32 (R, R) radial distance from
+  the probe centre in voxel units, ``inf`` where the ray escaped; ``normal`` int16 (R, R, 2)
+  the surface normal octahedral-encoded, snorm16 (``value / 32767`` in [-1, 1]);
+- ``mapping``: texel (row, col) of every map is octahedral texel (v, u), texel centres at
+  ``(i + 0.5) / R``, y up (``voxfield.kernels.octahedral``);
+- ``probes``: per finished probe (key: its index) the file name, a ``checksum`` of its three
+  arrays (blake2b over dtype, shape and bytes) and its cost (``BakeCost``: ``radiance_rays``,
+  ``radiance_steps``, ``radiance_seconds``, ``geometry_rays``, ``geometry_steps``,
+  ``geometry_seconds``). Disabled probes (``grid.enabled`` false) have no file: they read
+  back as ``ProbeMaps.empty`` (black, distance ``inf``, ``NO_NORMAL``);
+- ``complete``: true once every probe is baked and the atlases are written; ``atlas`` then
+  describes them: ``columns`` × ``rows`` tiles of ``tile`` = R + 2 texels, probe ``i`` at tile
+  ``divmod(i, columns)`` (row, column), each tile the probe's map with a one-texel octahedral
+  wrap border (``add_border``) so a bilinear fetch at a tile edge reads the right neighbour;
+  unused tiles are zero (radiance, normal) or ``inf`` (distance).
+
+Every file is written atomically (temporary file, then rename), so a killed bake leaves only
+whole files. The per-probe ``.npz`` files are the source of truth; the atlases are derived
+from them for engines. A probe counts as done only when its file exists, loads, and matches
+the checksum the header recorded; ``bake_to_folder`` re-run on the same scene, grid and
+options bakes only the probes that are not done.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from voxfield.atomic import atomic_path
+from voxfield.errors import VoxfieldError
+
+FORMAT_NAME = "voxfield-probes"
+FORMAT_VERSION = 1
+HEADER_NAME = "probes.json"
+ATLAS_FILES = {"radiance": "radiance.exr", "distance": "distance.exr", "normal": "normal.exr"}
+MAP_NAMES = ("radiance", "distance", "normal")
+
+#: Seconds between header rewrites while baking: a probe whose record missed the last
+#: rewrite is simply baked again on resume, so this bounds lost work, not correctness.
+HEADER_FLUSH_SECONDS = 1.0
+
+
+class ProbeStorageError(VoxfieldError):
+    """A probe-set folder is missing, corrupt, or inconsistent with its header."""
+
+
+class ProbeHeaderError(ProbeStorageError):
+    """``probes.json`` is missing, unreadable, or of another format or version."""
+
+
+class ProbeFileError(ProbeStorageError):
+    """A probe's file is missing, corrupt, has the wrong shapes, or fails its checksum."""
+
+
+class ProbeSetMismatchError(ProbeStorageError):
+    """An existing folder was baked from another scene, grid or options."""
+
+
+def probe_file_name(index: int) -> str:
+    return f"probe_{index:05d}.npz"
+
+
+def encodings(resolution: int) -> dict:
+    """The per-probe array layout recorded in (and checked against) the header."""
+    r = int(resolution)
+    return {
+        "radiance": {"dtype": "float16", "shape": [r, r, 3],
+                     "meaning": "linear RGB radiance arriving at the probe"},
+        "distance": {"dtype": "float32", "shape": [r, r],
+                     "meaning": "radial distance to the first hit in voxel units; inf: none"},
+        "normal": {"dtype": "int16", "shape": [r, r, 2],
+                   "meaning": "octahedral-encoded unit surface normal, snorm16 (value / 32767)"},
+    }
+
+
+def maps_checksum(radiance: np.ndarray, distance: np.ndarray, normal: np.ndarray) -> str:
+    """A hash of one probe's three arrays (content, dtype and shape)."""
+    from voxfield.studies.report import array_fingerprint
+
+    return array_fingerprint(radiance, distance, normal)
+
+
+# --------------------------------------------------------------------------- header
+
+
+def new_header(*, grid, options, fingerprint: str, channel: str, scene_name: str) -> dict:
+    """A header for a fresh bake: identity (scene, grid, options) and no probes yet."""
+    resolution = int(options.resolution)
+    return {
+        "format": FORMAT_NAME,
+        "version": FORMAT_VERSION,
+        "scene": {"fingerprint": fingerprint, "channel": channel, "name": scene_name},
+        "grid": _jsonable(grid.to_dict()),
+        "options": _jsonable(options.to_dict()),
+        "resolution": resolution,
+        "probe_count": int(grid.count),
+        "encodings": encodings(resolution),
+        "mapping": "octahedral; texel (row, col) = (v, u), centres at (i + 0.5) / R; y up",
+        "probes": {},
+        "complete": False,
+    }
+
+
+def _jsonable(value):
+    """Plain JSON types: NumPy arrays and scalars become lists and numbers (inf stays a float
+    and is written as ``Infinity``, which Python's json reads back)."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _jsonable(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def header_text(header: dict) -> str:
+    """JSON with one line per top-level key and per probe record: readable in an editor and
+    diff, yet compact for grids of thousands of probes."""
+    def compact(value) -> str:
+        return json.dumps(value, sort_keys=True, separators=(", ", ": "))
+
+    lines = []
+    for key in sorted(header):
+        if key == "probes" and header[key]:
+            records = sorted(header[key].items(), key=lambda kv: int(kv[0]))
+            inner = ",\n".join(f"    {json.dumps(k)}: {compact(v)}" for k, v in records)
+            lines.append(f'  "probes": {{\n{inner}\n  }}')
+        else:
+            lines.append(f"  {json.dumps(key)}: {compact(header[key])}")
+    return "{\n" + ",\n".join(lines) + "\n}\n"
+
+
+def write_header(folder: Path, header: dict) -> None:
+    with atomic_path(Path(folder) / HEADER_NAME) as tmp:
+        tmp.write_text(header_text(header))
+
+
+def read_header(folder: str | os.PathLike) -> dict:
+    """Load and check ``probes.json``: present, JSON, our format and version, sane fields."""
+    folder = Path(folder)
+    path = folder / HEADER_NAME
+    if not folder.is_dir():
+        raise ProbeHeaderError(f"{folder}: no such probe-set folder (bake one with voxfield bake)")
+    if not path.is_file():
+        raise ProbeHeaderError(f"{folder}: no {HEADER_NAME}; this is not a probe-set folder, "
+                               "or its bake never started (run voxfield bake)")
+    try:
+        header = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ProbeHeaderError(f"{path}: unreadable header ({exc}); re-bake with --fresh") from exc
+    if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
+        raise ProbeHeaderError(f"{path}: not a {FORMAT_NAME} header")
+    if header.get("version") != FORMAT_VERSION:
+        raise ProbeHeaderError(
+            f"{path}: format version {header.get('version')!r}, this voxfield reads version "
+            f"{FORMAT_VERSION}; re-bake with this version (--fresh)"
+        )
+    missing = [k for k in ("scene", "grid", "options", "resolution", "probe_count", "probes",
+                           "encodings") if k not in header]
+    if missing:
+        raise ProbeHeaderError(f"{path}: header lacks {', '.join(missing)}; re-bake with --fresh")
+    r = header["resolution"]
+    if not isinstance(r, int) or r < 1 or header["encodings"] != encodings(r):
+        raise ProbeHeaderError(f"{path}: resolution {r!r} and encodings do not match this "
+                               "format's; re-bake with --fresh")
+    if not isinstance(header["probes"], dict):
+        raise ProbeHeaderError(f"{path}: 'probes' must be an object")
+    return header
+
+
+def identity(header: dict) -> dict:
+    """What must match for a folder to be resumed: scene, grid and bake options."""
+    return {"scene": header["scene"]["fingerprint"], "grid": header["grid"],
+            "options": header["options"]}
+
+
+def _differences(old: dict, new: dict) -> list[str]:
+    """Human-readable names of what differs between two identities."""
+    out = []
+    if old["scene"] != new["scene"]:
+        out.append("the scene (or its colour channel)")
+    if old["grid"] != new["grid"]:
+        out.append("the probe grid")
+    if old["options"] != new["options"]:
+        keys = sorted(k for k in set(old["options"]) | set(new["options"])
+                      if old["options"].get(k) != new["options"].get(k))
+        out.append("bake options (" + ", ".join(keys) + ")")
+    return out
+
+
+# --------------------------------------------------------------------------- probe files
+
+
+def write_probe(folder: Path, index: int, maps) -> dict:
+    """Write one probe's maps atomically; returns its header record (file, checksum, cost)."""
+    from voxfield.probes.probe_set import COST_FIELDS
+
+    radiance, distance, normal = _probe_arrays(maps)
+    name = probe_file_name(index)
+    with atomic_path(Path(folder) / name) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, radiance=radiance, distance=distance, normal=normal)
+    cost = {k: getattr(maps.cost, k) for k in COST_FIELDS}
+    return {"file": name, "checksum": maps_checksum(radiance, distance, normal),
+            **{k: float(v) if k.endswith("seconds") else int(v) for k, v in cost.items()}}
+
+
+def _probe_arrays(maps) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    return (np.ascontiguousarray(maps.radiance, np.float16),
+            np.ascontiguousarray(maps.distance, np.float32),
+            np.ascontiguousarray(maps.normal, np.int16))
+
+
+def read_probe(folder: Path, index: int, header: dict) -> tuple[np.ndarray, ...]:
+    """One probe's (radiance, distance, normal), checked against the header's record."""
+    record = header["probes"].get(str(index))
+    if record is None:
+        raise ProbeFileError(f"{folder}: probe {index} was never finished; resume the bake "
+                             "(run the same voxfield bake again)")
+    path = Path(folder) / str(record.get("file", probe_file_name(index)))
+    if not path.is_file():
+        raise ProbeFileError(f"{path}: probe {index}'s file is missing; resume the bake to "
+                             "re-bake it")
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            arrays = tuple(np.array(data[name]) for name in MAP_NAMES)
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+        raise ProbeFileError(f"{path}: probe {index}'s file is corrupt ({exc}); resume the "
+                             "bake to re-bake it") from exc
+    for name, array in zip(MAP_NAMES, arrays, strict=True):
+        spec = header["encodings"][name]
+        if array.dtype != np.dtype(spec["dtype"]) or list(array.shape) != spec["shape"]:
+            raise ProbeFileError(
+                f"{path}: {name} is {array.dtype} {array.shape}, the header says "
+                f"{spec['dtype']} {tuple(spec['shape'])}; re-bake with --fresh"
+            )
+    if maps_checksum(*arrays) != record.get("checksum"):
+        raise ProbeFileError(f"{path}: probe {index}'s checksum does not match the header "
+                             "(changed or damaged file); resume the bake to re-bake it")
+    return arrays
+
+
+def verified_probes(folder: Path, header: dict) -> set[int]:
+    """Indices of the probes whose file exists, loads and matches its recorded checksum."""
+    done = set()
+    for key in list(header["probes"]):
+        try:
+            index = int(key)
+            if not 0 <= index < header["probe_count"]:
+                raise ValueError(index)
+            read_probe(folder, index, header)
+        except (ValueError, ProbeFileError):
+            continue
+        done.add(index)
+    return done
+
+
+# --------------------------------------------------------------------------- opening
+
+
+def open_probe_set(path: str | os.PathLike):
+    """Load a complete probe-set folder as a ``ProbeSet``, checking every file.
+
+    Raises ``ProbeHeaderError`` for a missing or foreign header and ``ProbeFileError`` for a
+    missing, corrupt or mismatched probe file, each saying how to recover.
+    """
+    from voxfield.probes.grid import ProbeGrid
+    from voxfield.probes.probe_set import BakeOptions, ProbeSet
+
+    folder = Path(path)
+    header = read_header(folder)
+    try:
+        grid = ProbeGrid.from_dict(header["grid"])
+        options = BakeOptions.from_dict(header["options"])
+    except VoxfieldError:
+        raise
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ProbeHeaderError(f"{folder / HEADER_NAME}: bad grid or options ({exc}); "
+                               "re-bake with --fresh") from exc
+    n = int(header["probe_count"])
+    if grid.count != n or int(options.resolution) != header["resolution"]:
+        raise ProbeHeaderError(f"{folder / HEADER_NAME}: probe_count/resolution disagree "
+                               "with the grid and options; re-bake with --fresh")
+    enabled = np.asarray(grid.enabled, bool).reshape(-1)
+    missing = [i for i in range(n) if enabled[i] and str(i) not in header["probes"]]
+    if missing:
+        shown = ", ".join(map(str, missing[:8])) + (" ..." if len(missing) > 8 else "")
+        raise ProbeFileError(f"{folder}: {len(missing)} of {int(enabled.sum())} probes are not "
+                             f"baked yet ({shown}); resume the bake (run the same voxfield "
+                             "bake again)")
+    probes = [_load_maps(folder, i, header) if enabled[i] else None for i in range(n)]
+    return ProbeSet.assemble(grid, options, probes, header["scene"]["fingerprint"])
+
+
+def _load_maps(folder: Path, index: int, header: dict):
+    """Probe ``index`` as ``ProbeMaps``, its cost taken from the header's record."""
+    from voxfield.probes.probe_set import COST_FIELDS, BakeCost, ProbeMaps
+
+    record = header["probes"][str(index)]
+    try:
+        cost = BakeCost(**{k: record[k] for k in COST_FIELDS})
+    except (KeyError, TypeError) as exc:
+        raise ProbeHeaderError(f"{Path(folder) / HEADER_NAME}: probe {index}'s record lacks "
+                               f"its cost ({exc}); re-bake with --fresh") from exc
+    return ProbeMaps(*read_probe(folder, index, header), cost)
+
+
+# --------------------------------------------------------------------------- atlases
+
+
+def atlas_layout(count: int) -> tuple[int, int]:
+    """(columns, rows) of a near-square atlas holding ``count`` tiles."""
+    columns = max(1, math.ceil(math.sqrt(count)))
+    return columns, max(1, math.ceil(count / columns))
+
+
+def atlas(maps: np.ndarray, fill: float = 0.0) -> np.ndarray:
+    """Tile (N, R, R[, C]) probe maps into one image of bordered (R + 2)² tiles."""
+    from voxfield.kernels.octahedral import add_border
+
+    n, r = maps.shape[0], maps.shape[1]
+    channels = maps.shape[3:]
+    # add_border works on the last two axes: move channels first and back again.
+    bordered = np.moveaxis(add_border(np.moveaxis(maps, (1, 2), (-2, -1))), (-2, -1), (1, 2))
+    columns, rows = atlas_layout(n)
+    tile = r + 2
+    out = np.full((rows * tile, columns * tile) + channels, fill, maps.dtype)
+    for i in range(n):
+        row, col = divmod(i, columns)
+        out[row * tile:(row + 1) * tile, col * tile:(col + 1) * tile] = bordered[i]
+    return out
+
+
+def write_atlases(folder: Path, radiance, distance, normal) -> dict:
+    """Write the engine-facing EXR atlases; returns their header description."""
+    import OpenEXR
+
+    normal_float = normal.astype(np.float32) / np.float32(32767.0)
+    images = {
+        "radiance": {"RGB": atlas(np.asarray(radiance, np.float16))},
+        "distance": {"Z": atlas(np.asarray(distance, np.float32), fill=np.inf)},
+        "normal": {"U": atlas(normal_float[..., 0]), "V": atlas(normal_float[..., 1])},
+    }
+    header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
+    for name, channels in images.items():
+        data = {k: np.ascontiguousarray(v) for k, v in channels.items()}
+        with atomic_path(Path(folder) / ATLAS_FILES[name]) as tmp, \
+                OpenEXR.File(header, data) as f:
+            f.write(str(tmp))
+    columns, rows = atlas_layout(radiance.shape[0])
+    return {"columns": columns, "rows": rows, "tile": int(radiance.shape[1]) + 2, "border": 1,
+            "files": dict(ATLAS_FILES),
+            "channels": {"radiance": "RGB half", "distance": "Z float",
+                         "normal": "U, V float (octahedral, [-1, 1])"}}
+
+
+# --------------------------------------------------------------------------- baking
+
+
+def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = False,
+                   progress: bool = False, source: dict | None = None, relocation=None,
+                   baker=None):
+    """Bake ``grid`` into the probe-set folder ``out`` and return the finished ``ProbeSet``.
+
+    The header is written first; each probe's file is written (atomically) as soon as it is
+    baked, and the header records it. Re-running on a folder baked from the same scene,
+    grid and options bakes only the probes that are missing or fail their checksum, so a
+    killed bake continues where it stopped. A folder from another scene, grid or options is
+    refused with ``ProbeSetMismatchError`` unless ``fresh`` (start over, deleting its
+    probe files). ``scheduler`` picks where probes run (see ``voxfield.probes.distributed``);
+    ``baker`` replaces ``bake_probe`` (tests count calls with it).
+
+    ``source`` (how to reopen the scene, e.g. the CLI's scene argument and options) and
+    ``relocation`` (a ``RelocationReport``) are recorded for ``voxfield probes show``; they
+    are not part of what must match on resume. ``last_run`` in the header says how many
+    probes this run baked and reused, on which scheduler, in how many wall-clock seconds.
+    """
+    from voxfield.probes.bake import octree_fingerprint
+    from voxfield.probes.distributed import bake_each
+
+    started = time.perf_counter()
+    folder = Path(out)
+    if folder.exists() and not folder.is_dir():
+        raise ProbeStorageError(f"{folder} exists and is not a folder; pick another --out")
+    channel = getattr(options, "channel", "albedo")
+    header = new_header(grid=grid, options=options,
+                        fingerprint=octree_fingerprint(octree, channel), channel=channel,
+                        scene_name=getattr(octree, "name", "scene"))
+    if source is not None:
+        header["scene"]["source"] = _jsonable(source)
+    if relocation is not None:
+        report = relocation.to_dict() if hasattr(relocation, "to_dict") else dict(relocation)
+        report.pop("offsets", None)  # the grid holds them
+        header["relocation"] = _jsonable(report)
+    if fresh:
+        clear_folder(folder)
+    elif (folder / HEADER_NAME).exists():
+        old = read_header(folder)
+        differs = _differences(identity(old), identity(header))
+        if differs:
+            raise ProbeSetMismatchError(
+                f"{folder} holds probes baked from a different " + " and ".join(differs)
+                + "; use another --out, or --fresh to discard them"
+            )
+        header["probes"] = old["probes"]
+    folder.mkdir(parents=True, exist_ok=True)
+
+    done = verified_probes(folder, header)
+    header["probes"] = {str(i): header["probes"][str(i)] for i in sorted(done)}
+    enabled = np.asarray(grid.enabled, bool).reshape(-1)
+    todo = [i for i in range(grid.count) if enabled[i] and i not in done]
+    header["complete"] = False
+    header.pop("atlas", None)
+    header["last_run"] = {"baked": len(todo), "reused": len(done),
+                          "scheduler": _scheduler_name(scheduler)}
+    write_header(folder, header)
+
+    last_flush = time.monotonic()
+
+    def store(index: int, maps) -> None:
+        nonlocal last_flush
+        header["probes"][str(index)] = write_probe(folder, index, maps)
+        if time.monotonic() - last_flush >= HEADER_FLUSH_SECONDS:
+            write_header(folder, header)
+            last_flush = time.monotonic()
+
+    try:
+        bake_each(octree, grid, options, todo, store, scheduler=scheduler, progress=progress,
+                  baker=baker)
+    finally:
+        # Whatever finished before an error or Ctrl-C is kept for the next run.
+        write_header(folder, header)
+
+    probe_set = open_probe_set(folder)
+    header["atlas"] = write_atlases(folder, probe_set.radiance, probe_set.distance,
+                                    probe_set.normal)
+    header["complete"] = True
+    header["last_run"]["wall_seconds"] = time.perf_counter() - started
+    write_header(folder, header)
+    return probe_set
+
+
+def _scheduler_name(scheduler) -> str:
+    if scheduler is None or isinstance(scheduler, str):
+        return scheduler or "threads"
+    address = getattr(getattr(scheduler, "scheduler", None), "address", None)
+    return str(address or type(scheduler).__name__)
+
+
+def clear_folder(folder: Path) -> None:
+    """Remove what a bake wrote (header, probe files, atlases), nothing else."""
+    if not folder.is_dir():
+        return
+    for path in folder.glob("probe_*.npz"):
+        path.unlink()
+    for name in (HEADER_NAME, *ATLAS_FILES.values()):
+        (folder / name).unlink(missing_ok=True)
