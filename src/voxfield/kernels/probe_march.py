@@ -1,0 +1,507 @@
+"""Single-probe ray marching against a light probe's radial distance map (probe thesis ch. 4-7).
+
+A probe at ``P`` stores, per octahedral texel, the radial distance ``D`` to the first surface
+along the texel-centre direction. A ray ``X + t·ω`` (``ω`` unit) is tested against it by
+comparing the ray's radial distance ``ρ(t) = |X - P + t·ω|`` with ``D`` of the texel its
+direction falls in:
+
+- ``ρ < D - ε`` all through: the probe sees empty space there; march on.
+- ``ρ`` reaches ``D`` (within ε) in a texel entered in front of the surface: ``HIT``.
+- the ray enters a texel already behind its surface (``ρ > D + ε``): the probe cannot see that
+  part of the ray, so it cannot tell what happens there: ``UNKNOWN``, with the ``t`` reached
+  (the start of that texel, or of the last point known to be visible) so another probe can
+  continue from it (Algorithm 5).
+- the segment ends in front of everything: ``MISS`` — this probe proves there is no surface on
+  ``[tmin, tmax)`` (up to its texel resolution and ε).
+
+Three marchers share that test (``MARCH3D``, ``DDA``, ``HIERARCHICAL``):
+
+1. ``MARCH3D`` — the thesis's baseline (§4.2, Algorithm 3): fixed world steps ``step``, one
+   texel fetch per step, no termination bound except ``max_steps`` (then ``UNKNOWN``).
+2. ``DDA`` — McGuire et al. 2017's 2D trace: the ray is split where it crosses the probe's
+   three axis planes; each piece stays in one octant, where the octahedral map is a projective
+   map of the direction, so the piece is a straight segment in texture space. Its texels are
+   walked in order (exact grid traversal); each texel's ray-parameter range is recovered in
+   closed form (``piece_t``), and ``ρ`` over it is bounded by its end values (``ρ`` is convex).
+3. ``HIERARCHICAL`` — the same walk over the conservative min-distance mip chain, coarse to
+   fine: a block whose minimum distance lies beyond the ray's largest ``ρ`` over the block
+   (the larger end value, by convexity) is skipped whole; only blocks where a hit or a loss
+   of visibility is possible are descended. It reports the same first event as ``DDA``.
+
+Hit acceptance (``EPS_*``, thesis §7.1) and backface rejection (§7.2) are shared too; see
+``texel_event``. Every function here is a scalar device function over flat arrays, so it also
+compiles for CUDA.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from voxfield.kernels.octahedral import oct_decode, sign_not_zero, texel_of_direction
+
+#: Result kinds (``FALLBACK`` is only produced by the multi-probe trace).
+MISS = 0
+HIT = 1
+UNKNOWN = 2
+FALLBACK = 3
+
+#: Marchers.
+MARCH3D = 0
+DDA = 1
+HIERARCHICAL = 2
+
+#: Hit acceptance: constant ε (world units), the thesis's adaptive ε (§7.1), or the angular
+#: criterion ``acos(α·ω) < kθ``.
+EPS_CONSTANT = 0
+EPS_ADAPTIVE = 1
+EPS_ANGULAR = 2
+
+#: Layout of the float64 ``params`` array every trace takes.
+P_EPSILON = 0  # constant ε, world units
+P_K = 1  # k of the adaptive ε and of the angular criterion
+P_THETA = 2  # θ: the angle one camera pixel subtends (radians)
+P_STEP = 3  # MARCH3D step, world units
+P_MAX_STEPS = 4  # MARCH3D step limit
+P_BACKFACE = 5  # 1.0: reject hits on surfaces facing away from the ray
+N_PARAMS = 6
+
+#: Events of one texel (or one march step): nothing yet, a hit, a loss of visibility.
+_GO = 0
+_HIT = 1
+_LOST = 2
+
+#: A piece of a ray shorter than this in texels is one point of the map.
+_DEGENERATE = 1e-9
+_END = 1e-12
+
+
+@njit(cache=True, nogil=True)
+def radial(ax: float, ay: float, az: float, dx: float, dy: float, dz: float, t: float) -> float:
+    """``|A + t·ω|``; inf for ``t = inf``."""
+    if t == math.inf:
+        return math.inf
+    x = ax + t * dx
+    y = ay + t * dy
+    z = az + t * dz
+    return math.sqrt(x * x + y * y + z * z)
+
+
+@njit(cache=True, nogil=True)
+def encode_in_octant(qx: float, qy: float, qz: float, sx: float, sy: float,
+                     sz: float) -> tuple[float, float]:
+    """Octahedral (u, v) of ``q`` computed as if it lay in the octant of signs ``s``.
+
+    On a fold plane (a component 0) ``oct_encode`` must pick a side; a piece that ends on the
+    plane needs the side it lies on, so the signs are given rather than read from ``q``."""
+    l1 = sx * qx + sy * qy + sz * qz
+    px = qx / l1
+    pz = qz / l1
+    if sy < 0.0:
+        fx = (1.0 - sz * pz) * sx
+        fz = (1.0 - sx * px) * sz
+        px = fx
+        pz = fz
+    return px * 0.5 + 0.5, pz * 0.5 + 0.5
+
+
+@njit(cache=True, nogil=True)
+def texel_direction(row: int, col: int, resolution: int) -> tuple[float, float, float]:
+    """Unit direction through texel (row, col)'s centre."""
+    return oct_decode((col + 0.5) / resolution, (row + 0.5) / resolution)
+
+
+@njit(cache=True, nogil=True)
+def piece_setup(ax: float, ay: float, az: float, dx: float, dy: float, dz: float, t0: float,
+                t1: float, resolution: int):
+    """One octant piece ``[t0, t1]`` of the ray ``A + t·ω`` (``A = X - P``) in texel units.
+
+    Returns ``(xa, ya, ex, ey, a0, b, scale)``: the segment starts at texel coordinates
+    ``(xa, ya)`` (x = column, y = row) and moves by ``(ex, ey)`` over its length; ``a0``,
+    ``b`` and ``scale`` parameterise ``piece_t``.
+
+    In the octant of signs ``σ`` the map is affine in ``p = Q / (σ·Q)``, ``Q(t) = A + t·ω``;
+    with ``τ = t - t0``, ``p(τ) - p(0) = τ / ((a0 + bτ) a0) · (a0 ω - b Q0)`` where
+    ``a0 = σ·Q0 = |Q0|₁`` and ``b = σ·ω``: every point moves along one fixed vector, so the
+    piece is straight, and its fraction λ of the way is ``μ(τ)/μ(τ1)``,
+    ``μ(τ) = τ / ((a0 + bτ) a0)``."""
+    qx = ax + t0 * dx
+    qy = ay + t0 * dy
+    qz = az + t0 * dz
+    if t1 == math.inf:
+        tm = t0 + 1.0 + abs(qx) + abs(qy) + abs(qz)
+    else:
+        tm = 0.5 * (t0 + t1)
+    sx = sign_not_zero(ax + tm * dx)
+    sy = sign_not_zero(ay + tm * dy)
+    sz = sign_not_zero(az + tm * dz)
+    a0 = sx * qx + sy * qy + sz * qz
+    b = sx * dx + sy * dy + sz * dz
+    if a0 > 0.0:
+        u0, v0 = encode_in_octant(qx, qy, qz, sx, sy, sz)
+    else:  # the piece starts at the probe centre: its first direction is ω
+        u0, v0 = encode_in_octant(dx, dy, dz, sx, sy, sz)
+    if t1 == math.inf:
+        u1, v1 = encode_in_octant(dx, dy, dz, sx, sy, sz)
+        scale = 1.0 / b
+    else:
+        rx = ax + t1 * dx
+        ry = ay + t1 * dy
+        rz = az + t1 * dz
+        if sx * rx + sy * ry + sz * rz > 0.0:
+            u1, v1 = encode_in_octant(rx, ry, rz, sx, sy, sz)
+        else:  # the piece ends at the probe centre, arriving along -ω
+            u1, v1 = encode_in_octant(-dx, -dy, -dz, sx, sy, sz)
+        tau1 = t1 - t0
+        scale = tau1 / (a0 + tau1 * b)
+    xa = u0 * resolution
+    ya = v0 * resolution
+    return xa, ya, u1 * resolution - xa, v1 * resolution - ya, a0, b, scale
+
+
+@njit(cache=True, nogil=True)
+def piece_t(lam: float, t0: float, t1: float, a0: float, b: float, scale: float) -> float:
+    """The ray parameter ``t`` at fraction ``lam`` of a piece's texture-space segment: the
+    inverse of ``λ = μ(τ)/μ(τ1)`` (see ``piece_setup``), ``τ = κ a0 / (1 - κ b)`` with
+    ``κ = λ τ1 / (a0 + b τ1)`` (``λ / b`` for an unbounded piece)."""
+    if lam >= 1.0:
+        return t1
+    if lam <= 0.0:
+        return t0
+    k = lam * scale
+    den = 1.0 - k * b
+    if den <= 0.0:
+        return t1
+    return min(t0 + k * a0 / den, t1)
+
+
+@njit(cache=True, nogil=True)
+def _cell(pos: float, direction: float, lo: int, hi: int) -> int:
+    """Texel index of a coordinate on a segment, taking the side the segment moves into
+    when it sits on a boundary; clamped to ``lo..hi``."""
+    if direction < 0.0:
+        c = int(math.ceil(pos)) - 1
+    else:
+        c = int(math.floor(pos))
+    return min(max(c, lo), hi)
+
+
+@njit(cache=True, nogil=True)
+def epsilon_at(eps_mode: int, params: np.ndarray, ox: float, oy: float, oz: float,
+               px: float, py: float, pz: float, yx: float, yy: float, yz: float,
+               nx: float, ny: float, nz: float) -> float:
+    """The hit thickness ε for a candidate surface point ``Y`` with stored normal ``ν``.
+
+    ``EPS_CONSTANT``: ``params[P_EPSILON]``. ``EPS_ADAPTIVE``: the thesis's §7.1 formula as it
+    is printed, ``ε = k · tan θ · d(X, Y) · |α·β| · (1 - β·ν)``, with ``X`` the ray origin (the
+    camera), ``α = S²(X - Y)``, ``β = S²(X - P)``, ``ν`` the stored unit normal at ``Y`` (zero
+    where the probe stored none), ``θ = params[P_THETA]`` the angle of one camera pixel and
+    ``k = params[P_K]``. (The thesis's derivation before it reads ``(1 - α·ν)``; the printed
+    formula with ``β·ν`` is used.) When ``X = P``, ``β`` is taken as ``α``: that probe sees
+    along the camera's own rays. Not used by ``EPS_ANGULAR`` (0 there)."""
+    if eps_mode == EPS_CONSTANT:
+        return params[P_EPSILON]
+    if eps_mode != EPS_ADAPTIVE:
+        return 0.0
+    axx = ox - yx
+    axy = oy - yy
+    axz = oz - yz
+    dxy = math.sqrt(axx * axx + axy * axy + axz * axz)
+    if dxy == 0.0:
+        return 0.0
+    axx /= dxy
+    axy /= dxy
+    axz /= dxy
+    bx = ox - px
+    by = oy - py
+    bz = oz - pz
+    dxp = math.sqrt(bx * bx + by * by + bz * bz)
+    if dxp > 0.0:
+        bx /= dxp
+        by /= dxp
+        bz /= dxp
+    else:
+        bx = axx
+        by = axy
+        bz = axz
+    ab = abs(axx * bx + axy * by + axz * bz)
+    bn = bx * nx + by * ny + bz * nz
+    return params[P_K] * math.tan(params[P_THETA]) * dxy * ab * (1.0 - bn)
+
+
+@njit(cache=True, nogil=True)
+def skip_bound(eps_mode: int, params: np.ndarray, dmin: float, dxp: float) -> float:
+    """A lower bound of ``D - ε`` over every stored ``D >= dmin``: a block whose largest ray
+    radial distance is below it holds no texel where a hit or a loss of visibility is
+    possible. For the adaptive ε, ``ε <= c (|X - P| + D)`` with ``c = 2 k tan θ``."""
+    if eps_mode == EPS_CONSTANT:
+        return dmin - params[P_EPSILON]
+    if eps_mode == EPS_ADAPTIVE:
+        c = 2.0 * params[P_K] * math.tan(params[P_THETA])
+        if c >= 1.0:
+            return -math.inf
+        return dmin * (1.0 - c) - c * dxp
+    return dmin
+
+
+@njit(cache=True, nogil=True)
+def texel_event(eps_mode: int, params: np.ndarray, normals: np.ndarray, probe: int,
+                resolution: int, row: int, col: int, d: float, rho_a: float, rho_b: float,
+                ta: float, tb: float, t_floor: float, ox: float, oy: float, oz: float,
+                dx: float, dy: float, dz: float, px: float, py: float,
+                pz: float) -> tuple[int, float]:
+    """What the ray does in texel (row, col) storing distance ``d``, over ``t`` in [ta, tb]
+    with radial distances ``rho_a`` at ``ta`` and ``rho_b`` at ``tb``.
+
+    Returns ``(_GO, tb)``, ``(_HIT, t)`` with ``t`` where ``ρ(t) = d`` (clamped to the texel's
+    range: ``d`` is sampled at the texel centre), or ``(_LOST, t)`` with the ``t`` from which
+    another probe should continue. Constant and adaptive ε: lost when the ray enters behind
+    the surface by more than ε, a hit when its largest ``ρ`` comes within ε of ``d``.
+    Angular (§7.1): a candidate is any texel where ``ρ`` reaches ``d``; it is a hit when the
+    stored point ``Y`` is within ``kθ`` of the ray direction seen from ``X``, else lost.
+    Backface rejection (§7.2): a hit whose stored normal faces along ω is lost instead, from
+    ε before the texel (the true front face was within ε of where the probe saw empty space)."""
+    if not d < math.inf:
+        return _GO, tb
+    ax = ox - px
+    ay = oy - py
+    az = oz - pz
+    cx, cy, cz = texel_direction(row, col, resolution)
+    yx = px + d * cx
+    yy = py + d * cy
+    yz = pz + d * cz
+    nx = np.float64(normals[probe, row, col, 0])
+    ny = np.float64(normals[probe, row, col, 1])
+    nz = np.float64(normals[probe, row, col, 2])
+    rho_max = max(rho_a, rho_b)
+    eps = epsilon_at(eps_mode, params, ox, oy, oz, px, py, pz, yx, yy, yz, nx, ny, nz)
+    if eps_mode == EPS_ANGULAR:
+        if rho_max < d:
+            return _GO, tb
+    else:
+        if rho_a > d + eps:
+            return _LOST, ta
+        if rho_max < d - eps:
+            return _GO, tb
+    # Where along [ta, tb] the ray meets the sphere of radius d (from inside).
+    if rho_a >= d:
+        t_hit = ta
+    elif rho_b >= d:
+        adot = ax * dx + ay * dy + az * dz
+        disc = adot * adot - (ax * ax + ay * ay + az * az) + d * d
+        t_hit = -adot + math.sqrt(max(disc, 0.0))
+        t_hit = min(max(t_hit, ta), tb)
+    else:
+        t_hit = tb if rho_b >= rho_a else ta
+    if eps_mode == EPS_ANGULAR:
+        vx = yx - ox
+        vy = yy - oy
+        vz = yz - oz
+        length = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if length > 0.0:
+            cosine = (vx * dx + vy * dy + vz * dz) / length
+            if math.acos(min(max(cosine, -1.0), 1.0)) >= params[P_K] * params[P_THETA]:
+                return _LOST, ta
+    if params[P_BACKFACE] != 0.0 and nx * dx + ny * dy + nz * dz > 0.0:
+        return _LOST, max(t_floor, ta - eps)
+    return _HIT, t_hit
+
+
+@njit(cache=True, nogil=True)
+def walk_piece(top: int, eps_mode: int, params: np.ndarray, mips: np.ndarray,
+               mip_offsets: np.ndarray, mip_sizes: np.ndarray, normals: np.ndarray,
+               resolution: int, probe: int, ox: float, oy: float, oz: float, dx: float,
+               dy: float, dz: float, px: float, py: float, pz: float, t0: float, t1: float,
+               t_floor: float):
+    """Walk one octant piece's texels in order, from mip level ``top`` down (``top = 0``:
+    the plain DDA). Returns ``(event, t, row, col, fetches, steps)``."""
+    r = resolution
+    ax = ox - px
+    ay = oy - py
+    az = oz - pz
+    dxp = math.sqrt(ax * ax + ay * ay + az * az)
+    xa, ya, ex, ey, a0, b, scale = piece_setup(ax, ay, az, dx, dy, dz, t0, t1, r)
+    if abs(ex) + abs(ey) < _DEGENERATE:
+        col = _cell(xa + 0.5 * ex, 0.0, 0, r - 1)
+        row = _cell(ya + 0.5 * ey, 0.0, 0, r - 1)
+        d = np.float64(mips[probe, row * r + col])
+        event, t = texel_event(eps_mode, params, normals, probe, r, row, col, d,
+                               radial(ax, ay, az, dx, dy, dz, t0),
+                               radial(ax, ay, az, dx, dy, dz, t1), t0, t1, t_floor,
+                               ox, oy, oz, dx, dy, dz, px, py, pz)
+        return event, t, row, col, 1, 1
+    ix = _cell(xa, ex, 0, r - 1)
+    iy = _cell(ya, ey, 0, r - 1)
+    level = top
+    ta = t0
+    rho_a = radial(ax, ay, az, dx, dy, dz, t0)
+    fetches = 0
+    limit = 4 * (top + 1) * (2 * r + 4)
+    while fetches < limit:
+        n = mip_sizes[level]
+        bx = ix >> level
+        by = iy >> level
+        x_lo = bx << level
+        x_hi = min((bx + 1) << level, r)
+        y_lo = by << level
+        y_hi = min((by + 1) << level, r)
+        if ex > 0.0:
+            lx = (x_hi - xa) / ex
+        elif ex < 0.0:
+            lx = (x_lo - xa) / ex
+        else:
+            lx = math.inf
+        if ey > 0.0:
+            ly = (y_hi - ya) / ey
+        elif ey < 0.0:
+            ly = (y_lo - ya) / ey
+        else:
+            ly = math.inf
+        lam_exit = min(lx, ly)
+        end = lam_exit >= 1.0 - _END
+        if end:
+            lam_exit = 1.0
+        tb = piece_t(lam_exit, t0, t1, a0, b, scale)
+        rho_b = radial(ax, ay, az, dx, dy, dz, tb)
+        value = np.float64(mips[probe, mip_offsets[level] + by * n + bx])
+        fetches += 1
+        if level > 0:
+            if value < math.inf and not max(rho_a, rho_b) < skip_bound(eps_mode, params,
+                                                                       value, dxp):
+                level -= 1
+                continue
+        else:
+            event, t = texel_event(eps_mode, params, normals, probe, r, iy, ix, value, rho_a,
+                                   rho_b, ta, tb, t_floor, ox, oy, oz, dx, dy, dz, px, py, pz)
+            if event != _GO:
+                return event, t, iy, ix, fetches, fetches
+        if end:
+            break
+        if lx <= ly:
+            nx = x_hi if ex > 0.0 else x_lo - 1
+        else:
+            nx = _cell(xa + lam_exit * ex, ex, x_lo, x_hi - 1)
+        if ly <= lx:
+            ny = y_hi if ey > 0.0 else y_lo - 1
+        else:
+            ny = _cell(ya + lam_exit * ey, ey, y_lo, y_hi - 1)
+        if nx < 0 or nx >= r or ny < 0 or ny >= r:
+            break
+        ix = nx
+        iy = ny
+        ta = tb
+        rho_a = rho_b
+        if level < top:
+            level += 1
+    return _GO, t1, -1, -1, fetches, fetches
+
+
+@njit(cache=True, nogil=True)
+def march_3d(eps_mode: int, params: np.ndarray, mips: np.ndarray, normals: np.ndarray,
+             resolution: int, probe: int, ox: float, oy: float, oz: float, dx: float,
+             dy: float, dz: float, px: float, py: float, pz: float, tmin: float,
+             tmax: float):
+    """The thesis's 3D march (Algorithm 3): test points ``tmin + k·step`` against the texel
+    of their direction from the probe. Returns ``(kind, t, row, col, fetches, steps)``;
+    ``UNKNOWN`` carries the last point known visible, and also ends a march that used up
+    ``max_steps`` before ``tmax``."""
+    r = resolution
+    step = params[P_STEP]
+    max_steps = int(params[P_MAX_STEPS])
+    ax = ox - px
+    ay = oy - py
+    az = oz - pz
+    t = tmin
+    t_prev = tmin
+    steps = 0
+    while t < tmax:
+        if steps >= max_steps:
+            return UNKNOWN, t_prev, -1, -1, steps, steps
+        qx = ax + t * dx
+        qy = ay + t * dy
+        qz = az + t * dz
+        rho = math.sqrt(qx * qx + qy * qy + qz * qz)
+        if rho == 0.0:
+            qx = dx
+            qy = dy
+            qz = dz
+        row, col = texel_of_direction(qx, qy, qz, r)
+        d = np.float64(mips[probe, row * r + col])
+        steps += 1
+        event, t_event = texel_event(eps_mode, params, normals, probe, r, row, col, d, rho,
+                                     rho, t, t, tmin, ox, oy, oz, dx, dy, dz, px, py, pz)
+        if event == _HIT:
+            return HIT, t_event, row, col, steps, steps
+        if event == _LOST:
+            return UNKNOWN, min(t_prev, t_event), row, col, steps, steps
+        t_prev = t
+        t = tmin + steps * step
+    return MISS, tmax, -1, -1, steps, steps
+
+
+@njit(cache=True, nogil=True)
+def trace_probe(marcher: int, eps_mode: int, params: np.ndarray, positions: np.ndarray,
+                mips: np.ndarray, mip_offsets: np.ndarray, mip_sizes: np.ndarray,
+                normals: np.ndarray, resolution: int, probe: int, ox: float, oy: float,
+                oz: float, dx: float, dy: float, dz: float, tmin: float, tmax: float):
+    """Trace ``X + t·ω`` (``ω`` unit, ``t`` in [tmin, tmax)) against one probe.
+
+    Returns ``(kind, t, row, col, fetches, steps)``: ``kind`` is ``HIT`` (``t`` the hit,
+    (row, col) the texel whose radiance/normal/distance answer it), ``MISS`` (no surface on
+    the segment; ``t = tmax``) or ``UNKNOWN`` (``t`` is how far the probe could vouch for the
+    ray). ``fetches`` counts distance-texel reads (mip texels included), ``steps`` march
+    iterations (cells visited at any level for the 2D marchers, points for ``MARCH3D``)."""
+    px = positions[probe, 0]
+    py = positions[probe, 1]
+    pz = positions[probe, 2]
+    if not tmin < tmax:
+        return MISS, tmax, -1, -1, 0, 0
+    if marcher == MARCH3D:
+        return march_3d(eps_mode, params, mips, normals, resolution, probe, ox, oy, oz,
+                        dx, dy, dz, px, py, pz, tmin, tmax)
+    top = len(mip_sizes) - 1 if marcher == HIERARCHICAL else 0
+    ax = ox - px
+    ay = oy - py
+    az = oz - pz
+    # Where the ray crosses the probe's axis planes, in order: the octant pieces' ends.
+    s0 = math.inf
+    s1 = math.inf
+    s2 = math.inf
+    if dx != 0.0:
+        s0 = -ax / dx
+    if dy != 0.0:
+        s1 = -ay / dy
+    if dz != 0.0:
+        s2 = -az / dz
+    if s0 > s1:
+        s0, s1 = s1, s0
+    if s1 > s2:
+        s1, s2 = s2, s1
+    if s0 > s1:
+        s0, s1 = s1, s0
+    fetches = 0
+    t0 = tmin
+    for i in range(4):
+        if i == 0:
+            t1 = s0
+        elif i == 1:
+            t1 = s1
+        elif i == 2:
+            t1 = s2
+        else:
+            t1 = tmax
+        t1 = min(t1, tmax)
+        if t1 <= t0:
+            continue
+        event, t, row, col, f, _ = walk_piece(top, eps_mode, params, mips, mip_offsets,
+                                              mip_sizes, normals, resolution, probe, ox, oy,
+                                              oz, dx, dy, dz, px, py, pz, t0, t1, tmin)
+        fetches += f
+        if event == _HIT:
+            return HIT, t, row, col, fetches, fetches
+        if event == _LOST:
+            return UNKNOWN, t, row, col, fetches, fetches
+        t0 = t1
+    return MISS, tmax, -1, -1, fetches, fetches

@@ -1,0 +1,105 @@
+"""Probe maps packed as the flat arrays the light-field kernels read.
+
+A ``ProbeSet`` keeps radiance in float16 and normals as snorm16 codes, the compact form a bake
+stores. Tracing reads them many times per ray, so they are decoded once here: float32
+radiance, unit float32 normals, and the conservative min-distance mip chain laid end to end in
+one array per probe.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+from voxfield.probes.probe_set import decode_normals, min_distance_mips
+
+
+@dataclass(frozen=True)
+class PackedProbes:
+    """Decoded probe maps, read-only, in the probe set's order (callers may rely on all fields).
+
+    - ``positions`` (N, 3) float64 probe centres; ``enabled`` (N,) bool.
+    - ``radiance`` (N, R, R, 3) float32, ``distance`` (N, R, R) float32 radial distance
+      (inf: no surface), ``normals`` (N, R, R, 3) float32 unit normals (zero where none);
+      texel (row, col) follows the octahedral layout of ``kernels.octahedral`` (row = v).
+    - ``mips`` (N, total) float32: the min-distance chain of ``min_distance_mips``, level 0
+      (the distance map itself) first; level ``k`` is ``mip_sizes[k]`` texels a side, stored
+      row-major at ``mips[:, mip_offsets[k]:mip_offsets[k] + mip_sizes[k] ** 2]``.
+    - ``grid_origin``, ``grid_spacing`` (3,) float64 and ``grid_counts`` (3,) int64: the probe
+      lattice (x fastest, as ``ProbeGrid``), for finding the 8-probe cage around a point.
+    """
+
+    positions: np.ndarray
+    enabled: np.ndarray
+    radiance: np.ndarray
+    distance: np.ndarray
+    normals: np.ndarray
+    mips: np.ndarray
+    mip_offsets: np.ndarray
+    mip_sizes: np.ndarray
+    grid_origin: np.ndarray
+    grid_spacing: np.ndarray
+    grid_counts: np.ndarray
+
+    @property
+    def count(self) -> int:
+        return len(self.positions)
+
+    @property
+    def resolution(self) -> int:
+        return int(self.distance.shape[-1])
+
+    @property
+    def levels(self) -> int:
+        return len(self.mip_sizes)
+
+    @classmethod
+    def from_probe_set(cls, ps) -> PackedProbes:
+        """Pack a ``ProbeSet``. Its ``grid`` must describe the lattice (``origin``,
+        ``spacing``, ``counts``, as ``ProbeGrid`` does) so rays can find their probe cage."""
+        grid = ps.grid
+        try:
+            origin = np.asarray(grid.origin, np.float64).reshape(3)
+            spacing = np.asarray(grid.spacing, np.float64).reshape(3)
+            counts = np.asarray(grid.counts, np.int64).reshape(3)
+        except (AttributeError, ValueError) as exc:
+            raise VoxfieldError("the probe set's grid must have origin, spacing and counts "
+                                "(a ProbeGrid) to trace a light field") from exc
+        if int(np.prod(counts)) != ps.count:
+            raise VoxfieldError(f"the grid has {int(np.prod(counts))} probes but the set holds "
+                                f"{ps.count}")
+        return cls.from_arrays(ps.positions, ps.enabled, ps.radiance, ps.distance,
+                               decode_normals(ps.normal), origin, spacing, counts)
+
+    @classmethod
+    def from_arrays(cls, positions, enabled, radiance, distance, normals, grid_origin,
+                    grid_spacing, grid_counts) -> PackedProbes:
+        """Pack plain arrays (normals already decoded, (N, R, R, 3)); shapes are checked."""
+        positions = np.ascontiguousarray(positions, np.float64).reshape(-1, 3)
+        n = len(positions)
+        distance = np.ascontiguousarray(distance, np.float32)
+        if distance.ndim != 3 or distance.shape[0] != n or distance.shape[1] != distance.shape[2]:
+            raise VoxfieldError(f"distance maps must be (N, R, R) for {n} probes, got "
+                                f"{distance.shape}")
+        r = distance.shape[1]
+        radiance = np.ascontiguousarray(radiance, np.float32)
+        normals = np.ascontiguousarray(normals, np.float32)
+        enabled = np.ascontiguousarray(enabled, bool).reshape(-1)
+        if radiance.shape != (n, r, r, 3) or normals.shape != (n, r, r, 3) or len(enabled) != n:
+            raise VoxfieldError("radiance and normals must be (N, R, R, 3) and enabled (N,)")
+        counts = np.asarray(grid_counts, np.int64).reshape(3)
+        if int(np.prod(counts)) != n or np.any(counts < 1):
+            raise VoxfieldError(f"grid counts {counts.tolist()} do not hold {n} probes")
+        chain = min_distance_mips(distance)
+        sizes = np.array([level.shape[-1] for level in chain], np.int64)
+        offsets = np.concatenate([[0], np.cumsum(sizes * sizes)[:-1]]).astype(np.int64)
+        mips = np.concatenate([level.reshape(n, -1) for level in chain], axis=1)
+        packed = cls(positions, enabled, radiance, distance, normals,
+                     np.ascontiguousarray(mips, np.float32), offsets, sizes,
+                     np.asarray(grid_origin, np.float64).reshape(3).copy(),
+                     np.asarray(grid_spacing, np.float64).reshape(3).copy(), counts.copy())
+        for value in vars(packed).values():
+            value.flags.writeable = False
+        return packed

@@ -1,0 +1,239 @@
+"""Ray queries answered from light probes with depth (probe thesis ch. 4-7).
+
+``trace_single`` marches rays against one probe; ``trace_light_field`` answers each ray from
+the 8-probe cage around its origin with the thesis's ordering and hand-off, falling back to the
+nearest probe as an environment map. Both run the Numba kernels of ``kernels.probe_march`` and
+``kernels.probe_multi`` in parallel over rays; results are the same for any thread count.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+from voxfield.kernels import probe_march as pm
+from voxfield.kernels import probe_multi as mk
+from voxfield.lightfield.packed import PackedProbes
+from voxfield.render.renderers import thread_count
+
+#: Result kinds, as stored in ``kind`` arrays.
+MISS = pm.MISS
+HIT = pm.HIT
+UNKNOWN = pm.UNKNOWN
+FALLBACK = pm.FALLBACK
+KIND_NAMES = {MISS: "miss", HIT: "hit", UNKNOWN: "unknown", FALLBACK: "fallback"}
+
+MARCHERS = {"march3d": pm.MARCH3D, "dda": pm.DDA, "hierarchical": pm.HIERARCHICAL}
+EPSILON_MODES = {"constant": pm.EPS_CONSTANT, "adaptive": pm.EPS_ADAPTIVE,
+                 "angular": pm.EPS_ANGULAR}
+ORDERINGS = {"signed-dot": mk.ORDER_SIGNED_DOT, "nearest": mk.ORDER_NEAREST,
+             "fixed": mk.ORDER_FIXED}
+
+
+@dataclass(frozen=True)
+class LightFieldOptions:
+    """How rays are marched against probes.
+
+    ``marcher``: ``"march3d"`` (fixed world ``step``, at most ``max_steps`` points per probe),
+    ``"dda"`` (texel by texel in octahedral space) or ``"hierarchical"`` (over the min-distance
+    mips; same answers as ``"dda"``, fewer fetches).
+    ``epsilon``: hit acceptance — ``"constant"`` (thickness ``epsilon_value`` world units),
+    ``"adaptive"`` (thesis §7.1: ``k · tan θ · d(X, Y) · |α·β| · (1 - β·ν)``, θ the pixel
+    angle given to the trace, ``k = epsilon_k``; see ``kernels.probe_march.epsilon_at``) or
+    ``"angular"`` (accept when the stored point is within ``epsilon_k · θ`` of the ray seen
+    from its origin). ``backface``: reject hits whose stored normal faces along the ray (§7.2).
+    ``ordering``: first probe of the cage — ``"signed-dot"`` (max ``ω · S²(X - P)``, the
+    thesis), ``"nearest"`` (McGuire et al. 2017) or ``"fixed"`` (corner 0); the rest follow
+    ``i + 3 mod 8``. ``fallback``: when every probe loses the ray, answer with the nearest
+    probe's radiance in direction ω (kind ``FALLBACK``) rather than ``UNKNOWN``.
+    """
+
+    marcher: str = "hierarchical"
+    step: float = 0.25
+    max_steps: int = 4096
+    epsilon: str = "constant"
+    epsilon_value: float = 0.5
+    epsilon_k: float = 1.0
+    backface: bool = False
+    ordering: str = "signed-dot"
+    fallback: bool = True
+
+    def __post_init__(self) -> None:
+        for name, table in (("marcher", MARCHERS), ("epsilon", EPSILON_MODES),
+                            ("ordering", ORDERINGS)):
+            if getattr(self, name) not in table:
+                raise VoxfieldError(f"unknown {name} {getattr(self, name)!r}; choose one of "
+                                    f"{', '.join(table)}")
+        if not (_finite(self.step) and self.step > 0):
+            raise VoxfieldError(f"the march step must be a positive distance, got {self.step!r}")
+        if not isinstance(self.max_steps, (int, np.integer)) or self.max_steps < 1:
+            raise VoxfieldError(f"max_steps must be an integer >= 1, got {self.max_steps!r}")
+        if not (_finite(self.epsilon_value) and self.epsilon_value >= 0):
+            raise VoxfieldError(f"epsilon_value must be a distance >= 0, got "
+                                f"{self.epsilon_value!r}")
+        if not (_finite(self.epsilon_k) and self.epsilon_k >= 0):
+            raise VoxfieldError(f"epsilon_k must be a number >= 0, got {self.epsilon_k!r}")
+
+    def params(self, pixel_angle: float) -> np.ndarray:
+        """The kernels' float64 parameter array (layout ``kernels.probe_march.P_*``)."""
+        out = np.zeros(pm.N_PARAMS)
+        out[pm.P_EPSILON] = self.epsilon_value
+        out[pm.P_K] = self.epsilon_k
+        out[pm.P_THETA] = pixel_angle
+        out[pm.P_STEP] = self.step
+        out[pm.P_MAX_STEPS] = self.max_steps
+        out[pm.P_BACKFACE] = 1.0 if self.backface else 0.0
+        return out
+
+
+def _finite(value) -> bool:
+    return (isinstance(value, (int, float, np.integer, np.floating))
+            and not isinstance(value, bool) and math.isfinite(value))
+
+
+@dataclass
+class ProbeHits:
+    """One probe's answer per ray. ``kind`` int8 (``HIT``/``MISS``/``UNKNOWN``); ``t``
+    float64: the hit distance for a hit, ``tmax`` for a miss, how far the probe vouched for
+    the ray for unknown; ``row``/``col`` int32 the answering texel (-1 unless hit; also set
+    for an unknown from a 2D marcher: the texel where visibility was lost); ``radiance``
+    (N, 3) float32, ``normal`` (N, 3) float32 and ``distance`` float32 (stored radial
+    distance) of that texel (zero / inf where not hit); ``fetches`` (distance texels read)
+    and ``steps`` int64."""
+
+    kind: np.ndarray
+    t: np.ndarray
+    row: np.ndarray
+    col: np.ndarray
+    radiance: np.ndarray
+    normal: np.ndarray
+    distance: np.ndarray
+    fetches: np.ndarray
+    steps: np.ndarray
+
+    @property
+    def hit(self) -> np.ndarray:
+        return self.kind == HIT
+
+
+@dataclass
+class LightFieldHits:
+    """The light field's answer per ray. ``kind`` int8: ``HIT``, ``MISS`` (a probe proved
+    the segment empty), ``FALLBACK`` (every cage probe lost the ray; radiance is the nearest
+    probe's in direction ω, ``t`` its stored distance there) or ``UNKNOWN`` (same, with
+    fallback off). ``t`` float64 hit distance along the unit direction (``tmax`` for a
+    miss); ``radiance`` / ``normal`` (N, 3) float32 and ``distance`` float32 (the answering
+    texel's stored radial distance; zero / inf when there is none); ``probe`` int32 the
+    answering probe (-1: none); ``probes_tried`` int32 (a hit came from the
+    ``probes_tried``-th probe in the order); ``fetches`` and ``steps`` int64 summed over
+    the probes tried."""
+
+    kind: np.ndarray
+    t: np.ndarray
+    radiance: np.ndarray
+    normal: np.ndarray
+    distance: np.ndarray
+    probe: np.ndarray
+    probes_tried: np.ndarray
+    fetches: np.ndarray
+    steps: np.ndarray
+
+    @property
+    def hit(self) -> np.ndarray:
+        return self.kind == HIT
+
+    def summary(self) -> dict:
+        """Counts of each kind and mean cost per ray."""
+        n = max(len(self.kind), 1)
+        out = {name: int(np.count_nonzero(self.kind == k)) for k, name in KIND_NAMES.items()}
+        out.update(rays=len(self.kind), fetches_per_ray=float(self.fetches.sum()) / n,
+                   steps_per_ray=float(self.steps.sum()) / n,
+                   probes_per_ray=float(self.probes_tried.sum()) / n)
+        return out
+
+
+def _rays(origins, dirs, tmin, tmax):
+    o = np.ascontiguousarray(origins, np.float64)
+    d = np.array(dirs, np.float64)
+    if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
+        raise VoxfieldError(f"origins and directions must both be N×3, got {o.shape}, {d.shape}")
+    if not (np.isfinite(o).all() and np.isfinite(d).all()):
+        raise VoxfieldError("ray origins or directions hold NaN or infinity")
+    length = np.linalg.norm(d, axis=1)
+    if np.any(length == 0):
+        raise VoxfieldError("a ray direction is the zero vector")
+    d = np.ascontiguousarray(d / length[:, None])
+    n = len(o)
+    lo = np.ascontiguousarray(np.broadcast_to(np.asarray(tmin, np.float64), (n,)))
+    hi = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, np.float64), (n,)))
+    if np.isnan(lo).any() or np.isnan(hi).any() or np.any(lo < 0) or np.isinf(lo).any():
+        raise VoxfieldError("tmin must be finite and >= 0 and tmax not NaN")
+    return o, d, lo, hi
+
+
+def _pixel_angle(value) -> float:
+    if not (_finite(value) and 0 <= value < math.pi / 2):
+        raise VoxfieldError(f"pixel angle must be in [0, π/2) radians, got {value!r}")
+    return float(value)
+
+
+def trace_single(packed: PackedProbes, probe: int, origins, dirs,
+                 options: LightFieldOptions = LightFieldOptions(), tmin=0.0, tmax=math.inf,
+                 *, pixel_angle: float = 0.0, threads: int | None = None) -> ProbeHits:
+    """March rays ``o + t·d`` (``d`` normalised here; ``t`` in world units) with
+    ``tmin <= t < tmax`` (scalars or per-ray arrays) against probe ``probe`` alone."""
+    if not -packed.count <= probe < packed.count:
+        raise VoxfieldError(f"probe index {probe} is outside 0..{packed.count - 1}")
+    probe = int(probe) % packed.count
+    o, d, lo, hi = _rays(origins, dirs, tmin, tmax)
+    n = len(o)
+    kind = np.empty(n, np.int8)
+    t = np.empty(n)
+    row = np.empty(n, np.int32)
+    col = np.empty(n, np.int32)
+    fetches = np.empty(n, np.int64)
+    steps = np.empty(n, np.int64)
+    with thread_count(threads):
+        mk.trace_single_rays(MARCHERS[options.marcher], EPSILON_MODES[options.epsilon],
+                             options.params(_pixel_angle(pixel_angle)), packed.positions,
+                             packed.mips, packed.mip_offsets, packed.mip_sizes, packed.normals,
+                             packed.resolution, probe, o, d, lo, hi, kind, t, row, col,
+                             fetches, steps)
+    hit = kind == HIT
+    radiance = np.zeros((n, 3), np.float32)
+    normal = np.zeros((n, 3), np.float32)
+    distance = np.full(n, np.inf, np.float32)
+    radiance[hit] = packed.radiance[probe, row[hit], col[hit]]
+    normal[hit] = packed.normals[probe, row[hit], col[hit]]
+    distance[hit] = packed.distance[probe, row[hit], col[hit]]
+    return ProbeHits(kind, t, row, col, radiance, normal, distance, fetches, steps)
+
+
+def trace_light_field(packed: PackedProbes, origins, dirs,
+                      options: LightFieldOptions = LightFieldOptions(), *,
+                      pixel_angle: float = 0.0, tmin=0.0, tmax=math.inf,
+                      threads: int | None = None) -> LightFieldHits:
+    """Answer rays ``o + t·d`` (``d`` normalised here) from the probe cage around each
+    origin (Algorithms 4-6); ``pixel_angle`` is θ of the adaptive and angular ε (radians)."""
+    if not packed.enabled.any():
+        raise VoxfieldError("no probe of the set is enabled; bake some probes first")
+    o, d, lo, hi = _rays(origins, dirs, tmin, tmax)
+    n = len(o)
+    out = LightFieldHits(
+        kind=np.empty(n, np.int8), t=np.empty(n), radiance=np.empty((n, 3), np.float32),
+        normal=np.empty((n, 3), np.float32), distance=np.empty(n, np.float32),
+        probe=np.empty(n, np.int32), probes_tried=np.empty(n, np.int32),
+        fetches=np.empty(n, np.int64), steps=np.empty(n, np.int64))
+    with thread_count(threads):
+        mk.trace_light_field_rays(
+            MARCHERS[options.marcher], EPSILON_MODES[options.epsilon],
+            ORDERINGS[options.ordering], bool(options.fallback),
+            options.params(_pixel_angle(pixel_angle)), packed.positions, packed.enabled,
+            packed.mips, packed.mip_offsets, packed.mip_sizes, packed.normals, packed.radiance,
+            packed.resolution, packed.grid_origin, packed.grid_spacing, packed.grid_counts,
+            o, d, lo, hi, out.kind, out.t, out.radiance, out.normal, out.distance, out.probe,
+            out.probes_tried, out.fetches, out.steps)
+    return out
