@@ -1,0 +1,392 @@
+"""Rendering from probes: the two analytic baselines (probe thesis §5.1), the light-field
+render, compositing by depth (§8.1.2) and ``voxfield probe-render`` end to end."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from voxfield import cli
+from voxfield.errors import VoxfieldError
+from voxfield.kernels.octahedral import texel_directions
+from voxfield.lightfield.baselines import box_proxy_lookup, environment_lookup, nearest_probe
+from voxfield.lightfield.cli_probe_render import add_probe_render_parser
+from voxfield.lightfield.render import (
+    composite_by_depth,
+    probe_set_bounds,
+    render_from_probes,
+    result_kinds,
+)
+from voxfield.metrics import psnr
+from voxfield.probes.bake import bake_probes
+from voxfield.probes.grid import ProbeGrid
+from voxfield.probes.probe_set import BakeOptions
+from voxfield.render.camera import Camera
+from voxfield.render.renderers import render_lod
+from voxfield.render.result import RenderResult
+from voxfield.scene.voxel_scene import VoxelScene
+from voxfield.svo.build import build_octree
+
+ROOM = 16  # outer size of the closed test room; its inside is [1, ROOM - 1]³
+
+
+def random_probes(resolution: int = 8, count: int = 2, seed: int = 0) -> SimpleNamespace:
+    """Probe-set-shaped arrays with random radiance: enough for the lookups."""
+    rng = np.random.default_rng(seed)
+    return SimpleNamespace(
+        positions=rng.uniform(2.0, 10.0, (count, 3)), enabled=np.ones(count, bool),
+        radiance=rng.random((count, resolution, resolution, 3)).astype(np.float16))
+
+
+def room_scene() -> VoxelScene:
+    """A closed room with one-voxel walls, each wall a checker of its own two colours, so any
+    parallax error shows as misplaced squares."""
+    n = ROOM
+    idx = np.arange(n)
+    x, y, z = np.meshgrid(idx, idx, idx, indexing="ij")
+    wall = (x == 0) | (x == n - 1) | (y == 0) | (y == n - 1) | (z == 0) | (z == n - 1)
+    coords = np.argwhere(wall)
+    base = np.array([[0.8, 0.2, 0.2], [0.2, 0.8, 0.2], [0.2, 0.2, 0.8],
+                     [0.8, 0.8, 0.2], [0.2, 0.8, 0.8], [0.8, 0.2, 0.8]], np.float32)
+    face = np.select([coords[:, 0] == 0, coords[:, 0] == n - 1, coords[:, 1] == 0,
+                      coords[:, 1] == n - 1, coords[:, 2] == 0], [0, 1, 2, 3, 4], 5)
+    checker = ((coords // 4).sum(axis=1) % 2).astype(np.float32)
+    color = base[face] * (0.4 + 0.6 * checker)[:, None]
+    return VoxelScene(coords, color, name="room")
+
+
+@pytest.fixture(scope="module")
+def room():
+    """The room's octree and one probe baked at its centre (exact LOD-0 radiance)."""
+    octree = build_octree(room_scene())
+    grid = ProbeGrid((ROOM / 2,) * 3, (1.0, 1.0, 1.0), (1, 1, 1))
+    probes = bake_probes(octree, grid, BakeOptions(resolution=64, renderer="lod", lod=0))
+    return octree, probes
+
+
+# --------------------------------------------------------------------------- baselines
+
+
+@pytest.mark.parametrize("resolution", [4, 8, 16])
+def test_environment_lookup_returns_texels_at_texel_centres(resolution):
+    probes = random_probes(resolution)
+    dirs = texel_directions(resolution)
+    expected = probes.radiance[1].reshape(-1, 3).astype(np.float32)
+    for filter in ("bilinear", "nearest"):
+        radiance, distance = environment_lookup(probes, 1, dirs, filter=filter)
+        np.testing.assert_allclose(radiance, expected, atol=1e-6)
+        assert np.isinf(distance).all()
+
+
+def test_environment_lookup_ignores_where_the_ray_starts():
+    probes = random_probes()
+    dirs = np.random.default_rng(1).normal(size=(50, 3))
+    a, _ = environment_lookup(probes, 0, dirs)
+    b, _ = environment_lookup(probes, np.zeros(50, np.int64), dirs * 3.0)  # any length
+    np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("box", [((0, 0, 0), (12, 12, 12)), ((-3, 1, 2), (20, 9, 40)),
+                                 ((30, 30, 30), (31, 32, 33))])  # the last misses the probe
+def test_box_proxy_is_the_environment_lookup_from_the_probe_centre(box):
+    probes = random_probes(16)
+    dirs = np.random.default_rng(2).normal(size=(400, 3))
+    origins = np.tile(probes.positions[0], (len(dirs), 1))
+    env, _ = environment_lookup(probes, 0, dirs)
+    proxy, distance = box_proxy_lookup(probes, 0, origins, dirs, *box)
+    np.testing.assert_allclose(proxy, env, atol=1e-5)
+    assert (distance > 0).all()
+
+
+def test_box_proxy_corrects_parallax_off_centre():
+    probes = random_probes(16)
+    probes.positions[0] = (5.0, 5.0, 5.0)
+    dirs = np.random.default_rng(3).normal(size=(400, 3))
+    origins = np.tile((8.0, 6.0, 3.0), (len(dirs), 1))
+    env, _ = environment_lookup(probes, 0, dirs)
+    proxy, distance, normal = box_proxy_lookup(probes, 0, origins, dirs, (0, 0, 0), (10, 10, 10),
+                                               return_normal=True)
+    assert (np.abs(proxy - env).max(axis=1) > 1e-3).mean() > 0.5
+    # Every ray from inside leaves the box: finite distance to a wall that faces the ray.
+    unit = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+    hit = origins + distance[:, None] * unit
+    on_wall = np.isclose(hit, 0.0, atol=1e-4) | np.isclose(hit, 10.0, atol=1e-4)
+    assert np.isfinite(distance).all() and on_wall.any(axis=1).all()
+    assert ((normal * unit).sum(axis=1) < 0).all()
+
+
+def test_box_proxy_from_outside_reads_the_far_wall_and_misses_fall_back():
+    probes = random_probes(8)
+    probes.positions[0] = (5.0, 5.0, 5.0)
+    origins = np.array([[5.0, 5.0, 20.0], [5.0, 5.0, 20.0], [5.0, 5.0, 20.0]])
+    dirs = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0]])
+    radiance, distance = box_proxy_lookup(probes, 0, origins, dirs, (0, 0, 0), (10, 10, 10))
+    assert distance[0] == pytest.approx(20.0)  # through the near face to the back wall
+    assert np.isinf(distance[1:]).all()  # box behind the ray; box beside it
+    env, _ = environment_lookup(probes, 0, dirs[1:])
+    np.testing.assert_array_equal(radiance[1:], env)
+
+
+def test_nearest_probe_skips_disabled_probes():
+    probes = random_probes(count=3)
+    probes.positions[:] = [(0, 0, 0), (10, 0, 0), (20, 0, 0)]
+    assert nearest_probe(probes, [(1, 0, 0), (9, 0, 0), (19, 0, 0)]).tolist() == [0, 1, 2]
+    probes.enabled[1] = False
+    assert nearest_probe(probes, [(9, 0, 0), (11, 0, 0)]).tolist() == [0, 2]
+    with pytest.raises(VoxfieldError, match="disabled"):
+        environment_lookup(probes, 1, [(1.0, 0.0, 0.0)])
+
+
+def test_baselines_refuse_bad_input():
+    probes = random_probes()
+    with pytest.raises(VoxfieldError, match="M×3"):
+        environment_lookup(probes, 0, np.ones((4, 2)))
+    with pytest.raises(VoxfieldError, match="zero vector"):
+        environment_lookup(probes, 0, np.zeros((1, 3)))
+    with pytest.raises(VoxfieldError, match="outside"):
+        environment_lookup(probes, 5, np.ones((1, 3)))
+    with pytest.raises(VoxfieldError, match="empty"):
+        box_proxy_lookup(probes, 0, np.ones((1, 3)), np.ones((1, 3)), (0, 0, 0), (1, -1, 1))
+    with pytest.raises(VoxfieldError, match="filter"):
+        environment_lookup(probes, 0, np.ones((1, 3)), filter="cubic")
+
+
+# --------------------------------------------------------------------------- renders
+
+
+def test_box_proxy_beats_the_environment_map_in_a_box_room(room):
+    octree, probes = room
+    camera = Camera.look_at((4.5, 6.0, 11.0), (12.0, 9.0, 2.0), fov_deg=70.0, width=48)
+    direct = render_lod(octree, camera, lod=0).image
+    inside = (np.ones(3), np.full(3, ROOM - 1.0))  # the walls' inner faces ARE the proxy
+    proxy = render_from_probes(probes, camera, method="box-proxy", box=inside)
+    env = render_from_probes(probes, camera, method="environment")
+    proxy_psnr, env_psnr = psnr(direct, proxy.image), psnr(direct, env.image)
+    assert proxy_psnr > env_psnr + 6.0, (proxy_psnr, env_psnr)
+    assert proxy_psnr > 20.0, (proxy_psnr, env_psnr)
+    # Depth: the proxy gives the distance to the walls, the environment map none.
+    reference_depth = render_lod(octree, camera, lod=0).depth
+    assert np.isinf(env.depth).all()
+    np.testing.assert_allclose(proxy.depth, reference_depth, rtol=1e-4, atol=1e-3)
+    assert (proxy.maps["probes_tried"] == 1).all()
+    assert (proxy.maps["texel_fetches"] == 4).all()
+    assert (proxy.maps["result_kind"] == result_kinds()["hit"]).all()
+    assert (env.maps["result_kind"] == result_kinds()["environment"]).all()
+
+
+def test_render_is_deterministic_and_thread_independent(room):
+    _, probes = room
+    camera = Camera.look_at((5.0, 7.0, 9.0), (9.0, 7.0, 2.0), width=24)
+    a = render_from_probes(probes, camera, method="box-proxy", threads=1)
+    b = render_from_probes(probes, camera, method="box-proxy")
+    np.testing.assert_array_equal(a.image, b.image)
+    np.testing.assert_array_equal(a.depth, b.depth)
+
+
+def test_render_refuses_bad_input(room):
+    _, probes = room
+    camera = Camera.look_at((5.0, 7.0, 9.0), (9.0, 7.0, 2.0), width=8)
+    with pytest.raises(VoxfieldError, match="method"):
+        render_from_probes(probes, camera, method="raster")
+    with pytest.raises(VoxfieldError, match="Camera"):
+        render_from_probes(probes, "top", method="environment")
+    with pytest.raises(VoxfieldError, match="proxy box"):
+        render_from_probes(probes, camera, method="box-proxy", box=((0, 0, 0), (0, 0, 0)))
+    with pytest.raises(VoxfieldError, match="pair of corners"):
+        render_from_probes(probes, camera, method="box-proxy", box=(1, 2, 3))
+
+
+def test_probe_set_bounds_is_the_fitted_box(room):
+    octree, _ = room
+    lo, hi = octree.voxel_bounds
+    grid = ProbeGrid.fit(lo, hi, (3, 1, 2))
+    fake = SimpleNamespace(grid=grid, positions=grid.positions)
+    got_lo, got_hi = probe_set_bounds(fake)
+    np.testing.assert_allclose(got_lo, lo, atol=1e-9)
+    np.testing.assert_allclose(got_hi, hi, atol=1e-9)
+
+
+def test_light_field_from_a_probe_at_the_camera_matches_the_direct_render(room):
+    try:
+        from voxfield.lightfield.trace import trace_light_field  # noqa: F401
+    except ImportError as exc:
+        pytest.skip(f"voxfield.lightfield.trace is not importable yet ({exc})")
+    octree, _ = room
+    eye = (6.0, 7.0, 10.0)
+    grid = ProbeGrid(eye, (1.0, 1.0, 1.0), (1, 1, 1))
+    probes = bake_probes(octree, grid, BakeOptions(resolution=128, renderer="lod", lod=0))
+    camera = Camera.look_at(eye, (10.0, 8.0, 2.0), fov_deg=60.0, width=32)
+    direct = render_lod(octree, camera, lod=0)
+    light_field = render_from_probes(probes, camera, method="light-field")
+    # From the probe centre the march ends in the texel of ω itself: only texel-sized
+    # sampling differences at colour edges remain (the 32-pixel view at 60° has pixels about
+    # the size of the 128² map's texels).
+    assert psnr(direct.image, light_field.image) > 20.0
+    close = np.abs(light_field.image - direct.image).max(axis=2) < 0.05
+    assert close.mean() > 0.9
+    found = np.isfinite(light_field.depth)
+    assert found.mean() > 0.95
+    np.testing.assert_allclose(light_field.depth[found], direct.depth[found], rtol=0.05, atol=0.3)
+    assert (light_field.maps["probes_tried"][found] >= 1).all()
+    assert (light_field.maps["texel_fetches"][found] >= 1).all()
+    # A PackedProbes renders the same, by every method.
+    from voxfield.lightfield.packed import PackedProbes
+
+    packed = PackedProbes.from_probe_set(probes)
+    for method in ("light-field", "box-proxy"):
+        np.testing.assert_array_equal(render_from_probes(packed, camera, method=method).image,
+                                      render_from_probes(probes, camera, method=method).image)
+
+
+# --------------------------------------------------------------------------- compositing
+
+
+def _flat(depth, value: float, renderer: str) -> RenderResult:
+    h, w = np.shape(depth)
+    return RenderResult(
+        image=np.full((h, w, 3), value, np.float32), depth=np.asarray(depth, np.float32),
+        normal=np.zeros((h, w, 3), np.float32), ray_count=np.ones((h, w), np.int32),
+        hit_count=np.isfinite(depth).astype(np.int32), steps=np.full((h, w), 3, np.int64),
+        finest_lod=np.zeros((h, w), np.int8), renderer=renderer,
+        maps={"probe": np.full((h, w), 7 if value > 0.5 else 2)})
+
+
+def test_composite_by_depth_keeps_the_nearer_surface():
+    inf = np.inf
+    a = _flat([[1.0, 5.0], [inf, 2.0]], 0.25, "a")
+    b = _flat([[2.0, 4.0], [3.0, 2.0]], 0.75, "b")
+    c = composite_by_depth(a, b)
+    assert c.depth.tolist() == [[1.0, 4.0], [3.0, 2.0]]
+    assert c.image[..., 0].tolist() == [[0.25, 0.75], [0.75, 0.25]]  # a tie keeps a
+    assert c.maps["source"].tolist() == [[0, 1], [1, 0]]
+    assert c.maps["probe"].tolist() == [[2, 7], [7, 2]]
+    assert (c.ray_count == 2).all() and (c.steps == 6).all()
+    with pytest.raises(VoxfieldError, match="different sizes"):
+        composite_by_depth(a, _flat([[1.0]], 0.0, "tiny"))
+
+
+def test_composite_puts_an_octree_object_into_a_probe_render(room):
+    """§8.1.2: the probe render supplies the static room, the octree renderer one object."""
+    octree, probes = room
+    camera = Camera.look_at((4.5, 6.0, 11.0), (12.0, 9.0, 2.0), fov_deg=70.0, width=32)
+    inside = (np.ones(3), np.full(3, ROOM - 1.0))
+    probe_view = render_from_probes(probes, camera, method="box-proxy", box=inside)
+    cube = VoxelScene(np.argwhere(np.ones((2, 2, 2), bool)) + (8, 7, 5),
+                      np.full((8, 3), 1.0, np.float32), name="cube")
+    dynamic = render_lod(build_octree_at(cube), camera, lod=0)
+    mixed = composite_by_depth(probe_view, dynamic)
+    object_pixels = np.isfinite(dynamic.depth)
+    assert object_pixels.any()
+    np.testing.assert_array_equal(mixed.image[object_pixels], dynamic.image[object_pixels])
+    np.testing.assert_array_equal(mixed.image[~object_pixels], probe_view.image[~object_pixels])
+
+
+def build_octree_at(scene: VoxelScene):
+    """An octree whose coordinates are the scene's own (``build_octree`` moves the minimum
+    corner to the origin, so a voxel at the origin anchors it)."""
+    anchored = VoxelScene(np.vstack([scene.coords, [[0, 0, 0]]]),
+                          np.vstack([scene.color, [[0.0, 0.0, 0.0]]]), name=scene.name)
+    return build_octree(anchored)
+
+
+# --------------------------------------------------------------------------- command line
+
+
+@pytest.fixture
+def run(monkeypatch):
+    """``voxfield.cli.main`` with ``probe-render`` registered (whether or not the main parser
+    already registers it)."""
+    build = cli.build_parser
+
+    def with_probe_render():
+        parser = build()
+        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+        if "probe-render" not in sub.choices:
+            add_probe_render_parser(sub)
+        return parser
+
+    monkeypatch.setattr(cli, "build_parser", with_probe_render)
+    return cli.main
+
+
+@pytest.fixture(scope="module")
+def cornell_folder(tmp_path_factory):
+    """A tiny probe-set folder of builtin:cornell, as ``voxfield bake`` writes it."""
+    from voxfield.probes.storage import bake_to_folder
+    from voxfield.svo.io import open_octree
+
+    octree = open_octree("builtin:cornell")
+    grid = ProbeGrid.fit(*octree.voxel_bounds, (2, 1, 1))
+    out = tmp_path_factory.mktemp("probes") / "cornell"
+    bake_to_folder(octree, grid, BakeOptions(resolution=16, renderer="lod", lod=0), out,
+                   scheduler="serial")
+    return out
+
+
+def test_command_writes_image_and_maps(run, cornell_folder, tmp_path, capsys):
+    from PIL import Image
+
+    out = tmp_path / "env.png"
+    code = run(["probe-render", str(cornell_folder), "--method", "environment", "--size", "24",
+                "--camera", "oblique", "--counters", "--out", str(out)])
+    assert code == 0
+    printed = capsys.readouterr().out
+    assert "texel fetches per pixel" in printed and "wrote" in printed
+    assert Image.open(out).size == (24, 24)
+    for suffix in ("_probes_tried.png", "_texel_fetches.png", "_kind.png", "_summary.json"):
+        assert (tmp_path / f"env{suffix}").is_file()
+
+
+def test_command_light_field_options(run, cornell_folder, tmp_path, capsys):
+    out = tmp_path / "lf.png"
+    code = run(["probe-render", str(cornell_folder), "--marcher", "dda", "--ordering",
+                "nearest", "--epsilon", "adaptive", "--epsilon-k", "2", "--backface",
+                "--size", "16", "--camera", "oblique", "--counters", "--out", str(out)])
+    assert code == 0
+    assert "probes:light-field" in capsys.readouterr().out
+    summary = json.loads((tmp_path / "lf_summary.json").read_text())
+    assert summary["probes_tried_per_pixel"] >= 1.0 and sum(summary["pixels_by_kind"].values())
+    assert run(["probe-render", str(cornell_folder), "--epsilon-value", "-1", "--quiet",
+                "--out", str(out)]) == 2
+    assert "epsilon_value" in capsys.readouterr().err
+
+
+def test_command_compares_with_the_octree_and_writes_depth(run, cornell_folder, tmp_path,
+                                                          capsys):
+    from voxfield.render.image_io import load_exr
+
+    out = tmp_path / "box.exr"
+    code = run(["probe-render", str(cornell_folder), "--method", "box-proxy", "--scene",
+                "builtin:cornell", "--compare", "--size", "16", "--eye", "16,16,45",
+                "--target", "16,14,0", "--out", str(out), "--quiet"])
+    assert code == 0
+    channels = load_exr(out)
+    assert channels["RGB"].shape == (16, 16, 3) and channels["Z"].shape == (16, 16)
+    assert np.isfinite(channels["Z"]).any()
+    assert (tmp_path / "box_compare.png").is_file()
+
+
+def test_command_bad_input_exits_2(run, cornell_folder, tmp_path, capsys):
+    def error(argv) -> str:
+        assert run(argv) == 2
+        return capsys.readouterr().err
+
+    assert "no such probe-set folder" in error(
+        ["probe-render", str(tmp_path / "missing"), "--method", "environment", "--quiet"])
+    assert "--scene" in error(["probe-render", str(cornell_folder), "--method", "environment",
+                               "--compare", "--quiet"])
+    assert ".png or .exr" in error(["probe-render", str(cornell_folder), "--method",
+                                    "environment", "--out", str(tmp_path / "x.txt"), "--quiet"])
+    assert "together" in error(["probe-render", str(cornell_folder), "--method", "box-proxy",
+                                "--box-min", "0,0,0", "--quiet"])
+    empty = tmp_path / "not_probes"
+    empty.mkdir()
+    assert "probes.json" in error(["probe-render", str(empty), "--method", "environment",
+                                   "--quiet"])
+    with pytest.raises(SystemExit) as exc:
+        run(["probe-render", str(cornell_folder), "--method", "raster"])
+    assert exc.value.code == 2
