@@ -594,6 +594,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_calibrate_parser(sub)
     _add_sweep_parser(sub)
     from voxfield.lighting.cli_light import add_light_parser
+    from voxfield.lightfield.cli_probe_render import add_probe_render_parser
     from voxfield.probes.cli_probes import add_probe_parsers
     from voxfield.render.cli_shadow import add_shadow_parser
     from voxfield.studies.cli_compare import add_compare_parser
@@ -604,6 +605,7 @@ def build_parser() -> argparse.ArgumentParser:
     add_light_parser(sub)
     add_shadow_parser(sub)
     add_probe_parsers(sub)
+    add_probe_render_parser(sub)
 
     p = sub.add_parser("scenes", help="list built-in scenes and terrain recipes",
                        description="Scenes that need no files, and terrain recipes.")
