@@ -334,7 +334,12 @@ def walk_piece(top: int, eps_mode: int, params: np.ndarray, mips: np.ndarray,
         return event, t, row, col, 1, 1
     ix = _cell(xa, ex, 0, r - 1)
     iy = _cell(ya, ey, 0, r - 1)
-    level = top
+    # A segment ℓ texels long starts at the level whose blocks are about ℓ wide: coarser
+    # blocks would cost fetches without covering more of it.
+    span = max(abs(ex), abs(ey))
+    level = 0
+    while level < top and (1 << level) < span:
+        level += 1
     ta = t0
     rho_a = radial(ax, ay, az, dx, dy, dz, t0)
     fetches = 0
@@ -389,11 +394,15 @@ def walk_piece(top: int, eps_mode: int, params: np.ndarray, mips: np.ndarray,
             ny = _cell(ya + lam_exit * ey, ey, y_lo, y_hi - 1)
         if nx < 0 or nx >= r or ny < 0 or ny >= r:
             break
+        # Go up only into a parent block not yet tested: staying in the same parent means
+        # we came down from it because it could not be skipped.
+        up = level < top and ((nx >> (level + 1)) != (ix >> (level + 1))
+                              or (ny >> (level + 1)) != (iy >> (level + 1)))
         ix = nx
         iy = ny
         ta = tb
         rho_a = rho_b
-        if level < top:
+        if up:
             level += 1
     return _GO, t1, -1, -1, fetches, fetches
 

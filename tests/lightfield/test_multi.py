@@ -1,0 +1,158 @@
+"""Multi-probe tracing: the cage, the i + 3 mod 8 order, hand-off between probes, fallback."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from lf_helpers import bake_grid
+
+from voxfield.kernels.probe_multi import cage, next_corner
+from voxfield.lightfield import (
+    FALLBACK,
+    HIT,
+    MISS,
+    UNKNOWN,
+    LightFieldOptions,
+    trace_light_field,
+    trace_single,
+)
+from voxfield.probes.grid import ProbeGrid
+from voxfield.render.ray_query import trace
+
+
+def _unit(v):
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
+
+
+def test_plus_three_order_visits_all_eight_corners_once_from_any_start():
+    for start in range(8):
+        order = [start]
+        for _ in range(7):
+            order.append(next_corner(order[-1]))
+        assert sorted(order) == list(range(8))
+    order = [0]
+    for _ in range(7):
+        order.append(next_corner(order[-1]))
+    assert order == [0, 3, 6, 1, 4, 7, 2, 5]  # the thesis's example
+
+
+def test_cage_is_the_cell_of_rule_clamped_to_the_grid():
+    grid = ProbeGrid([2.0, 3.0, 4.0], [5.0, 4.0, 6.0], [4, 3, 2])
+    rng = np.random.default_rng(2)
+    points = rng.uniform(-10, 40, (300, 3))
+    cells = grid.cell_of(points)
+    out = np.empty(8, np.int64)
+    for point, cell in zip(points, cells, strict=True):
+        cage(grid.origin, grid.spacing, grid.counts, *point, out)
+        for corner in range(8):
+            offset = np.array([corner & 1, corner >> 1 & 1, corner >> 2 & 1])
+            assert out[corner] == grid.probe_index(*(cell + offset))
+
+
+@pytest.fixture(scope="module")
+def cornell_grid(cornell):
+    """2×2×2 probes in the Cornell box: the big block hides parts of the room from each."""
+    grid = ProbeGrid.fit([2.0, 2.0, 2.0], [30.0, 30.0, 30.0], [2, 2, 2], margin=0.5)
+    return bake_grid(cornell, grid, 32)
+
+
+def _room_rays(count, seed):
+    rng = np.random.default_rng(seed)
+    origins = rng.uniform(2.5, 29.5, (count, 3))
+    return origins, _unit(rng.normal(size=(count, 3)))
+
+
+def test_a_ray_hidden_from_the_first_probe_is_answered_by_another(cornell, cornell_grid):
+    origins, dirs = _room_rays(3000, seed=5)
+    options = LightFieldOptions(marcher="hierarchical", epsilon_value=0.5)
+    field = trace_light_field(cornell_grid, origins, dirs, options)
+    handed = np.flatnonzero((field.kind == HIT) & (field.probes_tried >= 2))
+    assert len(handed) > 20
+    truth = trace(cornell, origins[handed], dirs[handed], lod=0)
+    # Right up to ε and a texel (a grazing ray may be caught by a surface within ε): most
+    # within a voxel of the octree's own hit.
+    assert truth.hit.mean() > 0.95
+    assert np.median(np.abs(field.t[handed] - truth.t)) < 0.5
+    assert np.mean(np.abs(field.t[handed] - truth.t) < 1.5) > 0.8
+    # The first probe alone really could not answer these rays.
+    first = trace_light_field(cornell_grid, origins[handed], dirs[handed],
+                              LightFieldOptions(marcher="hierarchical", epsilon_value=0.5,
+                                                fallback=False))
+    assert np.array_equal(first.probe, field.probe[handed])
+    for i in handed[:40]:
+        # The signed-dot choice is the probe the field tried first.
+        from voxfield.kernels.probe_multi import first_corner
+        corners = np.empty(8, np.int64)
+        cage(cornell_grid.grid_origin, cornell_grid.grid_spacing, cornell_grid.grid_counts,
+             *origins[i], corners)
+        p0 = corners[first_corner(0, corners, cornell_grid.positions, cornell_grid.enabled,
+                                  *origins[i], *dirs[i])]
+        alone = trace_single(cornell_grid, p0, origins[i:i + 1], dirs[i:i + 1], options)
+        assert alone.kind[0] == UNKNOWN and p0 != field.probe[i]
+
+
+def test_fallback_is_used_only_when_every_probe_loses_the_ray(cornell, cornell_grid):
+    origins, dirs = _room_rays(3000, seed=6)
+    # Rays starting outside the room's walls: no probe sees them at all.
+    outside = np.array([[16.0, 16.0, -3.0], [-3.0, 10.0, 12.0], [12.0, 35.0, 9.0]])
+    origins = np.vstack([origins, outside])
+    dirs = np.vstack([dirs, _unit(np.array([[0.1, 0.0, 1.0], [1.0, 0.1, 0.0],
+                                            [0.0, -1.0, 0.1]]))])
+    options = LightFieldOptions(marcher="dda", epsilon_value=0.5)
+    with_fallback = trace_light_field(cornell_grid, origins, dirs, options)
+    without = trace_light_field(cornell_grid, origins, dirs,
+                                LightFieldOptions(marcher="dda", epsilon_value=0.5,
+                                                  fallback=False))
+    fell = with_fallback.kind == FALLBACK
+    assert fell[-3:].all()
+    # Fallback rays are exactly those every probe lost; everything else is untouched.
+    assert np.array_equal(fell, without.kind == UNKNOWN)
+    assert np.all(without.probes_tried[fell] == 8)
+    same = ~fell
+    for name in ("kind", "t", "probe", "probes_tried", "fetches"):
+        assert np.array_equal(getattr(with_fallback, name)[same], getattr(without, name)[same])
+    assert set(np.unique(with_fallback.kind[same])) <= {HIT, MISS}
+    # The fallback reads the nearest probe's radiance in the ray's direction.
+    from voxfield.kernels.octahedral import texel_of_direction
+    for i in np.flatnonzero(fell)[:20]:
+        nearest = np.argmin(np.linalg.norm(cornell_grid.positions - origins[i], axis=1))
+        assert with_fallback.probe[i] == nearest
+        row, col = texel_of_direction(*dirs[i], cornell_grid.resolution)
+        np.testing.assert_array_equal(with_fallback.radiance[i],
+                                      cornell_grid.radiance[nearest, row, col])
+
+
+@pytest.mark.parametrize("ordering", ["signed-dot", "nearest", "fixed"])
+def test_orderings_skip_disabled_probes_and_do_not_depend_on_threads(cornell, ordering):
+    grid = ProbeGrid.fit([2.0, 2.0, 2.0], [30.0, 30.0, 30.0], [2, 2, 2], margin=0.5)
+    enabled = np.ones(8, bool)
+    enabled[[0, 5]] = False
+    packed = bake_grid(cornell, grid.with_enabled(enabled), 32)
+    origins, dirs = _room_rays(2000, seed=8)
+    options = LightFieldOptions(marcher="hierarchical", ordering=ordering)
+    a = trace_light_field(packed, origins, dirs, options, threads=1)
+    b = trace_light_field(packed, origins, dirs, options)
+    for name in ("kind", "t", "radiance", "probe", "probes_tried", "fetches", "steps"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert not np.isin(a.probe, [0, 5]).any()
+    assert a.probes_tried.max() <= 6
+    assert (a.kind == HIT).mean() > 0.5
+
+
+def test_signed_dot_picks_the_probe_behind_the_ray(cornell_grid):
+    """The first probe maximises ω · S²(X - P): the one the ray points away from."""
+    from voxfield.kernels.probe_multi import ORDER_NEAREST, ORDER_SIGNED_DOT, first_corner
+    corners = np.empty(8, np.int64)
+    origin = np.array([12.0, 13.0, 14.0])
+    cage(cornell_grid.grid_origin, cornell_grid.grid_spacing, cornell_grid.grid_counts,
+         *origin, corners)
+    for direction in np.vstack([np.eye(3), -np.eye(3), [[1, 1, 1], [-1, 1, -1]]]):
+        w = _unit(np.asarray(direction, float))
+        best = corners[first_corner(ORDER_SIGNED_DOT, corners, cornell_grid.positions,
+                                    cornell_grid.enabled, *origin, *w)]
+        scores = _unit(origin - cornell_grid.positions[corners]) @ w
+        assert cornell_grid.positions[best] in cornell_grid.positions[corners[scores ==
+                                                                              scores.max()]]
+    nearest = corners[first_corner(ORDER_NEAREST, corners, cornell_grid.positions,
+                                   cornell_grid.enabled, *origin, 1.0, 0.0, 0.0)]
+    assert nearest == np.argmin(np.linalg.norm(cornell_grid.positions - origin, axis=1))
