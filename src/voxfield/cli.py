@@ -593,8 +593,8 @@ def build_parser() -> argparse.ArgumentParser:
     _add_errors_parser(sub)
     _add_calibrate_parser(sub)
     _add_sweep_parser(sub)
-    from voxfield.lighting.cli_light import add_light_parser
     from voxfield.lightfield.cli_probe_render import add_probe_render_parser
+    from voxfield.lighting.cli_light import add_light_parser
     from voxfield.probes.cli_probes import add_probe_parsers
     from voxfield.render.cli_shadow import add_shadow_parser
     from voxfield.studies.cli_compare import add_compare_parser

@@ -177,3 +177,34 @@ def test_lighting_aware_on_one_colour_is_the_plain_renderer(table):
     assert np.array_equal(plain.image, lit.image) and np.array_equal(plain.steps, lit.steps)
     with pytest.raises(VoxfieldError):
         render_error_aware(octree, cam, table, lighting_aware=True, bright_ratio=-1)
+
+
+def test_precomputed_sh_children_term_matches_the_per_child_sum(table, terrain):
+    # SH is linear: E_N from the per-node mean coefficients equals e(N) + d·mean_c e(c)
+    # evaluated child by child through the table's public interface.
+    from voxfield.kernels.error_aware import node_error_precomputed
+    from voxfield.render.error_aware import children_sh_means
+
+    means = children_sh_means(terrain, table)
+    rng = np.random.default_rng(5)
+    inner = int(terrain.level_offsets[terrain.depth])
+    for node in rng.integers(0, inner, 40):
+        level = int(np.searchsorted(terrain.level_offsets, node, side="right") - 1)
+        first = int(terrain.first_child[node])
+        n_children = int(np.unpackbits(np.uint8(terrain.child_mask[node])).sum())
+        children = terrain.child_mask[first:first + n_children]
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        own = float(np.dot(table.sh[terrain.child_mask[node]],
+                           _sh_basis(d)))
+        kids = np.mean([np.dot(table.sh[m], _sh_basis(d)) for m in children])
+        got = node_error_precomputed(int(node), level, terrain.depth, terrain.inner_nodes, 0.3,
+                                     table.sh.astype(np.float64), means, *d)
+        expected = own + 0.3 * (kids if level + 1 < terrain.depth else 0.0)
+        assert got == pytest.approx(expected, abs=1e-9)
+
+
+def _sh_basis(d):
+    from voxfield.error_table.spherical_harmonics import sh_basis
+
+    return sh_basis(d[None, :])[0]

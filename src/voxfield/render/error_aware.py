@@ -71,6 +71,7 @@ def render_error_aware(
         max_refinements, float(threshold), float(decay), bool(reuse_parent),
         ENCODING_SH if encoding == "sh" else ENCODING_OCT,
         np.ascontiguousarray(table.oct_map, np.float64), np.ascontiguousarray(table.sh, np.float64),
+        children_sh_means(octree, table) if encoding == "sh" else np.zeros((0, 9)),
         colors, bool(lighting_aware), float(bright_ratio), *light,
     )
     cam = camera.params
@@ -103,3 +104,26 @@ def _lighting_arrays(table: LightingErrorTable | None, needed: bool) -> tuple:
     table = load_lighting_error_table() if table is None else table
     return (np.ascontiguousarray(table.oct_map, np.float32), table.class_of,
             table.symmetry_of, np.ascontiguousarray(table.symmetries, np.float64))
+
+
+def children_sh_means(octree: Octree, table: ErrorTable) -> np.ndarray:
+    """Per inner node, the mean of its children's SH error coefficients (EA §5.1.3: the
+    children's term is linear in the coefficients, so it is precomputed once per node).
+
+    Voxel-level children have no children and no error (mask 0).
+    """
+    sh = np.asarray(table.sh, np.float64)
+    inner = int(octree.level_offsets[octree.depth])
+    masks = octree.child_mask
+    first = octree.first_child[:inner].astype(np.int64)
+    counts = np.unpackbits(masks[:inner, None], axis=1).sum(axis=1)
+    out = np.empty((inner, 9))
+    # Children of consecutive parents are contiguous, so one reduceat per level covers them.
+    for level in range(octree.depth):
+        parents = octree.level_slice(level)
+        starts = first[parents]
+        stop = int(starts[-1] + counts[parents][-1])
+        child_sh = sh[masks[int(starts[0]):stop]]
+        sums = np.add.reduceat(child_sh, starts - starts[0], axis=0)
+        out[parents] = sums / counts[parents][:, None]
+    return out
