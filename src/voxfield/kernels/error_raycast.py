@@ -46,6 +46,15 @@ def orthonormal_basis(dx: float, dy: float, dz: float):
 
 
 @njit(cache=True, nogil=True)
+def plane_origin(samples, s, dx, dy, dz, rx, ry, rz, ux, uy, uz) -> tuple[float, float, float]:
+    """Origin of image-plane sample ``s``: the 2×2 plane two units before the cube centre,
+    spanned by the right and up vectors, covers the unit sphere's silhouette."""
+    a = samples[s, 0] * 2.0 - 1.0
+    b = samples[s, 1] * 2.0 - 1.0
+    return -2.0 * dx + a * rx + b * ux, -2.0 * dy + a * ry + b * uy, -2.0 * dz + a * rz + b * uz
+
+
+@njit(cache=True, nogil=True)
 def child_entries(ox, oy, oz, dx, dy, dz, ix, iy, iz, entries: np.ndarray) -> None:
     """``entries[c]``: when a ray enters child octant ``c`` of ``[-0.5, 0.5]^3`` (open
     intervals), ``inf`` when it misses it."""
@@ -89,11 +98,7 @@ def child_hit_histograms(directions: np.ndarray, samples: np.ndarray) -> np.ndar
         iz = safe_inverse(dz)
         entries = np.empty(8)
         for s in range(samples.shape[0]):
-            a = samples[s, 0] * 2.0 - 1.0
-            b = samples[s, 1] * 2.0 - 1.0
-            ox = -2.0 * dx + a * rx + b * ux
-            oy = -2.0 * dy + a * ry + b * uy
-            oz = -2.0 * dz + a * rz + b * uz
+            ox, oy, oz = plane_origin(samples, s, dx, dy, dz, rx, ry, rz, ux, uy, uz)
             hist[k, child_hit_bits(ox, oy, oz, dx, dy, dz, ix, iy, iz, entries)] += 1
     return hist
 

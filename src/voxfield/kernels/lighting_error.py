@@ -17,7 +17,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from voxfield.kernels.error_raycast import child_entries, orthonormal_basis
+from voxfield.kernels.error_raycast import child_entries, orthonormal_basis, plane_origin
 from voxfield.kernels.traversal import safe_inverse
 
 #: Sequence keys hold up to 4 octants front to back, 4 bits each (octant + 1, 0 = none).
@@ -80,11 +80,7 @@ def configuration_colour_errors(
         hist = np.zeros(_KEYS, np.int64)
         entries = np.empty(8)
         for s in range(samples.shape[0]):
-            a = samples[s, 0] * 2.0 - 1.0
-            b = samples[s, 1] * 2.0 - 1.0
-            ox = -2.0 * dx + a * rx + b * ux
-            oy = -2.0 * dy + a * ry + b * uy
-            oz = -2.0 * dz + a * rz + b * uz
+            ox, oy, oz = plane_origin(samples, s, dx, dy, dz, rx, ry, rz, ux, uy, uz)
             hist[child_sequence_key(ox, oy, oz, dx, dy, dz, ix, iy, iz, entries)] += 1
         keys = np.flatnonzero(hist[1:]) + 1
         parent_hits = 0

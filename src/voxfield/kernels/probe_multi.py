@@ -103,27 +103,25 @@ def nearest_enabled(corners: np.ndarray, positions: np.ndarray, enabled: np.ndar
     best = -1
     best_d = math.inf
     for corner in range(8):
-        p = corners[corner]
-        if enabled[p]:
-            vx = ox - positions[p, 0]
-            vy = oy - positions[p, 1]
-            vz = oz - positions[p, 2]
-            d = vx * vx + vy * vy + vz * vz
-            if d < best_d:
-                best_d = d
-                best = p
+        best, best_d = _closer(corners[corner], best, best_d, positions, enabled, ox, oy, oz)
     if best >= 0:
         return best
     for p in range(len(positions)):
-        if enabled[p]:
-            vx = ox - positions[p, 0]
-            vy = oy - positions[p, 1]
-            vz = oz - positions[p, 2]
-            d = vx * vx + vy * vy + vz * vz
-            if d < best_d:
-                best_d = d
-                best = p
+        best, best_d = _closer(p, best, best_d, positions, enabled, ox, oy, oz)
     return best
+
+
+@njit(cache=True, nogil=True)
+def _closer(p: int, best: int, best_d: float, positions: np.ndarray, enabled: np.ndarray,
+            ox: float, oy: float, oz: float) -> tuple[int, float]:
+    """``(p, its squared distance)`` if probe ``p`` is enabled and nearer than ``best``."""
+    if not enabled[p]:
+        return best, best_d
+    vx = ox - positions[p, 0]
+    vy = oy - positions[p, 1]
+    vz = oz - positions[p, 2]
+    d = vx * vx + vy * vy + vz * vz
+    return (p, d) if d < best_d else (best, best_d)
 
 
 @njit(cache=True, nogil=True)
