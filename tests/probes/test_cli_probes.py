@@ -1,32 +1,18 @@
-"""``voxfield bake`` and ``voxfield probes show``: options, a tiny end-to-end bake, the PNG."""
+"""``voxfield bake``, ``voxfield probes show`` and ``export-cubes``: options, a tiny end-to-end
+bake, the PNG, cube faces that agree with the octree's own ray cast."""
 
 from __future__ import annotations
-
-import argparse
 
 import numpy as np
 import pytest
 from PIL import Image
 
 from voxfield import cli
-from voxfield.probes.cli_probes import add_probe_parsers
 from voxfield.probes.storage import open_probe_set
 
 
 @pytest.fixture
-def run(monkeypatch):
-    """``voxfield.cli.main`` with the probe commands registered (whether or not the main
-    parser already registers them)."""
-    build = cli.build_parser
-
-    def with_probes():
-        parser = build()
-        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-        if "bake" not in sub.choices:
-            add_probe_parsers(sub)
-        return parser
-
-    monkeypatch.setattr(cli, "build_parser", with_probes)
+def run():
     return cli.main
 
 
@@ -73,3 +59,25 @@ def test_bake_and_show_end_to_end(run, tmp_path, capsys):
         assert image.format == "PNG" and image.size[0] > 500
     assert run(["probes", "show", str(out), "--no-scene", "--quiet"]) == 0
     assert (out / "show.png").is_file()
+
+
+def test_export_cubes_traces_faces_from_the_baked_scene(run, tmp_path):
+    from voxfield.render.image_io import load_exr
+    from voxfield.render.ray_query import trace
+    from voxfield.svo.io import open_octree
+
+    out = tmp_path / "probes"
+    assert run(["bake", "builtin:cornell", "--grid", "2x1x1", "--resolution", "8",
+                "--renderer", "lod", "--lod", "0", "--scheduler", "serial", "--out", str(out),
+                "--quiet"]) == 0
+    assert run(["probes", "export-cubes", str(out), "--size", "6", "--quiet"]) == 0
+    faces = sorted((out / "cubes").glob("*.exr"))
+    assert len(faces) == 12
+    probes = open_probe_set(out)
+    octree = open_octree("builtin:cornell")
+    for i in range(2):
+        face = load_exr(out / "cubes" / f"probe_{i:05d}_posx.exr")
+        assert face["RGB"].shape == (6, 6, 3) and face["Z"].shape == (6, 6)
+        # The four pixels around the +x face's centre see nearly the +x axis distance.
+        expected = trace(octree, probes.positions[i][None], [[1.0, 0.0, 0.0]]).t[0]
+        assert np.min(np.abs(face["Z"][2:4, 2:4] - expected)) < 1.0

@@ -85,6 +85,21 @@ def add_probe_parsers(subparsers) -> None:
     s.add_argument("--quiet", **quiet)
     s.set_defaults(func=cmd_probes_show)
 
+    c = sub.add_parser(
+        "export-cubes", help="six cube-map faces per probe as EXR, for engines",
+        description="Trace every enabled probe's six 90° cube faces straight from the baked "
+        "scene (OpenGL face order and orientation: +x, -x, +y, -y, +z, -z) and write one EXR "
+        "per face with linear RGB radiance and Z = radial distance.",
+    )
+    c.add_argument("folder", help="probe-set folder written by voxfield bake")
+    c.add_argument("--size", type=_positive_int, default=None,
+                   help="face side in pixels (default half the octahedral resolution)")
+    c.add_argument("--out", default=None, help="output folder (default FOLDER/cubes)")
+    c.add_argument("--scene", default=None,
+                   help="the baked scene (default: the one the bake recorded)")
+    c.add_argument("--quiet", **quiet)
+    c.set_defaults(func=cmd_probes_export_cubes)
+
 
 def _bake_options(args):
     from voxfield.probes.probe_set import BakeOptions
@@ -104,7 +119,7 @@ def _source(args) -> dict:
         spec = str(path.resolve())
     return {"scene": spec, "mesh_resolution": args.mesh_resolution,
             "footprint": args.footprint, "vertical_scale": args.vertical_scale,
-            "seed": args.seed}
+            "seed": args.seed, "lod_colour": args.lod_colour}
 
 
 def cmd_bake(args) -> int:
@@ -185,6 +200,34 @@ def cmd_probes_show(args) -> int:
     return 0
 
 
+def cmd_probes_export_cubes(args) -> int:
+    from voxfield.probes.storage import open_probe_set, read_header
+    from voxfield.progress import progress_bar
+    from voxfield.render.camera import CUBE_FACES
+    from voxfield.render.image_io import save_exr
+
+    folder = Path(args.folder)
+    probe_set = open_probe_set(folder)
+    octree = _reopen_scene(read_header(folder), args.scene, args.quiet)
+    if octree is None:
+        raise VoxfieldError("cube faces are traced from the baked scene; name it with --scene")
+    out = Path(args.out) if args.out else folder / "cubes"
+    out.mkdir(parents=True, exist_ok=True)
+    probes = [i for i in range(probe_set.count) if probe_set.enabled[i]]
+    with progress_bar(total=len(probes), desc="cube faces", unit="probe",
+                      enabled=not args.quiet) as bar:
+        for i in probes:
+            radiance, distance = probe_set.cube_faces(octree, i, args.size)
+            for f, (name, _, _) in enumerate(CUBE_FACES):
+                save_exr({"RGB": radiance[f].astype(np.float32), "Z": distance[f]},
+                         out / f"probe_{i:05d}_{name.replace('+', 'pos').replace('-', 'neg')}"
+                         ".exr")
+            bar.update(1)
+    if not args.quiet:
+        print(f"wrote {6 * len(probes)} faces of {len(probes)} probes to {out}")
+    return 0
+
+
 def _reopen_scene(header: dict, scene: str | None, quiet: bool):
     """The baked scene for the overview: ``scene`` if given, else the recorded source; None
     (probes drawn without the render) when it cannot be opened or is not the baked one."""
@@ -203,7 +246,8 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool):
         vertical_scale=source.get("vertical_scale"), seed=source.get("seed", 0),
     )
     try:
-        octree = open_octree(spec, options, progress=not quiet)
+        octree = open_octree(spec, options, progress=not quiet,
+                             lod_colour=source.get("lod_colour", "mean"))
     except VoxfieldError as exc:
         _note(f"cannot open the scene {spec!r} ({exc}); drawing probes without it", quiet)
         return None
