@@ -1,0 +1,697 @@
+"""The probe thesis's analysis (ch. 9) as a study: quality, cost and failures of rendering a
+view from baked probes, against tracing the same view through the octree.
+
+Five sections, each a table in ``results.md`` and most a plot:
+
+1. **Quality** — PSNR/SSIM/RMSE of the light-field, environment-map and box-proxy renders
+   against ``render_lod(octree, camera, lod=0)``: one LOD-0 ray per pixel centre, the very rays
+   the probe render answers, so differences are the probes' doing, not sampling.
+2. **Resolution** — texel fetches per pixel of each marcher as the probe maps grow. The thesis
+   (§9.1) bounds a trace by the ray's length in texture space: ``O(√r)`` texels for the DDA,
+   ``O(log r)`` for the hierarchical trace, ``r`` the texels per map (``R²``). We fit the
+   growth exponent (slope of log fetches against log r) per marcher.
+3. **Probe count** — failures (rays every probe lost: ``UNKNOWN``/``FALLBACK``) and fetches as
+   the grid gets denser; the thesis argues cost *falls* with density, as some probe of the cage
+   sees the ray nearly end-on.
+4. **Ordering** — how often the first probe of the cage answers the ray (``HIT`` or ``MISS``
+   with one probe tried), per first-probe heuristic.
+5. **Wall time** — the probe render against direct octree tracing of the same view, both warmed
+   up first so compilation is excluded.
+
+Runs resume through ``StudyFolder``: every measurement is an item keyed by its parameters and
+the scene's fingerprint. Bakes are not stored (a 4×4×4 grid at 512² is ~250 MB); a re-run bakes
+only what a missing item needs, and a finished study re-runs without baking at all.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import time
+from collections.abc import Sequence
+from dataclasses import asdict, replace
+from pathlib import Path
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+from voxfield.progress import progress_bar
+from voxfield.render.camera import Camera
+from voxfield.studies.report import (
+    StudyFolder,
+    fmt,
+    markdown_table,
+    scene_fingerprint,
+)
+
+#: Map sides of the resolution section (the issue's 64² … 1024²).
+THESIS_RESOLUTIONS = (64, 128, 256, 512, 1024)
+#: Probe grids of the probe-count section, sparse to dense.
+DEFAULT_PROBE_COUNTS = ((1, 1, 1), (2, 2, 2), (3, 3, 3), (4, 4, 4))
+ORDERINGS = ("signed-dot", "nearest", "fixed")
+MARCHERS = ("march3d", "dda", "hierarchical")
+QUALITY_METHODS = ("light-field", "environment", "box-proxy")
+#: Largest map side the probe-count and ordering sections bake by default: they bake up to
+#: dozens of probes, and cost trends need no 1024² maps.
+COUNT_RESOLUTION_CAP = 256
+#: The thesis's claimed growth of fetches per pixel with r = R² texels (exponent of r).
+THESIS_CLAIMS = {"march3d": "no bound (fixed world step)", "dda": "O(√r): exponent 0.5",
+                 "hierarchical": "O(log r): exponent → 0"}
+
+
+def run_probe_study(
+    octree, out_dir: str | Path, *, scene_name: str = "scene", camera: Camera,
+    grid_counts: Sequence[int] = (1, 1, 1), resolutions: Sequence[int] = THESIS_RESOLUTIONS,
+    probe_counts: Sequence[Sequence[int]] = DEFAULT_PROBE_COUNTS,
+    orderings: Sequence[str] = ORDERINGS, marchers: Sequence[str] = MARCHERS,
+    count_resolution: int | None = None, options=None, relocate_probes: bool = True,
+    channel: str = "albedo", timing_repeats: int = 3, seed: int = 0, progress: bool = False,
+    fresh: bool = False,
+) -> dict:
+    """Run the five sections on one scene and view (resumable); write results.json,
+    results.md, the plots and contact_sheet.png into ``out_dir``; return the report.
+
+    ``grid_counts`` is the main grid (sections 1, 2 and 5), fitted to the scene's voxel box;
+    ``probe_counts`` the grids of sections 3 and 4, baked at ``count_resolution`` (default:
+    the largest of ``resolutions`` up to 256). Section 1 uses the largest resolution.
+    ``options`` (``LightFieldOptions``) sets epsilon, backface and fallback; the marcher and
+    ordering are varied by the study (the options' own are the defaults elsewhere). With
+    ``relocate_probes`` probes are moved out of geometry (``probes.grid.relocate``) first.
+    """
+    from voxfield.lightfield.trace import LightFieldOptions
+
+    options = LightFieldOptions() if options is None else options
+    plan = _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, marchers,
+                         count_resolution, options, timing_repeats)
+    folder = StudyFolder(out_dir, fresh=fresh)
+    study = _Study(octree, camera, folder, options, channel=channel, seed=seed,
+                   relocate_probes=relocate_probes, scene_name=scene_name)
+    main = plan["grid"]
+    quality_r = max(plan["resolutions"])
+    count_r = plan["count_resolution"]
+    total = (len(plan["resolutions"]) * len(plan["marchers"]) + len(QUALITY_METHODS)
+             + len(plan["probe_counts"]) * (len(plan["marchers"]) + len(plan["orderings"])))
+    with progress_bar(total=total, desc="probe study", unit="item", enabled=progress) as bar:
+        reference = study.reference()
+        for counts in dict.fromkeys((main, *plan["probe_counts"])):
+            study.describe_grid(counts)
+        resolution_rows = []
+        quality_rows = []
+        timing = None
+        for r in plan["resolutions"]:
+            row = {"resolution": r, "bake": study.bake_cost(main, r), "marchers": {}}
+            for marcher in plan["marchers"]:
+                row["marchers"][marcher] = study.measure(main, r, "light-field",
+                                                         marcher=marcher)
+                bar.update(1)
+            resolution_rows.append(row)
+            if r == quality_r:
+                for method in QUALITY_METHODS:
+                    quality_rows.append({"method": method, **study.measure(
+                        main, r, method, keep_render=True)})
+                    bar.update(1)
+                timing = study.timing(main, r, plan["marchers"], timing_repeats)
+        count_rows = []
+        for counts in plan["probe_counts"]:
+            row = {"counts": list(counts), "probes": math.prod(counts),
+                   "bake": study.bake_cost(counts, count_r), "marchers": {}, "orderings": {}}
+            for marcher in plan["marchers"]:
+                row["marchers"][marcher] = study.measure(counts, count_r, "light-field",
+                                                         marcher=marcher)
+                bar.update(1)
+            for ordering in plan["orderings"]:
+                row["orderings"][ordering] = study.measure(counts, count_r, "light-field",
+                                                           ordering=ordering)
+                bar.update(1)
+            count_rows.append(row)
+    study.drop_bake()
+
+    report = {
+        "study": "probes", "scene": scene_name, "width": camera.width, "height": camera.height,
+        "camera": camera.params.tolist(), "grid": list(main), "seed": seed, "channel": channel,
+        "options": _options_dict(options), "relocated": relocate_probes,
+        "quality_resolution": quality_r, "count_resolution": count_r,
+        "reference": {"renderer": "render_lod(lod=0): one LOD-0 ray per pixel centre",
+                      "hit_fraction": float(np.mean(reference.hit_count > 0))},
+        "quality": quality_rows, "resolution": resolution_rows,
+        "growth": growth_fits(resolution_rows, plan["marchers"]),
+        "probe_count": count_rows, "timing": timing,
+        "grids": study.grid_notes, "metrics_on": "linear RGB in [0, 1]",
+        "items": {"computed": len(folder.computed), "reused": len(folder.reused)},
+    }
+    from voxfield.studies.probe_study_figures import (
+        contact_sheet_figure,
+        count_figure,
+        ordering_figure,
+        resolution_figure,
+    )
+
+    folder.write_json("results.json", report)
+    folder.write_text("results.md", results_markdown(report))
+    folder.write_figure("fetches_vs_resolution.png", resolution_figure(report))
+    folder.write_figure("probe_count.png", count_figure(report))
+    folder.write_figure("orderings.png", ordering_figure(report))
+    folder.write_figure("contact_sheet.png", contact_sheet_figure(
+        report, reference, study.kept), dpi=int(min(160, max(90, camera.width / 3))))
+    return report
+
+
+# --------------------------------------------------------------------------- checks
+
+
+def _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, marchers,
+                  count_resolution, options, timing_repeats) -> dict:
+    """The study's parameters, validated, as plain tuples; bad ones raise VoxfieldError."""
+    from voxfield.lightfield.trace import MARCHERS as KNOWN_MARCHERS
+    from voxfield.lightfield.trace import ORDERINGS as KNOWN_ORDERINGS
+    from voxfield.lightfield.trace import LightFieldOptions
+    from voxfield.probes.probe_set import MAX_RESOLUTION, MIN_RESOLUTION
+
+    if not isinstance(camera, Camera):
+        raise VoxfieldError(f"camera must be a voxfield Camera, got {type(camera).__name__}")
+    if not isinstance(options, LightFieldOptions):
+        raise VoxfieldError(f"options must be LightFieldOptions, got {type(options).__name__}")
+    resolutions = tuple(sorted(set(_positive_ints(resolutions, "probe resolutions"))))
+    for r in resolutions:
+        if not MIN_RESOLUTION <= r <= MAX_RESOLUTION:
+            raise VoxfieldError(f"probe resolution {r} is outside {MIN_RESOLUTION}.."
+                                f"{MAX_RESOLUTION}")
+    if len(resolutions) < 2:
+        raise VoxfieldError("the resolution section needs at least two probe resolutions to "
+                            "fit a growth rate")
+    if count_resolution is None:
+        capped = [r for r in resolutions if r <= COUNT_RESOLUTION_CAP]
+        count_resolution = max(capped) if capped else resolutions[0]
+    elif not (isinstance(count_resolution, (int, np.integer))
+              and MIN_RESOLUTION <= count_resolution <= MAX_RESOLUTION):
+        raise VoxfieldError(f"count resolution must be a map side in {MIN_RESOLUTION}.."
+                            f"{MAX_RESOLUTION}, got {count_resolution!r}")
+    counts = [_grid_counts(c) for c in probe_counts]
+    if not counts:
+        raise VoxfieldError("give at least one probe grid for the probe-count section")
+    for name, values, known in (("ordering", orderings, KNOWN_ORDERINGS),
+                                ("marcher", marchers, KNOWN_MARCHERS)):
+        if isinstance(values, str) or not values:
+            raise VoxfieldError(f"give a list of at least one {name}")
+        for v in values:
+            if v not in known:
+                raise VoxfieldError(f"unknown {name} {v!r}; choose from {', '.join(known)}")
+    if not isinstance(timing_repeats, (int, np.integer)) or timing_repeats < 1:
+        raise VoxfieldError(f"timing repeats must be an integer >= 1, got {timing_repeats!r}")
+    return {"grid": _grid_counts(grid_counts), "resolutions": resolutions,
+            "probe_counts": tuple(dict.fromkeys(counts)), "orderings": tuple(orderings),
+            "marchers": tuple(marchers), "count_resolution": int(count_resolution)}
+
+
+def _positive_ints(values, what: str) -> list[int]:
+    try:
+        out = [int(v) for v in values]
+        exact = all(int(v) == v for v in values)
+    except (TypeError, ValueError):
+        raise VoxfieldError(f"{what} must be whole numbers, got {values!r}") from None
+    if not out or not exact or any(v < 1 for v in out):
+        raise VoxfieldError(f"{what} must be whole numbers >= 1, got {values!r}")
+    return out
+
+
+def _grid_counts(value) -> tuple[int, int, int]:
+    """Probes per axis from ``(nx, ny, nz)``, ``"NXxNYxNZ"`` or a single ``n`` (n per axis)."""
+    if isinstance(value, str):
+        return parse_counts(value)
+    if isinstance(value, (int, np.integer)):
+        value = (value,) * 3
+    counts = _positive_ints(value, "probe counts")
+    if len(counts) != 3:
+        raise VoxfieldError(f"probe counts need three numbers (x, y, z), got {value!r}")
+    return tuple(counts)
+
+
+_COUNTS = re.compile(r"^\s*(\d+)\s*(?:[x×]\s*(\d+)\s*[x×]\s*(\d+))?\s*$", re.IGNORECASE)
+
+
+def parse_counts(text: str) -> tuple[int, int, int]:
+    """``"4x1x4"`` → (4, 1, 4); ``"3"`` → (3, 3, 3)."""
+    match = _COUNTS.match(text)
+    if not match:
+        raise VoxfieldError(f"cannot read probe counts {text!r}; give NXxNYxNZ like 4x1x4")
+    nx, ny, nz = match.groups()
+    counts = (int(nx),) * 3 if ny is None else (int(nx), int(ny), int(nz))
+    if min(counts) < 1:
+        raise VoxfieldError(f"probe counts must be >= 1, got {text!r}")
+    return counts
+
+
+# --------------------------------------------------------------------------- measuring
+
+
+class _Study:
+    """Bakes (one kept in memory at a time), renders and cached measurements of one view."""
+
+    def __init__(self, octree, camera, folder: StudyFolder, options, *, channel: str,
+                 seed: int, relocate_probes: bool, scene_name: str):
+        self.octree = octree
+        self.camera = camera
+        self.folder = folder
+        self.options = options
+        self.channel = channel
+        self.seed = seed
+        self.relocate_probes = relocate_probes
+        self.view = {"scene": scene_name, "fingerprint": scene_fingerprint(octree, channel),
+                     "camera": camera.params.tolist(), "width": camera.width,
+                     "height": camera.height, "seed": seed, "channel": channel}
+        self.grid_notes: dict[str, dict] = {}
+        self.kept: dict[str, object] = {}
+        self._bake_key = None
+        self._bake = None
+        self._reference = None
+
+    # --- probes -------------------------------------------------------------------------
+
+    def grid(self, counts):
+        """The grid fitted to the scene's voxel box, relocated out of geometry if asked."""
+        from voxfield.probes.grid import ProbeGrid, relocate
+
+        lo, hi = self.octree.voxel_bounds
+        grid = ProbeGrid.fit(lo, hi, counts)
+        summary = None
+        if self.relocate_probes:
+            grid, moved = relocate(grid, self.octree, seed=self.seed)
+            summary = moved.summary()
+        if not np.asarray(grid.enabled).any():
+            raise VoxfieldError(f"every probe of the {'x'.join(map(str, counts))} grid sits in "
+                                "geometry; use another grid or --no-relocate")
+        return grid, summary
+
+    def describe_grid(self, counts) -> dict:
+        """Probes, enabled probes and what relocation did, for the report (cached)."""
+        def compute() -> dict:
+            grid, summary = self.grid(counts)
+            return {"probes": grid.count, "enabled": int(np.count_nonzero(grid.enabled)),
+                    "positions": np.asarray(grid.positions)[np.asarray(grid.enabled)].tolist(),
+                    "relocation": summary}
+
+        note = self.folder.value_item("grid", {**self.view, "counts": list(counts),
+                                               "relocate": self.relocate_probes}, compute)
+        self.grid_notes["x".join(map(str, counts))] = note
+        return note
+
+    def probe_set(self, counts, resolution: int):
+        """The baked probe set and its packed maps; the last bake is kept for reuse."""
+        from voxfield.lightfield.packed import PackedProbes
+        from voxfield.probes.bake import bake_probes
+        from voxfield.probes.probe_set import BakeOptions
+
+        key = (tuple(counts), int(resolution))
+        if self._bake_key != key:
+            self.drop_bake()
+            grid, _ = self.grid(counts)
+            bake = BakeOptions(resolution=int(resolution), renderer="lod", lod=0,
+                               channel=self.channel, seed=self.seed)
+            start = time.perf_counter()
+            probe_set = bake_probes(self.octree, grid, bake)
+            seconds = time.perf_counter() - start
+            self._bake = (probe_set, PackedProbes.from_probe_set(probe_set), seconds)
+            self._bake_key = key
+        return self._bake
+
+    def drop_bake(self) -> None:
+        self._bake_key = None
+        self._bake = None
+
+    def _params(self, counts, resolution: int, **extra) -> dict:
+        return {**self.view, "counts": list(counts), "resolution": int(resolution),
+                "relocate": self.relocate_probes, "bake": "lod0", **extra}
+
+    def bake_cost(self, counts, resolution: int) -> dict:
+        """Probes baked, texels, rays and seconds of one bake (renderer ``lod`` at LOD 0)."""
+        def compute() -> dict:
+            probe_set, _, seconds = self.probe_set(counts, resolution)
+            cost = probe_set.cost_summary()
+            return {"probes": int(np.count_nonzero(probe_set.enabled)),
+                    "texels_per_probe": int(resolution) ** 2, "seconds": seconds,
+                    "rays": cost.get("rays"), "steps": cost.get("steps")}
+
+        return self.folder.value_item("bake", self._params(counts, resolution), compute)
+
+    # --- renders --------------------------------------------------------------------------
+
+    def reference(self):
+        """The direct octree render of the same rays: one LOD-0 ray per pixel centre."""
+        from voxfield.render.renderers import render_lod
+
+        if self._reference is None:
+            self._reference = self.folder.render_item("reference", self.view, lambda: render_lod(
+                self.octree, self.camera, lod=0, seed=self.seed, channel=self.channel))
+        return self._reference
+
+    def _render(self, counts, resolution, method, options):
+        from voxfield.lightfield.render import render_from_probes
+
+        probe_set, packed, _ = self.probe_set(counts, resolution)
+        if method == "light-field":
+            return render_from_probes(probe_set, self.camera, method=method, options=options,
+                                      packed=packed, seed=self.seed)
+        return render_from_probes(probe_set, self.camera, method=method, seed=self.seed)
+
+    def measure(self, counts, resolution: int, method: str, *, marcher: str | None = None,
+                ordering: str | None = None, keep_render: bool = False) -> dict:
+        """Quality and cost of one probe render; ``keep_render`` also caches its image and
+        maps for the contact sheet."""
+        options = None
+        extra: dict = {"method": method}
+        if method == "light-field":
+            options = replace(self.options, marcher=marcher or self.options.marcher,
+                              ordering=ordering or self.options.ordering)
+            extra["options"] = _options_dict(options)
+        params = self._params(counts, resolution, **extra)
+        name = f"{method}-{'x'.join(map(str, counts))}-r{resolution}"
+        if keep_render:
+            result = self.folder.render_item(
+                f"render-{name}", params,
+                lambda: self._render(counts, resolution, method, options))
+            self.kept[method] = result
+            return self.folder.value_item(f"measure-{name}", params,
+                                          lambda: measurements(self.reference(), result))
+        return self.folder.value_item(
+            f"measure-{name}", params,
+            lambda: measurements(self.reference(),
+                                 self._render(counts, resolution, method, options)))
+
+    def timing(self, counts, resolution: int, marchers, repeats: int) -> dict:
+        """Warm wall times (the best of ``repeats``) of the direct octree render and of each
+        probe render of the same view; compilation is excluded by a first untimed run."""
+        from voxfield.render.renderers import render_lod
+
+        params = self._params(counts, resolution, marchers=list(marchers), repeats=repeats,
+                              options=_options_dict(self.options))
+
+        def best(render) -> float:
+            render()
+            return min(render().seconds for _ in range(repeats))
+
+        def compute() -> dict:
+            direct = best(lambda: render_lod(self.octree, self.camera, lod=0, seed=self.seed,
+                                             channel=self.channel))
+            probe: dict = {}
+            for marcher in marchers:
+                options = replace(self.options, marcher=marcher)
+                probe[f"light-field ({marcher})"] = best(
+                    lambda o=options: self._render(counts, resolution, "light-field", o))
+            for method in QUALITY_METHODS[1:]:
+                probe[method] = best(lambda m=method: self._render(counts, resolution, m, None))
+            return {"direct": direct, "probe": probe, "repeats": repeats,
+                    "pixels": self.camera.width * self.camera.height}
+
+        return self.folder.value_item(f"timing-r{resolution}", params, compute)
+
+
+def measurements(reference, result) -> dict:
+    """What every section reads from a probe render: answer kinds as fractions of pixels,
+    per-pixel fetches, steps and probes tried, first-probe success, quality, seconds."""
+    from voxfield.lightfield.render import result_kinds
+    from voxfield.metrics import compare_images
+
+    codes = result_kinds()
+    kind = np.asarray(result.maps["result_kind"]).ravel()
+    tried = np.asarray(result.maps["probes_tried"]).ravel()
+    fetches = np.asarray(result.maps["texel_fetches"], np.float64).ravel()
+    n = max(kind.size, 1)
+    fractions = {name: float(np.count_nonzero(kind == code)) / n for name, code in codes.items()}
+    answered = (kind == codes["hit"]) | (kind == codes["miss"])
+    return {
+        **fractions,
+        "failures": fractions["unknown"] + fractions["fallback"],
+        "fetches_per_pixel": float(fetches.mean()),
+        "fetches_p95": float(np.percentile(fetches, 95)),
+        "fetches_max": float(fetches.max(initial=0)),
+        "steps_per_pixel": float(np.asarray(result.steps, np.float64).mean()),
+        "probes_tried_per_pixel": float(tried.mean()),
+        "first_probe_success": float(np.count_nonzero(answered & (tried == 1))) / n,
+        "seconds": float(result.seconds),
+        **compare_images(reference.image, result.image),
+    }
+
+
+def growth_fits(rows: list[dict], marchers: Sequence[str]) -> dict:
+    """Per marcher: the exponent of fetches per pixel in r = R² texels (least-squares slope of
+    log fetches on log r) and the fetches added per doubling of R (slope on log₂ R), the
+    second being the log r model's constant."""
+    out = {}
+    log_r = np.log([row["resolution"] ** 2 for row in rows])
+    log2_side = np.log2([row["resolution"] for row in rows])
+    for marcher in marchers:
+        fetches = np.array([row["marchers"][marcher]["fetches_per_pixel"] for row in rows])
+        if np.all(fetches > 0):
+            exponent = float(np.polyfit(log_r, np.log(fetches), 1)[0])
+        else:
+            exponent = None
+        out[marcher] = {"exponent_r": exponent,
+                        "per_doubling": float(np.polyfit(log2_side, fetches, 1)[0]),
+                        "claim": THESIS_CLAIMS.get(marcher, "")}
+    return out
+
+
+def _options_dict(options) -> dict:
+    return {k: v for k, v in asdict(options).items()}
+
+
+# --------------------------------------------------------------------------- report
+
+
+def _kinds_cells(m: dict) -> list[str]:
+    return [fmt(100 * m["hit"], ".1f"), fmt(100 * m["miss"], ".1f"),
+            fmt(100 * m["unknown"], ".1f"), fmt(100 * m["fallback"], ".1f")]
+
+
+def results_markdown(report: dict) -> str:
+    """The study's tables as Markdown."""
+    o = report["options"]
+    grid = "x".join(map(str, report["grid"]))
+    lines = [
+        f"# Probe analysis (probe thesis ch. 9) — {report['scene']}, "
+        f"{report['width']}×{report['height']}",
+        "",
+        f"Main grid {grid} fitted to the scene's voxel box"
+        f"{', probes relocated out of geometry' if report['relocated'] else ''}. Probes baked "
+        "with `BakeOptions(renderer='lod', lod=0)` (one LOD-0 ray per texel centre). Light-field "
+        f"options: epsilon {o['epsilon']} (value {o['epsilon_value']}, k {o['epsilon_k']}), "
+        f"backface {'on' if o['backface'] else 'off'}, fallback "
+        f"{'on' if o['fallback'] else 'off'}; marcher {o['marcher']} and ordering "
+        f"{o['ordering']} unless a table varies them. Reference: {report['reference']['renderer']}"
+        " — the same rays the probe render answers. Metrics on linear RGB in [0, 1]. Kinds are "
+        "percentages of pixels: hit, miss (a probe proved the ray empty), unknown / fallback "
+        "(every probe of the cage lost the ray; fallback reads the nearest probe as an "
+        "environment map).",
+        "",
+    ]
+    for counts, note in report["grids"].items():
+        reloc = f"; {note['relocation']}" if note.get("relocation") else ""
+        lines.append(f"- grid {counts}: {note['enabled']} of {note['probes']} probes "
+                     f"enabled{reloc}")
+    lines.append("")
+
+    lines += [f"## 1. Quality against the octree ({report['quality_resolution']}² probes, "
+              f"grid {grid})", ""]
+    rows = [[q["method"] + (f" ({o['marcher']})" if q["method"] == "light-field" else ""),
+             fmt(q["psnr"], ".2f"), fmt(q["ssim"], ".4f"), fmt(q["rmse"], ".4f"),
+             *_kinds_cells(q), fmt(q["fetches_per_pixel"], ".1f")] for q in report["quality"]]
+    lines.append(markdown_table(["method", "PSNR (dB)", "SSIM", "RMSE", "hit %", "miss %",
+                                 "unknown %", "fallback %", "fetches/px"], rows))
+    lines.append("The environment and box-proxy baselines answer every ray from the probe "
+                 "nearest the ray origin (4 bilinear fetches); their kind is hit where the "
+                 "proxy box gave a surface, else environment.\n")
+
+    marchers = list(report["growth"])
+    lines += [f"## 2. Texel fetches per pixel as probe resolution grows (grid {grid})", ""]
+    rows = []
+    for row in report["resolution"]:
+        r = row["resolution"]
+        cells = [f"{r}²", fmt(row["bake"]["seconds"], ".2f")]
+        cells += [fmt(row["marchers"][m]["fetches_per_pixel"], ".1f") for m in marchers]
+        cells += [fmt(100 * row["marchers"][m]["failures"], ".1f") for m in marchers]
+        cells += [fmt(row["marchers"][m]["psnr"], ".2f") for m in marchers]
+        rows.append(cells)
+    lines.append(markdown_table(
+        ["R", "bake s", *(f"fetches ({m})" for m in marchers),
+         *(f"fail % ({m})" for m in marchers), *(f"PSNR ({m})" for m in marchers)], rows))
+    rows = [[m, fmt(g["exponent_r"], ".3f"),
+             fmt(None if g["exponent_r"] is None else 2 * g["exponent_r"], ".3f"),
+             fmt(g["per_doubling"], ".2f"), g["claim"]] for m, g in report["growth"].items()]
+    lines.append("Growth fit over the resolutions above: exponent of r = R² texels (log-log "
+                 "slope; √r gives 0.5, R² gives 1), the same in R, and fetches added per "
+                 "doubling of R (the log r model's slope).\n")
+    lines.append(markdown_table(["marcher", "exponent in r", "exponent in R",
+                                 "fetches per doubling", "thesis §9.1"], rows, align="lrrrl"))
+
+    lines += [f"## 3. Failures and fetches as probe count grows ({report['count_resolution']}²"
+              " probes)", ""]
+    rows = []
+    for row in report["probe_count"]:
+        cells = ["x".join(map(str, row["counts"])), str(row["bake"]["probes"])]
+        for m in marchers:
+            c = row["marchers"][m]
+            cells += [fmt(100 * c["failures"], ".1f"), fmt(c["fetches_per_pixel"], ".1f"),
+                      fmt(c["probes_tried_per_pixel"], ".2f")]
+        cells.append(fmt(row["marchers"][marchers[-1]]["psnr"], ".2f"))
+        rows.append(cells)
+    headers = ["grid", "probes"]
+    for m in marchers:
+        headers += [f"fail % ({m})", f"fetches ({m})", f"probes tried ({m})"]
+    headers.append(f"PSNR ({marchers[-1]})")
+    lines.append(markdown_table(headers, rows))
+
+    orderings = list(report["probe_count"][0]["orderings"])
+    lines += [f"## 4. First-probe success per ordering ({report['count_resolution']}² probes, "
+              f"{o['marcher']})", "",
+              "Share of pixels the first probe of the cage answers (hit or miss with one probe "
+              "tried); failures and fetches per pixel beside it.", ""]
+    rows = []
+    for row in report["probe_count"]:
+        cells = ["x".join(map(str, row["counts"]))]
+        cells += [fmt(100 * row["orderings"][k]["first_probe_success"], ".1f")
+                  for k in orderings]
+        cells += [fmt(100 * row["orderings"][k]["failures"], ".1f") for k in orderings]
+        cells += [fmt(row["orderings"][k]["fetches_per_pixel"], ".1f") for k in orderings]
+        rows.append(cells)
+    lines.append(markdown_table(
+        ["grid", *(f"first-probe % ({k})" for k in orderings),
+         *(f"fail % ({k})" for k in orderings), *(f"fetches ({k})" for k in orderings)], rows))
+
+    t = report["timing"]
+    lines += [f"## 5. Wall time against direct octree tracing ({report['quality_resolution']}² "
+              f"probes, grid {grid})", "",
+              f"Best of {t['repeats']} warm runs (compilation excluded), {t['pixels']:,} "
+              "pixels, one ray per pixel; this machine's cores.", ""]
+    rows = [["octree (render_lod, LOD 0)", fmt(1000 * t["direct"], ".1f"),
+             fmt(t["pixels"] / t["direct"] / 1e6, ".2f"), "1.00"]]
+    rows += [[name, fmt(1000 * s, ".1f"), fmt(t["pixels"] / s / 1e6, ".2f"),
+              fmt(s / t["direct"], ".2f")] for name, s in t["probe"].items()]
+    lines.append(markdown_table(["renderer", "ms", "Mrays/s", "× octree time"], rows))
+    lines += ["## Files", "",
+              "- `fetches_vs_resolution.png`: fetches per pixel per marcher against R (log-log) "
+              "with √r and log r reference curves; PSNR per R",
+              "- `probe_count.png`: failures, fetches and probes tried per pixel against probes",
+              "- `orderings.png`: first-probe success per ordering against probes",
+              "- `contact_sheet.png`: reference, the three probe renders, result kinds and "
+              "fetches per pixel", ""]
+    return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------- command line
+
+
+def add_probe_study_parser(actions) -> argparse.ArgumentParser:
+    """Register ``probes`` on the ``voxfield study`` actions."""
+    from voxfield.cli import _add_channel_option, _add_scene_options, _add_view_options
+    from voxfield.lightfield.trace import EPSILON_MODES, LightFieldOptions
+
+    p = actions.add_parser(
+        "probes", help="the probe thesis's analysis (ch. 9): quality, fetches per marcher "
+        "per resolution, failures per probe count, orderings, wall time",
+        description="Bake probes on the scene and render one view from them: PSNR/SSIM of the "
+        "light-field, environment and box-proxy renders against the octree's own render of "
+        "the same rays; texel fetches per pixel for each marcher per probe resolution (with "
+        "the growth exponent against the thesis's O(sqrt r) and O(log r)); failures and "
+        "fetches per probe count; first-probe success per ordering; wall time against direct "
+        "octree tracing. Writes results.json, results.md, plots and a contact sheet. "
+        "Resumable. The default camera, room, looks from just inside the scene box's +z face "
+        "towards its -z face (the Cornell box through its open front); --camera top, oblique, "
+        "... or --eye/--target choose another.",
+    )
+    _add_scene_options(p)
+    p.add_argument("--grid", default="1x1x1", metavar="NXxNYxNZ",
+                   help="main probe grid fitted to the scene (default 1x1x1: one probe at the "
+                   "centre, the thesis's Holodeck test)")
+    p.add_argument("--resolutions", type=_int_list, default=THESIS_RESOLUTIONS,
+                   help="comma-separated probe map sides (default 64,128,256,512,1024)")
+    p.add_argument("--probe-counts", type=_counts_list,
+                   default=DEFAULT_PROBE_COUNTS, metavar="GRIDS",
+                   help="comma-separated grids for the probe-count section (default "
+                   "1x1x1,2x2x2,3x3x3,4x4x4)")
+    p.add_argument("--count-resolution", type=int, default=None, metavar="R",
+                   help="probe map side of the probe-count and ordering sections (default "
+                   "the largest resolution up to 256)")
+    p.add_argument("--marchers", type=_name_list, default=MARCHERS,
+                   help="comma-separated marchers (default march3d,dda,hierarchical)")
+    p.add_argument("--orderings", type=_name_list, default=ORDERINGS,
+                   help="comma-separated orderings (default signed-dot,nearest,fixed)")
+    defaults = LightFieldOptions()
+    p.add_argument("--epsilon", choices=tuple(EPSILON_MODES), default=defaults.epsilon,
+                   help=f"hit acceptance rule (default {defaults.epsilon})")
+    p.add_argument("--epsilon-value", type=float, default=defaults.epsilon_value, metavar="E",
+                   help=f"constant epsilon in voxels (default {defaults.epsilon_value})")
+    p.add_argument("--epsilon-k", type=float, default=defaults.epsilon_k, metavar="K",
+                   help=f"adaptive/angular epsilon scale (default {defaults.epsilon_k})")
+    p.add_argument("--backface", action="store_true", help="reject backface hits")
+    p.add_argument("--no-fallback", action="store_true",
+                   help="leave rays every probe loses unknown instead of falling back")
+    p.add_argument("--no-relocate", action="store_true",
+                   help="keep probes on their lattice points even inside geometry")
+    p.add_argument("--repeats", type=int, default=3,
+                   help="timed runs per renderer in the wall-time section (default 3)")
+    p.add_argument("--out", default=None, help="output folder (default out/probes_SCENE)")
+    p.add_argument("--fresh", action="store_true", help="ignore cached items")
+    _add_channel_option(p)
+    _add_view_options(p, size=256)
+    p.set_defaults(func=cmd_study_probes, camera="room")
+    return p
+
+
+def _int_list(text: str) -> tuple[int, ...]:
+    try:
+        values = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected sizes like 64,128, got {text!r}") from None
+    if any(v < 1 for v in values):
+        raise argparse.ArgumentTypeError(f"sizes must be positive, got {text!r}")
+    return values
+
+
+def _counts_list(text: str) -> tuple[tuple[int, int, int], ...]:
+    try:
+        return tuple(parse_counts(part) for part in text.split(","))
+    except VoxfieldError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _name_list(text: str) -> tuple[str, ...]:
+    return tuple(v.strip() for v in text.split(",") if v.strip())
+
+
+def room_camera(bounds, size: int, fov_deg: float | None = None) -> Camera:
+    """A view from just inside the scene box's +z face towards the middle of its -z face:
+    the Cornell box seen through its open front, or a room from its doorway."""
+    lo, hi = (np.asarray(b, np.float64) for b in bounds)
+    c = (lo + hi) / 2.0
+    depth = hi[2] - lo[2]
+    eye = (c[0], c[1], hi[2] - 0.02 * depth)
+    return Camera.look_at(eye, (c[0], c[1], lo[2]), fov_deg=fov_deg or 70.0, width=size)
+
+
+def cmd_study_probes(args) -> int:
+    from voxfield.cli import _camera, _open_octree, default_output
+    from voxfield.lightfield.trace import LightFieldOptions
+
+    quiet = getattr(args, "quiet", False)
+    octree = _open_octree(args)
+    if args.camera == "room" and args.eye is None and args.target is None:
+        camera = room_camera(octree.voxel_bounds, args.size, args.fov)
+    else:
+        camera = _camera(args, octree)
+    options = LightFieldOptions(epsilon=args.epsilon, epsilon_value=args.epsilon_value,
+                                epsilon_k=args.epsilon_k, backface=args.backface,
+                                fallback=not args.no_fallback)
+    out = args.out or default_output("probes", args.scene)
+    report = run_probe_study(
+        octree, out, scene_name=args.scene, camera=camera, grid_counts=parse_counts(args.grid),
+        resolutions=args.resolutions, probe_counts=args.probe_counts,
+        orderings=args.orderings, marchers=args.marchers,
+        count_resolution=args.count_resolution, options=options,
+        relocate_probes=not args.no_relocate, channel=args.channel,
+        timing_repeats=args.repeats, seed=args.seed, progress=not quiet, fresh=args.fresh)
+    if not quiet:
+        print(results_markdown(report))
+        print(f"wrote {out}/results.md, results.json, fetches_vs_resolution.png, "
+              "probe_count.png, orderings.png, contact_sheet.png")
+    return 0

@@ -1,0 +1,101 @@
+"""The probe study (probe thesis ch. 9) on a tiny Cornell box: files, resume, and the trends
+the thesis predicts that already hold at 16² and 32² maps."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from voxfield.errors import VoxfieldError
+from voxfield.studies.probe_study import parse_counts, room_camera, run_probe_study
+from voxfield.svo.io import open_octree
+
+TINY = {"resolutions": (16, 32), "probe_counts": ((1, 1, 1), (2, 2, 2)), "timing_repeats": 1}
+
+
+@pytest.fixture(scope="module")
+def cornell():
+    return open_octree("builtin:cornell")
+
+
+@pytest.fixture(scope="module")
+def camera(cornell):
+    return room_camera(cornell.voxel_bounds, 24)
+
+
+@pytest.fixture(scope="module")
+def study(cornell, camera, tmp_path_factory):
+    out = tmp_path_factory.mktemp("probe_study")
+    report = run_probe_study(cornell, out, scene_name="builtin:cornell", camera=camera, **TINY)
+    return out, report
+
+
+def test_writes_every_file(study):
+    out, report = study
+    for name in ("results.json", "results.md", "fetches_vs_resolution.png", "probe_count.png",
+                 "orderings.png", "contact_sheet.png"):
+        assert (out / name).stat().st_size > 0, name
+    saved = json.loads((out / "results.json").read_text())
+    assert [q["method"] for q in saved["quality"]] == ["light-field", "environment",
+                                                       "box-proxy"]
+    text = (out / "results.md").read_text()
+    for heading in ("## 1. Quality", "## 2. Texel fetches", "## 3. Failures",
+                    "## 4. First-probe success", "## 5. Wall time"):
+        assert heading in text
+
+
+def test_resumes_without_recomputing(study, cornell, camera):
+    out, first = study
+    again = run_probe_study(cornell, out, scene_name="builtin:cornell", camera=camera, **TINY)
+    assert again["items"]["computed"] == 0
+    assert again["quality"] == first["quality"]
+    assert again["resolution"] == first["resolution"]
+
+
+def test_hierarchical_fetches_grow_slower_than_dda(study):
+    _, report = study
+    low, high = report["resolution"]
+    growth = {m: high["marchers"][m]["fetches_per_pixel"] / low["marchers"][m]["fetches_per_pixel"]
+              for m in ("dda", "hierarchical")}
+    assert growth["hierarchical"] < growth["dda"]
+    assert report["growth"]["hierarchical"]["exponent_r"] < report["growth"]["dda"]["exponent_r"]
+
+
+def test_denser_grid_fails_less(study):
+    _, report = study
+    one, eight = report["probe_count"]
+    for marcher in ("dda", "hierarchical"):
+        assert eight["marchers"][marcher]["failures"] <= one["marchers"][marcher]["failures"]
+
+
+def test_dda_and_hierarchical_give_the_same_answers(study):
+    """The hierarchical trace skips texels, never changes the first event: same kinds."""
+    _, report = study
+    for row in report["resolution"]:
+        dda, hier = row["marchers"]["dda"], row["marchers"]["hierarchical"]
+        assert dda["failures"] == hier["failures"] and dda["hit"] == hier["hit"]
+
+
+@pytest.mark.parametrize("bad", [
+    {"resolutions": (32,)},
+    {"resolutions": (2, 32)},
+    {"marchers": ("bogus",)},
+    {"orderings": ("signed-dot", "sideways")},
+    {"probe_counts": ()},
+    {"probe_counts": ((0, 1, 1),)},
+    {"grid_counts": (1, 1)},
+    {"timing_repeats": 0},
+    {"camera": "top"},
+])
+def test_bad_input_is_a_voxfield_error(cornell, camera, tmp_path, bad):
+    kwargs = {"camera": camera, **TINY, **bad}
+    with pytest.raises(VoxfieldError):
+        run_probe_study(cornell, tmp_path / "bad", **kwargs)
+
+
+def test_parse_counts():
+    assert parse_counts("4x1x4") == (4, 1, 4)
+    assert parse_counts("3") == (3, 3, 3)
+    with pytest.raises(VoxfieldError):
+        parse_counts("4x4")
