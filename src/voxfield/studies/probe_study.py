@@ -55,6 +55,10 @@ QUALITY_METHODS = ("light-field", "environment", "box-proxy")
 #: Largest map side the probe-count and ordering sections bake by default: they bake up to
 #: dozens of probes, and cost trends need no 1024² maps.
 COUNT_RESOLUTION_CAP = 256
+#: Relocation keeps probes at least this far (voxels) from surfaces, or the grid default (a
+#: fifth of the spacing) when that is smaller: a lone probe's default would be a fifth of the
+#: scene, which no probe in a cluttered scene can reach.
+RELOCATION_CLEARANCE = 4.0
 #: The thesis's claimed growth of fetches per pixel with r = R² texels (exponent of r).
 THESIS_CLAIMS = {"march3d": "no bound (fixed world step)", "dda": "O(√r): exponent 0.5",
                  "hierarchical": "O(log r): exponent → 0"}
@@ -257,6 +261,7 @@ class _Study:
         self.channel = channel
         self.seed = seed
         self.relocate_probes = relocate_probes
+        self._relocation = f"clearance<={RELOCATION_CLEARANCE}" if relocate_probes else False
         self.view = {"scene": scene_name, "fingerprint": scene_fingerprint(octree, channel),
                      "camera": camera.params.tolist(), "width": camera.width,
                      "height": camera.height, "seed": seed, "channel": channel}
@@ -270,13 +275,15 @@ class _Study:
 
     def grid(self, counts):
         """The grid fitted to the scene's voxel box, relocated out of geometry if asked."""
-        from voxfield.probes.grid import ProbeGrid, relocate
+        from voxfield.probes.grid import DEFAULT_CLEARANCE_FRACTION, ProbeGrid, relocate
 
         lo, hi = self.octree.voxel_bounds
         grid = ProbeGrid.fit(lo, hi, counts)
         summary = None
         if self.relocate_probes:
-            grid, moved = relocate(grid, self.octree, seed=self.seed)
+            clearance = min(RELOCATION_CLEARANCE,
+                            DEFAULT_CLEARANCE_FRACTION * float(grid.spacing.min()))
+            grid, moved = relocate(grid, self.octree, clearance=clearance, seed=self.seed)
             summary = moved.summary()
         if not np.asarray(grid.enabled).any():
             raise VoxfieldError(f"every probe of the {'x'.join(map(str, counts))} grid sits in "
@@ -292,7 +299,7 @@ class _Study:
                     "relocation": summary}
 
         note = self.folder.value_item("grid", {**self.view, "counts": list(counts),
-                                               "relocate": self.relocate_probes}, compute)
+                                               "relocate": self._relocation}, compute)
         self.grid_notes["x".join(map(str, counts))] = note
         return note
 
@@ -321,7 +328,7 @@ class _Study:
 
     def _params(self, counts, resolution: int, **extra) -> dict:
         return {**self.view, "counts": list(counts), "resolution": int(resolution),
-                "relocate": self.relocate_probes, "bake": "lod0", **extra}
+                "relocate": self._relocation, "bake": "lod0", **extra}
 
     def bake_cost(self, counts, resolution: int) -> dict:
         """Probes baked, texels, rays and seconds of one bake (renderer ``lod`` at LOD 0)."""
