@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from conftest import random_scene
+from random_scenes import random_scene
 from ray_oracle import first_hits
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.sampling import cmj_sample

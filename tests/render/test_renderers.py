@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import random_scene
+from random_scenes import random_scene
 from voxfield.errors import VoxfieldError
 from voxfield.render import Camera, orbit_camera, render, render_lod, render_reference
 from voxfield.scene.builtin import pillars

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import random_scene
+from random_scenes import random_scene
 from voxfield.errors import VoxfieldError
 from voxfield.scene.surface import exposed_faces
 from voxfield.scene.voxel_scene import VoxelScene

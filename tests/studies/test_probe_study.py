@@ -99,3 +99,20 @@ def test_parse_counts():
     assert parse_counts("3") == (3, 3, 3)
     with pytest.raises(VoxfieldError):
         parse_counts("4x4")
+
+
+def test_command_line_runs_the_study(tmp_path, capsys):
+    from voxfield.cli import main
+
+    out = tmp_path / "cli"
+    code = main(["study", "probes", "builtin:cornell", "--resolutions", "8,16", "--probe-counts",
+                 "1x1x1", "--marchers", "dda,hierarchical", "--orderings", "nearest",
+                 "--repeats", "1", "--size", "16", "--out", str(out), "--quiet"])
+    assert code == 0
+    report = json.loads((out / "results.json").read_text())
+    assert [row["resolution"] for row in report["resolution"]] == [8, 16]
+    assert {row["method"] for row in report["quality"]} >= {"light-field", "environment"}
+    assert (out / "results.md").is_file()
+    assert main(["study", "probes", "builtin:cornell", "--marchers", "teleport",
+                 "--out", str(out), "--quiet"]) == 2
+    assert "voxfield: error:" in capsys.readouterr().err

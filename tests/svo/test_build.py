@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from conftest import random_scene
+from random_scenes import random_scene
 from voxfield.errors import OctreeFormatError, VoxfieldError
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree, load_octree, morton_encode, save_octree

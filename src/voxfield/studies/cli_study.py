@@ -104,6 +104,10 @@ def add_study_parser(subparsers) -> argparse.ArgumentParser:
     b.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
                    help="no progress bars or summaries")
     b.set_defaults(func=cmd_study_probe_resolution)
+
+    from voxfield.studies.probe_study import add_probe_study_parser
+
+    add_probe_study_parser(actions)
     return p
 
 

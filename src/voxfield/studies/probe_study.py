@@ -637,7 +637,7 @@ def add_probe_study_parser(actions) -> argparse.ArgumentParser:
                    help="keep probes on their lattice points even inside geometry")
     p.add_argument("--repeats", type=int, default=3,
                    help="timed runs per renderer in the wall-time section (default 3)")
-    p.add_argument("--out", default=None, help="output folder (default out/probes_SCENE)")
+    p.add_argument("--out", default=None, help="output folder (default out/probe_study_SCENE)")
     p.add_argument("--fresh", action="store_true", help="ignore cached items")
     _add_channel_option(p)
     _add_view_options(p, size=256)
@@ -689,7 +689,7 @@ def cmd_study_probes(args) -> int:
     options = LightFieldOptions(epsilon=args.epsilon, epsilon_value=args.epsilon_value,
                                 epsilon_k=args.epsilon_k, backface=args.backface,
                                 fallback=not args.no_fallback)
-    out = args.out or default_output("probes", args.scene)
+    out = args.out or default_output("probe_study", args.scene)
     report = run_probe_study(
         octree, out, scene_name=args.scene, camera=camera, grid_counts=parse_counts(args.grid),
         resolutions=args.resolutions, probe_counts=args.probe_counts,
