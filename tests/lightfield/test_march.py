@@ -194,3 +194,31 @@ def test_pixel_angle_epsilons_accept_the_probes_own_rays(cornell, epsilon):
     seen = np.isfinite(packed.distance[0].ravel())
     assert np.array_equal(hits.kind == HIT, seen)
     np.testing.assert_array_equal(hits.t[seen], packed.distance[0].ravel()[seen])
+
+
+def test_slope_thickness_is_half_the_texels_depth_span():
+    from voxfield.kernels.probe_march import SLOPE_TAN_MAX, slope_thickness, texel_angle
+
+    angle = texel_angle(64)
+    assert slope_thickness(10.0, 0, 0, 1, 0, 0, 1, 64) == pytest.approx(0.0)  # head-on
+    c45 = math.sqrt(0.5)
+    assert slope_thickness(10.0, 0, 0, 1, 0, c45, c45, 64) == pytest.approx(5.0 * angle)
+    grazing = slope_thickness(10.0, 0, 0, 1, 0, 1, 1e-6, 64)
+    assert grazing == pytest.approx(5.0 * angle * SLOPE_TAN_MAX)
+    assert slope_thickness(10.0, 0, 0, 1, 0, 0, 0, 64) == pytest.approx(grazing)  # no normal
+
+
+def test_slope_epsilon_gives_up_less_and_is_never_wrong(cornell, cornell_probe64):
+    """The slope ε widens acceptance where a stored surface spans more depth than ε across a
+    texel: on the same visible rays it answers at least as many, and still never wrongly."""
+    origins, dirs, tmax, truth_hit, usable = _clear_visible_rays(cornell, CORNELL_PROBE,
+                                                                 3000, seed=3)
+    expected = np.where(truth_hit[usable], HIT, MISS)
+    unknown = {}
+    for epsilon in ("constant", "slope"):
+        options = LightFieldOptions(marcher="hierarchical", epsilon=epsilon, epsilon_value=0.3)
+        kind = trace_single(cornell_probe64, 0, origins, dirs, options, tmax=tmax).kind[usable]
+        known = kind != UNKNOWN
+        assert np.array_equal(kind[known], expected[known]), epsilon
+        unknown[epsilon] = np.count_nonzero(~known)
+    assert unknown["slope"] <= unknown["constant"]

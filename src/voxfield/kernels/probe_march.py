@@ -58,6 +58,11 @@ HIERARCHICAL = 2
 EPS_CONSTANT = 0
 EPS_ADAPTIVE = 1
 EPS_ANGULAR = 2
+#: Constant ε plus half the depth a texel's stored surface spans across the texel, from its
+#: stored normal: a sloped wall is as thick as it is deep within one texel.
+EPS_SLOPE = 3
+#: The slope term's tangent limit (76°): at grazing angles a texel's depth span is unbounded.
+SLOPE_TAN_MAX = 4.0
 
 #: Layout of the float64 ``params`` array every trace takes.
 P_EPSILON = 0  # constant ε, world units
@@ -201,7 +206,7 @@ def epsilon_at(eps_mode: int, params: np.ndarray, ox: float, oy: float, oz: floa
     ``k = params[P_K]``. (The thesis's derivation before it reads ``(1 - α·ν)``; the printed
     formula with ``β·ν`` is used.) When ``X = P``, ``β`` is taken as ``α``: that probe sees
     along the camera's own rays. Not used by ``EPS_ANGULAR`` (0 there)."""
-    if eps_mode == EPS_CONSTANT:
+    if eps_mode == EPS_CONSTANT or eps_mode == EPS_SLOPE:
         return params[P_EPSILON]
     if eps_mode != EPS_ADAPTIVE:
         return 0.0
@@ -232,12 +237,38 @@ def epsilon_at(eps_mode: int, params: np.ndarray, ox: float, oy: float, oz: floa
 
 
 @njit(cache=True, nogil=True)
-def skip_bound(eps_mode: int, params: np.ndarray, dmin: float, dxp: float) -> float:
+def texel_angle(resolution: int) -> float:
+    """The mean angle one texel of an R×R octahedral map subtends: sqrt(4π) / R."""
+    return math.sqrt(4.0 * math.pi) / resolution
+
+
+@njit(cache=True, nogil=True)
+def slope_thickness(d: float, cx: float, cy: float, cz: float, nx: float, ny: float,
+                    nz: float, resolution: int) -> float:
+    """Half the range of depth a surface at distance ``d`` with normal ``ν`` covers across
+    one texel seen along ``c``: ``d · angle / 2 · tan(ν, c)``, the tangent capped; texels
+    without a stored normal get the cap."""
+    cosine = abs(cx * nx + cy * ny + cz * nz)
+    tangent = SLOPE_TAN_MAX
+    if cosine > 0.0:
+        tangent = min(math.sqrt(max(1.0 - cosine * cosine, 0.0)) / cosine, SLOPE_TAN_MAX)
+    return 0.5 * d * texel_angle(resolution) * tangent
+
+
+@njit(cache=True, nogil=True)
+def skip_bound(eps_mode: int, params: np.ndarray, dmin: float, dxp: float,
+               resolution: int) -> float:
     """A lower bound of ``D - ε`` over every stored ``D >= dmin``: a block whose largest ray
     radial distance is below it holds no texel where a hit or a loss of visibility is
-    possible. For the adaptive ε, ``ε <= c (|X - P| + D)`` with ``c = 2 k tan θ``."""
+    possible. For the adaptive ε, ``ε <= c (|X - P| + D)`` with ``c = 2 k tan θ``; for the
+    slope ε, ``ε <= ε0 + D · angle / 2 · tan_max``."""
     if eps_mode == EPS_CONSTANT:
         return dmin - params[P_EPSILON]
+    if eps_mode == EPS_SLOPE:
+        c = 0.5 * texel_angle(resolution) * SLOPE_TAN_MAX
+        if c >= 1.0:
+            return -math.inf
+        return dmin * (1.0 - c) - params[P_EPSILON]
     if eps_mode == EPS_ADAPTIVE:
         c = 2.0 * params[P_K] * math.tan(params[P_THETA])
         if c >= 1.0:
@@ -277,6 +308,8 @@ def texel_event(eps_mode: int, params: np.ndarray, normals: np.ndarray, probe: i
     nz = np.float64(normals[probe, row, col, 2])
     rho_max = max(rho_a, rho_b)
     eps = epsilon_at(eps_mode, params, ox, oy, oz, px, py, pz, yx, yy, yz, nx, ny, nz)
+    if eps_mode == EPS_SLOPE:
+        eps += slope_thickness(d, cx, cy, cz, nx, ny, nz, resolution)
     if eps_mode == EPS_ANGULAR:
         if rho_max < d:
             return _GO, tb
@@ -374,7 +407,7 @@ def walk_piece(top: int, eps_mode: int, params: np.ndarray, mips: np.ndarray,
         fetches += 1
         if level > 0:
             if value < math.inf and not max(rho_a, rho_b) < skip_bound(eps_mode, params,
-                                                                       value, dxp):
+                                                                       value, dxp, r):
                 level -= 1
                 continue
         else:

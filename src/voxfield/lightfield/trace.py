@@ -28,7 +28,7 @@ KIND_NAMES = {MISS: "miss", HIT: "hit", UNKNOWN: "unknown", FALLBACK: "fallback"
 
 MARCHERS = {"march3d": pm.MARCH3D, "dda": pm.DDA, "hierarchical": pm.HIERARCHICAL}
 EPSILON_MODES = {"constant": pm.EPS_CONSTANT, "adaptive": pm.EPS_ADAPTIVE,
-                 "angular": pm.EPS_ANGULAR}
+                 "angular": pm.EPS_ANGULAR, "slope": pm.EPS_SLOPE}
 ORDERINGS = {"signed-dot": mk.ORDER_SIGNED_DOT, "nearest": mk.ORDER_NEAREST,
              "fixed": mk.ORDER_FIXED}
 
@@ -44,7 +44,8 @@ class LightFieldOptions:
     ``"adaptive"`` (thesis §7.1: ``k · tan θ · d(X, Y) · |α·β| · (1 - β·ν)``, θ the pixel
     angle given to the trace, ``k = epsilon_k``; see ``kernels.probe_march.epsilon_at``) or
     ``"angular"`` (accept when the stored point is within ``epsilon_k · θ`` of the ray seen
-    from its origin). ``backface``: reject hits whose stored normal faces along the ray (§7.2).
+    from its origin) or ``"slope"`` (``epsilon_value`` plus half the depth the texel's stored
+    surface spans across the texel, from its stored normal). ``backface``: reject hits whose stored normal faces along the ray (§7.2).
     ``ordering``: first probe of the cage — ``"signed-dot"`` (max ``ω · S²(X - P)``, the
     thesis), ``"nearest"`` (McGuire et al. 2017) or ``"fixed"`` (corner 0); the rest follow
     ``i + 3 mod 8``. ``fallback``: when every probe loses the ray, answer with the nearest
