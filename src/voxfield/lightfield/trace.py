@@ -42,10 +42,11 @@ class LightFieldOptions:
     mips; same answers as ``"dda"``, fewer fetches).
     ``epsilon``: hit acceptance — ``"constant"`` (thickness ``epsilon_value`` world units),
     ``"adaptive"`` (thesis §7.1: ``k · tan θ · d(X, Y) · |α·β| · (1 - β·ν)``, θ the pixel
-    angle given to the trace, ``k = epsilon_k``; see ``kernels.probe_march.epsilon_at``) or
+    angle given to the trace, ``k = epsilon_k``; see ``kernels.probe_march.epsilon_at``),
     ``"angular"`` (accept when the stored point is within ``epsilon_k · θ`` of the ray seen
     from its origin) or ``"slope"`` (``epsilon_value`` plus half the depth the texel's stored
-    surface spans across the texel, from its stored normal). ``backface``: reject hits whose stored normal faces along the ray (§7.2).
+    surface spans across the texel, from its stored normal). ``backface``: reject hits whose
+    stored normal faces along the ray (§7.2).
     ``ordering``: first probe of the cage — ``"signed-dot"`` (max ``ω · S²(X - P)``, the
     thesis), ``"nearest"`` (McGuire et al. 2017) or ``"fixed"`` (corner 0); the rest follow
     ``i + 3 mod 8``. ``fallback``: when every probe loses the ray, answer with the nearest
