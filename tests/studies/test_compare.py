@@ -193,3 +193,11 @@ def test_report_helpers():
     assert markdown_table(["x", "y"], [["a", 1]]) == "| x | y |\n| --- | ---: |\n| a | 1 |\n"
     folder = StudyFolder("unused")
     assert folder.path("results.md").name == "results.md"
+
+
+def test_cache_keys_change_with_the_code(monkeypatch):
+    import voxfield
+
+    before = params_key({"a": 1})
+    monkeypatch.setattr(voxfield, "SOURCE_DIGEST", "0123456789ab")
+    assert params_key({"a": 1}) != before

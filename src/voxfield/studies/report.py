@@ -49,8 +49,12 @@ def to_json(value):
 
 
 def params_key(params: dict) -> str:
-    """A short stable hash of an item's parameters (canonical JSON, sorted keys)."""
-    text = json.dumps(to_json({"cache_version": CACHE_VERSION, **params}), sort_keys=True)
+    """A short stable hash of an item's parameters (canonical JSON, sorted keys) and of the
+    code that computes it: a changed renderer never serves results of the old one."""
+    from voxfield import SOURCE_DIGEST
+
+    text = json.dumps(to_json({"cache_version": CACHE_VERSION, "code": SOURCE_DIGEST,
+                               **params}), sort_keys=True)
     return hashlib.blake2b(text.encode(), digest_size=8).hexdigest()
 
 
