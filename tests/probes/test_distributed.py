@@ -10,17 +10,10 @@ from voxfield.probes.distributed import SchedulerError, bake_probes_dask
 from voxfield.probes.grid import ProbeGrid
 from voxfield.probes.probe_set import BakeOptions
 from voxfield.probes.storage import bake_to_folder, open_probe_set
-from voxfield.scene.builtin import cornell
-from voxfield.svo.build import build_octree
 
 # Error-aware radiance: the renderer with the most branching, so a scheduler that changed
 # anything (seeds, thread count, probe order) would show.
 OPTIONS = BakeOptions(resolution=8, renderer="error-aware", seed=3)
-
-
-@pytest.fixture(scope="module")
-def octree():
-    return build_octree(cornell(16))
 
 
 @pytest.fixture(scope="module")

@@ -25,11 +25,6 @@ OPTIONS = BakeOptions(resolution=8, renderer="lod", lod=0)
 
 
 @pytest.fixture(scope="module")
-def octree():
-    return build_octree(cornell(16))
-
-
-@pytest.fixture(scope="module")
 def grid(octree):
     lo, hi = octree.voxel_bounds
     return ProbeGrid.fit(lo, hi, (3, 1, 2))

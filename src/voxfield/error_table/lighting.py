@@ -12,6 +12,7 @@ it onto the class representative: ``e(C, d) = e(R, g·d)`` where ``g·C = R``.
 
 from __future__ import annotations
 
+import functools
 import json
 import time
 from dataclasses import dataclass, field
@@ -190,12 +191,24 @@ def save_lighting_error_table(table: LightingErrorTable, path: str | Path) -> Pa
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
         np.savez_compressed(f, header=np.frombuffer(json.dumps(header).encode(), np.uint8),
                             **arrays)
+    _packaged_lighting_table.cache_clear()  # a rebuilt packaged table is read afresh
     return path
 
 
 def load_lighting_error_table(path: str | Path | None = None) -> LightingErrorTable:
-    """Read a lighting table (the packaged one by default), verifying its checksum."""
-    path = DEFAULT_LIGHTING_TABLE if path is None else Path(path)
+    """Read a lighting table (the packaged one by default, read once per process),
+    verifying its checksum."""
+    if path is None:
+        return _packaged_lighting_table()
+    return _read_lighting_table(Path(path))
+
+
+@functools.lru_cache(maxsize=1)
+def _packaged_lighting_table() -> LightingErrorTable:
+    return _read_lighting_table(DEFAULT_LIGHTING_TABLE)
+
+
+def _read_lighting_table(path: Path) -> LightingErrorTable:
     hint = f"rebuild it with `{REBUILD_COMMAND}`" if path == DEFAULT_LIGHTING_TABLE else (
         f"rebuild it with `voxfield errors build-lighting --out {path}`")
     if not path.is_file():

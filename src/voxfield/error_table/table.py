@@ -5,6 +5,7 @@ direction, in two encodings — 9 SH coefficients (EA §3.2) and a bordered octa
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import time
@@ -187,6 +188,7 @@ def save_error_table(table: ErrorTable, path: str | Path) -> Path:
         np.savez_compressed(
             f, header=np.frombuffer(json.dumps(header).encode(), np.uint8), **arrays
         )
+    _packaged_error_table.cache_clear()  # a rebuilt packaged table is read afresh
     return path
 
 
@@ -208,8 +210,19 @@ def read_table_file(path: Path, keys: tuple[str, ...], fmt: str, version: int, w
 
 
 def load_error_table(path: str | Path | None = None) -> ErrorTable:
-    """Read a table (the packaged one by default), verifying its checksum."""
-    path = DEFAULT_TABLE if path is None else Path(path)
+    """Read a table (the packaged one by default, read and checksummed once per process),
+    verifying its checksum."""
+    if path is None:
+        return _packaged_error_table()
+    return _read_error_table(Path(path))
+
+
+@functools.lru_cache(maxsize=1)
+def _packaged_error_table() -> ErrorTable:
+    return _read_error_table(DEFAULT_TABLE)
+
+
+def _read_error_table(path: Path) -> ErrorTable:
     hint = f"rebuild it with `{REBUILD_COMMAND}`" if path == DEFAULT_TABLE else (
         f"rebuild it with `voxfield errors build --out {path}`"
     )

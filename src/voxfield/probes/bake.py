@@ -13,8 +13,6 @@ it is reused and the geometry pass costs nothing. Both passes are counted in ``B
 
 from __future__ import annotations
 
-import functools
-
 import numpy as np
 
 from voxfield.errors import VoxfieldError
@@ -143,14 +141,7 @@ def _radiance(octree: Octree, camera: Camera, options: BakeOptions,
     if options.renderer == "adaptive":
         # Its first pass picks the cone LOD at scale 1 (render_adaptive has no scale option).
         return render_adaptive(octree, camera, base_lod=options.lod, **common)
-    return render_error_aware(octree, camera, _error_table(), threshold=options.threshold,
+    return render_error_aware(octree, camera, threshold=options.threshold,
                               decay=options.decay, base_lod=options.lod,
                               cone_scale=options.cone_scale, **common)
 
-
-@functools.lru_cache(maxsize=1)
-def _error_table():
-    """The packaged error table, read (and checksummed) once per process, not per probe."""
-    from voxfield.error_table.table import load_error_table
-
-    return load_error_table()
