@@ -86,7 +86,7 @@ def trace_shadow_ray(
     mode: int, inner_nodes: np.ndarray, depth: int, node_coord: np.ndarray,
     node_is_light: np.ndarray, lod_distance: float, max_refinements: int,
     threshold: float, decay: float, encoding: int, oct_map: np.ndarray, sh: np.ndarray,
-    s_node: np.ndarray, s_level: np.ndarray, s_pos: np.ndarray, s_t: np.ndarray,
+    scratch,
     frame_stop: np.ndarray, frame_end: np.ndarray,
 ) -> tuple[bool, int, int, int, int]:
     """Whether the segment ``(0, tmax)`` of the ray reaches the light unblocked.
@@ -121,7 +121,7 @@ def trace_shadow_ray(
         base = f == 0
         node, level, t_hit, _normal, n = trace_ray(
             ox, oy, oz, dx, dy, dz, t, frame_end[f], inner_nodes, depth, frame_stop[f],
-            radius if base else 0.0, spread if base else 0.0, s_node, s_level, s_pos, s_t,
+            radius if base else 0.0, spread if base else 0.0, scratch,
         )
         steps += n
         traversals += 1
@@ -180,7 +180,7 @@ def light_sample(
     mode: int, inner_nodes: np.ndarray, depth: int, node_coord: np.ndarray,
     node_is_light: np.ndarray, lod_distance: float, max_refinements: int,
     threshold: float, decay: float, encoding: int, oct_map: np.ndarray, sh: np.ndarray,
-    s_node: np.ndarray, s_level: np.ndarray, s_pos: np.ndarray, s_t: np.ndarray,
+    scratch,
     frame_stop: np.ndarray, frame_end: np.ndarray,
 ) -> tuple[float, float, float, int, int, int, int]:
     """One light sample at surface point p with normal n, for a white (albedo 1) surface.
@@ -233,7 +233,7 @@ def light_sample(
     visible, steps, traversals, lod, refinements = trace_shadow_ray(
         ox, oy, oz, wx, wy, wz, dist - SURFACE_OFFSET, mode, inner_nodes, depth, node_coord,
         node_is_light, lod_distance, max_refinements, threshold, decay, encoding, oct_map, sh,
-        s_node, s_level, s_pos, s_t, frame_stop, frame_end,
+        scratch, frame_stop, frame_end,
     )
     if not visible:
         return 0.0, 0.0, 0.0, steps, traversals, lod, refinements
@@ -263,81 +263,111 @@ def render_direct_light_rows(
     A primary ray that hits an emitter shows its radiance clamped to 1 (display range, so
     the light's edges anti-alias); the pixel is the mean of its samples, clamped to [0, 1].
     """
-    samples = grid_x * grid_y
     for row in prange(row0, row1):
-        s_node, s_level, s_pos, s_t = new_scratch(depth)
-        frame_stop, frame_end = new_frames(depth)
-        i = row - row0
-        for col in range(width):
-            pattern = pixel_pattern(row * width + col, seed)
-            light_pattern = hash_u32(pattern + _LIGHT_STREAM)
-            r = 0.0
-            g = 0.0
-            b = 0.0
-            nx_sum = 0.0
-            ny_sum = 0.0
-            nz_sum = 0.0
-            t_sum = 0.0
-            hits = 0
-            steps_sum = 0
-            shadow_traversals = 0
-            shadow_steps = 0
-            lod_sum = 0
-            lod_count = 0
-            refinements = 0
-            for s in range(samples):
-                if samples == 1:
-                    fx, fy = 0.5, 0.5
-                else:
-                    fx, fy = cmj_sample(s, grid_x, grid_y, pattern)
-                ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
-                node, level, t, normal, steps = trace_ray(
-                    ox, oy, oz, dx, dy, dz, 0.0, math.inf, inner_nodes, depth, depth, 0.0, 0.0,
-                    s_node, s_level, s_pos, s_t,
-                )
-                steps_sum += steps
-                if node == MISS:
-                    continue
-                hits += 1
-                t_sum += t
-                nx, ny, nz = normal_from_code(normal)
-                nx_sum += nx
-                ny_sum += ny
-                nz_sum += nz
-                if node_is_light[node]:
-                    r += min(emission[node, 0], 1.0)
-                    g += min(emission[node, 1], 1.0)
-                    b += min(emission[node, 2], 1.0)
-                    continue
-                u, v = cmj_sample(s, grid_x, grid_y, light_pattern)
-                lr, lg, lb, n_steps, n_traversals, lod, n_refined = light_sample(
-                    ox + t * dx, oy + t * dy, oz + t * dz, nx, ny, nz, u, v,
-                    face_corner, face_axis, face_sign, face_radiance, face_cdf,
-                    mode, inner_nodes, depth, node_coord, node_is_light, lod_distance,
-                    max_refinements, threshold, decay, encoding, oct_map, sh,
-                    s_node, s_level, s_pos, s_t, frame_stop, frame_end,
-                )
-                r += albedo[node, 0] * lr
-                g += albedo[node, 1] * lg
-                b += albedo[node, 2] * lb
-                shadow_traversals += n_traversals
-                shadow_steps += n_steps
-                refinements += n_refined
-                if lod != NO_LOD:
-                    lod_sum += lod
-                    lod_count += 1
-            scale = 1.0 / samples
-            store_pixel(
-                out_color[i], out_depth[i], out_normal[i], out_rays[i], out_hits[i],
-                out_steps[i], out_lod[i], col, min(r * scale, 1.0), min(g * scale, 1.0),
-                min(b * scale, 1.0), t_sum, hits, nx_sum, ny_sum, nz_sum,
-                samples + shadow_traversals, hits, steps_sum + shadow_steps, 0,
+        render_direct_light_row(
+            cam, width, height, row0, row1, seed, grid_x, grid_y, inner_nodes, depth,
+            node_coord, albedo, emission, node_is_light, face_corner, face_axis,
+            face_sign, face_radiance, face_cdf, mode, lod_distance, max_refinements,
+            threshold, decay, encoding, oct_map, sh, out_color, out_depth, out_normal,
+            out_rays, out_hits, out_steps, out_lod, out_shadow_rays,
+            out_shadow_traversals, out_shadow_steps, out_shadow_lod, out_refinements,
+            row,
+        )
+
+
+@njit(cache=True, nogil=True)
+def render_direct_light_row(
+
+    cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
+    grid_x: int, grid_y: int,
+    inner_nodes: np.ndarray, depth: int, node_coord: np.ndarray, albedo: np.ndarray,
+    emission: np.ndarray, node_is_light: np.ndarray,
+    face_corner: np.ndarray, face_axis: np.ndarray, face_sign: np.ndarray,
+    face_radiance: np.ndarray, face_cdf: np.ndarray,
+    mode: int, lod_distance: float, max_refinements: int, threshold: float, decay: float,
+    encoding: int, oct_map: np.ndarray, sh: np.ndarray,
+    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
+    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
+    out_shadow_rays: np.ndarray, out_shadow_traversals: np.ndarray,
+    out_shadow_steps: np.ndarray, out_shadow_lod: np.ndarray, out_refinements: np.ndarray,
+    row: int,
+) -> None:
+    """One row of ``render_direct_light_rows`` (the traversal is inlined here, never straight
+    into a ``prange`` body, where Numba's parfor pass would hoist its initialisations)."""
+    samples = grid_x * grid_y
+    scratch = new_scratch(depth)
+    frame_stop, frame_end = new_frames(depth)
+    i = row - row0
+    for col in range(width):
+        pattern = pixel_pattern(row * width + col, seed)
+        light_pattern = hash_u32(pattern + _LIGHT_STREAM)
+        r = 0.0
+        g = 0.0
+        b = 0.0
+        nx_sum = 0.0
+        ny_sum = 0.0
+        nz_sum = 0.0
+        t_sum = 0.0
+        hits = 0
+        steps_sum = 0
+        shadow_traversals = 0
+        shadow_steps = 0
+        lod_sum = 0
+        lod_count = 0
+        refinements = 0
+        for s in range(samples):
+            if samples == 1:
+                fx, fy = 0.5, 0.5
+            else:
+                fx, fy = cmj_sample(s, grid_x, grid_y, pattern)
+            ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
+            node, level, t, normal, steps = trace_ray(
+                ox, oy, oz, dx, dy, dz, 0.0, math.inf, inner_nodes, depth, depth, 0.0, 0.0,
+                scratch,
             )
-            out_shadow_rays[i, col] = lod_count
-            out_shadow_traversals[i, col] = shadow_traversals
-            out_shadow_steps[i, col] = shadow_steps
-            out_shadow_lod[i, col] = lod_sum / lod_count if lod_count else NO_LOD
-            out_refinements[i, col] = refinements
+            steps_sum += steps
+            if node == MISS:
+                continue
+            hits += 1
+            t_sum += t
+            nx, ny, nz = normal_from_code(normal)
+            nx_sum += nx
+            ny_sum += ny
+            nz_sum += nz
+            if node_is_light[node]:
+                r += min(emission[node, 0], 1.0)
+                g += min(emission[node, 1], 1.0)
+                b += min(emission[node, 2], 1.0)
+                continue
+            u, v = cmj_sample(s, grid_x, grid_y, light_pattern)
+            lr, lg, lb, n_steps, n_traversals, lod, n_refined = light_sample(
+                ox + t * dx, oy + t * dy, oz + t * dz, nx, ny, nz, u, v,
+                face_corner, face_axis, face_sign, face_radiance, face_cdf,
+                mode, inner_nodes, depth, node_coord, node_is_light, lod_distance,
+                max_refinements, threshold, decay, encoding, oct_map, sh,
+                scratch, frame_stop, frame_end,
+            )
+            r += albedo[node, 0] * lr
+            g += albedo[node, 1] * lg
+            b += albedo[node, 2] * lb
+            shadow_traversals += n_traversals
+            shadow_steps += n_steps
+            refinements += n_refined
+            if lod != NO_LOD:
+                lod_sum += lod
+                lod_count += 1
+        scale = 1.0 / samples
+        store_pixel(
+            out_color[i], out_depth[i], out_normal[i], out_rays[i], out_hits[i],
+            out_steps[i], out_lod[i], col, min(r * scale, 1.0), min(g * scale, 1.0),
+            min(b * scale, 1.0), t_sum, hits, nx_sum, ny_sum, nz_sum,
+            samples + shadow_traversals, hits, steps_sum + shadow_steps, 0,
+        )
+        out_shadow_rays[i, col] = lod_count
+        out_shadow_traversals[i, col] = shadow_traversals
+        out_shadow_steps[i, col] = shadow_steps
+        out_shadow_lod[i, col] = lod_sum / lod_count if lod_count else NO_LOD
+        out_refinements[i, col] = refinements
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -356,7 +386,7 @@ def direct_light_points(
     samples = grid_x * grid_y
     chunk = 64
     for c in prange((n + chunk - 1) // chunk):
-        s_node, s_level, s_pos, s_t = new_scratch(depth)
+        scratch = new_scratch(depth)
         frame_stop, frame_end = new_frames(depth)
         for k in range(c * chunk, min(n, (c + 1) * chunk)):
             pattern = hash_u32(pixel_pattern(k, seed) + _LIGHT_STREAM)
@@ -374,7 +404,7 @@ def direct_light_points(
                     face_corner, face_axis, face_sign, face_radiance, face_cdf,
                     mode, inner_nodes, depth, node_coord, node_is_light, lod_distance,
                     max_refinements, threshold, decay, encoding, oct_map, sh,
-                    s_node, s_level, s_pos, s_t, frame_stop, frame_end,
+                    scratch, frame_stop, frame_end,
                 )
                 r += lr
                 g += lg

@@ -28,6 +28,7 @@ from voxfield.error_table.lighting import colour_error
 from voxfield.error_table.spherical_harmonics import sh_evaluate
 from voxfield.error_table.table import oct_error, sh_error
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
+from voxfield.kernels.node_descriptor import descriptor_first_child
 from voxfield.kernels.primary import normal_from_code, store_pixel
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
@@ -80,7 +81,7 @@ def node_error(
     error = mask_error(encoding, oct_map, sh, mask, x, y, z)
     if decay == 0.0 or level + 1 >= depth:
         return error
-    first = descriptor >> 8
+    first = descriptor_first_child(descriptor)
     total = 0.0
     count = 0
     for octant in range(8):
@@ -120,7 +121,7 @@ def node_colour_error(
     its own luminance are flagged bright, and the configuration's table error is read."""
     descriptor = inner_nodes[node]
     mask = descriptor & 0xFF
-    first = descriptor >> 8
+    first = descriptor_first_child(descriptor)
     limit = (1.0 + bright_ratio) * luminance(colors, node)
     bright = 0
     slot = 0
@@ -148,7 +149,7 @@ def lighting_node_error(
         return error
     descriptor = inner_nodes[node]
     mask = descriptor & 0xFF
-    first = descriptor >> 8
+    first = descriptor_first_child(descriptor)
     total = 0.0
     count = 0
     for octant in range(8):
@@ -173,132 +174,157 @@ def render_error_aware_rows(
 ) -> None:
     """Trace rows ``[row0, row1)``; ``cone_scale`` > 0 picks the base LOD by pixel cone;
     ``lighting_aware`` adds the bright-flag colour error to the geometric one."""
+    for row in prange(row0, row1):
+        render_error_aware_row(
+            cam, width, height, row0, row1, seed, inner_nodes, depth, base_stop_level,
+            cone_scale, max_refinements, threshold, decay, reuse_parent, encoding,
+            oct_map, sh, children_sh, colors, lighting_aware, bright_ratio, light_map,
+            class_of, symmetry_of, symmetries, out_color, out_depth, out_normal,
+            out_rays, out_hits, out_steps, out_lod, out_refined, out_discarded, row,
+        )
+
+
+@njit(cache=True, nogil=True)
+def render_error_aware_row(
+
+    cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
+    inner_nodes: np.ndarray, depth: int, base_stop_level: int, cone_scale: float,
+    max_refinements: int, threshold: float, decay: float, reuse_parent: bool,
+    encoding: int, oct_map: np.ndarray, sh: np.ndarray, children_sh: np.ndarray,
+    colors: np.ndarray, lighting_aware: bool, bright_ratio: float, light_map: np.ndarray,
+    class_of: np.ndarray, symmetry_of: np.ndarray, symmetries: np.ndarray,
+    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
+    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
+    out_refined: np.ndarray, out_discarded: np.ndarray,
+    row: int,
+) -> None:
+    """One row of ``render_error_aware_rows`` (the traversal is inlined here, never straight
+    into a ``prange`` body, where Numba's parfor pass would hoist its initialisations)."""
     fine = 1 << max_refinements  # finest cells per pixel side
     radius, spread = pixel_cone(cam, height)
     radius *= cone_scale
     spread *= cone_scale
-    for row in prange(row0, row1):
-        s_node, s_level, s_pos, s_t = new_scratch(depth)
-        q_x = np.empty(_QUEUE, np.int64)
-        q_y = np.empty(_QUEUE, np.int64)
-        q_k = np.empty(_QUEUE, np.int64)
-        q_stop = np.empty(_QUEUE, np.int64)
-        q_fx = np.empty(_QUEUE, np.int64)  # reuse: the finest cell the ray goes through
-        q_fy = np.empty(_QUEUE, np.int64)
-        q_tmin = np.empty(_QUEUE, np.float64)  # reuse: where a continued ray resumes
-        q_normal = np.empty(_QUEUE, np.int64)
-        for col in range(width):
-            pixel = row * width + col
-            pattern = pixel_pattern(pixel, seed)
-            r = 0.0
-            g = 0.0
-            b = 0.0
-            nx = 0.0
-            ny = 0.0
-            nz = 0.0
-            t_sum = 0.0
-            t_weight = 0.0
-            rays = 0
-            hits = 0
-            steps_sum = 0
-            refined = 0
-            discarded = 0  # rays that hit but give no sample
-            finest = 127
-            q_x[0] = 0
-            q_y[0] = 0
-            q_k[0] = 0
-            q_stop[0] = base_stop_level
-            q_tmin[0] = _FRESH
+    scratch = new_scratch(depth)
+    q_x = np.empty(_QUEUE, np.int64)
+    q_y = np.empty(_QUEUE, np.int64)
+    q_k = np.empty(_QUEUE, np.int64)
+    q_stop = np.empty(_QUEUE, np.int64)
+    q_fx = np.empty(_QUEUE, np.int64)  # reuse: the finest cell the ray goes through
+    q_fy = np.empty(_QUEUE, np.int64)
+    q_tmin = np.empty(_QUEUE, np.float64)  # reuse: where a continued ray resumes
+    q_normal = np.empty(_QUEUE, np.int64)
+    for col in range(width):
+        pixel = row * width + col
+        pattern = pixel_pattern(pixel, seed)
+        r = 0.0
+        g = 0.0
+        b = 0.0
+        nx = 0.0
+        ny = 0.0
+        nz = 0.0
+        t_sum = 0.0
+        t_weight = 0.0
+        rays = 0
+        hits = 0
+        steps_sum = 0
+        refined = 0
+        discarded = 0  # rays that hit but give no sample
+        finest = 127
+        q_x[0] = 0
+        q_y[0] = 0
+        q_k[0] = 0
+        q_stop[0] = base_stop_level
+        q_tmin[0] = _FRESH
+        if reuse_parent:
+            q_fx[0], q_fy[0] = designated_cell(0, 0, 0, fine, pattern)
+        n = 1
+        while n > 0:
+            n -= 1
+            cx = q_x[n]
+            cy = q_y[n]
+            k = q_k[n]
+            stop = q_stop[n]
+            tmin = q_tmin[n]
+            cell_x = q_fx[n]
+            cell_y = q_fy[n]
+            cells = 1 << k
             if reuse_parent:
-                q_fx[0], q_fy[0] = designated_cell(0, 0, 0, fine, pattern)
-            n = 1
-            while n > 0:
-                n -= 1
-                cx = q_x[n]
-                cy = q_y[n]
-                k = q_k[n]
-                stop = q_stop[n]
-                tmin = q_tmin[n]
-                cell_x = q_fx[n]
-                cell_y = q_fy[n]
-                cells = 1 << k
-                if reuse_parent:
-                    fx, fy = cell_sample(cell_x, cell_y, fine, pattern)
-                elif cells == 4:
-                    fx, fy = cmj_sample(cy * 4 + cx, 4, 4, pattern)
+                fx, fy = cell_sample(cell_x, cell_y, fine, pattern)
+            elif cells == 4:
+                fx, fy = cmj_sample(cy * 4 + cx, 4, 4, pattern)
+            else:
+                fx = (cx + 0.5) / cells
+                fy = (cy + 0.5) / cells
+            ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
+            use_cone = k == 0 and cone_scale > 0.0
+            node, level, t, normal, steps = trace_ray(
+                ox, oy, oz, dx, dy, dz, max(tmin, 0.0), math.inf, inner_nodes, depth, stop,
+                radius if use_cone else 0.0, spread if use_cone else 0.0,
+                scratch,
+            )
+            if tmin == _FRESH:
+                rays += 1
+            elif normal < 0 and t == tmin:
+                normal = q_normal[n]  # entered through the parent's face
+            steps_sum += steps
+            if node == MISS:
+                if tmin != _FRESH:
+                    discarded += 1  # a continued ray: it hit its parent's node
+                continue
+            if k < max_refinements and level < depth:
+                if children_sh.shape[0] > 0:
+                    error = node_error_precomputed(node, level, depth, inner_nodes, decay,
+                                                   sh, children_sh, dx, dy, dz)
                 else:
-                    fx = (cx + 0.5) / cells
-                    fy = (cy + 0.5) / cells
-                ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
-                use_cone = k == 0 and cone_scale > 0.0
-                node, level, t, normal, steps = trace_ray(
-                    ox, oy, oz, dx, dy, dz, max(tmin, 0.0), math.inf, inner_nodes, depth, stop,
-                    radius if use_cone else 0.0, spread if use_cone else 0.0,
-                    s_node, s_level, s_pos, s_t,
-                )
-                if tmin == _FRESH:
-                    rays += 1
-                elif normal < 0 and t == tmin:
-                    normal = q_normal[n]  # entered through the parent's face
-                steps_sum += steps
-                if node == MISS:
-                    if tmin != _FRESH:
-                        discarded += 1  # a continued ray: it hit its parent's node
+                    error = node_error(node, level, depth, inner_nodes, decay, encoding,
+                                       oct_map, sh, dx, dy, dz)
+                if lighting_aware:
+                    error += lighting_node_error(
+                        node, level, depth, inner_nodes, decay, colors, bright_ratio,
+                        light_map, class_of, symmetry_of, symmetries, dx, dy, dz)
+                if error > threshold:
+                    # Discard this sample; its cell is covered by four finer rays.
+                    refined += 1
+                    if not reuse_parent:
+                        discarded += 1
+                    for sub in range(4):
+                        sx = 2 * cx + (sub & 1)
+                        sy = 2 * cy + (sub >> 1)
+                        q_x[n] = sx
+                        q_y[n] = sy
+                        q_k[n] = k + 1
+                        q_stop[n] = level + 1
+                        q_tmin[n] = _FRESH
+                        if reuse_parent:
+                            span = fine >> (k + 1)
+                            if cell_x // span == sx and cell_y // span == sy:
+                                # The parent ray lies in this sub-cell: continue it.
+                                q_fx[n] = cell_x
+                                q_fy[n] = cell_y
+                                q_tmin[n] = t
+                                q_normal[n] = normal
+                            else:
+                                q_fx[n], q_fy[n] = designated_cell(sx, sy, k + 1, fine,
+                                                                   pattern)
+                        n += 1
                     continue
-                if k < max_refinements and level < depth:
-                    if children_sh.shape[0] > 0:
-                        error = node_error_precomputed(node, level, depth, inner_nodes, decay,
-                                                       sh, children_sh, dx, dy, dz)
-                    else:
-                        error = node_error(node, level, depth, inner_nodes, decay, encoding,
-                                           oct_map, sh, dx, dy, dz)
-                    if lighting_aware:
-                        error += lighting_node_error(
-                            node, level, depth, inner_nodes, decay, colors, bright_ratio,
-                            light_map, class_of, symmetry_of, symmetries, dx, dy, dz)
-                    if error > threshold:
-                        # Discard this sample; its cell is covered by four finer rays.
-                        refined += 1
-                        if not reuse_parent:
-                            discarded += 1
-                        for sub in range(4):
-                            sx = 2 * cx + (sub & 1)
-                            sy = 2 * cy + (sub >> 1)
-                            q_x[n] = sx
-                            q_y[n] = sy
-                            q_k[n] = k + 1
-                            q_stop[n] = level + 1
-                            q_tmin[n] = _FRESH
-                            if reuse_parent:
-                                span = fine >> (k + 1)
-                                if cell_x // span == sx and cell_y // span == sy:
-                                    # The parent ray lies in this sub-cell: continue it.
-                                    q_fx[n] = cell_x
-                                    q_fy[n] = cell_y
-                                    q_tmin[n] = t
-                                    q_normal[n] = normal
-                                else:
-                                    q_fx[n], q_fy[n] = designated_cell(sx, sy, k + 1, fine,
-                                                                       pattern)
-                            n += 1
-                        continue
-                weight = 1.0 / (cells * cells)
-                hits += 1
-                r += weight * colors[node, 0]
-                g += weight * colors[node, 1]
-                b += weight * colors[node, 2]
-                t_sum += weight * t
-                t_weight += weight
-                ax, ay, az = normal_from_code(normal)
-                nx += weight * ax
-                ny += weight * ay
-                nz += weight * az
-                lod = depth - level
-                if lod < finest:
-                    finest = lod
-            i = row - row0
-            out_refined[i, col] = refined
-            out_discarded[i, col] = discarded
-            store_pixel(out_color[i], out_depth[i], out_normal[i], out_rays[i], out_hits[i],
-                        out_steps[i], out_lod[i], col, r, g, b, t_sum, t_weight, nx, ny, nz,
-                        rays, hits, steps_sum, finest)
+            weight = 1.0 / (cells * cells)
+            hits += 1
+            r += weight * colors[node, 0]
+            g += weight * colors[node, 1]
+            b += weight * colors[node, 2]
+            t_sum += weight * t
+            t_weight += weight
+            ax, ay, az = normal_from_code(normal)
+            nx += weight * ax
+            ny += weight * ay
+            nz += weight * az
+            lod = depth - level
+            if lod < finest:
+                finest = lod
+        i = row - row0
+        out_refined[i, col] = refined
+        out_discarded[i, col] = discarded
+        store_pixel(out_color[i], out_depth[i], out_normal[i], out_rays[i], out_hits[i],
+                    out_steps[i], out_lod[i], col, r, g, b, t_sum, t_weight, nx, ny, nz,
+                    rays, hits, steps_sum, finest)

@@ -7,6 +7,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from voxfield.kernels.beam import start_distance
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.sampling import cmj_sample, pixel_pattern
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
@@ -61,6 +62,7 @@ def render_pixels(
     side: int, seed: int,
     inner_nodes: np.ndarray, depth: int,
     stop_level: int, cone_scale: float, colors: np.ndarray,
+    beam_bound: np.ndarray, block: int,
     out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
     out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
 ) -> None:
@@ -68,61 +70,85 @@ def render_pixels(
     every flat ``out_*`` array belongs to ``pixels[k]``.
 
     ``cone_scale`` > 0 stops descent where a node is no larger than ``cone_scale`` times the
-    sub-sample footprint; 0 descends to ``stop_level``. Misses contribute black.
+    sub-sample footprint; 0 descends to ``stop_level``. Misses contribute black. Rays of
+    the ``block``×``block`` pixel block ``(by, bx)`` start at ``beam_bound[by, bx]``
+    (``kernels.beam``; zeros start every ray at the camera).
+    """
+    n = pixels.shape[0]
+    chunk = 64
+    for c in prange((n + chunk - 1) // chunk):
+        render_pixel_chunk(
+            cam, width, height, pixels, c * chunk, min(n, (c + 1) * chunk), side, seed,
+            inner_nodes, depth, stop_level, cone_scale, colors, beam_bound, block,
+            out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
+        )
+
+
+@njit(cache=True, nogil=True)
+def render_pixel_chunk(
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, first: int, last: int,
+    side: int, seed: int,
+    inner_nodes: np.ndarray, depth: int,
+    stop_level: int, cone_scale: float, colors: np.ndarray,
+    beam_bound: np.ndarray, block: int,
+    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
+    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
+) -> None:
+    """Pixels ``first..last-1`` of ``render_pixels``: one thread's serial share.
+
+    The traversal is inlined here, never straight into a ``prange`` body: Numba's parfor
+    pass hoists the inlined loop's constant initialisations out of the parallel loop.
     """
     spp = side * side
     radius, spread = pixel_cone(cam, height)
     radius *= cone_scale / side
     spread *= cone_scale / side
-    n = pixels.shape[0]
-    chunk = 64
-    for c in prange((n + chunk - 1) // chunk):
-        s_node, s_level, s_pos, s_t = new_scratch(depth)
-        for i in range(c * chunk, min(n, (c + 1) * chunk)):
-            pixel = pixels[i]
-            row = pixel // width
-            col = pixel - row * width
-            r = 0.0
-            g = 0.0
-            b = 0.0
-            nx = 0.0
-            ny = 0.0
-            nz = 0.0
-            t_sum = 0.0
-            hits = 0
-            steps_sum = 0
-            finest = 127
-            # ``subpixel`` per sample, with the pixel's pattern hashed once per pixel.
-            pattern = pixel_pattern(pixel, seed) if side > 1 else 0
-            for s in range(spp):
-                if side == 1:
-                    fx, fy = 0.5, 0.5
-                else:
-                    fx, fy = cmj_sample(s, side, side, pattern)
-                ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
-                node, level, t, normal, steps = trace_ray(
-                    ox, oy, oz, dx, dy, dz, 0.0, math.inf,
-                    inner_nodes, depth, stop_level, radius, spread,
-                    s_node, s_level, s_pos, s_t,
-                )
-                steps_sum += steps
-                if node == MISS:
-                    continue
-                hits += 1
-                r += colors[node, 0]
-                g += colors[node, 1]
-                b += colors[node, 2]
-                t_sum += t
-                ax, ay, az = normal_from_code(normal)
-                nx += ax
-                ny += ay
-                nz += az
-                lod = depth - level
-                if lod < finest:
-                    finest = lod
-            store_pixel(out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
-                        i, r / spp, g / spp, b / spp, t_sum, hits, nx, ny, nz, spp, hits,
-                        steps_sum, finest)
+    scratch = new_scratch(depth)
+    for i in range(first, last):
+        pixel = pixels[i]
+        row = pixel // width
+        col = pixel - row * width
+        r = 0.0
+        g = 0.0
+        b = 0.0
+        nx = 0.0
+        ny = 0.0
+        nz = 0.0
+        t_sum = 0.0
+        hits = 0
+        steps_sum = 0
+        finest = 127
+        # ``subpixel`` per sample, with the pixel's pattern hashed once per pixel.
+        pattern = pixel_pattern(pixel, seed) if side > 1 else 0
+        t_start = start_distance(beam_bound[row // block, col // block])
+        for s in range(spp):
+            if side == 1:
+                fx, fy = 0.5, 0.5
+            else:
+                fx, fy = cmj_sample(s, side, side, pattern)
+            ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
+            node, level, t, normal, steps = trace_ray(
+                ox, oy, oz, dx, dy, dz, t_start, math.inf,
+                inner_nodes, depth, stop_level, radius, spread, scratch,
+            )
+            steps_sum += steps
+            if node == MISS:
+                continue
+            hits += 1
+            r += colors[node, 0]
+            g += colors[node, 1]
+            b += colors[node, 2]
+            t_sum += t
+            ax, ay, az = normal_from_code(normal)
+            nx += ax
+            ny += ay
+            nz += az
+            lod = depth - level
+            if lod < finest:
+                finest = lod
+        store_pixel(out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
+                    i, r / spp, g / spp, b / spp, t_sum, hits, nx, ny, nz, spp, hits,
+                    steps_sum, finest)
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -136,16 +162,28 @@ def trace_rays(
     n = origins.shape[0]
     chunk = 256
     for c in prange((n + chunk - 1) // chunk):
-        s_node, s_level, s_pos, s_t = new_scratch(depth)
-        for k in range(c * chunk, min(n, (c + 1) * chunk)):
-            node, level, t, normal, steps = trace_ray(
-                origins[k, 0], origins[k, 1], origins[k, 2],
-                directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
-                inner_nodes, depth, stop_level, 0.0, 0.0,
-                s_node, s_level, s_pos, s_t,
-            )
-            out_node[k] = node
-            out_level[k] = level
-            out_t[k] = t
-            out_normal[k] = normal
-            out_steps[k] = steps
+        trace_ray_chunk(origins, directions, c * chunk, min(n, (c + 1) * chunk), tmin, tmax,
+                        inner_nodes, depth, stop_level,
+                        out_node, out_level, out_t, out_normal, out_steps)
+
+
+@njit(cache=True, nogil=True)
+def trace_ray_chunk(
+    origins: np.ndarray, directions: np.ndarray, first: int, last: int,
+    tmin: float, tmax: float, inner_nodes: np.ndarray, depth: int, stop_level: int,
+    out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray,
+) -> None:
+    """Rays ``first..last-1`` of ``trace_rays``."""
+    scratch = new_scratch(depth)
+    for k in range(first, last):
+        node, level, t, normal, steps = trace_ray(
+            origins[k, 0], origins[k, 1], origins[k, 2],
+            directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
+            inner_nodes, depth, stop_level, 0.0, 0.0, scratch,
+        )
+        out_node[k] = node
+        out_level[k] = level
+        out_t[k] = t
+        out_normal[k] = normal
+        out_steps[k] = steps

@@ -113,7 +113,7 @@ def bake_voxel(
     sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
     inner_nodes: np.ndarray, depth: int, y_top: float,
     face_sky: np.ndarray, face_weight: np.ndarray,
-    s_node: np.ndarray, s_level: np.ndarray, s_pos: np.ndarray, s_t: np.ndarray,
+    scratch,
     out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
     out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
 ) -> None:
@@ -157,7 +157,7 @@ def bake_voxel(
                 ox, oy, oz = face_point(x, y, z, f, pu, pv)
                 node, _, _, _, ray_steps = trace_ray(
                     ox, oy, oz, dx, dy, dz, 0.0, (y_top - oy) / dy, inner_nodes, depth,
-                    depth, 0.0, 0.0, s_node, s_level, s_pos, s_t,
+                    depth, 0.0, 0.0, scratch,
                 )
                 steps += ray_steps
                 sky_cast += 1
@@ -200,7 +200,7 @@ def bake_voxel(
                     ox, oy, oz = face_point(x, y, z, f, pu, pv)
                     node, _, _, _, ray_steps = trace_ray(
                         ox, oy, oz, lx, ly, lz, 0.0, (y_top - oy) / ly, inner_nodes, depth,
-                        depth, 0.0, 0.0, s_node, s_level, s_pos, s_t,
+                        depth, 0.0, 0.0, scratch,
                     )
                     steps += ray_steps
                     if node == MISS:
@@ -227,13 +227,13 @@ def bake_sun_visibility(
     n = coords.shape[0]
     block = 32
     for b in prange((n + block - 1) // block):
-        s_node, s_level, s_pos, s_t = new_scratch(depth)
+        scratch = new_scratch(depth)
         face_sky = np.empty(6, np.float64)
         face_weight = np.empty(6, np.float64)
         for i in range(b * block, min(n, (b + 1) * block)):
             bake_voxel(
                 i, coords[i, 0], coords[i, 1], coords[i, 2], voxel_ids[i], faces[i],
                 sun_dirs, sky_rays, shadow_rays, seed, inner_nodes, depth, y_top,
-                face_sky, face_weight, s_node, s_level, s_pos, s_t,
+                face_sky, face_weight, scratch,
                 out_direct, out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps,
             )

@@ -1,15 +1,38 @@
 """Front-to-back SVO traversal with exact, shared slab arithmetic (the watertightness contract).
 
-A ray ``o + t·d`` hits an axis-aligned box when its clipped interval is non-empty:
-``max(t_enter, tmin) < min(t_exit, tmax)``. Each plane's crossing time is computed by one
-formula, ``(plane - o) * inv_d`` in float64, so neighbouring boxes see bit-identical times at
-their shared face; a zero direction component uses the half-open test ``lo <= o < hi``.
+**Contract.** A ray ``o + t·d`` hits an axis-aligned box when its clipped interval is
+non-empty: ``max(t_enter, tmin) < min(t_exit, tmax)``. Every plane's crossing time is computed
+by one formula, ``face_time``: ``(plane - o) * (1 / d)`` in float64 with ``plane`` an integer,
+so neighbouring boxes see bit-identical times at their shared face; a zero direction component
+uses the half-open test ``lo <= o < hi``; a component whose inverse overflows counts as zero.
 Under that contract boxes along a ray have disjoint intervals, the first hit is unique, and
-the brute-force oracle in the tests (same formula, every voxel) must agree exactly.
+the brute-force oracle in the tests (same formula, every voxel) agrees exactly: hit node,
+``t`` bit for bit, and entry face.
 
-Stack entries are nodes whose interval is already known to be non-empty; children of a node
-are pushed in reverse order of entry time, so they pop front to back; the nearest child is
-descended into directly. Direction components whose inverse overflows count as zero.
+**Loop** (after Laine & Karras 2010, in integer coordinates). The current node is one child
+of a parent whose descriptor sits in a register; the ray's sign bits (``flip``) turn "next
+octant along the ray" into an XOR. Each iteration computes the child's three exit times:
+
+- child present and interval non-empty: stop (leaf level, stop level or cone footprint) or
+  descend, picking the child the ray is in from the centre-plane crossing times;
+- otherwise advance: step every axis whose exit is first; if a step leaves the parent, the
+  highest bit in which the old and new integer positions differ names the ancestor to pop
+  to (the stack holds one descriptor per level, written only on descent).
+
+A child's exit never comes after its parent's (same planes or nearer ones, and rounding is
+monotonic), so only the ray's own ``tmax`` clips intervals.
+
+**Steps** (the EA thesis's traversal steps, the cost measure every renderer reports): the
+number of existing nodes with a non-empty interval the traversal enters, the root included,
+up to and including the node it stops at. Empty octants it skips are not counted. The count
+equals that of the textbook stack traversal that visits children front to back.
+
+**Restart.** Consecutive rays of one thread are usually close. Each hit leaves its path (the
+ancestors' descriptors on the stack, the hit node's position) in the per-thread scratch; the
+next ray starts at the deepest of those ancestors whose interval holds its start time, which
+is exactly where a traversal from the root would arrive after entering every ancestor above.
+Results and step counts are therefore identical to a traversal from the root whatever the ray
+order or thread count; only the dependent loads of the descent are saved.
 """
 
 from __future__ import annotations
@@ -18,6 +41,8 @@ import math
 
 import numpy as np
 from numba import njit
+
+from voxfield.kernels.node_descriptor import SOLID_BIT, child_index
 
 MISS = -1
 #: Face-normal codes: 0..5 = -x, +x, -y, +y, -z, +z; -1 = none (origin inside the hit node).
@@ -83,233 +108,291 @@ def box_interval(
     return enter, leave, axis
 
 
-@njit(cache=True, nogil=True)
-def child_slot(mask: int, octant: int) -> int:
-    """Offset of child ``octant`` among the present children (popcount of lower bits)."""
-    below = mask & ((1 << octant) - 1)
-    count = 0
-    while below:
-        below &= below - 1
-        count += 1
-    return count
+@njit(cache=True, nogil=True, inline="always")
+def face_time(plane: int, o: float, inv: float) -> float:
+    """Crossing time of the integer plane ``plane`` on one axis: the contract's one formula."""
+    return (float(plane) - o) * inv
+
+
+@njit(cache=True, nogil=True, inline="always")
+def entry_normal(tex: float, tey: float, tez: float, tmin: float, dx: float, dy: float,
+                 dz: float) -> int:
+    """Face code of the axis whose slab is entered last (first maximum wins), or NO_NORMAL
+    when the ray starts inside the node (entry not after ``tmin``)."""
+    axis = 0
+    enter = tex
+    if tey > enter:
+        enter = tey
+        axis = 1
+    if tez > enter:
+        enter = tez
+        axis = 2
+    if not enter > tmin:
+        return NO_NORMAL
+    d_axis = dx if axis == 0 else (dy if axis == 1 else dz)
+    return 2 * axis + (0 if d_axis > 0.0 else 1)
+
+
+#: Scratch ``path`` slots: the level of the last hit's parent (-1: none), its position.
+_PATH_LEVEL = 0
 
 
 @njit(cache=True, nogil=True)
-def split_axis(
-    o: float, d: float, inv: float, lo: float, mid: float, hi: float
-) -> tuple[float, float, float, float, float, int]:
-    """``axis_interval`` of the low and high half of a slab, plus the order key of the split.
-
-    Returns ``(low_enter, low_exit, high_enter, high_exit, t_mid, first)``: ``t_mid`` is the
-    time the ray crosses ``mid`` (infinite when ``d == 0``: never) and ``first`` the half
-    (0 low, 1 high) the ray is in before that.
-    """
-    if d == 0.0:
-        if lo <= o and o < mid:
-            return -math.inf, math.inf, math.inf, -math.inf, math.inf, 0
-        if mid <= o and o < hi:
-            return math.inf, -math.inf, -math.inf, math.inf, math.inf, 1
-        return math.inf, -math.inf, math.inf, -math.inf, math.inf, 0
-    ta = (lo - o) * inv
-    tm = (mid - o) * inv
-    tb = (hi - o) * inv
-    if inv < 0.0:
-        return tm, ta, tb, tm, tm, 1
-    return ta, tm, tm, tb, tm, 0
+def new_scratch(depth: int):
+    """Per-thread traversal scratch: one descriptor per level (the stack) and the last hit's
+    path (parent level, hit position), used to restart the next ray below the root."""
+    path = np.empty(4, np.int64)
+    path[_PATH_LEVEL] = -1
+    return np.empty(depth + 1, np.int64), path
 
 
-@njit(cache=True, nogil=True)
-def child_interval(
-    octant: int,
-    lex: float, llx: float, hex_: float, hlx: float,
-    ley: float, lly: float, hey: float, hly: float,
-    lez: float, llz: float, hez: float, hlz: float,
-    tmin: float,
-) -> tuple[float, float]:
-    """Clipped entry and exit of child ``octant`` from its axes' half intervals."""
-    if octant & 1:
-        c_enter, c_leave = hex_, hlx
-    else:
-        c_enter, c_leave = lex, llx
-    if octant & 2:
-        c_enter, c_leave = fmax(c_enter, hey), fmin(c_leave, hly)
-    else:
-        c_enter, c_leave = fmax(c_enter, ley), fmin(c_leave, lly)
-    if octant & 4:
-        c_enter, c_leave = fmax(c_enter, hez), fmin(c_leave, hlz)
-    else:
-        c_enter, c_leave = fmax(c_enter, lez), fmin(c_leave, llz)
-    return fmax(c_enter, tmin), c_leave
-
-
-@njit(cache=True, nogil=True, inline='always')
+@njit(cache=True, nogil=True, inline="always")
 def trace_ray(
     ox: float, oy: float, oz: float,
     dx: float, dy: float, dz: float,
     tmin: float, tmax: float,
     inner_nodes: np.ndarray, depth: int,
     stop_level: int, cone_radius: float, cone_spread: float,
-    stack_node: np.ndarray, stack_level: np.ndarray, stack_pos: np.ndarray,
-    stack_t: np.ndarray,
+    scratch,
 ) -> tuple[int, int, float, int, int]:
     """First node hit by a ray, descending until ``stop_level`` or the cone footprint.
 
-    ``inner_nodes`` holds one packed descriptor per inner node, ``first_child << 8 | mask``
-    (``Octree.inner_nodes``): one memory access per visited inner node, none per leaf.
-
     Returns ``(node, level, t_hit, normal_code, steps)``; ``node == MISS`` when nothing is hit.
-    ``steps`` counts every node visited (popped), the EA thesis's traversal steps.
-    The stacks (node, level, position, entry time) are per-thread scratch from
-    ``new_scratch``, allocated once per tile.
-    A node of side ``s`` met at distance ``t`` is sampled as a leaf when
-    ``s <= cone_radius + cone_spread * t`` (set both to 0 for a fixed level).
-
-    Child order without sorting: along each axis the two halves' intervals are
-    ``[t(lo), t_mid)`` and ``[t_mid, t(hi))`` (mirrored for a negative direction) with one
-    shared ``t_mid``, so the child containing time ``t`` flips its bit on an axis exactly
-    when ``t`` passes that axis's ``t_mid``. Every child with a non-empty interval is
-    therefore on the path that starts in the child the ray is in before any split
-    (``first`` bits) and flips the axes in increasing ``t_mid`` order: 4 candidates, front
-    to back (ties only add empty intermediate children). Candidates get the exact interval
-    test of ``child_interval``; non-empty child intervals are disjoint, so the visiting
-    order, the hit and the step count are those of testing all eight children and sorting
-    them by entry time. The nearest hit child is descended into directly and the others are
-    pushed (at most 3 per level).
-    Non-finite inputs (NaN or infinite origin, direction or clip times) miss.
-
-    ``inline='always'`` inlines the traversal into the calling kernels: a call costs more
-    than a short ray (seven array reference-count updates each way).
+    A node of side ``s`` entered at time ``t`` is sampled as a leaf when
+    ``s <= cone_radius + cone_spread * max(t, 0)`` (set both to 0 for a fixed level).
+    ``scratch`` comes from ``new_scratch``, one per thread. Non-finite inputs miss.
     """
+    return traverse(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth, stop_level,
+                    cone_radius, cone_spread, scratch, False)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def occluded(
+    ox: float, oy: float, oz: float,
+    dx: float, dy: float, dz: float,
+    tmin: float, tmax: float,
+    inner_nodes: np.ndarray, depth: int, scratch,
+) -> tuple[bool, int]:
+    """Any-hit query at LOD 0: whether a voxel blocks ``[tmin, tmax)``, and the steps taken.
+
+    Stops at the first occupied node met, not the nearest: a solid node (every voxel of its
+    cube present) counts as a hit the moment the ray enters it, so rays into terrain or
+    walls stop levels above the voxels, and no hit time or normal is worked out.
+    """
+    node, _, _, _, steps = traverse(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth,
+                                    depth, 0.0, 0.0, scratch, True)
+    return node != MISS, steps
+
+
+@njit(cache=True, nogil=True, inline="always")
+def traverse(
+    ox: float, oy: float, oz: float,
+    dx: float, dy: float, dz: float,
+    tmin: float, tmax: float,
+    inner_nodes: np.ndarray, depth: int,
+    stop_level: int, cone_radius: float, cone_spread: float,
+    scratch, any_hit: bool,
+) -> tuple[int, int, float, int, int]:
+    """The loop behind ``trace_ray`` and ``occluded`` (``any_hit`` is a constant at each call
+    site, so each gets its own specialised copy). Any-hit results carry no time or normal."""
     if not (
         math.isfinite(ox) and math.isfinite(oy) and math.isfinite(oz)
         and math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dz)
         and tmin == tmin and tmax == tmax
     ):
         return MISS, 0, math.inf, NO_NORMAL, 0
-    # A component too small to invert (denormal) moves the ray by nothing measurable: zero.
+    stack, path = scratch
     dx = flush_uninvertible(dx)
     dy = flush_uninvertible(dy)
     dz = flush_uninvertible(dz)
-    ix = safe_inverse(dx)
-    iy = safe_inverse(dy)
-    iz = safe_inverse(dz)
-    steps = 0
-    root = float(1 << depth)
-    enter, leave, axis = box_interval(ox, oy, oz, dx, dy, dz, ix, iy, iz, 0.0, 0.0, 0.0, root)
-    if not (max(enter, tmin) < min(leave, tmax)):
-        return MISS, 0, math.inf, NO_NORMAL, steps
-    use_cone = cone_radius > 0.0 or cone_spread > 0.0
+    # A zero component never crosses a plane: its origin moves to the middle of its unit
+    # cell (the same side of every integer plane as before, on none), so its crossing times
+    # are +-inf, never NaN, and the half-open slab test holds.
+    if dx == 0.0:
+        ox = np.floor(ox) + 0.5
+        ix = math.inf
+    else:
+        ix = 1.0 / dx
+    if dy == 0.0:
+        oy = np.floor(oy) + 0.5
+        iy = math.inf
+    else:
+        iy = 1.0 / dy
+    if dz == 0.0:
+        oz = np.floor(oz) + 0.5
+        iz = math.inf
+    else:
+        iz = 1.0 / dz
+    # ``flip`` has a bit per axis the ray runs down; ``exit_*`` is -1 (all bits) where a node
+    # is left through its high face and 0 where through its low face: a node at ``x0`` of
+    # side ``s`` is left at plane ``x0 + (s & exit_x)`` and entered at ``x0 + (s & ~exit_x)``.
+    flip = (1 if dx < 0.0 else 0) | (2 if dy < 0.0 else 0) | (4 if dz < 0.0 else 0)
+    exit_x = 0 if dx < 0.0 else -1
+    exit_y = 0 if dy < 0.0 else -1
+    exit_z = 0 if dz < 0.0 else -1
+    root = 1 << depth
+    tex = face_time(root & ~exit_x, ox, ix)
+    tey = face_time(root & ~exit_y, oy, iy)
+    tez = face_time(root & ~exit_z, oz, iz)
+    t_min = max(max(max(tex, tey), tez), tmin)
+    t_leave = min(min(face_time(root & exit_x, ox, ix), face_time(root & exit_y, oy, iy)),
+                  face_time(root & exit_z, oz, iz))
+    if not t_min < min(t_leave, tmax):
+        path[_PATH_LEVEL] = -1
+        return MISS, 0, math.inf, NO_NORMAL, 0
     stop_level = min(stop_level, depth)
-    # The current node lives in registers; the stack holds the later siblings only.
-    node = 0
+    use_cone = cone_radius > 0.0 or cone_spread > 0.0
+    cone = cone_radius + cone_spread * max(t_min, 0.0)
+    parent = inner_nodes[0] if depth > 0 else 0
+    if (stop_level <= 0 or (use_cone and float(root) <= cone)
+            or (any_hit and (parent & SOLID_BIT) != 0)):
+        path[_PATH_LEVEL] = -1
+        return 0, 0, t_min, entry_normal(tex, tey, tez, tmin, dx, dy, dz), 1
+    # Restart below the root where the last hit's path allows (see the module docstring).
     level = 0
-    px = 0
-    py = 0
-    pz = 0
-    t_near = max(enter, tmin)
-    sp = 0
+    x0 = 0
+    y0 = 0
+    z0 = 0
+    size = root
+    last = path[_PATH_LEVEL]
+    if last > 0:
+        # Deepest level to try: above the stop level and the cone's stopping size, and no
+        # deeper than the smallest node holding this ray's start point and the last hit.
+        hx = path[1]
+        hy = path[2]
+        hz = path[3]
+        qx = min(max(int(np.floor(ox + t_min * dx)), 0), root - 1)
+        qy = min(max(int(np.floor(oy + t_min * dy)), 0), root - 1)
+        qz = min(max(int(np.floor(oz + t_min * dz)), 0), root - 1)
+        diff = (qx ^ hx) | (qy ^ hy) | (qz ^ hz)
+        a = min(last, stop_level - 1)
+        while a > 0 and diff >> (depth - a) != 0:
+            a -= 1
+        while a > 0 and use_cone and float(root >> a) <= cone:
+            a -= 1
+        while a > 0:
+            s = root >> a
+            ax0 = hx & -s
+            ay0 = hy & -s
+            az0 = hz & -s
+            enter = max(max(face_time(ax0 + (s & ~exit_x), ox, ix),
+                            face_time(ay0 + (s & ~exit_y), oy, iy)),
+                        face_time(az0 + (s & ~exit_z), oz, iz))
+            leave = min(min(face_time(ax0 + (s & exit_x), ox, ix),
+                            face_time(ay0 + (s & exit_y), oy, iy)),
+                        face_time(az0 + (s & exit_z), oz, iz))
+            if enter <= t_min and t_min < leave:
+                break
+            a -= 1
+        if any_hit:
+            # The path may come from a closest-hit query, which does not stop at solid nodes.
+            for j in range(a + 1):
+                if stack[j] & SOLID_BIT:
+                    a = 0
+                    break
+        if a > 0:
+            level = a
+            size = root >> a
+            x0 = hx & -size
+            y0 = hy & -size
+            z0 = hz & -size
+            parent = stack[a]
+    steps = level + 1
+    # The current node is child ``idx`` (octant bits) at ``(x0, y0, z0)`` of side ``size`` of
+    # the inner node ``parent`` at ``level``; the ray enters it at ``t_min``.
+    size >>= 1
+    idx = (
+        (1 if face_time(x0 + size, ox, ix) <= t_min else 0)
+        | (2 if face_time(y0 + size, oy, iy) <= t_min else 0)
+        | (4 if face_time(z0 + size, oz, iz) <= t_min else 0)
+    ) ^ flip
+    if idx & 1:
+        x0 += size
+    if idx & 2:
+        y0 += size
+    if idx & 4:
+        z0 += size
     while True:
-        steps += 1
-        size = float(1 << (depth - level))
-        x0 = px * size
-        y0 = py * size
-        z0 = pz * size
-        # Levels at or below the stop level are never read: leaves cost no memory access.
-        is_leaf = level >= stop_level
-        if not is_leaf and use_cone:
-            is_leaf = size <= cone_radius + cone_spread * max(t_near, 0.0)
-        if is_leaf:
-            enter, leave, axis = box_interval(
-                ox, oy, oz, dx, dy, dz, ix, iy, iz, x0, y0, z0, size
-            )
-            normal = NO_NORMAL
-            if enter > tmin:
-                d_axis = dx if axis == 0 else (dy if axis == 1 else dz)
-                normal = 2 * axis + (0 if d_axis > 0.0 else 1)
-            return node, level, t_near, normal, steps
-        descriptor = inner_nodes[node]
-        mask = descriptor & 0xFF
-        base = descriptor >> 8
-        half = size * 0.5
-        lex, llx, hex_, hlx, mx, bx = split_axis(ox, dx, ix, x0, x0 + half, x0 + size)
-        ley, lly, hey, hly, my, by = split_axis(oy, dy, iy, y0, y0 + half, y0 + size)
-        lez, llz, hez, hlz, mz, bz = split_axis(oz, dz, iz, z0, z0 + half, z0 + size)
-        # Flip order: the axes sorted by split time (ties in axis order).
-        if mx <= my:
-            if my <= mz:
-                f0, f1 = 1, 2
-            elif mx <= mz:
-                f0, f1 = 1, 4
-            else:
-                f0, f1 = 4, 1
-        else:
-            if mx <= mz:
-                f0, f1 = 2, 1
-            elif my <= mz:
-                f0, f1 = 2, 4
-            else:
-                f0, f1 = 4, 2
-        c0 = bx | (by << 1) | (bz << 2)
-        level += 1
-        px *= 2
-        py *= 2
-        pz *= 2
-        # Candidates back to front; every hit one but the nearest goes on the stack.
-        pending = -1
-        pending_t = 0.0
-        for k in range(4):
-            if k == 0:
-                octant = c0 ^ 7
-            elif k == 1:
-                octant = c0 ^ f0 ^ f1
-            elif k == 2:
-                octant = c0 ^ f0
-            else:
-                octant = c0
-            if not (mask >> octant) & 1:
-                continue
-            c_near, c_leave = child_interval(
-                octant, lex, llx, hex_, hlx, ley, lly, hey, hly, lez, llz, hez, hlz, tmin
-            )
-            if not (c_near < fmin(c_leave, tmax)):
-                continue
-            if pending >= 0:
-                stack_node[sp] = base + child_slot(mask, pending)
-                stack_level[sp] = level
-                stack_pos[sp, 0] = px + (pending & 1)
-                stack_pos[sp, 1] = py + ((pending >> 1) & 1)
-                stack_pos[sp, 2] = pz + ((pending >> 2) & 1)
-                stack_t[sp] = pending_t
-                sp += 1
-            pending = octant
-            pending_t = c_near
-        if pending >= 0:
-            node = base + child_slot(mask, pending)
-            px += pending & 1
-            py += (pending >> 1) & 1
-            pz += (pending >> 2) & 1
-            t_near = pending_t
+        tx = face_time(x0 + (size & exit_x), ox, ix)
+        ty = face_time(y0 + (size & exit_y), oy, iy)
+        tz = face_time(z0 + (size & exit_z), oz, iz)
+        t_exit = min(min(tx, ty), tz)
+        if (parent >> idx) & 1 and t_min < min(t_exit, tmax):
+            steps += 1
+            node = child_index(parent, idx)
+            if level + 1 >= stop_level or (
+                use_cone and float(size) <= cone_radius + cone_spread * max(t_min, 0.0)
+            ):
+                stack[level] = parent
+                path[_PATH_LEVEL] = level
+                path[1] = x0
+                path[2] = y0
+                path[3] = z0
+                if any_hit:
+                    return node, level + 1, t_min, NO_NORMAL, steps
+                tex = face_time(x0 + (size & ~exit_x), ox, ix)
+                tey = face_time(y0 + (size & ~exit_y), oy, iy)
+                tez = face_time(z0 + (size & ~exit_z), oz, iz)
+                normal = entry_normal(tex, tey, tez, tmin, dx, dy, dz)
+                return node, level + 1, t_min, normal, steps
+            # Descend: remember the parent for the pop, then pick the child the ray is in.
+            stack[level] = parent
+            parent = inner_nodes[node]
+            level += 1
+            if any_hit and (parent & SOLID_BIT) != 0:
+                path[_PATH_LEVEL] = level - 1
+                path[1] = x0
+                path[2] = y0
+                path[3] = z0
+                return node, level, t_min, NO_NORMAL, steps
+            size >>= 1
+            idx = (
+                (1 if face_time(x0 + size, ox, ix) <= t_min else 0)
+                | (2 if face_time(y0 + size, oy, iy) <= t_min else 0)
+                | (4 if face_time(z0 + size, oz, iz) <= t_min else 0)
+            ) ^ flip
+            if idx & 1:
+                x0 += size
+            if idx & 2:
+                y0 += size
+            if idx & 4:
+                z0 += size
             continue
-        if sp == 0:
+        # Advance to the next node along the ray: step every axis whose exit comes first.
+        step = ((1 if tx <= t_exit else 0) | (2 if ty <= t_exit else 0)
+                | (4 if tz <= t_exit else 0))
+        t_min = t_exit
+        if not t_min < tmax:
             break
-        sp -= 1
-        node = stack_node[sp]
-        level = stack_level[sp]
-        px = stack_pos[sp, 0]
-        py = stack_pos[sp, 1]
-        pz = stack_pos[sp, 2]
-        t_near = stack_t[sp]
+        nx = x0
+        ny = y0
+        nz = z0
+        if step & 1:
+            nx = x0 - size if flip & 1 else x0 + size
+        if step & 2:
+            ny = y0 - size if flip & 2 else y0 + size
+        if step & 4:
+            nz = z0 - size if flip & 4 else z0 + size
+        if (idx ^ flip) & step:
+            # Left the parent: the highest bit in which the positions differ names the
+            # level of the first ancestor that holds the new position.
+            diff = (x0 ^ nx) | (y0 ^ ny) | (z0 ^ nz)
+            h = depth - level - 1
+            while h < depth and diff >> (h + 1):  # a negative diff: left the root
+                h += 1
+            if h >= depth:
+                break
+            level = depth - h - 1
+            parent = stack[level]
+            size = 1 << h
+            x0 = nx & -size
+            y0 = ny & -size
+            z0 = nz & -size
+            idx = ((x0 >> h) & 1) | (((y0 >> h) & 1) << 1) | (((z0 >> h) & 1) << 2)
+        else:
+            idx ^= step
+            x0 = nx
+            y0 = ny
+            z0 = nz
+    path[_PATH_LEVEL] = -1
     return MISS, 0, math.inf, NO_NORMAL, steps
-
-
-@njit(cache=True, nogil=True)
-def new_scratch(depth: int):
-    """Per-thread traversal stacks (node, level, position, entry time): at most 3 siblings
-    wait per level, so 4 entries per level is ample."""
-    cap = 4 * (depth + 1) + 1
-    return (
-        np.empty(cap, np.int64),
-        np.empty(cap, np.int64),
-        np.empty((cap, 3), np.int64),
-        np.empty(cap, np.float64),
-    )

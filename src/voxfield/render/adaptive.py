@@ -16,6 +16,7 @@ from scipy import ndimage
 
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.primary import render_pixels
+from voxfield.render.beam import plan_beam
 from voxfield.render.camera import Camera
 from voxfield.render.renderers import render_lod, thread_count
 from voxfield.render.result import RenderResult
@@ -109,10 +110,13 @@ def _refine(octree, camera, pixels, side, seed, colors, result, threads) -> None
     hits = np.empty(n, np.int32)
     steps = np.empty(n, np.int64)
     lod = np.empty(n, np.int8)
+    pixels = pixels.astype(np.int64)
     with thread_count(threads):
-        render_pixels(camera.params, camera.width, camera.height, pixels.astype(np.int64), side,
+        beam = plan_beam(octree, camera, stop_level=octree.depth, pixels=pixels)
+        render_pixels(camera.params, camera.width, camera.height, pixels, side,
                       seed, octree.inner_nodes, octree.depth, octree.depth, 0.0, colors,
-                      color, depth, normal, rays, hits, steps, lod)
+                      beam.bound, beam.block, color, depth, normal, rays, hits, steps, lod)
+    steps += beam.pixel_steps(pixels, camera.width)
     flat = {name: getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])
             for name in ("image", "depth", "normal", "ray_count", "hit_count", "steps",
                          "finest_lod")}

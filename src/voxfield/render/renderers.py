@@ -9,8 +9,10 @@ import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.camera_rays import pixel_cone
 from voxfield.kernels.primary import render_pixels
 from voxfield.progress import progress_bar
+from voxfield.render.beam import no_beam, plan_beam
 from voxfield.render.camera import Camera
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
@@ -37,23 +39,36 @@ def thread_count(threads: int | None):
 def trace_image(
     octree: Octree, camera: Camera, *, side: int, stop_level: int, cone_scale: float,
     seed: int, channel: str = "albedo", threads: int | None = None,
-    progress: bool = False, label: str = "render",
+    progress: bool = False, label: str = "render", beam: bool = True,
 ) -> RenderResult:
-    """Trace ``side²`` rays per pixel; the shared engine of the reference and LOD renderers."""
+    """Trace ``side²`` rays per pixel; the shared engine of the reference and LOD renderers.
+
+    ``beam`` starts the rays of each pixel block at its beam bound (``render.beam``): the
+    same image, fewer steps.
+    """
     if side < 1 or side > 16:
         raise VoxfieldError(f"samples per pixel side must be in 1..16, got {side}")
     colors = octree.channel(channel)
     h, w = camera.height, camera.width
     result = RenderResult.allocate(h, w)
     cam = camera.params
-    args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors)
+    radius, spread = pixel_cone(cam, h)
+    radius *= cone_scale / side
+    spread *= cone_scale / side
+    with thread_count(threads):
+        bounds = (plan_beam(octree, camera, stop_level=stop_level, cone_radius=radius,
+                            cone_spread=spread) if beam else no_beam(camera))
+    args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors, bounds.bound,
+            bounds.block)
 
     def band(rows: slice) -> None:
         pixels = np.arange(rows.start * w, rows.stop * w, dtype=np.int64)
         flat = (b.reshape(len(pixels), *b.shape[2:]) for b in result.buffers(rows))
         render_pixels(cam, w, h, pixels, side, seed, *args, *flat)
 
-    result.seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress)
+    seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress)
+    result.seconds = seconds + bounds.seconds
+    result.steps += bounds.pixel_steps(np.arange(h * w), w).reshape(h, w)
     return result
 
 

@@ -14,6 +14,8 @@ from functools import cached_property
 
 import numpy as np
 
+from voxfield.kernels.node_descriptor import pack_descriptors
+
 
 @dataclass(frozen=True)
 class Octree:
@@ -44,11 +46,25 @@ class Octree:
 
     @cached_property
     def inner_nodes(self) -> np.ndarray:
-        """Packed ``first_child << 8 | child_mask`` per inner node (levels 0..depth-1), the
-        layout the traversal kernels read: one 8-byte load per visited node."""
+        """One packed descriptor per inner node (levels 0..depth-1), the layout the
+        traversal kernels read (``kernels.node_descriptor``)."""
         inner = int(self.level_offsets[-2])
-        packed = self.first_child[:inner].astype(np.uint64) << np.uint64(8)
-        return (packed | self.child_mask[:inner].astype(np.uint64)).astype(np.int64)
+        return pack_descriptors(self.child_mask[:inner], self.first_child[:inner],
+                                self.solid_nodes()[:inner])
+
+    def solid_nodes(self) -> np.ndarray:
+        """Per node: is every voxel of its cube present? Voxels are; an inner node is when
+        all eight children are solid."""
+        solid = np.ones(self.node_count, bool)
+        for level in range(self.depth - 1, -1, -1):
+            sl = self.level_slice(level)
+            full = np.flatnonzero(self.child_mask[sl] == 0xFF)
+            level_solid = np.zeros(sl.stop - sl.start, bool)
+            if len(full):
+                children = self.first_child[sl][full].astype(np.int64)[:, None] + np.arange(8)
+                level_solid[full] = solid[children].all(axis=1)
+            solid[sl] = level_solid
+        return solid
 
     @property
     def voxel_bounds(self) -> tuple[np.ndarray, np.ndarray]:

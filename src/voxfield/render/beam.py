@@ -1,0 +1,91 @@
+"""Beam bounds for an image: where the primary rays of each pixel block may start.
+
+The bound itself (``kernels.beam``) is exact: starting there changes no hit, distance or
+normal, only the traversal steps. The beam's own search steps are part of the render's cost,
+so they are shared out over the pixels of their block and added to the step map.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from voxfield.kernels.beam import beam_map
+from voxfield.render.camera import Camera
+from voxfield.svo.octree import Octree
+
+#: Block sides of the beam passes, coarse to fine; each starts at its parent's bound.
+BEAM_BLOCKS = (8, 4, 2)
+
+
+@dataclass
+class Beam:
+    """Start bounds per ``block``×``block`` pixel block (``bound[by, bx]``, 0 where unknown)
+    and the search steps of every pass, shared out over the pixels (``pixel_steps``)."""
+
+    bound: np.ndarray
+    block: int
+    steps: list = field(default_factory=list)  # (block side, steps per block) per pass
+    seconds: float = 0.0
+
+    @property
+    def total_steps(self) -> int:
+        return int(sum(s.sum() for _, s in self.steps))
+
+    def pixel_steps(self, pixels: np.ndarray, width: int) -> np.ndarray:
+        """Every pass's search steps shared out over the listed pixels (flat indices) of
+        their block: an equal part each, the remainder one by one in list order."""
+        pixels = np.asarray(pixels, np.int64)
+        total = np.zeros(len(pixels), np.int64)
+        rows, cols = np.divmod(pixels, width)
+        for block, steps in self.steps:
+            blocks = (rows // block) * steps.shape[1] + cols // block
+            counts = np.bincount(blocks, minlength=steps.size)
+            share, remainder = np.divmod(steps.reshape(-1), np.maximum(counts, 1))
+            order = np.argsort(blocks, kind="stable")
+            rank = np.empty(len(pixels), np.int64)
+            starts = np.concatenate(([0], np.cumsum(counts)[:-1]))
+            rank[order] = np.arange(len(pixels)) - np.repeat(starts, counts)
+            total += share[blocks] + (rank < remainder[blocks])
+        return total
+
+
+def blocks_of(camera: Camera, block: int) -> tuple[int, int]:
+    return -(-camera.height // block), -(-camera.width // block)
+
+
+def no_beam(camera: Camera) -> Beam:
+    """Every ray starts at the camera."""
+    return Beam(np.zeros((1, 1)), max(camera.width, camera.height))
+
+
+def plan_beam(
+    octree: Octree, camera: Camera, *, stop_level: int, cone_radius: float = 0.0,
+    cone_spread: float = 0.0, pixels: np.ndarray | None = None,
+    blocks: tuple[int, ...] | None = None,
+) -> Beam:
+    """Beam bounds for the blocks holding ``pixels`` (all blocks when None) of rays that
+    stop at ``stop_level`` or where a node is no larger than
+    ``cone_radius + cone_spread · t``; one pass per block side in ``blocks``."""
+    beam = no_beam(camera)
+    start = time.perf_counter()
+    for block in BEAM_BLOCKS if blocks is None else blocks:
+        shape = blocks_of(camera, block)
+        if pixels is None:
+            wanted = np.ones(shape, bool)
+        else:
+            wanted = np.zeros(shape, bool)
+            rows, cols = np.divmod(np.asarray(pixels, np.int64), camera.width)
+            wanted[rows // block, cols // block] = True
+        bound = np.empty(shape)
+        steps = np.empty(shape, np.int64)
+        beam_map(camera.params, camera.width, camera.height, block, octree.inner_nodes,
+                 octree.depth, stop_level, float(cone_radius), float(cone_spread), wanted,
+                 beam.bound, beam.block, bound, steps)
+        beam.bound = bound
+        beam.block = block
+        beam.steps.append((block, steps))
+    beam.seconds = time.perf_counter() - start
+    return beam
