@@ -277,7 +277,6 @@ def render_direct_light_rows(
 
 @njit(cache=True, nogil=True)
 def render_direct_light_row(
-
     cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
     grid_x: int, grid_y: int,
     inner_nodes: np.ndarray, depth: int, node_coord: np.ndarray, albedo: np.ndarray,

@@ -27,6 +27,7 @@ from numba import njit, prange
 from voxfield.error_table.lighting import colour_error
 from voxfield.error_table.spherical_harmonics import sh_evaluate
 from voxfield.error_table.table import oct_error, sh_error
+from voxfield.kernels.beam import start_distance
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.node_descriptor import descriptor_first_child
 from voxfield.kernels.primary import normal_from_code, store_pixel
@@ -168,6 +169,7 @@ def render_error_aware_rows(
     encoding: int, oct_map: np.ndarray, sh: np.ndarray, children_sh: np.ndarray,
     colors: np.ndarray, lighting_aware: bool, bright_ratio: float, light_map: np.ndarray,
     class_of: np.ndarray, symmetry_of: np.ndarray, symmetries: np.ndarray,
+    beam_bound: np.ndarray, block: int,
     out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
     out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
     out_refined: np.ndarray, out_discarded: np.ndarray,
@@ -179,20 +181,20 @@ def render_error_aware_rows(
             cam, width, height, row0, row1, seed, inner_nodes, depth, base_stop_level,
             cone_scale, max_refinements, threshold, decay, reuse_parent, encoding,
             oct_map, sh, children_sh, colors, lighting_aware, bright_ratio, light_map,
-            class_of, symmetry_of, symmetries, out_color, out_depth, out_normal,
-            out_rays, out_hits, out_steps, out_lod, out_refined, out_discarded, row,
+            class_of, symmetry_of, symmetries, beam_bound, block, out_color, out_depth,
+            out_normal, out_rays, out_hits, out_steps, out_lod, out_refined, out_discarded, row,
         )
 
 
 @njit(cache=True, nogil=True)
 def render_error_aware_row(
-
     cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
     inner_nodes: np.ndarray, depth: int, base_stop_level: int, cone_scale: float,
     max_refinements: int, threshold: float, decay: float, reuse_parent: bool,
     encoding: int, oct_map: np.ndarray, sh: np.ndarray, children_sh: np.ndarray,
     colors: np.ndarray, lighting_aware: bool, bright_ratio: float, light_map: np.ndarray,
     class_of: np.ndarray, symmetry_of: np.ndarray, symmetries: np.ndarray,
+    beam_bound: np.ndarray, block: int,
     out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
     out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
     out_refined: np.ndarray, out_discarded: np.ndarray,
@@ -216,6 +218,7 @@ def render_error_aware_row(
     for col in range(width):
         pixel = row * width + col
         pattern = pixel_pattern(pixel, seed)
+        t_start = start_distance(beam_bound[row // block, col // block])
         r = 0.0
         g = 0.0
         b = 0.0
@@ -258,7 +261,7 @@ def render_error_aware_row(
             ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
             use_cone = k == 0 and cone_scale > 0.0
             node, level, t, normal, steps = trace_ray(
-                ox, oy, oz, dx, dy, dz, max(tmin, 0.0), math.inf, inner_nodes, depth, stop,
+                ox, oy, oz, dx, dy, dz, max(tmin, t_start), math.inf, inner_nodes, depth, stop,
                 radius if use_cone else 0.0, spread if use_cone else 0.0,
                 scratch,
             )

@@ -16,7 +16,7 @@ from scipy import ndimage
 
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.primary import render_pixels
-from voxfield.render.beam import plan_beam
+from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
 from voxfield.render.renderers import render_lod, thread_count
 from voxfield.render.result import RenderResult
@@ -112,7 +112,7 @@ def _refine(octree, camera, pixels, side, seed, colors, result, threads) -> None
     lod = np.empty(n, np.int8)
     pixels = pixels.astype(np.int64)
     with thread_count(threads):
-        beam = plan_beam(octree, camera, stop_level=octree.depth, pixels=pixels)
+        beam = primary_beam(octree, camera, stop_level=octree.depth, side=side, pixels=pixels)
         render_pixels(camera.params, camera.width, camera.height, pixels, side,
                       seed, octree.inner_nodes, octree.depth, octree.depth, 0.0, colors,
                       beam.bound, beam.block, color, depth, normal, rays, hits, steps, lod)

@@ -13,11 +13,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from voxfield.kernels.beam import beam_map
+from voxfield.kernels.camera_rays import pixel_cone
 from voxfield.render.camera import Camera
 from voxfield.svo.octree import Octree
 
-#: Block sides of the beam passes, coarse to fine; each starts at its parent's bound.
-BEAM_BLOCKS = (8, 4, 2)
+#: Block sides of the beam passes, coarse to fine, each starting at its parent's bound: one
+#: 8×8 pass for one ray per pixel; with several rays per pixel a 4×4 pass pays off as well
+#: (measured on the mountain terrain, benchmarks/bench_traversal.py).
+BEAM_BLOCKS = (8,)
+BEAM_BLOCKS_SUPERSAMPLED = (8, 4)
 
 
 @dataclass
@@ -64,14 +68,14 @@ def no_beam(camera: Camera) -> Beam:
 def plan_beam(
     octree: Octree, camera: Camera, *, stop_level: int, cone_radius: float = 0.0,
     cone_spread: float = 0.0, pixels: np.ndarray | None = None,
-    blocks: tuple[int, ...] | None = None,
+    blocks: tuple[int, ...] = BEAM_BLOCKS,
 ) -> Beam:
     """Beam bounds for the blocks holding ``pixels`` (all blocks when None) of rays that
     stop at ``stop_level`` or where a node is no larger than
     ``cone_radius + cone_spread · t``; one pass per block side in ``blocks``."""
     beam = no_beam(camera)
     start = time.perf_counter()
-    for block in BEAM_BLOCKS if blocks is None else blocks:
+    for block in blocks:
         shape = blocks_of(camera, block)
         if pixels is None:
             wanted = np.ones(shape, bool)
@@ -89,3 +93,19 @@ def plan_beam(
         beam.steps.append((block, steps))
     beam.seconds = time.perf_counter() - start
     return beam
+
+
+def primary_beam(
+    octree: Octree, camera: Camera, *, stop_level: int, cone_scale: float = 0.0,
+    side: int = 1, pixels: np.ndarray | None = None, enabled: bool = True,
+) -> Beam:
+    """The beam every primary-ray renderer uses, so that all count steps alike: rays that
+    stop at ``stop_level`` or, with ``cone_scale`` > 0, where a node is no larger than
+    ``cone_scale`` footprints of a ``1/side`` sub-pixel."""
+    if not enabled:
+        return no_beam(camera)
+    radius, spread = pixel_cone(camera.params, camera.height)
+    blocks = BEAM_BLOCKS if side == 1 else BEAM_BLOCKS_SUPERSAMPLED
+    return plan_beam(octree, camera, stop_level=stop_level,
+                     cone_radius=radius * cone_scale / side,
+                     cone_spread=spread * cone_scale / side, pixels=pixels, blocks=blocks)

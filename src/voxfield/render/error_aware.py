@@ -13,8 +13,9 @@ from voxfield.kernels.error_aware import (
     MAX_REFINEMENTS,
     render_error_aware_rows,
 )
+from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
-from voxfield.render.renderers import run_in_bands
+from voxfield.render.renderers import run_in_bands, thread_count
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
 
@@ -75,14 +76,18 @@ def render_error_aware(
         colors, bool(lighting_aware), float(bright_ratio), *light,
     )
     cam = camera.params
+    with thread_count(threads):
+        beam = primary_beam(octree, camera, stop_level=stop_level,
+                            cone_scale=cone_scale if base_lod is None else 0.0)
 
     def band(rows: slice) -> None:
         render_error_aware_rows(cam, w, h, rows.start, rows.stop, seed, *args,
-                                *result.buffers(rows), refined[rows],
+                                beam.bound, beam.block, *result.buffers(rows), refined[rows],
                                 discarded[rows])
 
-    result.seconds = run_in_bands(h, band, label="error-aware", threads=threads,
-                                  progress=progress)
+    result.seconds = beam.seconds + run_in_bands(h, band, label="error-aware", threads=threads,
+                                                 progress=progress)
+    result.steps += beam.pixel_steps(np.arange(h * w), w).reshape(h, w)
     result.params = {
         "threshold": float(threshold), "decay": float(decay),
         "base_lod": "cone" if base_lod is None else base_lod, "max_refinements": max_refinements,

@@ -9,10 +9,9 @@ import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.camera_rays import pixel_cone
 from voxfield.kernels.primary import render_pixels
 from voxfield.progress import progress_bar
-from voxfield.render.beam import no_beam, plan_beam
+from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
@@ -52,12 +51,9 @@ def trace_image(
     h, w = camera.height, camera.width
     result = RenderResult.allocate(h, w)
     cam = camera.params
-    radius, spread = pixel_cone(cam, h)
-    radius *= cone_scale / side
-    spread *= cone_scale / side
     with thread_count(threads):
-        bounds = (plan_beam(octree, camera, stop_level=stop_level, cone_radius=radius,
-                            cone_spread=spread) if beam else no_beam(camera))
+        bounds = primary_beam(octree, camera, stop_level=stop_level, cone_scale=cone_scale,
+                              side=side, enabled=beam)
     args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors, bounds.bound,
             bounds.block)
 
