@@ -58,7 +58,7 @@ def store_pixel(
 
 @njit(parallel=True, cache=True, nogil=True)
 def render_pixels(
-    cam: np.ndarray, width: int, height: int, pixels: np.ndarray,
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
     side: int, seed: int,
     inner_nodes: np.ndarray, depth: int,
     stop_level: int, cone_scale: float, colors: np.ndarray,
@@ -66,8 +66,10 @@ def render_pixels(
     out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
     out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
 ) -> None:
-    """Trace the listed pixels (flat indices) with side×side samples each; output ``k`` of
-    every flat ``out_*`` array belongs to ``pixels[k]``.
+    """Trace the listed pixels (flat indices) with side×side samples each, in list order
+    (so a list in tile order keeps neighbouring rays together); pixel ``pixels[k]`` goes to
+    entry ``pixels[k] - out_base`` of every flat ``out_*`` array, or to entry ``k`` when
+    ``out_base`` is negative.
 
     ``cone_scale`` > 0 stops descent where a node is no larger than ``cone_scale`` times the
     sub-sample footprint; 0 descends to ``stop_level``. Misses contribute black. Rays of
@@ -78,7 +80,7 @@ def render_pixels(
     chunk = 64
     for c in prange((n + chunk - 1) // chunk):
         render_pixel_chunk(
-            cam, width, height, pixels, c * chunk, min(n, (c + 1) * chunk), side, seed,
+            cam, width, height, pixels, out_base, c * chunk, min(n, (c + 1) * chunk), side, seed,
             inner_nodes, depth, stop_level, cone_scale, colors, beam_bound, block,
             out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
         )
@@ -86,8 +88,8 @@ def render_pixels(
 
 @njit(cache=True, nogil=True)
 def render_pixel_chunk(
-    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, first: int, last: int,
-    side: int, seed: int,
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
+    first: int, last: int, side: int, seed: int,
     inner_nodes: np.ndarray, depth: int,
     stop_level: int, cone_scale: float, colors: np.ndarray,
     beam_bound: np.ndarray, block: int,
@@ -147,8 +149,8 @@ def render_pixel_chunk(
             if lod < finest:
                 finest = lod
         store_pixel(out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
-                    i, r / spp, g / spp, b / spp, t_sum, hits, nx, ny, nz, spp, hits,
-                    steps_sum, finest)
+                    i if out_base < 0 else pixel - out_base, r / spp, g / spp, b / spp, t_sum,
+                    hits, nx, ny, nz, spp, hits, steps_sum, finest)
 
 
 @njit(parallel=True, cache=True, nogil=True)

@@ -39,7 +39,7 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
-from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
+from voxfield.kernels.traversal import new_scratch, occluded
 
 _GOLDEN = 0x9E3779B9
 _POSITION_SALT = 0x68E31DA4
@@ -155,13 +155,12 @@ def bake_voxel(
                     continue  # it would see the ground at best: no sky, no need to trace
                 pu, pv = face_sample(s, count, position_pattern)
                 ox, oy, oz = face_point(x, y, z, f, pu, pv)
-                node, _, _, _, ray_steps = trace_ray(
-                    ox, oy, oz, dx, dy, dz, 0.0, (y_top - oy) / dy, inner_nodes, depth,
-                    depth, 0.0, 0.0, scratch,
+                blocked, ray_steps = occluded(
+                    ox, oy, oz, dx, dy, dz, 0.0, (y_top - oy) / dy, inner_nodes, depth, scratch,
                 )
                 steps += ray_steps
                 sky_cast += 1
-                if node == MISS:
+                if not blocked:
                     escaped += 1
             face_sky[f] = escaped / count
             face_weight[f] = face_sky[f]
@@ -198,12 +197,12 @@ def bake_voxel(
                 for s in range(shadow_rays):
                     pu, pv = face_sample(s, shadow_rays, shadow_pattern)
                     ox, oy, oz = face_point(x, y, z, f, pu, pv)
-                    node, _, _, _, ray_steps = trace_ray(
+                    blocked, ray_steps = occluded(
                         ox, oy, oz, lx, ly, lz, 0.0, (y_top - oy) / ly, inner_nodes, depth,
-                        depth, 0.0, 0.0, scratch,
+                        scratch,
                     )
                     steps += ray_steps
-                    if node == MISS:
+                    if not blocked:
                         unblocked += 1
                 shadow_cast += shadow_rays
                 direct += face_weight[f] * cos_theta * (unblocked / shadow_rays)

@@ -79,10 +79,12 @@ def safe_inverse(d: float) -> float:
     return 1.0 / d if d != 0.0 else math.inf
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def flush_uninvertible(d: float) -> float:
     """``d``, or 0 when ``1 / d`` overflows (|d| below ~5.6e-309), so no crossing is NaN."""
-    return d if d == 0.0 or math.isfinite(1.0 / d) else 0.0
+    if d != 0.0 and abs(d) < 1e-300 and not math.isfinite(1.0 / d):
+        return 0.0
+    return d
 
 
 @njit(cache=True, nogil=True)
@@ -106,6 +108,25 @@ def box_interval(
         axis = 2
     leave = fmin(fmin(ax1, ay1), az1)
     return enter, leave, axis
+
+
+@njit(cache=True, nogil=True, inline="always")
+def highest_bit(x: int) -> int:
+    """Index of the highest set bit of ``0 < x < 2**32`` (branch-free: smear, then count)."""
+    x |= x >> 1
+    x |= x >> 2
+    x |= x >> 4
+    x |= x >> 8
+    x |= x >> 16
+    return popcount32(x) - 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def popcount32(x: int) -> int:
+    x = x - ((x >> 1) & 0x55555555)
+    x = (x & 0x33333333) + ((x >> 2) & 0x33333333)
+    x = (x + (x >> 4)) & 0x0F0F0F0F
+    return ((x * 0x01010101) & 0xFFFFFFFF) >> 24
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -133,17 +154,25 @@ def entry_normal(tex: float, tey: float, tez: float, tmin: float, dx: float, dy:
     return 2 * axis + (0 if d_axis > 0.0 else 1)
 
 
-#: Scratch ``path`` slots: the level of the last hit's parent (-1: none), its position.
+#: Scratch ``path`` slots: the level of the last hit's parent (-1: none) and the hit node's
+#: position; then the same for the last any-hit ray's start node.
 _PATH_LEVEL = 0
+_START_LEVEL = 4
 
 
 @njit(cache=True, nogil=True)
 def new_scratch(depth: int):
-    """Per-thread traversal scratch: one descriptor per level (the stack) and the last hit's
-    path (parent level, hit position), used to restart the next ray below the root."""
-    path = np.empty(4, np.int64)
+    """Per-thread traversal scratch: one descriptor per level (the stack), the restart paths
+    (``path``) and the descriptors of the last any-hit start path.
+
+    Closest-hit rays restart from the last hit: the next primary ray usually hits near it.
+    Any-hit rays (shadow and sky rays) restart from the last one's start node: they leave
+    from neighbouring surface points and mostly hit nothing.
+    """
+    path = np.empty(8, np.int64)
     path[_PATH_LEVEL] = -1
-    return np.empty(depth + 1, np.int64), path
+    path[_START_LEVEL] = -1
+    return np.empty(depth + 1, np.int64), path, np.empty(depth + 1, np.int64)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -201,7 +230,9 @@ def traverse(
         and tmin == tmin and tmax == tmax
     ):
         return MISS, 0, math.inf, NO_NORMAL, 0
-    stack, path = scratch
+    stack, path, start_stack = scratch
+    if any_hit:
+        path[_PATH_LEVEL] = -1  # any-hit rays do not keep the stack a closest hit left
     dx = flush_uninvertible(dx)
     dy = flush_uninvertible(dy)
     dz = flush_uninvertible(dz)
@@ -254,13 +285,14 @@ def traverse(
     y0 = 0
     z0 = 0
     size = root
-    last = path[_PATH_LEVEL]
+    last = path[_START_LEVEL if any_hit else _PATH_LEVEL]
     if last > 0:
         # Deepest level to try: above the stop level and the cone's stopping size, and no
-        # deeper than the smallest node holding this ray's start point and the last hit.
-        hx = path[1]
-        hy = path[2]
-        hz = path[3]
+        # deeper than the smallest node holding this ray's start point and the path's end.
+        base = _START_LEVEL if any_hit else _PATH_LEVEL
+        hx = path[base + 1]
+        hy = path[base + 2]
+        hz = path[base + 3]
         qx = min(max(int(np.floor(ox + t_min * dx)), 0), root - 1)
         qy = min(max(int(np.floor(oy + t_min * dy)), 0), root - 1)
         qz = min(max(int(np.floor(oz + t_min * dz)), 0), root - 1)
@@ -284,19 +316,18 @@ def traverse(
             if enter <= t_min and t_min < leave:
                 break
             a -= 1
-        if any_hit:
-            # The path may come from a closest-hit query, which does not stop at solid nodes.
-            for j in range(a + 1):
-                if stack[j] & SOLID_BIT:
-                    a = 0
-                    break
         if a > 0:
+            if any_hit:
+                # Nodes on an any-hit start path were entered without stopping: not solid.
+                for j in range(a + 1):
+                    stack[j] = start_stack[j]
             level = a
             size = root >> a
             x0 = hx & -size
             y0 = hy & -size
             z0 = hz & -size
             parent = stack[a]
+    started = not any_hit  # any-hit rays record their start path at their first advance
     steps = level + 1
     # The current node is child ``idx`` (octant bits) at ``(x0, y0, z0)`` of side ``size`` of
     # the inner node ``parent`` at ``level``; the ray enters it at ``t_min``.
@@ -323,13 +354,13 @@ def traverse(
             if level + 1 >= stop_level or (
                 use_cone and float(size) <= cone_radius + cone_spread * max(t_min, 0.0)
             ):
+                if any_hit:
+                    return node, level + 1, t_min, NO_NORMAL, steps
                 stack[level] = parent
                 path[_PATH_LEVEL] = level
                 path[1] = x0
                 path[2] = y0
                 path[3] = z0
-                if any_hit:
-                    return node, level + 1, t_min, NO_NORMAL, steps
                 tex = face_time(x0 + (size & ~exit_x), ox, ix)
                 tey = face_time(y0 + (size & ~exit_y), oy, iy)
                 tez = face_time(z0 + (size & ~exit_z), oz, iz)
@@ -340,10 +371,6 @@ def traverse(
             parent = inner_nodes[node]
             level += 1
             if any_hit and (parent & SOLID_BIT) != 0:
-                path[_PATH_LEVEL] = level - 1
-                path[1] = x0
-                path[2] = y0
-                path[3] = z0
                 return node, level, t_min, NO_NORMAL, steps
             size >>= 1
             idx = (
@@ -359,29 +386,32 @@ def traverse(
                 z0 += size
             continue
         # Advance to the next node along the ray: step every axis whose exit comes first.
+        if not started:
+            started = True
+            for j in range(level):
+                start_stack[j] = stack[j]
+            start_stack[level] = parent
+            path[_START_LEVEL] = level
+            path[_START_LEVEL + 1] = x0
+            path[_START_LEVEL + 2] = y0
+            path[_START_LEVEL + 3] = z0
         step = ((1 if tx <= t_exit else 0) | (2 if ty <= t_exit else 0)
                 | (4 if tz <= t_exit else 0))
         t_min = t_exit
         if not t_min < tmax:
             break
-        nx = x0
-        ny = y0
-        nz = z0
-        if step & 1:
-            nx = x0 - size if flip & 1 else x0 + size
-        if step & 2:
-            ny = y0 - size if flip & 2 else y0 + size
-        if step & 4:
-            nz = z0 - size if flip & 4 else z0 + size
+        # Branch-free: the stepped axes move by ±size (``~exit_*`` is -1 on axes run down,
+        # so ``(size ^ m) - m`` is -size there and size elsewhere).
+        nx = x0 + (((size ^ ~exit_x) + exit_x + 1) & -(step & 1))
+        ny = y0 + (((size ^ ~exit_y) + exit_y + 1) & -((step >> 1) & 1))
+        nz = z0 + (((size ^ ~exit_z) + exit_z + 1) & -(step >> 2))
         if (idx ^ flip) & step:
             # Left the parent: the highest bit in which the positions differ names the
             # level of the first ancestor that holds the new position.
             diff = (x0 ^ nx) | (y0 ^ ny) | (z0 ^ nz)
-            h = depth - level - 1
-            while h < depth and diff >> (h + 1):  # a negative diff: left the root
-                h += 1
-            if h >= depth:
+            if diff >> depth:  # left the root (a negative position sets every high bit)
                 break
+            h = highest_bit(diff)
             level = depth - h - 1
             parent = stack[level]
             size = 1 << h

@@ -113,7 +113,7 @@ def _refine(octree, camera, pixels, side, seed, colors, result, threads) -> None
     pixels = pixels.astype(np.int64)
     with thread_count(threads):
         beam = primary_beam(octree, camera, stop_level=octree.depth, side=side, pixels=pixels)
-        render_pixels(camera.params, camera.width, camera.height, pixels, side,
+        render_pixels(camera.params, camera.width, camera.height, pixels, -1, side,
                       seed, octree.inner_nodes, octree.depth, octree.depth, 0.0, colors,
                       beam.bound, beam.block, color, depth, normal, rays, hits, steps, lod)
     steps += beam.pixel_steps(pixels, camera.width)

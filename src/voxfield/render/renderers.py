@@ -57,10 +57,12 @@ def trace_image(
     args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors, bounds.bound,
             bounds.block)
 
+    order = tile_order(h, w)
+
     def band(rows: slice) -> None:
-        pixels = np.arange(rows.start * w, rows.stop * w, dtype=np.int64)
+        pixels = order[rows.start * w : rows.stop * w]
         flat = (b.reshape(len(pixels), *b.shape[2:]) for b in result.buffers(rows))
-        render_pixels(cam, w, h, pixels, side, seed, *args, *flat)
+        render_pixels(cam, w, h, pixels, rows.start * w, side, seed, *args, *flat)
 
     seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress)
     result.seconds = seconds + bounds.seconds
@@ -68,13 +70,28 @@ def trace_image(
     return result
 
 
+#: Side of the square pixel tiles traced one after another, one tile per thread's chunk.
+TILE = 8
+
+
+def tile_order(height: int, width: int) -> np.ndarray:
+    """Flat pixel indices in ``TILE``×``TILE`` tiles (tiles and the pixels inside each in
+    row-major order): neighbouring rays run one after another and share cached nodes and
+    restarts. Bands of whole tile rows are contiguous runs of it."""
+    rows, cols = np.divmod(np.arange(height * width, dtype=np.int64), width)
+    key = (rows // TILE * (-(-width // TILE)) + cols // TILE) * TILE * TILE + (
+        rows % TILE) * TILE + cols % TILE
+    return np.argsort(key, kind="stable")
+
+
 def run_in_bands(height: int, band, *, label: str, threads: int | None, progress: bool) -> float:
     """Call ``band(rows)`` over bands of rows with a progress bar; returns the seconds spent.
 
-    An empty first band loads (or compiles) the kernel outside the timed region.
+    Bands hold whole tile rows (``TILE``). An empty first band loads (or compiles) the
+    kernel outside the timed region.
     """
     band(slice(0, 0))
-    rows = max(8, min(64, height // 16 or 1))
+    rows = max(TILE, min(64, height // 16 or 1)) // TILE * TILE
     start = time.perf_counter()
     options = {"total": height, "desc": label, "unit": "row", "enabled": progress}
     with thread_count(threads), progress_bar(**options) as bar:
