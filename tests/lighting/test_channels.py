@@ -19,7 +19,7 @@ def octree():
 
 
 def leaf_values(octree):
-    return octree.node_coord[octree.level_slice(octree.depth)]
+    return octree.node_coords(octree.depth)
 
 
 def independent_levels(octree, values, weights=None):
@@ -53,7 +53,7 @@ def test_a_channel_made_from_the_albedo_reproduces_the_albedo_bit_for_bit(octree
     assert np.array_equal(copy.attributes["copy"], octree.color)
     assert copy.attributes["copy"].dtype == np.float32
     # Structure is shared, not copied; the original is untouched.
-    assert copy.child_mask is octree.child_mask and "copy" not in octree.attributes
+    assert copy.descriptors is octree.descriptors and "copy" not in octree.attributes
 
 
 @pytest.mark.parametrize("weighted", [False, True])
@@ -67,7 +67,7 @@ def test_parent_levels_match_an_independent_computation(octree, weighted):
     expected = independent_levels(octree, values, weights)
     for level in range(octree.depth + 1):
         sl = octree.level_slice(level)
-        want = np.array([expected[level][tuple(c)] for c in octree.node_coord[sl]])
+        want = np.array([expected[level][tuple(c)] for c in octree.node_coords(level)])
         assert np.allclose(lit.attributes["k"][sl], want, rtol=1e-5, atol=1e-6), level
 
 

@@ -45,7 +45,7 @@ def octree_of(*parts: np.ndarray, name: str = "test"):
 
 
 def leaf_index(octree, xyz) -> int:
-    leaves = octree.node_coord[octree.level_slice(octree.depth)]
+    leaves = octree.node_coords(octree.depth)
     (index,) = np.flatnonzero((leaves == np.asarray(xyz)).all(axis=1))
     return int(index)
 
@@ -114,7 +114,7 @@ def exposed_faces_by_hand(coords: np.ndarray) -> np.ndarray:
 def test_shadow_rays_agree_with_a_brute_force_oracle():
     """One ray from each face centre, faces weighted as if unoccluded ((1 + n_y) / 2)."""
     octree = build_octree(random_scene(seed=11, n=350, size=10))
-    leaves = octree.node_coord[octree.level_slice(octree.depth)].astype(np.int64)
+    leaves = octree.node_coords(octree.depth)
     suns = np.array([sun_at("a", 130.0, 35.0).direction(), sun_at("b", 300.0, 70.0).direction()])
     vis, _ = sun_visibility(octree, suns, sky_rays=0, shadow_rays=1)
     exposed = exposed_faces_by_hand(leaves)
@@ -163,7 +163,7 @@ def test_buried_voxels_do_not_darken_coarse_levels():
     top = leaf_channel(lit, "noon")[leaf_index(octree, (2, 1, 2))]
     assert np.all(leaf_channel(lit, "noon")[leaf_index(octree, (2, 0, 2))] == 0.0)
     parents = octree.level_slice(octree.depth - 1)
-    inner = (octree.node_coord[parents] == (1, 0, 1)).all(axis=1)
+    inner = (octree.node_coords(octree.depth - 1) == (1, 0, 1)).all(axis=1)
     assert np.allclose(lit.channel("noon")[parents][inner], top, rtol=1e-6)
 
 

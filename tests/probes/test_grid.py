@@ -213,7 +213,7 @@ def _octree(*boxes):
 
 def _distance_to_solid(octree, points) -> np.ndarray:
     """Oracle: exact distance from each point to the nearest solid voxel (0 inside)."""
-    voxels = octree.node_coord[octree.level_slice(octree.depth)].astype(np.float64)
+    voxels = octree.node_coords(octree.depth).astype(np.float64)
     p = np.asarray(points, np.float64)[:, None, :]
     gap = np.maximum(np.maximum(voxels - p, p - (voxels + 1)), 0.0)
     return np.linalg.norm(gap, axis=2).min(axis=1)

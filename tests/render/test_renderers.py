@@ -64,7 +64,7 @@ def test_lod_image_equals_the_finest_render_of_the_lod_grid(lod):
     scene = random_scene(7, n=400, size=16)
     octree = build_octree(scene)
     sl = octree.level_slice(octree.depth - lod)
-    corners = octree.node_coord[sl].astype(np.int64) << lod
+    corners = octree.lod_voxels(lod)
     block = np.stack(np.meshgrid(*[np.arange(2**lod)] * 3, indexing="ij"), -1).reshape(-1, 3)
     coords = (corners[:, None, :] + block[None]).reshape(-1, 3)
     colors = np.repeat(octree.color[sl], len(block), axis=0)

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from random_scenes import random_scene
 from voxfield.errors import OctreeFormatError, VoxfieldError
+from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree, load_octree, morton_encode, save_octree
 from voxfield.svo.io import validate_octree
@@ -47,7 +50,7 @@ def test_levels_match_brute_force_occupancy_and_means(seed):
     for lod, expected in enumerate(levels):
         level = octree.depth - lod
         sl = octree.level_slice(level)
-        coords = octree.node_coord[sl]
+        coords = octree.node_coords(level)
         got = {tuple(c): col for c, col in zip(coords, octree.color[sl], strict=True)}
         assert set(got) == set(expected)
         for key, col in expected.items():
@@ -57,6 +60,7 @@ def test_levels_match_brute_force_occupancy_and_means(seed):
 def test_child_pointers_and_masks_describe_children():
     octree = build_octree(random_scene(3))
     validate_octree(octree)
+    coords = octree.all_node_coords()
     for level in range(octree.depth):
         sl = octree.level_slice(level)
         for node in range(sl.start, sl.stop):
@@ -66,8 +70,8 @@ def test_child_pointers_and_masks_describe_children():
                 if mask >> octant & 1:
                     child = first + bin(mask & ((1 << octant) - 1)).count("1")
                     bits = [octant & 1, octant >> 1 & 1, octant >> 2]
-                    expected = octree.node_coord[node] * 2 + bits
-                    assert octree.node_coord[child].tolist() == expected.tolist()
+                    expected = coords[node] * 2 + bits
+                    assert coords[child].tolist() == expected.tolist()
 
 
 def test_scene_is_moved_to_the_origin_and_depth_covers_extent():
@@ -99,7 +103,7 @@ def test_save_load_round_trip(tmp_path):
     path = save_octree(octree, tmp_path / "r.npz")
     loaded = load_octree(path)
     assert loaded.depth == octree.depth and loaded.name == "r"
-    for name in ("child_mask", "first_child", "node_coord", "level_offsets", "scene_origin"):
+    for name in ("descriptors", "level_offsets", "voxel_box", "scene_origin"):
         assert np.array_equal(getattr(loaded, name), getattr(octree, name))
     assert set(loaded.attributes) == {"color", "emission"}
     assert np.array_equal(loaded.attributes["emission"], octree.attributes["emission"])
@@ -118,11 +122,17 @@ def test_corrupt_octree_files_give_clear_errors(tmp_path):
             load_octree(bad)
     # Structurally wrong but readable: a child pointer past the end.
     broken = tmp_path / "broken.npz"
-    first = octree.first_child.copy()
-    first[0] = octree.node_count + 5
-    save_octree(type(octree)(**{**octree.__dict__, "first_child": first}), broken)
+    descriptors = octree.descriptors.copy()
+    descriptors[0] += (octree.node_count + 5) << FIRST_CHILD_SHIFT
+    save_octree(replace(octree, descriptors=descriptors), broken)
     with pytest.raises(OctreeFormatError, match="child pointers"):
         load_octree(broken)
+    # A voxel box outside the root cube.
+    outside = tmp_path / "outside.npz"
+    save_octree(replace(octree, voxel_box=np.array([[0, 0, 0], [octree.size + 1] * 3])),
+                outside)
+    with pytest.raises(OctreeFormatError, match="voxel box"):
+        load_octree(outside)
 
 
 def test_surface_lod_colour_ignores_buried_voxels():
@@ -142,3 +152,37 @@ def test_surface_lod_colour_ignores_buried_voxels():
     assert np.array_equal(surface.color[leaves], mean.color[leaves])
     with pytest.raises(VoxfieldError):
         build_octree(scene, lod_colour="median")
+
+
+def test_version_1_files_still_load(tmp_path):
+    """Files of the first format stored masks, first children and positions per node."""
+    import json
+
+    octree = build_octree(random_scene(6))
+    header = {"format": "voxfield-octree", "version": 1, "depth": octree.depth, "name": "v1",
+              "build_seconds": 0.0, "attributes": ["color"]}
+    path = tmp_path / "v1.npz"
+    np.savez(path, header=np.frombuffer(json.dumps(header).encode(), np.uint8),
+             child_mask=octree.child_mask, first_child=octree.first_child.astype(np.uint32),
+             node_coord=octree.all_node_coords().astype(np.int32),
+             level_offsets=octree.level_offsets, scene_origin=octree.scene_origin,
+             attr_color=octree.color)
+    loaded = load_octree(path)
+    assert np.array_equal(loaded.descriptors, octree.descriptors)
+    assert np.array_equal(loaded.voxel_box, octree.voxel_box)
+    assert np.array_equal(loaded.color, octree.color)
+
+
+def test_solid_flags_match_a_brute_force_fill_check():
+    scene = random_scene(8, n=900, size=8)  # dense enough for full 2³ and 4³ blocks
+    octree = build_octree(scene)
+    occupied = {tuple(c) for c in octree.node_coords(octree.depth)}
+    solid = octree.solid_nodes()
+    for level in range(octree.depth + 1):
+        size = 1 << (octree.depth - level)
+        block = np.argwhere(np.ones((size,) * 3, bool))
+        for node, corner in zip(range(*octree.level_slice(level).indices(octree.node_count)),
+                                octree.node_coords(level) * size, strict=True):
+            full = all(tuple(corner + b) in occupied for b in block)
+            assert solid[node] == full, (level, corner)
+    assert solid[octree.level_slice(octree.depth - 1)].any()  # the check is not vacuous

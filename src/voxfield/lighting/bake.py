@@ -108,7 +108,7 @@ def _check_suns(suns: Sequence[SunLight]) -> list[SunLight]:
 def exposed_face_bits(octree: Octree) -> np.ndarray:
     """``(voxels,)`` uint8 in leaf order: bit ``f`` set when face ``f`` (−x, +x, −y, +y, −z,
     +z) of the voxel has no neighbour voxel."""
-    leaves = octree.node_coord[octree.level_slice(octree.depth)].astype(np.int64)
+    leaves = octree.node_coords(octree.depth)
     exposed = face_mask(leaves)
     return (exposed.astype(np.uint8) << np.arange(6, dtype=np.uint8)).sum(axis=1, dtype=np.uint8)
 
@@ -130,7 +130,7 @@ def sun_visibility(
         raise VoxfieldError("sun directions must be unit vectors")
     faces = exposed_face_bits(octree)
     surface = np.flatnonzero(faces)
-    leaves = octree.node_coord[octree.level_slice(octree.depth)]
+    leaves = octree.node_coords(octree.depth)
     n = octree.voxel_count
     vis = SunVisibility(
         direct=np.zeros((len(dirs), n), np.float32), sky=np.zeros(n, np.float32),

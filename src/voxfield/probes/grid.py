@@ -318,7 +318,7 @@ class _VoxelOccupancy:
     """Which finest voxels are solid: sorted packed keys and a binary search per query."""
 
     def __init__(self, octree: Octree) -> None:
-        voxels = octree.node_coord[octree.level_slice(octree.depth)].astype(np.int64)
+        voxels = octree.node_coords(octree.depth)
         self.size = octree.size
         self.keys = np.sort(self._key(voxels))
 

@@ -70,7 +70,7 @@ def emitter_faces(octree: Octree) -> EmitterFaces:
             "voxels (e.g. builtin:shadowbox or builtin:cornell)"
         )
     leaves = octree.level_slice(octree.depth)
-    coords = octree.node_coord[leaves].astype(np.int64)
+    coords = octree.node_coords(octree.depth)
     emission = octree.attributes["emission"][leaves].astype(np.float64)
     lit = (emission @ _LUMINANCE) > 0.0
     if not lit.any():
@@ -148,7 +148,7 @@ def _setup(
     node_is_light = ((emission.astype(np.float64) @ _LUMINANCE) > 0.0).astype(np.uint8)
     refinements = octree.depth if max_refinements is None else int(max_refinements)
     kernel_args = (
-        octree.inner_nodes, octree.depth, np.ascontiguousarray(octree.node_coord, np.int64),
+        octree.inner_nodes, octree.depth, octree.all_node_coords(),
         node_is_light, faces.corner, faces.axis, faces.sign, faces.radiance, faces.cdf,
         SHADOW_MODES[shadow_lod], float(lod_distance), refinements, float(threshold),
         float(decay), ENCODING_SH if encoding == "sh" else ENCODING_OCT,

@@ -37,7 +37,7 @@ def npz_kind(path: Path) -> str:
             files = set(data.files)
     except Exception as exc:  # noqa: BLE001 - any failure here means "not a readable npz"
         raise SceneFormatError(f"{path}: not a readable .npz file ({exc})") from exc
-    if "header" in files and "child_mask" in files:
+    if "header" in files and ("descriptors" in files or "child_mask" in files):
         return "octree"
     if "coords" in files:
         return "scene"

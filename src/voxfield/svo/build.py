@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 from voxfield.errors import SceneTooLargeError, VoxfieldError
+from voxfield.kernels.node_descriptor import pack_descriptors
 from voxfield.progress import progress_bar
 from voxfield.scene.voxel_scene import MAX_EXTENT, VoxelScene
 from voxfield.svo.octree import Octree
@@ -45,10 +46,10 @@ def octree_depth_for(extent: np.ndarray) -> int:
     return max(1, int(np.ceil(np.log2(max(longest, 2)))))
 
 
-def _add_parent_level(codes, level_masks, level_first, level_coords, level_attrs) -> np.ndarray:
+def _add_parent_level(codes, level_masks, level_first, level_solid, level_attrs) -> np.ndarray:
     """Group the last level's nodes under their parents (Morton code >> 3) and append the
-    parent level: OR-ed child masks, first-child offsets, coordinates and mean attributes.
-    Returns the parents' Morton codes."""
+    parent level: OR-ed child masks, first-child offsets, solid flags (all eight children
+    solid) and mean attributes. Returns the parents' Morton codes."""
     parent_codes = codes >> np.uint64(3)
     starts = np.flatnonzero(np.diff(parent_codes)) + 1
     starts = np.concatenate(([0], starts)).astype(np.int64)
@@ -57,7 +58,7 @@ def _add_parent_level(codes, level_masks, level_first, level_coords, level_attrs
     octant_bits = (np.uint8(1) << octants).astype(np.uint8)
     level_masks.append(np.bitwise_or.reduceat(octant_bits, starts).astype(np.uint8))
     level_first.append(starts)
-    level_coords.append(level_coords[-1][starts] >> 1)
+    level_solid.append((counts == 8) & np.logical_and.reduceat(level_solid[-1], starts))
     level_attrs.append(
         {
             k: (np.add.reduceat(v, starts, axis=0, dtype=np.float64) / counts[:, None]).astype(
@@ -113,33 +114,35 @@ def build_octree(
     for name, values in scene.channels.items():
         attributes[name] = values[order]
 
+    del coords, order
     # Levels are gathered leaf-first, then reversed into root-first order.
     level_masks = [np.zeros(n, np.uint8)]
     level_first = [np.zeros(n, np.int64)]
-    level_coords = [coords[order]]
+    level_solid = [np.ones(n, bool)]
     level_attrs = [attributes]
     with progress_bar(total=depth + 1, desc="octree", unit="level", enabled=progress) as bar:
         bar.update(1)  # the Morton sort, done above
         for _ in range(depth):
-            codes = _add_parent_level(codes, level_masks, level_first, level_coords, level_attrs)
+            codes = _add_parent_level(codes, level_masks, level_first, level_solid, level_attrs)
             bar.update(1)
 
     level_masks.reverse()
     level_first.reverse()
-    level_coords.reverse()
+    level_solid.reverse()
     level_attrs.reverse()
     sizes = np.array([len(m) for m in level_masks], dtype=np.int64)
     offsets = np.concatenate(([0], np.cumsum(sizes)))
-    first_child = np.zeros(int(offsets[-1]), np.uint32)
-    for level in range(depth):
-        first_child[offsets[level] : offsets[level + 1]] = level_first[level] + offsets[level + 1]
+    descriptors = np.concatenate([
+        pack_descriptors(level_masks[level], level_first[level] + offsets[level + 1],
+                         level_solid[level])
+        for level in range(depth)
+    ])
     octree = Octree(
         depth=depth,
-        child_mask=np.concatenate(level_masks),
-        first_child=first_child,
-        node_coord=np.concatenate(level_coords).astype(np.int32),
+        descriptors=descriptors,
         level_offsets=offsets,
         attributes={k: np.concatenate([a[k] for a in level_attrs]) for k in attributes},
+        voxel_box=np.array([np.zeros(3, np.int64), (hi - lo).astype(np.int64)]),
         scene_origin=lo.astype(np.int64),
         build_seconds=time.perf_counter() - start,
         name=scene.name,
@@ -155,7 +158,7 @@ def _surface_weighted(octree: Octree) -> Octree:
     from voxfield.svo.channels import propagate_channel
 
     leaves = octree.level_slice(octree.depth)
-    exposed = face_mask(octree.node_coord[leaves].astype(np.int64)).any(axis=1)
+    exposed = face_mask(octree.node_coords(octree.depth)).any(axis=1)
     weights = exposed.astype(np.float64)
     attributes = {k: propagate_channel(octree, v[leaves], weights)
                   for k, v in octree.attributes.items()}

@@ -10,10 +10,13 @@ import numpy as np
 
 from voxfield.atomic import atomic_path
 from voxfield.errors import OctreeFormatError
+from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, pack_descriptors
 from voxfield.svo.octree import Octree
 
 FORMAT = "voxfield-octree"
-FORMAT_VERSION = 1
+#: 2: packed descriptors and the voxel box; node positions and per-node masks are derived.
+#: Version 1 files (masks, first children and positions per node) still load.
+FORMAT_VERSION = 2
 
 
 def save_octree(octree: Octree, path: str | os.PathLike) -> Path:
@@ -29,10 +32,9 @@ def save_octree(octree: Octree, path: str | os.PathLike) -> Path:
     }
     arrays = {
         "header": np.frombuffer(json.dumps(header).encode(), dtype=np.uint8),
-        "child_mask": octree.child_mask,
-        "first_child": octree.first_child,
-        "node_coord": octree.node_coord,
+        "descriptors": octree.descriptors,
         "level_offsets": octree.level_offsets,
+        "voxel_box": octree.voxel_box,
         "scene_origin": octree.scene_origin,
     }
     for name, values in octree.attributes.items():
@@ -52,19 +54,25 @@ def load_octree(path: str | os.PathLike) -> Octree:
             header = json.loads(bytes(data["header"]).decode())
             if header.get("format") != FORMAT:
                 raise OctreeFormatError(f"{path}: not a voxfield octree file")
-            if header.get("version") != FORMAT_VERSION:
+            version = header.get("version")
+            if version not in (1, FORMAT_VERSION):
                 raise OctreeFormatError(
-                    f"{path}: octree format version {header.get('version')} is not supported "
+                    f"{path}: octree format version {version} is not supported "
                     f"(expected {FORMAT_VERSION}); rebuild it with `voxfield build`"
                 )
             attributes = {name: data[f"attr_{name}"] for name in header["attributes"]}
+            depth = int(header["depth"])
+            offsets = data["level_offsets"]
+            if version == 1:
+                descriptors, box = _from_version_1(data, offsets, str(path))
+            else:
+                descriptors, box = data["descriptors"], data["voxel_box"]
             octree = Octree(
-                depth=int(header["depth"]),
-                child_mask=data["child_mask"],
-                first_child=data["first_child"],
-                node_coord=data["node_coord"],
-                level_offsets=data["level_offsets"],
+                depth=depth,
+                descriptors=descriptors,
+                level_offsets=offsets,
                 attributes=attributes,
+                voxel_box=box,
                 scene_origin=data["scene_origin"],
                 build_seconds=float(header.get("build_seconds", 0.0)),
                 name=str(header.get("name", path.stem)),
@@ -77,6 +85,29 @@ def load_octree(path: str | os.PathLike) -> Octree:
     return octree
 
 
+def _from_version_1(data, offsets: np.ndarray, where: str) -> tuple[np.ndarray, np.ndarray]:
+    """Descriptors and voxel box from a version-1 file's per-node arrays."""
+    inner = int(offsets[-2])
+    masks = np.asarray(data["child_mask"])
+    first = np.asarray(data["first_child"])
+    coords = np.asarray(data["node_coord"])
+    if masks.ndim != 1 or first.shape != masks.shape or len(masks) < inner or coords.ndim != 2:
+        raise OctreeFormatError(f"{where}: node arrays disagree in length")
+    solid = np.ones(len(masks), bool)
+    for level in range(len(offsets) - 3, -1, -1):
+        sl = slice(int(offsets[level]), int(offsets[level + 1]))
+        full = np.flatnonzero(masks[sl] == 0xFF)
+        level_solid = np.zeros(sl.stop - sl.start, bool)
+        if len(full):
+            children = first[sl][full].astype(np.int64)[:, None] + np.arange(8)
+            level_solid[full] = solid[np.minimum(children, len(solid) - 1)].all(axis=1)
+        solid[sl] = level_solid
+    leaves = coords[inner:].astype(np.int64)
+    box = np.array([leaves.min(axis=0), leaves.max(axis=0) + 1]) if len(leaves) else np.zeros(
+        (2, 3), np.int64)
+    return pack_descriptors(masks[:inner], first[:inner], solid[:inner]), box
+
+
 def validate_octree(octree: Octree, where: str = "octree") -> None:
     """Check the structural invariants a kernel relies on; raise rather than crash later."""
     n = octree.node_count
@@ -85,26 +116,29 @@ def validate_octree(octree: Octree, where: str = "octree") -> None:
         raise OctreeFormatError(f"{where}: inconsistent depth or level offsets")
     if np.any(np.diff(off) <= 0):
         raise OctreeFormatError(f"{where}: a level has no nodes")
-    if octree.child_mask.shape != (n,) or octree.first_child.shape != (n,):
-        raise OctreeFormatError(f"{where}: node arrays disagree in length")
-    if octree.node_coord.shape != (n, 3):
-        raise OctreeFormatError(f"{where}: node coordinates have the wrong shape")
+    if octree.descriptors.dtype != np.int64 or octree.descriptors.shape != (int(off[-2]),):
+        raise OctreeFormatError(f"{where}: descriptor array has the wrong type or length")
+    box = octree.voxel_box
+    if box.shape != (2, 3) or np.any(box[0] < 0) or np.any(box[1] <= box[0]) or np.any(
+            box[1] > octree.size):
+        raise OctreeFormatError(f"{where}: voxel box outside the root cube")
     for name, values in octree.attributes.items():
         if values.shape != (n, 3):
             raise OctreeFormatError(f"{where}: attribute {name!r} has the wrong shape")
-    inner = slice(0, int(off[-2]))
-    masks = octree.child_mask[inner]
-    if np.any(masks == 0) or np.any(octree.child_mask[int(off[-2]) :] != 0):
-        raise OctreeFormatError(f"{where}: inner node without children or leaf with children")
-    counts = np.unpackbits(masks[:, None], axis=1).sum(axis=1)
-    first = octree.first_child[inner].astype(np.int64)
-    if np.any(first + counts > n):
+    masks = octree.descriptors & 0xFF
+    if np.any(masks == 0):
+        raise OctreeFormatError(f"{where}: inner node without children")
+    counts = np.unpackbits(masks.astype(np.uint8)[:, None], axis=1).sum(axis=1)
+    first = octree.descriptors >> FIRST_CHILD_SHIFT
+    if np.any(first < 0) or np.any(first + counts > n):
         raise OctreeFormatError(f"{where}: child pointers run past the node arrays")
     for level in range(octree.depth):
         sl = octree.level_slice(level)
         expected = off[level + 1] + np.concatenate(([0], np.cumsum(counts[sl])[:-1]))
         if not np.array_equal(first[sl], expected):
             raise OctreeFormatError(f"{where}: child pointers of level {level} are not contiguous")
+        if off[level + 2] - off[level + 1] != counts[sl].sum():
+            raise OctreeFormatError(f"{where}: level {level + 1} holds the wrong number of nodes")
 
 
 def open_octree(spec: str, options=None, *, progress: bool = False,

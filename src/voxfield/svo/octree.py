@@ -1,10 +1,18 @@
-"""The sparse voxel octree: per-level arrays in Morton order, flattened for kernels.
+"""The sparse voxel octree: per-level node runs in Morton order, flattened for kernels.
 
 Level 0 is the root, level ``depth`` holds the voxels; ``lod = depth - level`` (EA thesis).
-Node ``i`` of the flat arrays has ``child_mask[i]`` (bit ``c`` set when child octant ``c``
-exists, ``c = x | y << 1 | z << 2``) and ``first_child[i]`` (flat index of its first child;
-child ``c`` sits at ``first_child + popcount(mask & ((1 << c) - 1))``). A parent's colour is
-the mean of its children's colours (EA §3.1).
+Nodes are numbered level after level; the children of a node are contiguous in the next
+level. What is stored is what traversal needs and nothing it can derive:
+
+- one packed descriptor per inner node (``kernels.node_descriptor``: child mask, solid bit,
+  first child), 8 bytes; voxels need none;
+- per node and channel one RGB value (``attributes``), a parent's being the mean of its
+  children's (EA §3.1);
+- the level offsets and the voxels' bounding box.
+
+Node positions are not stored: a node's position is its path from the root, so
+``node_coords`` rebuilds them level by level when something outside the kernels needs them
+(the kernels know the position of every node they visit).
 """
 
 from __future__ import annotations
@@ -14,7 +22,7 @@ from functools import cached_property
 
 import numpy as np
 
-from voxfield.kernels.node_descriptor import pack_descriptors
+from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT
 
 
 @dataclass(frozen=True)
@@ -22,11 +30,10 @@ class Octree:
     """An SVO over ``[0, 2**depth)^3`` in finest-voxel units."""
 
     depth: int
-    child_mask: np.ndarray  # (nodes,) uint8
-    first_child: np.ndarray  # (nodes,) uint32, flat index; 0 for leaves
-    node_coord: np.ndarray  # (nodes, 3) int32, position in units of the node's own size
+    descriptors: np.ndarray  # (inner nodes,) int64, kernels.node_descriptor layout
     level_offsets: np.ndarray  # (depth + 2,) int64: level l occupies [off[l], off[l+1])
-    attributes: dict[str, np.ndarray]  # name -> (nodes, 3) float32 (albedo, emission, ...)
+    attributes: dict[str, np.ndarray]  # name -> (nodes, 3) colours (albedo, emission, ...)
+    voxel_box: np.ndarray  # (2, 3) int64: voxels' min corner and exclusive max corner
     scene_origin: np.ndarray = field(default_factory=lambda: np.zeros(3, np.int64))
     build_seconds: float = 0.0
     name: str = "scene"
@@ -34,6 +41,10 @@ class Octree:
     @property
     def node_count(self) -> int:
         return int(self.level_offsets[-1])
+
+    @property
+    def inner_count(self) -> int:
+        return int(self.level_offsets[-2])
 
     @property
     def voxel_count(self) -> int:
@@ -44,33 +55,37 @@ class Octree:
         """Side length of the root cube in voxels."""
         return 1 << self.depth
 
-    @cached_property
+    @property
     def inner_nodes(self) -> np.ndarray:
-        """One packed descriptor per inner node (levels 0..depth-1), the layout the
-        traversal kernels read (``kernels.node_descriptor``)."""
-        inner = int(self.level_offsets[-2])
-        return pack_descriptors(self.child_mask[:inner], self.first_child[:inner],
-                                self.solid_nodes()[:inner])
+        """The descriptors, as the traversal kernels take them."""
+        return self.descriptors
+
+    @cached_property
+    def child_mask(self) -> np.ndarray:
+        """``(nodes,)`` uint8: bit ``c`` set when child octant ``c = x | y << 1 | z << 2``
+        exists (0 for voxels). Derived from the descriptors."""
+        masks = np.zeros(self.node_count, np.uint8)
+        masks[: self.inner_count] = self.descriptors & 0xFF
+        return masks
+
+    @cached_property
+    def first_child(self) -> np.ndarray:
+        """``(nodes,)`` int64: flat index of a node's first child (0 for voxels); child ``c``
+        sits at ``first_child + popcount(mask & ((1 << c) - 1))``. Derived."""
+        first = np.zeros(self.node_count, np.int64)
+        first[: self.inner_count] = self.descriptors >> FIRST_CHILD_SHIFT
+        return first
 
     def solid_nodes(self) -> np.ndarray:
-        """Per node: is every voxel of its cube present? Voxels are; an inner node is when
-        all eight children are solid."""
+        """``(nodes,)`` bool: is every voxel of the node's cube present? (Voxels are.)"""
         solid = np.ones(self.node_count, bool)
-        for level in range(self.depth - 1, -1, -1):
-            sl = self.level_slice(level)
-            full = np.flatnonzero(self.child_mask[sl] == 0xFF)
-            level_solid = np.zeros(sl.stop - sl.start, bool)
-            if len(full):
-                children = self.first_child[sl][full].astype(np.int64)[:, None] + np.arange(8)
-                level_solid[full] = solid[children].all(axis=1)
-            solid[sl] = level_solid
+        solid[: self.inner_count] = (self.descriptors & SOLID_BIT) != 0
         return solid
 
     @property
     def voxel_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Inclusive min and exclusive max corner of the voxels, in octree space."""
-        leaves = self.node_coord[self.level_slice(self.depth)]
-        return leaves.min(axis=0).astype(np.int64), leaves.max(axis=0).astype(np.int64) + 1
+        return self.voxel_box[0].copy(), self.voxel_box[1].copy()
 
     def level_slice(self, level: int) -> slice:
         return slice(int(self.level_offsets[level]), int(self.level_offsets[level + 1]))
@@ -82,28 +97,59 @@ class Octree:
         """Level of each flat node index."""
         return np.searchsorted(self.level_offsets, np.asarray(node), side="right") - 1
 
+    def node_coords(self, level: int) -> np.ndarray:
+        """``(nodes at level, 3)`` int64 positions in units of the level's node size,
+        rebuilt from the child masks level by level (children follow their parent's
+        order, octants ascending)."""
+        if not 0 <= level <= self.depth:
+            raise ValueError(f"level must be in 0..{self.depth}, got {level}")
+        for current, coords in enumerate(self._coords_by_level()):
+            if current == level:
+                return coords
+        raise AssertionError("unreachable")
+
+    def all_node_coords(self) -> np.ndarray:
+        """``(nodes, 3)`` int64 positions of every node, level after level (derived)."""
+        return np.concatenate(list(self._coords_by_level()))
+
+    def _coords_by_level(self):
+        coords = np.zeros((1, 3), np.int64)
+        octant_offsets = np.array([[(c >> a) & 1 for a in range(3)] for c in range(8)])
+        yield coords
+        for parent_level in range(self.depth):
+            masks = (self.descriptors[self.level_slice(parent_level)] & 0xFF).astype(np.uint8)
+            bits = np.unpackbits(masks[:, None], axis=1, bitorder="little")
+            parents, octants = np.nonzero(bits)
+            coords = coords[parents] * 2 + octant_offsets[octants]
+            yield coords
+
+    def lod_voxels(self, lod: int) -> np.ndarray:
+        """Integer corners (in voxels) of all nodes at a given LOD (node size ``2**lod``)."""
+        return self.node_coords(self.depth - lod) << lod
+
     @property
     def color(self) -> np.ndarray:
         return self.attributes["color"]
 
+    def stored_arrays(self) -> dict[str, np.ndarray]:
+        """Every array the octree stores (what ``nbytes`` counts)."""
+        arrays = {"descriptors": self.descriptors, "level_offsets": self.level_offsets,
+                  "voxel_box": self.voxel_box}
+        arrays.update({f"attr:{k}": v for k, v in self.attributes.items()})
+        return arrays
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes of the whole octree: every stored array, no derived one."""
+        return sum(a.nbytes for a in self.stored_arrays().values())
+
     def bytes_per_node(self) -> dict[str, float]:
         """Storage per node by array, for ``voxfield info``."""
         n = max(self.node_count, 1)
-        sizes = {
-            "child_mask": self.child_mask.nbytes,
-            "first_child": self.first_child.nbytes,
-            "node_coord": self.node_coord.nbytes,
-        }
-        for key, arr in self.attributes.items():
-            sizes[f"attr:{key}"] = arr.nbytes
-        per_node = {k: v / n for k, v in sizes.items()}
-        per_node["total"] = sum(sizes.values()) / n
+        per_node = {k: a.nbytes / n for k, a in self.stored_arrays().items()
+                    if k not in ("level_offsets", "voxel_box")}
+        per_node["total"] = self.nbytes / n
         return per_node
-
-    def lod_voxels(self, lod: int) -> np.ndarray:
-        """Integer corners (in voxels) of all nodes at a given LOD (node size ``2**lod``)."""
-        level = self.depth - lod
-        return self.node_coord[self.level_slice(level)].astype(np.int64) << lod
 
     def channel(self, name: str) -> np.ndarray:
         from voxfield.errors import VoxfieldError
