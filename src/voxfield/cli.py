@@ -82,6 +82,9 @@ def _add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vertical-scale", type=float, default=None, metavar="S",
                    help="terrain height multiplier (default: true scale)")
     p.add_argument("--seed", type=int, default=0, help="seed for sampling and scattering")
+    p.add_argument("--colour-storage", choices=("srgb8", "float32"), default="srgb8",
+                   help="how a built octree keeps its albedo: 8-bit sRGB, 3 bytes a node "
+                   "(default), or float32, 12 bytes")
     p.add_argument("--lod-colour", choices=("mean", "surface"), default="mean",
                    help="inner-node colours: mean of the children (default, as the EA thesis) "
                    "or mean of the voxels with an exposed face")
@@ -105,7 +108,7 @@ def _open_octree(args):
     from voxfield.svo.io import open_octree
 
     return open_octree(args.scene, _scene_options(args), progress=not args.quiet,
-                       lod_colour=args.lod_colour)
+                       lod_colour=args.lod_colour, colour_storage=args.colour_storage)
 
 
 def _camera(args, octree):

@@ -15,7 +15,7 @@ from voxfield.svo.io import load_octree, save_octree
 
 @pytest.fixture(scope="module")
 def octree():
-    return build_octree(random_scene(seed=3, n=500, size=16))
+    return build_octree(random_scene(seed=3, n=500, size=16), colour_storage="float32")
 
 
 def leaf_values(octree):

@@ -41,7 +41,8 @@ def slab(x: range, y: int, z: range) -> np.ndarray:
 def octree_of(*parts: np.ndarray, name: str = "test"):
     coords = np.unique(np.concatenate(parts), axis=0)
     assert coords.min() == 0  # the build moves the scene to the origin; keep coordinates
-    return build_octree(VoxelScene(coords, np.tile(ALBEDO, (len(coords), 1)), name=name))
+    return build_octree(VoxelScene(coords, np.tile(ALBEDO, (len(coords), 1)), name=name),
+                        colour_storage="float32")
 
 
 def leaf_index(octree, xyz) -> int:

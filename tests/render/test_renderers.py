@@ -21,7 +21,8 @@ def pillar_octree():
 def test_orthographic_view_of_a_flat_slab_is_its_colour_and_distance():
     xz = np.stack(np.meshgrid(np.arange(16), np.arange(16), indexing="ij"), -1).reshape(-1, 2)
     coords = np.c_[xz[:, 0], np.full(len(xz), 3), xz[:, 1]]
-    octree = build_octree(VoxelScene(coords, np.tile([0.2, 0.4, 0.6], (len(xz), 1))))
+    octree = build_octree(VoxelScene(coords, np.tile([0.2, 0.4, 0.6], (len(xz), 1))),
+                          colour_storage="float32")
     cam = Camera.orthographic((8, 10, 8), (0, -1, 0), (0, 0, -1), view_height=16, width=16)
     result = render_reference(octree, cam, side=4)
     assert np.allclose(result.image, [0.2, 0.4, 0.6])

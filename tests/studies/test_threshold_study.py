@@ -56,7 +56,7 @@ def test_a_scaled_channel_is_studied_apart_with_the_same_costs(scene, tmp_path):
     # A channel that is albedo × 0.5 changes colours, not geometry: the error-aware ray counts
     # (geometric error) match albedo's; the cache keeps the two channels apart.
     octree, camera = scene
-    octree.attributes["half"] = octree.attributes["color"] * 0.5
+    octree.attributes["half"] = octree.color * 0.5
     try:
         kwargs = {"thresholds": (0.1,), "scene_name": "pillars"}
         albedo = run_threshold_study(octree, camera, tmp_path, **kwargs)

@@ -44,7 +44,7 @@ def test_morton_code_interleaves_x_y_z():
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_levels_match_brute_force_occupancy_and_means(seed):
     scene = random_scene(seed, n=300, size=13)
-    octree = build_octree(scene)
+    octree = build_octree(scene, colour_storage="float32")
     normalized = scene.normalized()
     levels = _brute_force_levels(normalized, octree.depth)
     for lod, expected in enumerate(levels):
@@ -142,8 +142,8 @@ def test_surface_lod_colour_ignores_buried_voxels():
     inside = np.all((coords > 0) & (coords < 3), axis=1)
     color = np.where(inside[:, None], 0.0, 0.8) * np.ones(3)
     scene = VoxelScene(coords, color)
-    mean = build_octree(scene)
-    surface = build_octree(scene, lod_colour="surface")
+    mean = build_octree(scene, colour_storage="float32")
+    surface = build_octree(scene, lod_colour="surface", colour_storage="float32")
     assert mean.color[0] == pytest.approx(0.8 * 56 / 64)
     assert np.allclose(surface.color[0], 0.8)
     # Leaves and structure are untouched; a node with no buried voxel keeps its plain mean.
@@ -186,3 +186,23 @@ def test_solid_flags_match_a_brute_force_fill_check():
             full = all(tuple(corner + b) in occupied for b in block)
             assert solid[node] == full, (level, corner)
     assert solid[octree.level_slice(octree.depth - 1)].any()  # the check is not vacuous
+
+
+def test_srgb8_albedo_keeps_8_bit_inputs_exactly_and_rounds_the_rest_to_a_code():
+    from voxfield.kernels.colour import SRGB8_TO_LINEAR, srgb_encode
+
+    rng = np.random.default_rng(12)
+    coords = np.unique(rng.integers(0, 16, size=(400, 3)), axis=0)
+    codes = rng.integers(0, 256, size=(len(coords), 3))
+    eight_bit = VoxelScene(coords, SRGB8_TO_LINEAR[codes])
+    stored = build_octree(eight_bit)
+    exact = build_octree(eight_bit, colour_storage="float32")
+    assert stored.attributes["color"].dtype == np.uint8
+    leaves = stored.level_slice(stored.depth)
+    assert np.array_equal(stored.color[leaves], exact.color[leaves])
+    # Inner nodes (means) land on the nearest code: within half a code step in sRGB.
+    error = np.abs(srgb_encode(stored.color) - srgb_encode(exact.color)) * 255
+    assert error.max() <= 0.5 + 1e-3
+    assert stored.nbytes < exact.nbytes
+    with pytest.raises(VoxfieldError, match="colour storage"):
+        build_octree(eight_bit, colour_storage="float16")

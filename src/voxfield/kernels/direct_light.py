@@ -39,6 +39,7 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.camera_rays import camera_ray
+from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.error_aware import node_error
 from voxfield.kernels.primary import normal_from_code, store_pixel
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
@@ -346,9 +347,10 @@ def render_direct_light_row(
                 max_refinements, threshold, decay, encoding, oct_map, sh,
                 scratch, frame_stop, frame_end,
             )
-            r += albedo[node, 0] * lr
-            g += albedo[node, 1] * lg
-            b += albedo[node, 2] * lb
+            ar, ag, ab = node_rgb(albedo, node)
+            r += ar * lr
+            g += ag * lg
+            b += ab * lb
             shadow_traversals += n_traversals
             shadow_steps += n_steps
             refinements += n_refined

@@ -29,6 +29,7 @@ from voxfield.error_table.spherical_harmonics import sh_evaluate
 from voxfield.error_table.table import oct_error, sh_error
 from voxfield.kernels.beam import start_distance
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
+from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.node_descriptor import descriptor_first_child
 from voxfield.kernels.primary import normal_from_code, store_pixel
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
@@ -109,7 +110,8 @@ def node_error_precomputed(
 
 @njit(cache=True, nogil=True)
 def luminance(colors: np.ndarray, node: int) -> float:
-    return 0.2126 * colors[node, 0] + 0.7152 * colors[node, 1] + 0.0722 * colors[node, 2]
+    r, g, b = node_rgb(colors, node)
+    return 0.2126 * r + 0.7152 * g + 0.0722 * b
 
 
 @njit(cache=True, nogil=True)
@@ -313,9 +315,10 @@ def render_error_aware_row(
                     continue
             weight = 1.0 / (cells * cells)
             hits += 1
-            r += weight * colors[node, 0]
-            g += weight * colors[node, 1]
-            b += weight * colors[node, 2]
+            cr, cg, cb = node_rgb(colors, node)
+            r += weight * cr
+            g += weight * cg
+            b += weight * cb
             t_sum += weight * t
             t_weight += weight
             ax, ay, az = normal_from_code(normal)

@@ -9,6 +9,7 @@ from numba import njit, prange
 
 from voxfield.kernels.beam import start_distance
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
+from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.sampling import cmj_sample, pixel_pattern
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
@@ -137,9 +138,10 @@ def render_pixel_chunk(
             if node == MISS:
                 continue
             hits += 1
-            r += colors[node, 0]
-            g += colors[node, 1]
-            b += colors[node, 2]
+            cr, cg, cb = node_rgb(colors, node)
+            r += cr
+            g += cg
+            b += cb
             t_sum += t
             ax, ay, az = normal_from_code(normal)
             nx += ax

@@ -8,6 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 from voxfield.errors import SceneTooLargeError, VoxfieldError
+from voxfield.kernels.colour import SRGB8, STORAGES, encode_channel
 from voxfield.kernels.node_descriptor import pack_descriptors
 from voxfield.progress import progress_bar
 from voxfield.scene.voxel_scene import MAX_EXTENT, VoxelScene
@@ -78,12 +79,19 @@ LOD_COLOURS = ("mean", "surface")
 
 def build_octree(
     scene: VoxelScene, *, memory_limit_bytes: int | None = None, progress: bool = False,
-    lod_colour: str = "mean",
+    lod_colour: str = "mean", colour_storage: str = SRGB8,
 ) -> Octree:
-    """Build the SVO of a scene; the scene is moved so its minimum corner is the origin."""
+    """Build the SVO of a scene; the scene is moved so its minimum corner is the origin.
+
+    ``colour_storage`` is how the albedo is kept: 8-bit sRGB (``srgb8``, 3 bytes a node; an
+    8-bit input survives exactly) or ``float32`` (12 bytes). Other channels stay float32.
+    """
     if lod_colour not in LOD_COLOURS:
         raise VoxfieldError(f"unknown LOD colour rule {lod_colour!r}; choose one of "
                             f"{', '.join(LOD_COLOURS)}")
+    if colour_storage not in STORAGES:
+        raise VoxfieldError(f"unknown colour storage {colour_storage!r}; choose one of "
+                            f"{', '.join(STORAGES)}")
     if len(scene) == 0:
         raise VoxfieldError(f"scene {scene.name!r} has no voxels; nothing to build")
     start = time.perf_counter()
@@ -149,7 +157,9 @@ def build_octree(
     )
     if lod_colour == "surface":
         octree = _surface_weighted(octree)
-    return octree
+    attributes = dict(octree.attributes)
+    attributes["color"] = encode_channel(attributes["color"], colour_storage)
+    return replace(octree, attributes=attributes)
 
 
 def _surface_weighted(octree: Octree) -> Octree:

@@ -125,6 +125,11 @@ def validate_octree(octree: Octree, where: str = "octree") -> None:
     for name, values in octree.attributes.items():
         if values.shape != (n, 3):
             raise OctreeFormatError(f"{where}: attribute {name!r} has the wrong shape")
+        if values.dtype not in (np.uint8, np.float32):
+            raise OctreeFormatError(f"{where}: attribute {name!r} is {values.dtype}, not 8-bit "
+                                    "sRGB or float32")
+        if values.dtype == np.float32 and not np.all(np.isfinite(values)):
+            raise OctreeFormatError(f"{where}: attribute {name!r} holds NaN or infinity")
     masks = octree.descriptors & 0xFF
     if np.any(masks == 0):
         raise OctreeFormatError(f"{where}: inner node without children")
@@ -142,9 +147,10 @@ def validate_octree(octree: Octree, where: str = "octree") -> None:
 
 
 def open_octree(spec: str, options=None, *, progress: bool = False,
-                lod_colour: str = "mean") -> Octree:
+                lod_colour: str = "mean", colour_storage: str = "srgb8") -> Octree:
     """An octree from a saved octree file, or built from any scene description (inner-node
-    colours by ``lod_colour``, see ``build.LOD_COLOURS``; a saved octree keeps its own)."""
+    colours by ``lod_colour``, see ``build.LOD_COLOURS``, albedo kept as ``colour_storage``;
+    a saved octree keeps its own)."""
     from voxfield.scene.loaders import load_scene, npz_kind
     from voxfield.svo.build import build_octree
 
@@ -152,4 +158,4 @@ def open_octree(spec: str, options=None, *, progress: bool = False,
     if path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree":
         return load_octree(path)
     return build_octree(load_scene(spec, options), progress=progress,
-                        lod_colour=lod_colour)
+                        lod_colour=lod_colour, colour_storage=colour_storage)

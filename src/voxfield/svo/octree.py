@@ -22,6 +22,7 @@ from functools import cached_property
 
 import numpy as np
 
+from voxfield.kernels.colour import decode_channel
 from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT
 
 
@@ -129,7 +130,12 @@ class Octree:
 
     @property
     def color(self) -> np.ndarray:
-        return self.attributes["color"]
+        """The albedo of every node as float32 linear RGB (decoded from its storage)."""
+        return decode_channel(self.attributes["color"])
+
+    def channel_linear(self, name: str) -> np.ndarray:
+        """A channel of every node as float32 linear RGB, whatever its storage."""
+        return decode_channel(self.channel(name))
 
     def stored_arrays(self) -> dict[str, np.ndarray]:
         """Every array the octree stores (what ``nbytes`` counts)."""
@@ -152,6 +158,7 @@ class Octree:
         return per_node
 
     def channel(self, name: str) -> np.ndarray:
+        """A channel as stored (``kernels.colour``: 8-bit sRGB or float32): what kernels take."""
         from voxfield.errors import VoxfieldError
 
         if name == "albedo":
