@@ -87,9 +87,32 @@ def load_scene(spec: str, options: SceneOptions | None = None) -> VoxelScene:
 
 
 def _terrain_from(source: str, options: SceneOptions) -> VoxelScene:
-    from voxfield.scene.terrain import load_heightmap, terrain_scene
+    return _terrain_layout(source, options).scene()
+
+
+def _terrain_layout(source: str, options: SceneOptions):
+    from voxfield.scene.terrain import load_heightmap, terrain_layout
 
     kwargs = {"footprint": options.terrain_footprint, "seed": options.seed}
     if options.vertical_scale is not None:
         kwargs["vertical_scale"] = options.vertical_scale
-    return terrain_scene(load_heightmap(source), **kwargs)
+    return terrain_layout(load_heightmap(source), **kwargs)
+
+
+def block_source(spec: str, options: SceneOptions | None = None):
+    """The scene as column blocks (``svo.streamed_build.BlockSource``) where its format can
+    deliver them without making every voxel first (terrains), else None."""
+    options = options or SceneOptions()
+    if spec.startswith("terrain:"):
+        from voxfield.scene.terrain import recipe_layout
+
+        return recipe_layout(spec.split(":", 1)[1], footprint=options.terrain_footprint)
+    if spec.startswith("dem:"):
+        return _terrain_layout(spec.split(":", 1)[1], options)
+    path = Path(spec)
+    suffix = path.suffix.lower()
+    if suffix in DEM_SUFFIXES and path.exists():
+        return _terrain_layout(str(path), options)
+    if suffix == ".npz" and path.is_file() and npz_kind(path) == "dem":
+        return _terrain_layout(str(path), options)
+    return None

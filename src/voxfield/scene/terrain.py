@@ -795,11 +795,6 @@ def _image_colors(
     return np.clip(out, 0.0, 1.0), covered
 
 
-def _fill_colors(surface: np.ndarray, ramp: ColorRamp) -> np.ndarray:
-    """Colour of the voxels under the surface: a darker, earthier version of the surface."""
-    return (0.8 * (0.4 * surface + 0.6 * _lin(ramp.earth))).astype(np.float32)
-
-
 # --------------------------------------------------------------------------------------------
 # Asset scattering
 
@@ -1070,7 +1065,7 @@ def downsample_scene(scene: VoxelScene, factor: int) -> VoxelScene:
 # The scene
 
 
-def terrain_scene(
+def terrain_layout(
     heightmap,
     footprint: int = 2048,
     *,
@@ -1085,10 +1080,10 @@ def terrain_scene(
     sea_level: float | None = None,
     fit: str = "stretch",
     interpolation: str = "cubic",
-    max_voxels: int = MAX_TERRAIN_VOXELS,
     name: str | None = None,
-) -> VoxelScene:
-    """A solid voxel terrain of ``footprint``² columns from a DEM, coloured, with assets.
+) -> TerrainLayout:
+    """The layout of a solid voxel terrain of ``footprint``² columns from a DEM, coloured,
+    with assets (``TerrainLayout.scene`` makes its voxels).
 
     ``heightmap``: a Heightmap, a path or sample name (see ``load_heightmap``) or a 2-D array.
     ``colors``: ``None``/``"ramp"`` (height/slope ramp, ``ramp`` sets its palette), an image
@@ -1120,47 +1115,142 @@ def terrain_scene(
         interpolation=interpolation,
         reserve=reserve,
     )
-    counts = cols.counts.ravel()
-    n = int(counts.sum())
-    if n > max_voxels:
-        raise SceneTooLargeError(
-            f"this terrain would hold {n:,} voxels (over max_voxels={max_voxels:,}, about "
-            f"{n * 36 / 2**30:.1f} GiB); lower footprint, vertical_scale or fill_depth"
-        )
     extra = _scatter(cols, groups, seed)
-    m = len(extra)
-
     # Colour per column.
     surface = _ramp_colors(cols, ramp, np.random.default_rng([seed, 0]))
     if colors is not None and not (isinstance(colors, str) and colors == "ramp"):
         img, covered = _image_colors(cols, hm, colors, fit)
         surface = np.where(covered[..., None], img, surface)
-    f = cols.footprint
+    return TerrainLayout(cols, surface, _lin(ramp.earth), extra,
+                         name or f"terrain:{cols.name}")
 
-    # Ground voxels: columns in row-major order, each from bottom to top, then the assets.
-    # Repeats run on small dtypes and are written into the final arrays, so temporaries stay a
-    # fraction of the output (which is ~36 bytes per voxel).
-    coords = np.empty((n + m, 3), dtype=np.int64)
-    small = np.int16 if f <= np.iinfo(np.int16).max else np.int32
-    zz, xx = np.divmod(np.arange(f * f, dtype=np.int64), f)
-    coords[:n, 0] = np.repeat(xx.astype(small), counts)
-    coords[:n, 2] = np.repeat(zz.astype(small), counts)
-    del zz, xx
-    ends = np.cumsum(counts)
-    coords[:n, 1] = np.arange(n, dtype=np.int64)
-    coords[:n, 1] -= np.repeat(ends - counts - cols.bottom.ravel(), counts)
-    coords[n:, 0] = extra.x
-    coords[n:, 1] = extra.y
-    coords[n:, 2] = extra.z
-    color = np.empty((n + m, 3), dtype=np.float32)
-    color[:n] = np.repeat(_fill_colors(surface, ramp).reshape(-1, 3), counts, axis=0)
-    color[ends - 1] = surface.reshape(-1, 3)
-    color[n:] = extra.color
-    emission = None
-    if extra.emission is not None:
-        emission = np.zeros((n + m, 3), dtype=np.float32)
-        emission[n:] = extra.emission
-    return VoxelScene(coords, color, emission, name=name or f"terrain:{cols.name}")
+
+def terrain_scene(heightmap, footprint: int = 2048, *, max_voxels: int = MAX_TERRAIN_VOXELS,
+                  **options) -> VoxelScene:
+    """A solid voxel terrain of ``footprint``² columns from a DEM, coloured, with assets:
+    every voxel of ``terrain_layout(heightmap, footprint, **options)`` at once. Over
+    ``max_voxels`` voxels it refuses; ``svo.streamed_build`` builds such worlds from the
+    layout's column blocks instead."""
+    return terrain_layout(heightmap, footprint, **options).scene(max_voxels)
+
+
+@dataclass
+class TerrainLayout:
+    """A terrain before its voxels exist: columns, their surface colours and the assets.
+
+    It makes every voxel at once (``scene``) or those of one square of columns at a time
+    (``column_block``, a ``svo.streamed_build.BlockSource``): the same voxels either way.
+    Ground voxels get their column's surface colour on top and a darker earth variant of it
+    below.
+    """
+
+    cols: TerrainColumns
+    surface: np.ndarray  # (footprint, footprint, 3) float32 linear, indexed [z, x]
+    earth: np.ndarray  # (3,) linear earth colour the fill mixes in
+    extra: _AssetVoxels
+    name: str
+
+    @property
+    def voxel_count(self) -> int:
+        return self.cols.voxel_count + len(self.extra)
+
+    @property
+    def attribute_names(self) -> tuple[str, ...]:
+        return ("color", "emission") if self.extra.emission is not None else ("color",)
+
+    @property
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        f = self.cols.footprint
+        lo = np.array([0, int(self.cols.bottom.min()), 0], np.int64)
+        hi = np.array([f, int(self.cols.top.max()) + 1, f], np.int64)
+        if len(self.extra):
+            lo = np.minimum(lo, [self.extra.x.min(), self.extra.y.min(), self.extra.z.min()])
+            hi = np.maximum(hi, [self.extra.x.max() + 1, self.extra.y.max() + 1,
+                                 self.extra.z.max() + 1])
+        return lo.astype(np.int64), hi.astype(np.int64)
+
+    def _fill(self, surface: np.ndarray) -> np.ndarray:
+        return (0.8 * (0.4 * surface + 0.6 * self.earth)).astype(np.float32)
+
+    def _ground(self, zs: slice, xs: slice) -> tuple[np.ndarray, np.ndarray]:
+        """Coordinates and colours of the ground voxels of the columns ``[zs, xs]``: columns
+        in row-major order, each from bottom to top."""
+        top = self.cols.top[zs, xs]
+        bottom = self.cols.bottom[zs, xs]
+        counts = (top - bottom + 1).astype(np.int64).ravel()
+        n = int(counts.sum())
+        rows, width = top.shape
+        # Repeats run on small dtypes and are written into the final arrays, so temporaries
+        # stay a fraction of the output (~36 bytes per voxel).
+        coords = np.empty((n, 3), dtype=np.int64)
+        small = np.int16 if max(self.cols.footprint, rows) <= np.iinfo(np.int16).max else np.int32
+        zz, xx = np.divmod(np.arange(rows * width, dtype=np.int64), width)
+        coords[:, 0] = np.repeat((xx + (xs.start or 0)).astype(small), counts)
+        coords[:, 2] = np.repeat((zz + (zs.start or 0)).astype(small), counts)
+        del zz, xx
+        ends = np.cumsum(counts)
+        coords[:, 1] = np.arange(n, dtype=np.int64)
+        coords[:, 1] -= np.repeat(ends - counts - bottom.ravel(), counts)
+        surface = self.surface[zs, xs].reshape(-1, 3)
+        color = np.empty((n, 3), dtype=np.float32)
+        color[:] = np.repeat(self._fill(surface), counts, axis=0)
+        color[ends - 1] = surface
+        return coords, color
+
+    def scene(self, max_voxels: int = MAX_TERRAIN_VOXELS) -> VoxelScene:
+        """Every voxel: the ground, then the assets."""
+        n = self.cols.voxel_count
+        m = len(self.extra)
+        if n + m > max_voxels:
+            raise SceneTooLargeError(
+                f"this terrain would hold {n + m:,} voxels (over max_voxels={max_voxels:,}, "
+                f"about {(n + m) * 36 / 2**30:.1f} GiB as a scene); lower footprint, "
+                "vertical_scale or fill_depth, or build the octree streamed "
+                "(voxfield.svo.streamed_build, which the terrain: scenes use)"
+            )
+        ground, color = self._ground(slice(None), slice(None))
+        coords = np.concatenate([ground, self._extra_coords(slice(None))])
+        color = np.concatenate([color, self.extra.color])
+        emission = None
+        if self.extra.emission is not None:
+            emission = np.zeros((n + m, 3), dtype=np.float32)
+            emission[n:] = self.extra.emission
+        return VoxelScene(coords, color, emission, name=self.name)
+
+    def _extra_coords(self, keep) -> np.ndarray:
+        x, y, z = self.extra.x[keep], self.extra.y[keep], self.extra.z[keep]
+        return np.stack([x, y, z], axis=1).astype(np.int64)
+
+    def column_block(self, x0: int, z0: int, size: int) -> tuple[np.ndarray, dict]:
+        """The voxels with ``x0 <= x < x0 + size`` and ``z0 <= z < z0 + size``."""
+        f = self.cols.footprint
+        xs = slice(max(x0, 0), min(x0 + size, f))
+        zs = slice(max(z0, 0), min(z0 + size, f))
+        if xs.start >= xs.stop or zs.start >= zs.stop:
+            coords, color = np.zeros((0, 3), np.int64), np.zeros((0, 3), np.float32)
+        else:
+            coords, color = self._ground(zs, xs)
+        keep = self._assets_in(x0, z0, size)
+        coords = np.concatenate([coords, self._extra_coords(keep)])
+        attributes = {"color": np.concatenate([color, self.extra.color[keep]])}
+        if self.extra.emission is not None:
+            emission = np.zeros((len(coords), 3), np.float32)
+            emission[len(coords) - len(keep):] = self.extra.emission[keep]
+            attributes["emission"] = emission
+        return coords, attributes
+
+    def _assets_in(self, x0: int, z0: int, size: int) -> np.ndarray:
+        """Indices of the asset voxels in a block (bucketed once per block size)."""
+        cache = self.__dict__.setdefault("_asset_buckets", {})
+        if size not in cache:
+            bx = self.extra.x.astype(np.int64) // size
+            bz = self.extra.z.astype(np.int64) // size
+            keys = bz * (1 << 31) + bx
+            order = np.argsort(keys, kind="stable")
+            cache[size] = (keys[order], order)
+        keys, order = cache[size]
+        key = (z0 // size) * (1 << 31) + x0 // size
+        return order[np.searchsorted(keys, key, "left"):np.searchsorted(keys, key, "right")]
 
 
 def _scatter(cols: TerrainColumns, groups: Sequence[AssetGroup], seed: int) -> _AssetVoxels:
@@ -1367,13 +1457,21 @@ def _data_file(root: Path, *parts: str) -> Path:
 
 
 def recipe_scene(
-    name: str, footprint: int = 2048, data_root=None, seed: int = 0, **overrides
+    name: str, footprint: int = 2048, data_root=None, seed: int = 0,
+    max_voxels: int = MAX_TERRAIN_VOXELS, **overrides
 ) -> VoxelScene:
     """The terrain a named recipe describes (``desert``, ``forest``, ``mountain``, ``biomes``).
 
     DEMs and images come from ``data_root`` (default ``voxfield.data.data_root()``) or from
-    matplotlib's samples; ``overrides`` go to ``terrain_scene`` (e.g. ``fill_depth=1``).
+    matplotlib's samples; ``overrides`` go to ``terrain_layout`` (e.g. ``fill_depth=1``).
     """
+    return recipe_layout(name, footprint, data_root, seed, **overrides).scene(max_voxels)
+
+
+def recipe_layout(
+    name: str, footprint: int = 2048, data_root=None, seed: int = 0, **overrides
+) -> TerrainLayout:
+    """The layout of a recipe's terrain (``recipe_scene`` without making the voxels)."""
     recipe = RECIPES.get(name)
     if recipe is None:
         raise VoxfieldError(f"unknown terrain recipe {name!r}; choose one of {', '.join(RECIPES)}")
@@ -1414,4 +1512,4 @@ def recipe_scene(
         name=f"terrain:{name}",
     )
     kwargs.update(overrides)
-    return terrain_scene(hm, footprint, **kwargs)
+    return terrain_layout(hm, footprint, **kwargs)
