@@ -13,7 +13,7 @@ shade; Embree's ``cast_rays`` returns t, ids, barycentrics and normals. Compile 
 excluded (a tiny warm-up render), each figure is the best of ``--repeats`` runs.
 
 Agreement: the same float32 rays Embree gets (widened back to float64) go through
-``voxfield.kernels.primary.trace_rays``; we report the fraction whose hit/miss matches and
+``voxfield.kernels.ray_batch.trace_rays``; we report the fraction whose hit/miss matches and
 the median |t_voxfield − t_embree| over rays both hit.
 
 Memory: voxfield's figure is every octree array (the whole renderable structure); Embree's

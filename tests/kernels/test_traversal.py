@@ -12,7 +12,7 @@ import pytest
 from random_scenes import random_scene
 from ray_oracle import first_hits
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.primary import trace_rays
+from voxfield.kernels.ray_batch import trace_rays
 from voxfield.kernels.traversal import NO_NORMAL
 from voxfield.render import ray_query
 from voxfield.scene.voxel_scene import VoxelScene

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.primary import trace_rays
+from voxfield.kernels.ray_batch import occlude_rays, trace_rays
 from voxfield.render.renderers import thread_count
 from voxfield.svo.octree import Octree
 
@@ -40,14 +40,7 @@ def trace(
 
     Directions need not be normalised; ``t`` is in units of each direction's length.
     """
-    o = np.ascontiguousarray(origins, dtype=np.float64)
-    d = np.ascontiguousarray(directions, dtype=np.float64)
-    if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
-        raise VoxfieldError(f"origins and directions must both be N×3, got {o.shape}, {d.shape}")
-    if not (np.isfinite(o).all() and np.isfinite(d).all()):
-        raise VoxfieldError("ray origins or directions hold NaN or infinity")
-    if np.any(~d.any(axis=1)):
-        raise VoxfieldError("a ray direction is the zero vector")
+    o, d = _checked_rays(origins, directions)
     if not 0 <= lod <= octree.depth:
         raise VoxfieldError(f"LOD must be between 0 and {octree.depth} for this octree, got {lod}")
     n = len(o)
@@ -61,3 +54,40 @@ def trace(
             hits.node, hits.level, hits.t, hits.normal_code, hits.steps,
         )
     return hits
+
+
+@dataclass
+class Occlusions:
+    """Per-ray any-hit results: ``blocked`` where a voxel lies on the segment."""
+
+    blocked: np.ndarray
+    steps: np.ndarray
+
+
+def occluded(
+    octree: Octree, origins, directions, *, tmin: float = 0.0, tmax: float = math.inf,
+    threads: int | None = None,
+) -> Occlusions:
+    """Whether a voxel (LOD 0) blocks each segment ``o + t·d``, ``tmin <= t < tmax``: the
+    query shadow and visibility rays need. It stops at the first occupied node met (a
+    solid node counts the moment it is entered), so it is cheaper than ``trace``; which
+    rays are blocked is exactly ``trace(...).hit``."""
+    o, d = _checked_rays(origins, directions)
+    n = len(o)
+    result = Occlusions(blocked=np.empty(n, bool), steps=np.empty(n, np.int64))
+    with thread_count(threads):
+        occlude_rays(o, d, float(tmin), float(tmax), octree.inner_nodes, octree.depth,
+                     result.blocked, result.steps)
+    return result
+
+
+def _checked_rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
+    o = np.ascontiguousarray(origins, dtype=np.float64)
+    d = np.ascontiguousarray(directions, dtype=np.float64)
+    if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
+        raise VoxfieldError(f"origins and directions must both be N×3, got {o.shape}, {d.shape}")
+    if not (np.isfinite(o).all() and np.isfinite(d).all()):
+        raise VoxfieldError("ray origins or directions hold NaN or infinity")
+    if np.any(~d.any(axis=1)):
+        raise VoxfieldError("a ray direction is the zero vector")
+    return o, d

@@ -103,12 +103,13 @@ def run_in_bands(height: int, band, *, label: str, threads: int | None, progress
 
 def render_reference(
     octree: Octree, camera: Camera, *, side: int = 4, seed: int = 0, channel: str = "albedo",
-    threads: int | None = None, progress: bool = False,
+    threads: int | None = None, progress: bool = False, beam: bool = True,
 ) -> RenderResult:
-    """Ground truth: ``side``×``side`` CMJ rays per pixel, all sampling LOD 0 (thesis: 4×4)."""
+    """Ground truth: ``side``×``side`` CMJ rays per pixel, all sampling LOD 0 (thesis: 4×4).
+    ``beam=False`` starts every ray at the camera (same image, more steps)."""
     result = trace_image(
         octree, camera, side=side, stop_level=octree.depth, cone_scale=0.0, seed=seed,
-        channel=channel, threads=threads, progress=progress, label="reference",
+        channel=channel, threads=threads, progress=progress, label="reference", beam=beam,
     )
     result.renderer = "reference"
     result.params = {"samples_per_pixel": side * side, "seed": seed, "channel": channel}
@@ -118,10 +119,11 @@ def render_reference(
 def render_lod(
     octree: Octree, camera: Camera, *, lod: int | None = None, cone_scale: float = 1.0,
     side: int = 1, seed: int = 0, channel: str = "albedo",
-    threads: int | None = None, progress: bool = False,
+    threads: int | None = None, progress: bool = False, beam: bool = True,
 ) -> RenderResult:
     """One ray per pixel sampling a fixed LOD, or (``lod=None``) the LOD whose nodes match the
-    pixel cone: a node is sampled once it is no larger than ``cone_scale`` pixel footprints."""
+    pixel cone: a node is sampled once it is no larger than ``cone_scale`` pixel footprints.
+    ``beam=False`` starts every ray at the camera (same image, more steps)."""
     if lod is not None and not 0 <= lod <= octree.depth:
         raise VoxfieldError(f"LOD must be between 0 and {octree.depth} for this octree, got {lod}")
     if lod is None and not cone_scale > 0.0:
@@ -130,7 +132,7 @@ def render_lod(
     result = trace_image(
         octree, camera, side=side, stop_level=stop_level,
         cone_scale=cone_scale if lod is None else 0.0, seed=seed,
-        channel=channel, threads=threads, progress=progress, label="lod",
+        channel=channel, threads=threads, progress=progress, label="lod", beam=beam,
     )
     result.renderer = "lod"
     result.params = {

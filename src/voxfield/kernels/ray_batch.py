@@ -1,0 +1,77 @@
+"""Batch ray queries: arbitrary rays, closest or any hit (tests, oracles, benchmarks, probes)."""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from voxfield.kernels.traversal import new_scratch, occluded, trace_ray
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def trace_rays(
+    origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
+    inner_nodes: np.ndarray, depth: int, stop_level: int,
+    out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray,
+) -> None:
+    """Trace arbitrary rays at a fixed stop level (batch API, tests, oracles, probes)."""
+    n = origins.shape[0]
+    chunk = 256
+    for c in prange((n + chunk - 1) // chunk):
+        trace_ray_chunk(origins, directions, c * chunk, min(n, (c + 1) * chunk), tmin, tmax,
+                        inner_nodes, depth, stop_level,
+                        out_node, out_level, out_t, out_normal, out_steps)
+
+
+@njit(cache=True, nogil=True)
+def trace_ray_chunk(
+    origins: np.ndarray, directions: np.ndarray, first: int, last: int,
+    tmin: float, tmax: float, inner_nodes: np.ndarray, depth: int, stop_level: int,
+    out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray,
+) -> None:
+    """Rays ``first..last-1`` of ``trace_rays``."""
+    scratch = new_scratch(depth)
+    for k in range(first, last):
+        node, level, t, normal, steps = trace_ray(
+            origins[k, 0], origins[k, 1], origins[k, 2],
+            directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
+            inner_nodes, depth, stop_level, 0.0, 0.0, scratch,
+        )
+        out_node[k] = node
+        out_level[k] = level
+        out_t[k] = t
+        out_normal[k] = normal
+        out_steps[k] = steps
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def occlude_rays(
+    origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
+    inner_nodes: np.ndarray, depth: int, out_blocked: np.ndarray, out_steps: np.ndarray,
+) -> None:
+    """Any-hit queries at LOD 0: is ``[tmin, tmax)`` of each ray blocked by a voxel?"""
+    n = origins.shape[0]
+    chunk = 256
+    for c in prange((n + chunk - 1) // chunk):
+        occlude_ray_chunk(origins, directions, c * chunk, min(n, (c + 1) * chunk), tmin, tmax,
+                          inner_nodes, depth, out_blocked, out_steps)
+
+
+@njit(cache=True, nogil=True)
+def occlude_ray_chunk(
+    origins: np.ndarray, directions: np.ndarray, first: int, last: int,
+    tmin: float, tmax: float, inner_nodes: np.ndarray, depth: int,
+    out_blocked: np.ndarray, out_steps: np.ndarray,
+) -> None:
+    """Rays ``first..last-1`` of ``occlude_rays``."""
+    scratch = new_scratch(depth)
+    for k in range(first, last):
+        blocked, steps = occluded(
+            origins[k, 0], origins[k, 1], origins[k, 2],
+            directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
+            inner_nodes, depth, scratch,
+        )
+        out_blocked[k] = blocked
+        out_steps[k] = steps

@@ -1,0 +1,78 @@
+"""Restarts below the root and any-hit queries give exactly what a plain traversal gives."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from kernels.test_traversal import adversarial_rays
+from random_scenes import random_scene
+from voxfield.kernels.traversal import new_scratch, trace_ray
+from voxfield.render import orbit_camera
+from voxfield.render.ray_query import occluded, trace
+from voxfield.scene.builtin import pillars
+from voxfield.svo import build_octree
+
+
+@njit
+def _one_by_one(o, d, inner, depth, stop, out, out_t):
+    """Every ray with fresh scratch: no restart is possible."""
+    for k in range(o.shape[0]):
+        scratch = new_scratch(depth)
+        node, level, t, normal, steps = trace_ray(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1],
+                                                  d[k, 2], 0.0, math.inf, inner, depth, stop,
+                                                  0.0, 0.0, scratch)
+        out[k, 0] = node
+        out[k, 1] = level
+        out[k, 2] = normal
+        out[k, 3] = steps
+        out_t[k] = t
+
+
+def _scenes():
+    yield build_octree(pillars(32))
+    yield build_octree(random_scene(4, n=2000, size=32))
+
+
+def test_restarted_rays_match_rays_from_the_root_in_everything():
+    for octree in _scenes():
+        lo, hi = octree.voxel_bounds
+        cam = orbit_camera(lo, hi, size=40)
+        coherent = cam.rays(side=2, seed=1)
+        for origins, directions in (coherent, adversarial_rays(lo, hi, 3000, seed=2)):
+            for lod in (0, 2):
+                stop = octree.depth - lod
+                got = trace(octree, origins, directions, lod=lod)  # batches restart
+                want = np.empty((len(origins), 4), np.int64)
+                want_t = np.empty(len(origins))
+                _one_by_one(origins, directions, octree.inner_nodes, octree.depth, stop, want,
+                            want_t)
+                assert np.array_equal(got.node, want[:, 0])
+                assert np.array_equal(got.level[got.hit], want[got.hit, 1])
+                assert np.array_equal(got.normal_code[got.hit], want[got.hit, 2])
+                assert np.array_equal(got.steps, want[:, 3])
+                assert np.array_equal(got.t, want_t)  # bit for bit
+
+
+def test_any_hit_blocks_exactly_the_rays_that_hit_and_takes_fewer_steps():
+    for solid_interiors, octree in zip((True, False), _scenes(), strict=True):
+        lo, hi = octree.voxel_bounds
+        origins, directions = adversarial_rays(lo, hi, 4000, seed=5)
+        for tmax in (math.inf, 3.5):
+            closest = trace(octree, origins, directions, tmax=tmax)
+            anyhit = occluded(octree, origins, directions, tmax=tmax)
+            assert np.array_equal(anyhit.blocked, closest.hit)
+            assert np.all(anyhit.steps <= closest.steps)
+        # Shadow-style rays from surface points: solid interiors stop them early.
+        top = octree.node_coords(octree.depth) + [0.5, 1.0, 0.5]
+        rng = np.random.default_rng(0)
+        d = rng.normal(size=top.shape)
+        d[:, 1] = np.abs(d[:, 1])
+        closest = trace(octree, top, d)
+        anyhit = occluded(octree, top, d)
+        assert np.array_equal(anyhit.blocked, closest.hit)
+        assert np.all(anyhit.steps <= closest.steps)
+        if solid_interiors:  # pillars have solid 2³ and 4³ blocks: rays stop at them
+            assert anyhit.steps.sum() < 0.9 * closest.steps.sum()
