@@ -1,7 +1,8 @@
-"""Primary-ray throughput of voxfield's SVO traversal, side by side with Embree (issue 2).
+"""Ray throughput and memory of voxfield's SVO traversal, side by side with Embree.
 
     python benchmarks/bench_traversal.py                       # mountain terrain, 2048² and 512²
     python benchmarks/bench_traversal.py --footprint 512 --repeats 5
+    python benchmarks/bench_traversal.py --big 8192            # also stream-build an 8192² world
     python benchmarks/bench_traversal.py --no-peer             # voxfield alone
 
 Both tracers see the same solid and exactly the same rays: Embree (through Open3D's
@@ -9,16 +10,30 @@ Both tracers see the same solid and exactly the same rays: Embree (through Open3
 (``voxfield.scene.surface.exposed_faces``), fed the rays ``Camera.rays`` generates — the
 same CMJ samples the voxfield renderers trace. voxfield is timed in its renderers
 (``render_lod`` at LOD 0, 1 ray/pixel; ``render_reference``, 16 rays/pixel), which also
-shade; Embree's ``cast_rays`` returns t, ids, barycentrics and normals. Compile time is
-excluded (a tiny warm-up render), each figure is the best of ``--repeats`` runs.
+shade and include their beam pass; Embree's ``cast_rays`` returns t, ids, barycentrics and
+normals. Compile time is excluded (a tiny warm-up render), each figure is the best of
+``--repeats`` runs, and the two tracers alternate run by run, so a busy machine slows both.
+
+Rows:
+- primary rays, beam on (the default) and off (every ray starts at the camera);
+- incoherent secondary rays: cosine-weighted directions from random points on voxel tops,
+  voxfield's any-hit ``ray_query.occluded`` against Embree's ``test_occlusions`` and
+  closest-hit ``ray_query.trace`` against ``cast_rays``.
 
 Agreement: the same float32 rays Embree gets (widened back to float64) go through
-``voxfield.kernels.ray_batch.trace_rays``; we report the fraction whose hit/miss matches and
-the median |t_voxfield − t_embree| over rays both hit.
+``voxfield.render.ray_query``; we report the fraction whose hit/miss matches and the
+median |t_voxfield − t_embree| over rays both hit.
 
-Memory: voxfield's figure is every octree array (the whole renderable structure); Embree's
-is the mesh arrays handed to it plus the process RSS growth over ``add_triangles`` and the
-BVH build (Embree's own buffers and BVH, which Open3D does not expose).
+Memory: voxfield's figure is the whole octree (every stored array: descriptors, colours,
+offsets; ``Octree.nbytes``); Embree's is the mesh arrays handed to it plus the process RSS
+growth over ``add_triangles`` and the BVH build (Embree's own buffers and BVH, which Open3D
+does not expose). The colour-storage rows show what 8-bit sRGB colours cost in image quality:
+the LOD-2 and cone-LOD images' PSNR against the reference, from an 8-bit and a float32 build.
+
+``--big N`` builds an N² world streamed (``voxfield.svo.streamed_build``) and reports build
+time, peak RSS, bytes per voxel, render throughput and the memory Embree would need for it:
+its exposed faces counted block by block, times the bytes per triangle Embree used in this
+run (it is not built).
 
 The peer is optional: ``pip install -e .[peer]`` (Open3D, ~900 MB wheel) and, on Debian or
 Ubuntu, ``apt-get install libusb-1.0-0`` (``import open3d`` needs ``libusb-1.0.so.0``).
@@ -30,6 +45,7 @@ import argparse
 import gc
 import math
 import os
+import resource
 import sys
 import time
 from dataclasses import dataclass, field
@@ -58,6 +74,10 @@ def rss_mib() -> float:
     return float("nan")
 
 
+def peak_rss_gib() -> float:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+
+
 def load_open3d():
     """(module, None) or (None, why it could not be imported)."""
     try:
@@ -77,7 +97,6 @@ class SceneStats:
     scene_s: float = 0.0
     octree_s: float = 0.0
     octree_mib: float = 0.0
-    kernel_mib: float = 0.0
     triangles: int = 0
     vertices: int = 0
     mesh_s: float = 0.0
@@ -85,35 +104,37 @@ class SceneStats:
     embree_build_s: float = float("nan")
     embree_rss_mib: float = float("nan")
     rows: list = field(default_factory=list)
+    secondary: list = field(default_factory=list)
+    colour: list = field(default_factory=list)
 
-
-def octree_bytes(octree) -> int:
-    arrays = [octree.child_mask, octree.first_child, octree.node_coord, octree.level_offsets]
-    return sum(a.nbytes for a in arrays) + sum(a.nbytes for a in octree.attributes.values())
+    @property
+    def embree_bytes_per_triangle(self) -> float:
+        return (self.embree_rss_mib + self.mesh_mib) * 2**20 / max(self.triangles, 1)
 
 
 def build_scene(args, footprint: int):
-    """The terrain the issue names: a real DEM (``--recipe``) at ``footprint``² columns."""
-    from voxfield.scene.terrain import recipe_scene
-    from voxfield.svo import build_octree
+    """The terrain the issue names: a real DEM (``--recipe``) at ``footprint``² columns,
+    built as ``voxfield`` builds terrains (streamed)."""
+    from voxfield.scene.terrain import recipe_layout
+    from voxfield.svo.streamed_build import build_octree_streamed
 
     t0 = time.perf_counter()
-    scene = recipe_scene(args.recipe, footprint=footprint, seed=args.seed)
+    layout = recipe_layout(args.recipe, footprint=footprint, seed=args.seed)
     t1 = time.perf_counter()
-    octree = build_octree(scene)
+    octree = build_octree_streamed(layout)
     t2 = time.perf_counter()
     stats = SceneStats(
-        name=f"{args.recipe} {footprint}²", voxels=len(scene), nodes=octree.node_count,
+        name=f"{args.recipe} {footprint}²", voxels=octree.voxel_count, nodes=octree.node_count,
         depth=octree.depth, scene_s=t1 - t0, octree_s=t2 - t1,
-        octree_mib=octree_bytes(octree) / 2**20,
-        kernel_mib=octree.inner_nodes.nbytes / 2**20,
+        octree_mib=octree.nbytes / 2**20,
     )
-    return octree, stats
+    return octree, layout, stats
 
 
 def warm_up() -> None:
     """Compile every kernel we time on a tiny scene, so JIT time is not measured."""
     from voxfield.render.camera import top_down_camera
+    from voxfield.render.ray_query import occluded, trace
     from voxfield.render.renderers import render_lod, render_reference
     from voxfield.scene.voxel_scene import VoxelScene
     from voxfield.svo import build_octree
@@ -122,28 +143,23 @@ def warm_up() -> None:
     coords = rng.integers(0, 8, size=(64, 3))
     tiny = build_octree(VoxelScene(coords, rng.random((64, 3)), name="warm-up").dedupe())
     cam = top_down_camera(*tiny.voxel_bounds, size=8)
-    render_lod(tiny, cam, lod=0)
-    render_reference(tiny, cam, side=4)
+    for beam in (True, False):
+        render_lod(tiny, cam, lod=0, beam=beam)
+        render_reference(tiny, cam, side=4, beam=beam)
     o, d = cam.rays(side=1, seed=0)
-    voxfield_trace(tiny, o, d)
+    trace(tiny, o, d)
+    occluded(tiny, o, d)
 
 
-def voxfield_trace(octree, origins, directions, threads=None):
-    """Per-ray (hit?, t, steps) from the batch kernel at LOD 0."""
-    from voxfield.render.ray_query import trace
-
-    hits = trace(octree, origins, directions, lod=0, threads=threads)
-    return hits.hit, hits.t, hits.steps
-
-
-def best_of(repeats: int, fn):
-    """(best seconds, last result) over ``repeats`` calls of ``fn() -> (seconds, result)``."""
-    best = math.inf
-    result = None
+def best_of(repeats: int, fns: dict) -> dict:
+    """Best seconds and last result of each ``fn() -> (seconds, result)``, alternating."""
+    best = {k: math.inf for k in fns}
+    last = {}
     for _ in range(repeats):
-        seconds, result = fn()
-        best = min(best, seconds)
-    return best, result
+        for k, fn in fns.items():
+            seconds, last[k] = fn()
+            best[k] = min(best[k], seconds)
+    return {k: (best[k], last[k]) for k in fns}
 
 
 def build_embree(o3d, octree, stats: SceneStats, args):
@@ -172,30 +188,31 @@ def build_embree(o3d, octree, stats: SceneStats, args):
     return scene
 
 
-def run_view(o3d, embree, octree, stats: SceneStats, view: str, side: int, args) -> None:
+def camera_for(octree, view: str, size: int):
     from voxfield.render.camera import oblique_camera, top_down_camera
-    from voxfield.render.renderers import render_lod, render_reference
 
     lo, hi = octree.voxel_bounds
     if view == "top":
-        cam = top_down_camera(lo, hi, size=args.size, fov_deg=90)
-    else:
-        cam = oblique_camera(lo, hi, size=args.size, fov_deg=90, elevation_deg=45)
+        return top_down_camera(lo, hi, size=size, fov_deg=90)
+    return oblique_camera(lo, hi, size=size, fov_deg=90, elevation_deg=45)
 
-    def vox():
-        if side == 1:
-            r = render_lod(octree, cam, lod=0, threads=args.threads)
-        else:
-            r = render_reference(octree, cam, side=side, threads=args.threads)
-        return r.seconds, r
 
-    vox_s, res = best_of(args.repeats, vox)
-    row = {
-        "view": view, "spp": side * side, "rays": res.total_rays,
-        "vox_mrays": res.total_rays / vox_s / 1e6,
-        "steps_per_ray": res.total_steps / res.total_rays,
-        "hit_frac": res.hit_count.sum() / res.total_rays,
-    }
+def run_view(o3d, embree, octree, stats: SceneStats, view: str, side: int, args) -> None:
+    from voxfield.render.renderers import render_lod, render_reference
+
+    cam = camera_for(octree, view, args.size)
+
+    def vox(beam: bool):
+        def run():
+            if side == 1:
+                r = render_lod(octree, cam, lod=0, threads=args.threads, beam=beam)
+            else:
+                r = render_reference(octree, cam, side=side, threads=args.threads, beam=beam)
+            return r.seconds, r
+        return run
+
+    fns = {"beam": vox(True), "no_beam": vox(False)}
+    rays32 = tensor = None
     if embree is not None:
         origins, directions = cam.rays(side=side, seed=0)
         rays32 = np.concatenate([origins, directions], axis=1).astype(np.float32)
@@ -205,65 +222,185 @@ def run_view(o3d, embree, octree, stats: SceneStats, view: str, side: int, args)
         def cast():
             t0 = time.perf_counter()
             out = embree.cast_rays(tensor, nthreads=args.threads)
-            return time.perf_counter() - t0, out
+            return time.perf_counter() - t0, out["t_hit"].numpy()
 
-        emb_s, out = best_of(args.repeats, cast)
-        t_emb = out["t_hit"].numpy().astype(np.float64)
-        del out
-        row["emb_mrays"] = len(rays32) / emb_s / 1e6
-        row["ratio"] = row["vox_mrays"] / row["emb_mrays"]
-        if args.occlusions:
+        fns["embree"] = cast
+    timed = best_of(args.repeats, fns)
+    for beam in (True, False):
+        seconds, res = timed["beam" if beam else "no_beam"]
+        row = {
+            "view": view, "spp": side * side, "beam": beam, "rays": res.total_rays,
+            "vox_mrays": res.total_rays / seconds / 1e6,
+            "steps_per_ray": res.total_steps / res.total_rays,
+            "hit_frac": res.hit_count.sum() / res.total_rays,
+        }
+        if embree is not None:
+            row["emb_mrays"] = len(rays32) / timed["embree"][0] / 1e6
+            row["ratio"] = row["vox_mrays"] / row["emb_mrays"]
+        stats.rows.append(row)
+        print(f"  {stats.name} {view} {side * side} rays/px: {fmt_row(row)}", file=sys.stderr)
+    if embree is not None:
+        agreement(octree, rays32, timed["embree"][1].astype(np.float64), stats.rows[-2], args)
 
-            def occlude():
-                t0 = time.perf_counter()
-                out = embree.test_occlusions(tensor, nthreads=args.threads)
-                return time.perf_counter() - t0, out
 
-            occ_s, _ = best_of(args.repeats, occlude)
-            row["occ_mrays"] = len(rays32) / occ_s / 1e6
-        # Agreement on the identical (float32) rays, through voxfield's batch kernel (also
-        # timed: same inputs as Embree, no ray generation or shading).
-        wide = rays32.astype(np.float64)
-        origins, directions = np.ascontiguousarray(wide[:, :3]), np.ascontiguousarray(wide[:, 3:])
+def agreement(octree, rays32, t_emb, row, args) -> None:
+    """Hit/miss agreement and |Δt| on exactly Embree's rays (widened to float64)."""
+    from voxfield.render.ray_query import trace
 
-        def batch():
+    wide = rays32.astype(np.float64)
+    hits = trace(octree, wide[:, :3], wide[:, 3:], threads=args.threads)
+    hit_e = np.isfinite(t_emb)
+    both = hits.hit & hit_e
+    dt = np.abs(hits.t[both] - t_emb[both])
+    row["agree"] = float((hits.hit == hit_e).mean())
+    row["only_vox"] = int((hits.hit & ~hit_e).sum())
+    row["only_emb"] = int((hit_e & ~hits.hit).sum())
+    row["dt_median"] = float(np.median(dt)) if len(dt) else 0.0
+
+
+def secondary_rays(octree, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Cosine-weighted upward rays from random points on random voxel tops (incoherent)."""
+    rng = np.random.default_rng(seed)
+    leaves = octree.node_coords(octree.depth)
+    picks = leaves[rng.integers(0, len(leaves), count)].astype(np.float64)
+    origins = picks + np.c_[rng.random(count), np.ones(count), rng.random(count)]
+    r = np.sqrt(rng.random(count))
+    phi = 2 * np.pi * rng.random(count)
+    directions = np.c_[r * np.cos(phi), np.sqrt(1 - r * r), r * np.sin(phi)]
+    return origins, directions
+
+
+def run_secondary(o3d, embree, octree, stats: SceneStats, args) -> None:
+    """Any-hit and closest-hit queries on incoherent rays against Embree's."""
+    from voxfield.render.ray_query import occluded, trace
+
+    origins, directions = secondary_rays(octree, args.secondary_rays, args.seed)
+    # Origins on voxel faces: Embree would hit the face it starts on, so both tracers start
+    # a hair above it (voxfield's half-open slabs would not need that).
+    origins = origins + 1e-3 * directions
+    tmin = 0.0
+    rays32 = np.concatenate([origins, directions], axis=1).astype(np.float32)
+    wide = rays32.astype(np.float64)
+    o, d = np.ascontiguousarray(wide[:, :3]), np.ascontiguousarray(wide[:, 3:])
+
+    def any_hit():
+        t0 = time.perf_counter()
+        out = occluded(octree, o, d, tmin=tmin, threads=args.threads)
+        return time.perf_counter() - t0, out
+
+    def closest():
+        t0 = time.perf_counter()
+        out = trace(octree, o, d, tmin=tmin, threads=args.threads)
+        return time.perf_counter() - t0, out
+
+    fns = {"any": any_hit, "closest": closest}
+    if embree is not None:
+        tensor = o3d.core.Tensor.from_numpy(rays32)
+
+        def occl():
             t0 = time.perf_counter()
-            out = voxfield_trace(octree, origins, directions, args.threads)
-            return time.perf_counter() - t0, out
+            out = embree.test_occlusions(tensor, tnear=tmin, nthreads=args.threads)
+            return time.perf_counter() - t0, out.numpy().astype(bool)
 
-        batch_s, (hit_v, t_v, _) = best_of(args.repeats, batch)
-        row["batch_mrays"] = len(wide) / batch_s / 1e6
-        hit_e = np.isfinite(t_emb)
-        agree = hit_v == hit_e
-        both = hit_v & hit_e
-        dt = np.abs(t_v[both] - t_emb[both])
-        row["agree"] = agree.mean()
-        row["only_vox"] = int((hit_v & ~hit_e).sum())
-        row["only_emb"] = int((hit_e & ~hit_v).sum())
-        row["dt_median"] = float(np.median(dt)) if len(dt) else 0.0
-        row["dt_p999"] = float(np.quantile(dt, 0.999)) if len(dt) else 0.0
-        del origins, directions, dt
-        if args.report_mismatches and not agree.all():
-            report_mismatches(wide, hit_v, t_v, hit_e, t_emb, side, args.size)
-        del rays32, tensor, wide, t_emb
-    stats.rows.append(row)
-    print(f"  {stats.name} {view} {side * side} rays/px: {fmt_row(row)}", file=sys.stderr)
+        def cast():
+            t0 = time.perf_counter()
+            out = embree.cast_rays(tensor, nthreads=args.threads)
+            return time.perf_counter() - t0, out["t_hit"].numpy()
+
+        fns["emb_any"] = occl
+        fns["emb_closest"] = cast
+    timed = best_of(args.repeats, fns)
+    n = len(o)
+    for kind in ("any", "closest"):
+        seconds, res = timed[kind]
+        blocked = res.blocked if kind == "any" else res.hit
+        row = {"query": "any-hit" if kind == "any" else "closest hit", "rays": n,
+               "vox_mrays": n / seconds / 1e6, "steps_per_ray": res.steps.mean(),
+               "blocked": blocked.mean()}
+        if embree is not None:
+            e_seconds, e_out = timed["emb_" + kind]
+            row["emb_mrays"] = n / e_seconds / 1e6
+            row["ratio"] = row["vox_mrays"] / row["emb_mrays"]
+            e_blocked = e_out if kind == "any" else np.isfinite(e_out)
+            row["agree"] = float((blocked == e_blocked).mean())
+        stats.secondary.append(row)
+        print(f"  {stats.name} secondary: {fmt_row(row)}", file=sys.stderr)
 
 
-def report_mismatches(rays, hit_v, t_v, hit_e, t_e, side, size, limit=8) -> None:
-    """Print the first few rays the two tracers disagree on, for investigation."""
-    bad = np.flatnonzero(hit_v != hit_e)
-    spp = side * side
-    print(f"    {len(bad)} hit/miss mismatches; first {min(limit, len(bad))}:", file=sys.stderr)
-    for i in bad[:limit]:
-        pixel, sample = divmod(int(i), spp)
-        row, col = divmod(pixel, size)
-        o, d = rays[i, :3], rays[i, 3:]
-        print(
-            f"      ray {i} (pixel {row},{col} sample {sample}) o={o.tolist()} d={d.tolist()} "
-            f"voxfield t={t_v[i]:.6g} embree t={t_e[i]:.6g}",
-            file=sys.stderr,
-        )
+def run_colour_storage(octree_8bit, layout, stats: SceneStats, args) -> None:
+    """PSNR of the LOD-2 and cone-LOD images against the reference, per colour storage."""
+    from voxfield.metrics import psnr
+    from voxfield.render.renderers import render_lod, render_reference
+    from voxfield.svo.streamed_build import build_octree_streamed
+
+    exact = build_octree_streamed(layout, colour_storage="float32")
+    for view in ("top", "oblique"):
+        cam = camera_for(octree_8bit, view, args.size // 2)
+        for name, octree in (("srgb8", octree_8bit), ("float32", exact)):
+            ref = render_reference(octree, cam, side=4, threads=args.threads)
+            row = {"view": view, "storage": name, "octree_mib": octree.nbytes / 2**20}
+            for label, lod in (("lod2", 2), ("cone", None)):
+                img = render_lod(octree, cam, lod=lod, threads=args.threads).image
+                row[label] = psnr(ref.image, img)
+            stats.colour.append(row)
+            print(f"  {stats.name} colour: {fmt_row(row)}", file=sys.stderr)
+    del exact
+
+
+def count_exposed_faces(layout, block: int = 256) -> int:
+    """Exposed voxel faces of a streamed world, block by block with a one-column halo."""
+    from voxfield.scene.surface import face_mask
+
+    lo, hi = layout.bounds
+    total = 0
+    for z0 in range(int(lo[2]), int(hi[2]), block):
+        for x0 in range(int(lo[0]), int(hi[0]), block):
+            coords, _ = layout.column_block(x0 - 1, z0 - 1, block + 2)
+            if not len(coords):
+                continue
+            grid = coords - coords.min(axis=0)
+            faces = face_mask(grid[np.lexsort(grid.T[::-1])])
+            c = coords[np.lexsort(grid.T[::-1])]
+            core = ((c[:, 0] >= x0) & (c[:, 0] < x0 + block) & (c[:, 2] >= z0)
+                    & (c[:, 2] < z0 + block))
+            total += int(faces[core].sum())
+    return total
+
+
+def run_big(args, bytes_per_triangle: float | None) -> dict:
+    """Stream-build an N² world, render it, and estimate what Embree would need."""
+    from voxfield.render.renderers import render_lod
+    from voxfield.scene.terrain import recipe_layout
+    from voxfield.svo.streamed_build import build_octree_streamed
+
+    gc.collect()
+    footprint = args.big
+    t0 = time.perf_counter()
+    layout = recipe_layout(args.recipe, footprint=footprint, seed=args.seed)
+    t1 = time.perf_counter()
+    octree = build_octree_streamed(layout, progress=True)
+    t2 = time.perf_counter()
+    big = {"name": f"{args.recipe} {footprint}²", "voxels": octree.voxel_count,
+           "nodes": octree.node_count, "layout_s": t1 - t0, "build_s": t2 - t1,
+           "octree_mib": octree.nbytes / 2**20,
+           "bytes_per_voxel": octree.nbytes / octree.voxel_count,
+           "peak_rss_gib": peak_rss_gib()}
+    for view in ("top", "oblique"):
+        cam = camera_for(octree, view, args.size)
+        best = min(render_lod(octree, cam, lod=0, threads=args.threads).seconds
+                   for _ in range(args.repeats))
+        big[f"{view}_mrays"] = args.size * args.size / best / 1e6
+    big["peak_rss_gib"] = peak_rss_gib()
+    if not args.no_face_count:
+        del octree
+        gc.collect()
+        t3 = time.perf_counter()
+        big["triangles"] = 2 * count_exposed_faces(layout)
+        big["count_s"] = time.perf_counter() - t3
+        if bytes_per_triangle is not None:
+            big["embree_gib"] = big["triangles"] * bytes_per_triangle / 2**30
+    print(f"  big: {fmt_row(big)}", file=sys.stderr)
+    return big
 
 
 def fmt_row(row: dict) -> str:
@@ -274,59 +411,102 @@ def num(v, spec: str) -> str:
     return "—" if v is None or (isinstance(v, float) and math.isnan(v)) else format(v, spec)
 
 
-def print_tables(all_stats: list[SceneStats], peer: bool, args) -> None:
-    print(f"\n### Primary-ray throughput ({args.size}² image, 90° FOV, LOD 0, "
-          f"{args.threads} threads, best of {args.repeats})\n")
-    head = ["scene", "view", "rays/px", "rays", "voxfield Mrays/s", "steps/ray", "hit %"]
-    if peer:
-        head += ["Embree Mrays/s", "voxfield/Embree", "voxfield batch Mrays/s"]
-        if args.occlusions:
-            head += ["Embree occl. Mrays/s"]
-        head += ["hit/miss agree", "only vox / only Embree", "median |Δt|", "99.9% |Δt|"]
+def table(head: list[str], rows: list[list[str]]) -> None:
     print("| " + " | ".join(head) + " |")
     print("|" + "|".join("---" for _ in head) + "|")
+    for cells in rows:
+        print("| " + " | ".join(cells) + " |")
+
+
+def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args) -> None:
+    print(f"\n### Primary rays ({args.size}² image, 90° FOV, LOD 0, {args.threads} threads, "
+          f"best of {args.repeats})\n")
+    head = ["scene", "view", "rays/px", "beam", "rays", "voxfield Mrays/s", "steps/ray",
+            "hit %"]
+    if peer:
+        head += ["Embree Mrays/s", "voxfield/Embree", "hit/miss agree",
+                 "only vox / only Embree", "median |Δt|"]
+    rows = []
     for s in all_stats:
         for r in s.rows:
-            cells = [s.name, r["view"], str(r["spp"]), f"{r['rays']:,}",
-                     num(r["vox_mrays"], ".2f"), num(r["steps_per_ray"], ".1f"),
-                     num(100 * r["hit_frac"], ".1f")]
+            cells = [s.name, r["view"], str(r["spp"]), "on" if r["beam"] else "off",
+                     f"{r['rays']:,}", num(r["vox_mrays"], ".2f"),
+                     num(r["steps_per_ray"], ".1f"), num(100 * r["hit_frac"], ".1f")]
+            if peer:
+                cells += [num(r.get("emb_mrays"), ".2f"), num(r.get("ratio"), ".2f")]
+                if "agree" in r:
+                    cells += [f"{100 * r['agree']:.4f} %", f"{r['only_vox']} / {r['only_emb']}",
+                              num(r["dt_median"], ".2g")]
+                else:
+                    cells += ["", "", ""]
+            rows.append(cells)
+    table(head, rows)
+
+    print(f"\n### Incoherent secondary rays ({args.secondary_rays:,} cosine-weighted rays from "
+          "random voxel tops)\n")
+    head = ["scene", "query", "voxfield Mrays/s", "steps/ray", "blocked %"]
+    if peer:
+        head += ["Embree Mrays/s", "voxfield/Embree", "agree"]
+    rows = []
+    for s in all_stats:
+        for r in s.secondary:
+            cells = [s.name, r["query"], num(r["vox_mrays"], ".2f"),
+                     num(r["steps_per_ray"], ".1f"), num(100 * r["blocked"], ".1f")]
             if peer:
                 cells += [num(r.get("emb_mrays"), ".2f"), num(r.get("ratio"), ".2f"),
-                          num(r.get("batch_mrays"), ".2f")]
-                if args.occlusions:
-                    cells += [num(r.get("occ_mrays"), ".2f")]
-                cells += [f"{100 * r['agree']:.4f} %", f"{r['only_vox']} / {r['only_emb']}",
-                          num(r["dt_median"], ".2g"), num(r["dt_p999"], ".2g")]
-            print("| " + " | ".join(cells) + " |")
-    print("\n### Build time and memory\n")
-    head = ["scene", "voxels", "octree nodes", "octree MiB (traced)", "scene load s",
+                          f"{100 * r['agree']:.3f} %"]
+            rows.append(cells)
+    table(head, rows)
+    print("\nEmbree: `test_occlusions` for any-hit, `cast_rays` for closest hit; the same "
+          "float32 rays, started 0.001 voxel above the faces.")
+
+    print("\n### Memory and build\n")
+    head = ["scene", "voxels", "octree nodes", "voxfield MiB", "bytes/voxel", "layout s",
             "octree build s"]
     if peer:
-        head += ["triangles", "vertices", "mesh MiB", "mesh extraction s", "Embree build s",
-                 "Embree RSS growth MiB"]
-    print("| " + " | ".join(head) + " |")
-    print("|" + "|".join("---" for _ in head) + "|")
+        head += ["triangles", "mesh MiB", "Embree build s", "Embree RSS growth MiB",
+                 "voxfield/Embree memory"]
+    rows = []
     for s in all_stats:
-        cells = [s.name, f"{s.voxels:,}", f"{s.nodes:,}",
-                 f"{s.octree_mib:.0f} ({s.kernel_mib:.0f})",
-                 f"{s.scene_s:.1f}", f"{s.octree_s:.1f}"]
+        cells = [s.name, f"{s.voxels:,}", f"{s.nodes:,}", f"{s.octree_mib:.0f}",
+                 f"{s.octree_mib * 2**20 / s.voxels:.2f}", f"{s.scene_s:.1f}",
+                 f"{s.octree_s:.1f}"]
         if peer:
-            cells += [f"{s.triangles:,}", f"{s.vertices:,}", f"{s.mesh_mib:.0f}",
-                      f"{s.mesh_s:.1f}", num(s.embree_build_s, ".1f"),
-                      num(s.embree_rss_mib, ".0f")]
-        print("| " + " | ".join(cells) + " |")
-    print()
-    print("voxfield MiB: every octree array (masks, child offsets, node coordinates, colours); "
-          "in brackets what the traversal reads (one packed descriptor per inner node). "
-          "voxfield Mrays/s: its renderers, ray generation and shading included.")
-    if peer:
-        print("Embree: the mesh arrays handed over (float32 vertices, uint32 triangles) and the "
-              "RSS growth over add_triangles + BVH build; Mrays/s from cast_rays. 'voxfield "
-              "batch' is voxfield's trace_rays on exactly the rays cast_rays gets; agreement "
-              "and |Δt| (voxel units) compare those two on every ray.")
+            embree = s.embree_rss_mib + s.mesh_mib
+            cells += [f"{s.triangles:,}", f"{s.mesh_mib:.0f}", num(s.embree_build_s, ".1f"),
+                      num(s.embree_rss_mib, ".0f"), f"1/{embree / s.octree_mib:.0f}"]
+        rows.append(cells)
+    table(head, rows)
+    print("\nvoxfield MiB: the whole octree (descriptors, 8-bit sRGB albedo, offsets). Embree: "
+          "the mesh arrays handed over (float32 vertices, uint32 triangles) plus the RSS "
+          "growth over add_triangles and the BVH build.")
+
+    if any(s.colour for s in all_stats):
+        print("\n### Colour storage: image quality against the reference (4×4 rays), "
+              f"{args.size // 2}² images\n")
+        head = ["scene", "view", "albedo storage", "octree MiB", "LOD 2 PSNR dB",
+                "cone LOD PSNR dB"]
+        rows = [[s.name, r["view"], r["storage"], f"{r['octree_mib']:.0f}",
+                 f"{r['lod2']:.3f}", f"{r['cone']:.3f}"] for s in all_stats for r in s.colour]
+        table(head, rows)
+
+    if big:
+        print(f"\n### Streamed build: {big['name']}\n")
+        head = ["voxels", "nodes", "layout s", "build s", "peak RSS GiB", "octree MiB",
+                "bytes/voxel", "top Mrays/s", "oblique Mrays/s", "Embree triangles",
+                "Embree GiB (estimate)"]
+        table(head, [[f"{big['voxels']:,}", f"{big['nodes']:,}", f"{big['layout_s']:.1f}",
+                      f"{big['build_s']:.1f}", f"{big['peak_rss_gib']:.2f}",
+                      f"{big['octree_mib']:.0f}", f"{big['bytes_per_voxel']:.2f}",
+                      f"{big['top_mrays']:.2f}", f"{big['oblique_mrays']:.2f}",
+                      f"{big.get('triangles', 0):,}",
+                      num(big.get("embree_gib"), ".0f")]])
+        print("\nPeak RSS is the whole process (the Embree runs above included when they ran "
+              "first). The Embree estimate is its triangle count times the bytes per triangle "
+              "Embree took in this run; it is not built.")
     try:
         load = os.getloadavg()
-        print(f"Load average at the end: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} "
+        print(f"\nLoad average at the end: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} "
               f"on {os.cpu_count()} CPUs.")
     except OSError:
         pass
@@ -345,13 +525,17 @@ def main(argv=None) -> int:
     p.add_argument("--repeats", type=int, default=3, help="timed runs per figure (best counts)")
     p.add_argument("--threads", type=int, default=2, help="threads for both tracers (default 2)")
     p.add_argument("--seed", type=int, default=0, help="terrain asset scattering seed")
+    p.add_argument("--secondary-rays", type=int, default=1_000_000,
+                   help="incoherent secondary rays per scene (default 1,000,000)")
+    p.add_argument("--no-colour", action="store_true",
+                   help="skip the colour-storage quality rows")
+    p.add_argument("--big", type=int, default=None, metavar="N",
+                   help="also stream-build and render an N² world (e.g. 8192)")
+    p.add_argument("--no-face-count", action="store_true",
+                   help="with --big: skip counting its exposed faces for the Embree estimate")
     p.add_argument("--no-peer", action="store_true", help="run voxfield alone")
-    p.add_argument("--occlusions", action="store_true",
-                   help="also time Embree's test_occlusions (any-hit) on the same rays")
     p.add_argument("--split-vertices", action="store_true",
                    help="four vertices per face instead of shared lattice corners")
-    p.add_argument("--report-mismatches", action="store_true",
-                   help="print the first rays on which the tracers disagree about hit/miss")
     args = p.parse_args(argv)
 
     o3d, why = (None, "--no-peer") if args.no_peer else load_open3d()
@@ -360,24 +544,33 @@ def main(argv=None) -> int:
     print("compiling kernels (warm-up)...", file=sys.stderr)
     warm_up()
     all_stats = []
+    bytes_per_triangle = None
     for footprint in args.footprint:
         print(f"building {args.recipe} at {footprint}²...", file=sys.stderr)
-        octree, stats = build_scene(args, footprint)
+        octree, layout, stats = build_scene(args, footprint)
         gc.collect()
         embree = build_embree(o3d, octree, stats, args) if o3d is not None else None
-        print(f"  {fmt_row({k: v for k, v in vars(stats).items() if k != 'rows'})}",
+        if embree is not None and bytes_per_triangle is None:
+            bytes_per_triangle = stats.embree_bytes_per_triangle
+        print(f"  {fmt_row({k: v for k, v in vars(stats).items() if not isinstance(v, list)})}",
               file=sys.stderr)
         for view in args.views:
             for side in args.spp_side:
                 run_view(o3d, embree, octree, stats, view, side, args)
-        all_stats.append(stats)
-        del octree, embree
+        run_secondary(o3d, embree, octree, stats, args)
+        del embree
         gc.collect()
-    print_tables(all_stats, o3d is not None, args)
+        if not args.no_colour:
+            run_colour_storage(octree, layout, stats, args)
+        all_stats.append(stats)
+        del octree, layout
+        gc.collect()
+    big = run_big(args, bytes_per_triangle) if args.big else None
+    print_tables(all_stats, o3d is not None, big, args)
     if o3d is None:
         print("\n" + PEER_HELP.format(reason=why))
     return 0
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    raise SystemExit(main(argv=None))

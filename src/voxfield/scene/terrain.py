@@ -1240,17 +1240,28 @@ class TerrainLayout:
         return coords, attributes
 
     def _assets_in(self, x0: int, z0: int, size: int) -> np.ndarray:
-        """Indices of the asset voxels in a block (bucketed once per block size)."""
-        cache = self.__dict__.setdefault("_asset_buckets", {})
-        if size not in cache:
-            bx = self.extra.x.astype(np.int64) // size
-            bz = self.extra.z.astype(np.int64) // size
-            keys = bz * (1 << 31) + bx
-            order = np.argsort(keys, kind="stable")
-            cache[size] = (keys[order], order)
-        keys, order = cache[size]
-        key = (z0 // size) * (1 << 31) + x0 // size
-        return order[np.searchsorted(keys, key, "left"):np.searchsorted(keys, key, "right")]
+        """Indices (ascending) of the asset voxels with ``x0 <= x < x0 + size`` and
+        ``z0 <= z < z0 + size``: buckets of ``_BUCKET``² columns, sorted once, are gathered
+        and filtered, so a window costs its own asset voxels, not all of them."""
+        if "_asset_buckets" not in self.__dict__:
+            key = (self.extra.z.astype(np.int64) // _BUCKET) * (1 << 31) + (
+                self.extra.x.astype(np.int64) // _BUCKET)
+            order = np.argsort(key, kind="stable")
+            self.__dict__["_asset_buckets"] = (key[order], order)
+        keys, order = self.__dict__["_asset_buckets"]
+        parts = []
+        for bz in range(z0 // _BUCKET, (z0 + size - 1) // _BUCKET + 1):
+            row = bz * (1 << 31)
+            lo = np.searchsorted(keys, row + x0 // _BUCKET, "left")
+            hi = np.searchsorted(keys, row + (x0 + size - 1) // _BUCKET, "right")
+            parts.append(order[lo:hi])
+        idx = np.sort(np.concatenate(parts)) if parts else np.zeros(0, np.int64)
+        x, z = self.extra.x[idx], self.extra.z[idx]
+        return idx[(x >= x0) & (x < x0 + size) & (z >= z0) & (z < z0 + size)]
+
+
+#: Asset bucket side (columns) for ``TerrainLayout.column_block``.
+_BUCKET = 64
 
 
 def _scatter(cols: TerrainColumns, groups: Sequence[AssetGroup], seed: int) -> _AssetVoxels:

@@ -56,7 +56,8 @@ def _leaf_array(octree: Octree, values, what: str, columns: int | None) -> np.nd
 def propagate_channel(
     octree: Octree, leaf_values: np.ndarray, leaf_weights: np.ndarray | None = None
 ) -> np.ndarray:
-    """``(nodes, 3)`` float32 values for every node from ``(voxels, 3)`` leaf values.
+    """``(nodes, C)`` float32 values for every node from ``(voxels, C)`` leaf values (C = 3
+    for one RGB channel; several channels side by side share one pass).
 
     Without weights a parent is the mean of its children (as the build averages albedo).
     With weights (non-negative, one per voxel) a parent is the weighted mean of its
@@ -64,16 +65,19 @@ def propagate_channel(
     zero takes their plain mean.
     """
     depth = octree.depth
-    out = np.empty((octree.node_count, 3), np.float32)
+    leaf_values = np.asarray(leaf_values, np.float32)
+    out = np.empty((octree.node_count, leaf_values.shape[1]), np.float32)
     out[octree.level_slice(depth)] = leaf_values
     weights = None if leaf_weights is None else np.asarray(leaf_weights, np.float64)
+    first_child = octree.first_child
     for level in range(depth - 1, -1, -1):
         parents = octree.level_slice(level)
         children = octree.level_slice(level + 1)
-        starts = octree.first_child[parents].astype(np.int64) - int(octree.level_offsets[level + 1])
+        starts = first_child[parents] - int(octree.level_offsets[level + 1])
         child_values = out[children]
         counts = np.diff(np.append(starts, len(child_values)))
-        mean = np.add.reduceat(child_values, starts, axis=0, dtype=np.float64) / counts[:, None]
+        mean = np.add.reduceat(child_values, starts, axis=0, dtype=np.float64)
+        mean /= counts[:, None]
         if weights is not None:
             weighted = np.add.reduceat(
                 child_values * weights[:, None], starts, axis=0, dtype=np.float64
@@ -81,7 +85,7 @@ def propagate_channel(
             weights = np.add.reduceat(weights, starts)
             seen = weights > 0.0
             mean[seen] = weighted[seen] / weights[seen, None]
-        out[parents] = mean.astype(np.float32)
+        out[parents] = mean
     return out
 
 
@@ -101,10 +105,18 @@ def with_channels(
         if np.any(leaf_weights < 0):
             raise VoxfieldError("channel weights must not be negative")
     attributes = dict(octree.attributes)
-    for name, values in channels.items():
+    names = list(channels)
+    for name in names:
         check_channel_name(name)
-        leaves = _leaf_array(octree, values, f"channel {name!r}", 3).astype(np.float32)
-        attributes[name] = propagate_channel(octree, leaves, leaf_weights)
+    if names:
+        # All channels side by side: one pass over the levels for all of them.
+        leaves = np.concatenate([
+            _leaf_array(octree, channels[name], f"channel {name!r}", 3).astype(np.float32)
+            for name in names], axis=1)
+        values = propagate_channel(octree, leaves, leaf_weights)
+        del leaves
+        for k, name in enumerate(names):
+            attributes[name] = np.ascontiguousarray(values[:, 3 * k : 3 * k + 3])
     return replace(octree, attributes=attributes)
 
 
