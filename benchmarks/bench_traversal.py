@@ -115,7 +115,7 @@ class SceneStats:
 def build_scene(args, footprint: int):
     """The terrain the issue names: a real DEM (``--recipe``) at ``footprint``² columns,
     built as ``voxfield`` builds terrains (streamed)."""
-    from voxfield.scene.terrain import recipe_layout
+    from voxfield.scene.terrain.recipes import recipe_layout
     from voxfield.svo.streamed_build import build_octree_streamed
 
     t0 = time.perf_counter()
@@ -370,7 +370,7 @@ def count_exposed_faces(layout, block: int = 256) -> int:
 def run_big(args, bytes_per_triangle: float | None) -> dict:
     """Stream-build an N² world, render it, and estimate what Embree would need."""
     from voxfield.render.renderers import render_lod
-    from voxfield.scene.terrain import recipe_layout
+    from voxfield.scene.terrain.recipes import recipe_layout
     from voxfield.svo.streamed_build import build_octree_streamed
 
     gc.collect()

@@ -14,8 +14,15 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.errors import DataNotFoundError, SceneFormatError, VoxfieldError
-from voxfield.scene.mesh import MESH_SUFFIXES
+from voxfield.scene.builtin import builtin_scene
+from voxfield.scene.mesh import MESH_SUFFIXES, load_mesh
+from voxfield.scene.npz_io import load_scene_npz
+from voxfield.scene.terrain.dem import load_heightmap
+from voxfield.scene.terrain.layout import terrain_layout
+from voxfield.scene.terrain.recipes import recipe_layout, recipe_scene
+from voxfield.scene.vox import load_vox
 from voxfield.scene.voxel_scene import VoxelScene
+from voxfield.scene.voxelize import voxelize_mesh
 
 DEM_SUFFIXES = (".hgt", ".tif", ".tiff")
 
@@ -48,12 +55,8 @@ def load_scene(spec: str, options: SceneOptions | None = None) -> VoxelScene:
     """The VoxelScene a description names."""
     options = options or SceneOptions()
     if spec.startswith("builtin:"):
-        from voxfield.scene.builtin import builtin_scene
-
         return builtin_scene(spec.split(":", 1)[1])
     if spec.startswith("terrain:"):
-        from voxfield.scene.terrain import recipe_scene
-
         return recipe_scene(spec.split(":", 1)[1], footprint=options.terrain_footprint)
     if spec.startswith("dem:"):
         return _terrain_from(spec.split(":", 1)[1], options)
@@ -62,21 +65,14 @@ def load_scene(spec: str, options: SceneOptions | None = None) -> VoxelScene:
         raise DataNotFoundError(f"{spec}: no such file (or use builtin:NAME, terrain:RECIPE)")
     suffix = path.suffix.lower()
     if suffix == ".vox":
-        from voxfield.scene.vox import load_vox
-
         return load_vox(path)
     if suffix in MESH_SUFFIXES:
-        from voxfield.scene.mesh import load_mesh
-        from voxfield.scene.voxelize import voxelize_mesh
-
         return voxelize_mesh(load_mesh(path), resolution=options.mesh_resolution)
     if suffix in DEM_SUFFIXES:
         return _terrain_from(str(path), options)
     if suffix == ".npz":
         kind = npz_kind(path)
         if kind == "scene":
-            from voxfield.scene.npz_io import load_scene_npz
-
             return load_scene_npz(path)
         if kind == "octree":
             raise VoxfieldError(f"{path} is an octree, not a voxel scene; load it with load_octree")
@@ -91,8 +87,6 @@ def _terrain_from(source: str, options: SceneOptions) -> VoxelScene:
 
 
 def _terrain_layout(source: str, options: SceneOptions):
-    from voxfield.scene.terrain import load_heightmap, terrain_layout
-
     kwargs = {"footprint": options.terrain_footprint, "seed": options.seed}
     if options.vertical_scale is not None:
         kwargs["vertical_scale"] = options.vertical_scale
@@ -104,8 +98,6 @@ def block_source(spec: str, options: SceneOptions | None = None):
     deliver them without making every voxel first (terrains), else None."""
     options = options or SceneOptions()
     if spec.startswith("terrain:"):
-        from voxfield.scene.terrain import recipe_layout
-
         return recipe_layout(spec.split(":", 1)[1], footprint=options.terrain_footprint)
     if spec.startswith("dem:"):
         return _terrain_layout(spec.split(":", 1)[1], options)

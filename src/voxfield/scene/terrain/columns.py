@@ -1,0 +1,186 @@
+"""Terrain columns: a Heightmap void-filled, resampled to ``footprint``² columns and quantised
+to integer heights with a watertight fill (``terrain_columns`` → ``TerrainColumns``).
+
+This is the geometry every later step reads: colours by height band and slope, asset sites,
+and the ground voxels themselves. A column ``(row, col)`` of the DEM is ``(z, x)`` in the voxel
+world and heights run along +y, so north is −z and east is +x; the lowest voxel is at y = 0.
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+from voxfield.scene.terrain.dem import Heightmap, load_heightmap
+from voxfield.scene.terrain.resample import fill_voids, resample
+
+#: Largest footprint accepted (columns per side); 16384² columns is already ~1.3G voxels.
+MAX_FOOTPRINT = 16384
+
+
+@dataclass(frozen=True)
+class TerrainColumns:
+    """The heightfield as voxel columns, indexed ``[z, x]`` (= DEM ``[row, col]``).
+
+    Column ``(z, x)`` holds voxels ``y = bottom .. top`` (inclusive). ``elevation`` is the
+    resampled, void-filled DEM in metres; ``water`` marks columns below sea level (their top is
+    the flat sea surface); ``slope`` is rise per run in voxel units.
+    """
+
+    top: np.ndarray
+    bottom: np.ndarray
+    elevation: np.ndarray
+    water: np.ndarray
+    slope: np.ndarray
+    voxels_per_metre: float
+    metres_per_voxel: tuple[float, float] | None
+    sea_level: float | None
+    name: str = "terrain"
+
+    @property
+    def footprint(self) -> int:
+        return self.top.shape[0]
+
+    @property
+    def counts(self) -> np.ndarray:
+        """Voxels per column."""
+        return (self.top - self.bottom + 1).astype(np.int64)
+
+    @property
+    def voxel_count(self) -> int:
+        return int(self.counts.sum())
+
+    @property
+    def height_fraction(self) -> np.ndarray:
+        """Height of each column top in [0, 1] between the lowest land (or sea) and the peak."""
+        lo = int(self.top[self.water].max()) if self.water.any() else int(self.top.min())
+        hi = int(self.top.max())
+        return np.clip((self.top - lo) / max(hi - lo, 1), 0.0, 1.0).astype(np.float32)
+
+
+def check_footprint(footprint) -> int:
+    """``footprint`` as an int: an integer number of columns in 2..MAX_FOOTPRINT."""
+    if isinstance(footprint, bool) or not isinstance(footprint, (int, np.integer)):
+        raise VoxfieldError(f"footprint must be an integer number of columns, got {footprint!r}")
+    if not 2 <= footprint <= MAX_FOOTPRINT:
+        raise VoxfieldError(
+            f"footprint must be between 2 and {MAX_FOOTPRINT} columns, got {footprint}"
+        )
+    return int(footprint)
+
+
+def square_crop(hm: Heightmap) -> Heightmap:
+    """The centred window of the map that is square on the ground (in metres when known)."""
+    n_r, n_c = hm.shape
+    sy, sx = hm.spacing or (1.0, 1.0)
+    side_m = min(n_r * sy, n_c * sx)
+    k_r = max(2, min(n_r, int(round(side_m / sy))))
+    k_c = max(2, min(n_c, int(round(side_m / sx))))
+    r0, c0 = (n_r - k_r) // 2, (n_c - k_c) // 2
+    return hm.crop(slice(r0, r0 + k_r), slice(c0, c0 + k_c))
+
+
+def terrain_columns(
+    heightmap,
+    footprint: int = 2048,
+    *,
+    vertical_scale: float = 1.0,
+    max_height: int | None = None,
+    fill_depth: int = 4,
+    sea_level: float | None = None,
+    fit: str = "stretch",
+    interpolation: str = "cubic",
+    reserve: int = 0,
+    void_iterations: int = 64,
+) -> TerrainColumns:
+    """Void-fill, resample to ``footprint``² columns and quantise heights to voxels.
+
+    Vertical scale: with known spacing, 1 voxel of height = 1 voxel of ground (true scale,
+    geometric mean of the two horizontal voxel sizes) times ``vertical_scale``; without it the
+    relief spans ``footprint // 4`` voxels times ``vertical_scale``. If the relief would rise
+    above ``max_height`` (default: the footprint less ``reserve`` voxels of headroom for
+    assets) the scale is reduced to fit, so the scene's bounding box stays a cube.
+    Each column is filled from its top down to ``min(top − fill_depth, lowest 4-neighbour
+    top)``: steep slopes get no holes. ``fit="crop"`` uses the centred square window of the
+    DEM instead of stretching a non-square one.
+    """
+    footprint = check_footprint(footprint)
+    if (
+        isinstance(fill_depth, bool)
+        or not isinstance(fill_depth, (int, np.integer))
+        or fill_depth < 0
+    ):
+        raise VoxfieldError(f"fill_depth must be a non-negative integer, got {fill_depth!r}")
+    real = isinstance(vertical_scale, numbers.Real) and not isinstance(vertical_scale, bool)
+    if not (real and math.isfinite(vertical_scale) and vertical_scale > 0):
+        raise VoxfieldError(f"vertical_scale must be a positive number, got {vertical_scale!r}")
+    if fit not in ("stretch", "crop"):
+        raise VoxfieldError(f"fit must be 'stretch' or 'crop', got {fit!r}")
+    if sea_level is not None and not math.isfinite(sea_level):
+        raise VoxfieldError(f"sea_level must be a finite number of metres, got {sea_level!r}")
+    hm = load_heightmap(heightmap)
+    if fit == "crop":
+        hm = square_crop(hm)
+    if max_height is None:
+        max_height = footprint - 1 - int(reserve)
+    elif not 0 <= max_height <= footprint - 1:
+        raise VoxfieldError(
+            f"max_height must be in 0..{footprint - 1} so the terrain fits a {footprint}³ cube, "
+            f"got {max_height}"
+        )
+    relief_cap = max_height - int(fill_depth)
+    if relief_cap < 0:
+        raise VoxfieldError(
+            f"no room for the terrain: footprint {footprint} leaves {max_height} voxels of height "
+            f"after {reserve} reserved for assets, less than fill_depth {fill_depth}"
+        )
+
+    elev = resample(
+        fill_voids(hm.elevation, void_iterations), (footprint, footprint), interpolation
+    )
+    water = np.zeros(elev.shape, dtype=bool)
+    surface = elev
+    if sea_level is not None:
+        water = elev < sea_level
+        surface = np.maximum(elev, sea_level)
+    lo = float(surface.min())
+    relief = float(surface.max()) - lo
+
+    metres_per_voxel = None
+    if hm.spacing is not None:
+        n_r, n_c = hm.shape
+        metres_per_voxel = (n_r * hm.spacing[0] / footprint, n_c * hm.spacing[1] / footprint)
+        vpm = vertical_scale / math.sqrt(metres_per_voxel[0] * metres_per_voxel[1])
+    else:
+        vpm = vertical_scale * (footprint // 4) / relief if relief > 0 else 1.0
+    if relief * vpm > relief_cap:
+        vpm = relief_cap / relief
+
+    top = np.minimum(np.rint((surface - lo) * vpm), relief_cap).astype(np.int32)
+    low_nbr = top.copy()
+    np.minimum(low_nbr[1:], top[:-1], out=low_nbr[1:])
+    np.minimum(low_nbr[:-1], top[1:], out=low_nbr[:-1])
+    np.minimum(low_nbr[:, 1:], top[:, :-1], out=low_nbr[:, 1:])
+    np.minimum(low_nbr[:, :-1], top[:, 1:], out=low_nbr[:, :-1])
+    bottom = np.minimum(top - int(fill_depth), low_nbr)
+    shift = int(bottom.min())
+    top -= shift
+    bottom -= shift
+    gz, gx = np.gradient(top.astype(np.float32))
+    slope = np.hypot(gz, gx).astype(np.float32)
+    return TerrainColumns(
+        top=top,
+        bottom=bottom,
+        elevation=elev,
+        water=water,
+        slope=slope,
+        voxels_per_metre=float(vpm),
+        metres_per_voxel=metres_per_voxel,
+        sea_level=sea_level,
+        name=hm.name,
+    )
+

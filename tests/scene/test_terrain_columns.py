@@ -1,0 +1,151 @@
+"""Terrain columns: exact columns on analytic heightmaps, watertight fill, voids, bad
+parameters, crop fit and the thesis scale (``voxfield.scene.terrain.columns``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from terrain_helpers import column_ranges, tree
+
+from voxfield.errors import VoxfieldError
+from voxfield.scene.terrain.columns import terrain_columns
+from voxfield.scene.terrain.dem import Heightmap
+from voxfield.scene.terrain.layout import terrain_scene
+from voxfield.scene.terrain.recipes import recipe_scene
+
+# --------------------------------------------------------------------------------------------
+# Analytic heightmaps give exact columns
+
+
+def test_plane_gives_flat_slab_of_fill_depth_plus_one():
+    scene = terrain_scene(Heightmap(np.full((8, 8), 123.0), spacing=(1, 1)), 8, fill_depth=4)
+    expected = {(x, y, z) for x in range(8) for z in range(8) for y in range(5)}
+    assert len(scene) == 8 * 8 * 5
+    assert set(map(tuple, scene.coords.tolist())) == expected
+
+
+def test_ramp_gives_exact_columns():
+    # Height = x // 2 metres at 1 m spacing and true scale: column x's top is x // 2 voxels
+    # above column 0's; with fill_depth 4 each column is filled 4 below its top (its lower
+    # neighbour's top is at most 1 below), and the lowest voxel sits at y = 0. The relief
+    # (7 + 4 voxels) fits the 16³ cube, so no cap applies.
+    x = np.arange(16)
+    elev = np.tile(x // 2, (16, 1)).astype(float)
+    scene = terrain_scene(Heightmap(elev, spacing=(1, 1)), 16, fill_depth=4)
+    expected = {(i, y, z) for i in x for z in range(16) for y in range(i // 2, i // 2 + 5)}
+    assert set(map(tuple, scene.coords.tolist())) == expected
+    assert len(scene) == len(expected)
+
+
+def test_stair_without_fill_depth_reaches_down_to_lower_neighbour():
+    x = np.arange(16)
+    tops = 3 * np.minimum(x, 4)  # steps of 3 voxels, then a plateau at 12
+    cols = terrain_columns(
+        Heightmap(np.tile(tops, (16, 1)).astype(float), spacing=(1, 1)), 16, fill_depth=0
+    )
+    assert (cols.top == tops).all()
+    left = np.r_[tops[0], tops[:-1]]
+    right = np.r_[tops[1:], tops[-1]]
+    assert (cols.bottom == np.minimum(tops, np.minimum(left, right))).all()
+
+
+def test_vertical_scale_multiplies_true_scale():
+    x = np.arange(16)
+    elev = np.tile(x // 4, (16, 1)).astype(float)
+    cols = terrain_columns(Heightmap(elev, spacing=(2.0, 2.0)), 16, vertical_scale=4.0)
+    # 2 m per voxel horizontally → 0.5 voxel per metre, ×4 → 2 voxels per metre of height.
+    assert cols.voxels_per_metre == pytest.approx(2.0)
+    assert (cols.top - cols.top[:, :1] == 2 * (x // 4)).all()
+
+
+def test_max_height_caps_relief_and_scene_stays_in_cube():
+    elev = np.tile(np.arange(32, dtype=float), (32, 1)) * 1000.0  # absurdly steep
+    hm = Heightmap(elev, spacing=(1, 1))
+    cols = terrain_columns(hm, 32, fill_depth=2)
+    assert cols.top.max() <= 31
+    scene = terrain_scene(hm, 32, fill_depth=2, max_height=20)
+    assert scene.bounds[1][1] <= 21
+
+
+def test_unknown_spacing_spans_a_quarter_of_the_footprint():
+    elev = np.tile(np.linspace(0, 5000, 64), (64, 1))
+    cols = terrain_columns(Heightmap(elev), 64, fill_depth=0)
+    assert cols.top.max() - cols.top.min() == 16
+    assert cols.metres_per_voxel is None
+
+
+# --------------------------------------------------------------------------------------------
+# Watertightness
+
+
+@pytest.mark.parametrize("fill_depth", [0, 1, 4])
+def test_steep_surface_is_watertight(fill_depth):
+    rng = np.random.default_rng(3)
+    f = 64
+    elev = rng.uniform(0, 40, size=(f, f))  # uncorrelated: cliffs of up to 40 voxels, uncapped
+    scene = terrain_scene(Heightmap(elev, spacing=(1, 1)), f, fill_depth=fill_depth)
+    lo, hi, count = column_ranges(scene, f)
+    assert (count == hi - lo + 1).all(), "every column is one contiguous run"
+    assert (hi - lo >= fill_depth).all()
+    # Each column's run overlaps or touches each 4-neighbour's: no gap to see through.
+    for axis in (0, 1):
+        a_lo, b_lo = np.moveaxis(lo, axis, 0)[:-1], np.moveaxis(lo, axis, 0)[1:]
+        a_hi, b_hi = np.moveaxis(hi, axis, 0)[:-1], np.moveaxis(hi, axis, 0)[1:]
+        assert (a_lo <= b_hi + 1).all() and (b_lo <= a_hi + 1).all()
+    # And the surface really is steep (the test would be vacuous otherwise).
+    assert np.abs(np.diff(hi, axis=1)).max() > 30
+
+
+# --------------------------------------------------------------------------------------------
+# Voids
+
+
+def test_terrain_from_heightmap_with_voids_has_no_holes():
+    elev = np.full((16, 16), 10.0)
+    elev[4:9, 4:9] = np.nan
+    scene = terrain_scene(Heightmap(elev, spacing=(1, 1)), 16, fill_depth=1)
+    lo, hi, count = column_ranges(scene, 16)
+    assert (count == 2).all() and (hi == 1).all()
+
+
+# --------------------------------------------------------------------------------------------
+# Errors
+
+
+@pytest.mark.parametrize("footprint", [1, 0, 16385, 2.5, True])
+def test_bad_footprint_is_rejected(footprint):
+    with pytest.raises(VoxfieldError, match="footprint"):
+        terrain_scene(np.zeros((4, 4)), footprint)
+
+
+def test_bad_parameters_are_rejected():
+    hm = Heightmap(np.zeros((4, 4)))
+    with pytest.raises(VoxfieldError, match="fill_depth"):
+        terrain_columns(hm, 4, fill_depth=-1)
+    with pytest.raises(VoxfieldError, match="vertical_scale"):
+        terrain_columns(hm, 4, vertical_scale=0)
+    with pytest.raises(VoxfieldError, match="max_height"):
+        terrain_columns(hm, 4, max_height=4)
+    with pytest.raises(VoxfieldError, match="no room"):
+        terrain_scene(hm, 4, assets=[tree(height=6)])
+    with pytest.raises(VoxfieldError, match="recipe"):
+        recipe_scene("tundra", 64)
+
+
+# --------------------------------------------------------------------------------------------
+# Scale and fit
+
+
+def test_2048_footprint_reaches_the_thesis_scale():
+    """Every column holds at least fill_depth + 1 voxels: ≥ 21M voxels at 2048² (EA: ~20M)."""
+    scene = terrain_scene("jacksboro", 2048, fill_depth=4)
+    assert 2048 * 2048 * 5 <= len(scene) <= 25_000_000
+    assert scene.extent[0] == scene.extent[2] == 2048 and scene.extent[1] < 2048
+
+
+def test_crop_fit_uses_the_centred_square_window():
+    elev = np.tile(np.arange(20, dtype=float), (10, 1))  # 10 rows × 20 columns, 1 m spacing
+    cols = terrain_columns(Heightmap(elev, spacing=(1, 1)), 10, fit="crop", fill_depth=0)
+    assert np.array_equal(cols.elevation[0], np.arange(5, 15))
+    wide = terrain_columns(Heightmap(elev, spacing=(1, 1)), 10, fill_depth=0)
+    assert wide.metres_per_voxel == (1.0, 2.0)  # stretched: 2 m of ground per voxel in x

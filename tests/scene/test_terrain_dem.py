@@ -1,0 +1,134 @@
+"""Heightmaps and DEM readers: bad arrays, file errors, the readers on hand-made files and
+on the real DEMs against the facts in data/README.md (``voxfield.scene.terrain.dem``)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import tifffile
+from matplotlib import cbook
+
+from voxfield.errors import DataNotFoundError, SceneFormatError
+from voxfield.scene.terrain.dem import Heightmap, load_heightmap
+
+
+@pytest.mark.parametrize("array", [np.zeros(5), np.zeros((3, 3, 3)), np.zeros((1, 9))])
+def test_bad_arrays_are_rejected(array):
+    with pytest.raises(SceneFormatError):
+        Heightmap(array)
+
+
+def test_all_void_dem_is_rejected():
+    with pytest.raises(SceneFormatError, match="void"):
+        Heightmap(np.full((4, 4), np.nan))
+
+
+def test_file_errors(tmp_path):
+    with pytest.raises(DataNotFoundError):
+        load_heightmap(tmp_path / "missing.hgt")
+    bad = tmp_path / "N40W074.hgt"
+    bad.write_bytes(b"\0" * 1000)
+    with pytest.raises(SceneFormatError, match="1,000 bytes"):
+        load_heightmap(bad)
+    other = tmp_path / "dem.xyz"
+    other.write_text("1 2 3")
+    with pytest.raises(SceneFormatError, match="unknown DEM format"):
+        load_heightmap(other)
+    two = tmp_path / "two.npz"
+    np.savez(two, a=np.zeros((3, 3)), b=np.ones((3, 3)))
+    with pytest.raises(SceneFormatError, match="exactly one 2-D array"):
+        load_heightmap(two)
+    rgb = tmp_path / "rgb.tif"
+    tifffile.imwrite(rgb, np.zeros((4, 4, 3), np.uint8), photometric="rgb")
+    with pytest.raises(SceneFormatError, match="one band"):
+        load_heightmap(rgb)
+    garbage = tmp_path / "garbage.tif"
+    garbage.write_bytes(b"not a tiff at all")
+    with pytest.raises(SceneFormatError):
+        load_heightmap(garbage)
+
+
+# --------------------------------------------------------------------------------------------
+# Readers on hand-made files
+
+
+def test_hgt_reader_on_a_written_tile(tmp_path):
+    raw = (np.arange(1201 * 1201) % 500 - 100).astype(">i2").reshape(1201, 1201)
+    raw[10, 20] = -32768
+    path = tmp_path / "S12E034.hgt"
+    raw.tofile(path)
+    hm = load_heightmap(path)
+    assert hm.shape == (1201, 1201) and hm.voids == 1 and np.isnan(hm.elevation[10, 20])
+    assert hm.elevation[0, 1] == raw[0, 1]
+    # South-west corner −12°, 34°: the first row is the northern edge at −11°.
+    assert hm.geo.y0 == -11 and hm.geo.x0 == 34 and hm.geo.dx == pytest.approx(1 / 1200)
+    assert hm.spacing[0] == pytest.approx(92.66, abs=0.01)  # 3″ of latitude
+
+
+def test_geotiff_reader_nodata_and_position(tmp_path):
+    data = np.arange(20, dtype=np.int16).reshape(4, 5)
+    data[1, 1] = -500
+    data[2, 2] = -32768
+    path = tmp_path / "dem.tif"
+    tifffile.imwrite(
+        path,
+        data,
+        extratags=[
+            (33550, 12, 3, (0.5, 0.25, 0.0)),
+            (33922, 12, 6, (0, 0, 0, 10.0, 50.0, 0)),
+            (42113, 2, 0, "-500"),
+        ],
+    )
+    hm = load_heightmap(path)
+    assert hm.voids == 2 and np.isnan(hm.elevation[1, 1]) and np.isnan(hm.elevation[2, 2])
+    assert hm.elevation[3, 4] == 19
+    # Pixel-is-area tie point at the corner: the first sample centre is half a pixel inside.
+    assert (hm.geo.x0, hm.geo.y0) == pytest.approx((10.25, 49.875))
+
+
+def test_npz_reader_with_spacing(tmp_path):
+    path = tmp_path / "dem.npz"
+    np.savez(path, elevation=np.arange(12.0).reshape(3, 4), spacing=30.0)
+    hm = load_heightmap(path)
+    assert hm.shape == (3, 4) and hm.spacing == (30.0, 30.0)
+
+
+# --------------------------------------------------------------------------------------------
+# Readers on the real DEMs (facts from data/README.md)
+
+
+def test_srtm_tile_facts(shared_data):
+    hm = load_heightmap(shared_data / "terrain" / "N40W074.hgt")
+    assert hm.shape == (1201, 1201)
+    assert hm.voids == 1051
+    assert np.nanmin(hm.elevation) == -42 and np.nanmax(hm.elevation) == 179
+    # 72% sea (SRTM stores the sea as 0 m).
+    assert np.mean(hm.elevation == 0) == pytest.approx(0.72, abs=0.02)
+
+
+def test_srtm30_geotiff_facts(shared_data):
+    hm = load_heightmap(shared_data / "terrain" / "dem_srtm30.tif")
+    assert hm.shape == (300, 300)
+    assert hm.geo.dx == pytest.approx(30 / 3600)
+    assert hm.spacing[0] == pytest.approx(926.6, abs=0.5)  # 30″ of latitude
+
+
+def test_jacksboro_sample_facts_and_orientation():
+    hm = load_heightmap("jacksboro")
+    assert hm.shape == (344, 403)
+    assert np.nanmin(hm.elevation) == 236 and np.nanmax(hm.elevation) == 1076
+    # Rows already run north to south (matplotlib plots it with origin="upper"): unchanged.
+    raw = cbook.get_sample_data("jacksboro_fault_dem.npz")["elevation"]
+    assert np.array_equal(hm.elevation, raw)
+    assert hm.geo.y0 == pytest.approx(36.7329 - 0.0004, abs=1e-3)
+    assert hm.spacing[0] == pytest.approx(92.7, abs=0.5)  # ~90 m, 3″
+
+
+def test_topobathy_sample_is_flipped_north_up():
+    hm = load_heightmap("topobathy")
+    raw = cbook.get_sample_data("topobathy.npz")
+    assert hm.shape == (91, 120)
+    assert np.nanmin(hm.elevation) == -1437 and np.nanmax(hm.elevation) == 2205
+    assert raw["latitude"][0] < raw["latitude"][-1]  # stored south first...
+    assert np.array_equal(hm.elevation[0], raw["topo"][-1])  # ...so row 0 is the last row
+    assert hm.geo.y0 == pytest.approx(float(raw["latitude"].max()))
