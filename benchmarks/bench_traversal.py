@@ -134,8 +134,8 @@ def build_scene(args, footprint: int):
 def warm_up() -> None:
     """Compile every kernel we time on a tiny scene, so JIT time is not measured."""
     from voxfield.render.camera import top_down_camera
+    from voxfield.render.primary import render_lod, render_reference
     from voxfield.render.ray_query import occluded, trace
-    from voxfield.render.renderers import render_lod, render_reference
     from voxfield.scene.voxel_scene import VoxelScene
     from voxfield.svo import build_octree
 
@@ -198,7 +198,7 @@ def camera_for(octree, view: str, size: int):
 
 
 def run_view(o3d, embree, octree, stats: SceneStats, view: str, side: int, args) -> None:
-    from voxfield.render.renderers import render_lod, render_reference
+    from voxfield.render.primary import render_lod, render_reference
 
     cam = camera_for(octree, view, args.size)
 
@@ -330,7 +330,7 @@ def run_secondary(o3d, embree, octree, stats: SceneStats, args) -> None:
 def run_colour_storage(octree_8bit, layout, stats: SceneStats, args) -> None:
     """PSNR of the LOD-2 and cone-LOD images against the reference, per colour storage."""
     from voxfield.metrics import psnr
-    from voxfield.render.renderers import render_lod, render_reference
+    from voxfield.render.primary import render_lod, render_reference
     from voxfield.svo.streamed_build import build_octree_streamed
 
     exact = build_octree_streamed(layout, colour_storage="float32")
@@ -369,7 +369,7 @@ def count_exposed_faces(layout, block: int = 256) -> int:
 
 def run_big(args, bytes_per_triangle: float | None) -> dict:
     """Stream-build an N² world, render it, and estimate what Embree would need."""
-    from voxfield.render.renderers import render_lod
+    from voxfield.render.primary import render_lod
     from voxfield.scene.terrain.recipes import recipe_layout
     from voxfield.svo.streamed_build import build_octree_streamed
 

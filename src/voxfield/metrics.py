@@ -17,6 +17,7 @@ import numpy as np
 
 from voxfield.errors import VoxfieldError
 from voxfield.render.result import RenderResult
+from voxfield.scene.voxel_scene import linear_to_srgb
 
 #: Pixels whose rays hit nothing (thesis tables: "Didn't Hit").
 MISSED = "didn't hit"
@@ -108,6 +109,7 @@ def _rmse(ref: np.ndarray, img: np.ndarray) -> float:
 
 
 def _psnr(ref: np.ndarray, img: np.ndarray) -> float:
+    # heavy: scikit-image loads only when images are compared
     from skimage.metrics import peak_signal_noise_ratio
 
     if np.array_equal(ref, img):
@@ -116,6 +118,7 @@ def _psnr(ref: np.ndarray, img: np.ndarray) -> float:
 
 
 def _ssim(ref: np.ndarray, img: np.ndarray) -> float:
+    # heavy: scikit-image loads only when images are compared
     from skimage.metrics import structural_similarity
 
     return float(structural_similarity(ref, img, channel_axis=-1, data_range=1.0))
@@ -123,10 +126,10 @@ def _ssim(ref: np.ndarray, img: np.ndarray) -> float:
 
 def _flip(ref: np.ndarray, img: np.ndarray) -> float | None:
     try:
+        # optional: FLIP is measured only where its package is installed
         import flip_evaluator
     except ImportError:
         return None
-    from voxfield.scene.voxel_scene import linear_to_srgb
 
     _, mean_error, _ = flip_evaluator.evaluate(
         np.ascontiguousarray(linear_to_srgb(ref)), np.ascontiguousarray(linear_to_srgb(img)),

@@ -20,12 +20,11 @@ from voxfield.error_table import (
     build_error_table,
     fit_report,
     load_error_table,
-    oct_error,
     raycast_errors,
-    sh_error,
 )
 from voxfield.error_table.spherical_harmonics import sh_basis
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.error_lookup import oct_error, sh_error
 from voxfield.kernels.octahedral import texel_directions
 
 SMALL = {"n_directions": 128, "resolution": 128, "oct_resolution": 16, "seed": 0}

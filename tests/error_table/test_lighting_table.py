@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from voxfield.error_table.lighting import (
+from voxfield.error_table.lighting_table import (
     configuration_classes,
     configuration_index,
     load_lighting_error_table,

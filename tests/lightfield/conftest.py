@@ -8,7 +8,7 @@ from lf_helpers import CORNELL_PROBE, one_probe
 
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
-from voxfield.svo.io import open_octree
+from voxfield.svo.open import open_octree
 
 
 @pytest.fixture(scope="session")

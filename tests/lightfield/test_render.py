@@ -3,7 +3,6 @@ render, compositing by depth (§8.1.2) and ``voxfield probe-render`` end to end.
 
 from __future__ import annotations
 
-import argparse
 import json
 from types import SimpleNamespace
 
@@ -14,8 +13,7 @@ from voxfield import cli
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.octahedral import texel_directions
 from voxfield.lightfield.baselines import box_proxy_lookup, environment_lookup, nearest_probe
-from voxfield.lightfield.cli_probe_render import add_probe_render_parser
-from voxfield.lightfield.render import (
+from voxfield.lightfield.probe_render import (
     composite_by_depth,
     probe_set_bounds,
     render_from_probes,
@@ -26,7 +24,7 @@ from voxfield.probes.bake import bake_probes
 from voxfield.probes.grid import ProbeGrid
 from voxfield.probes.probe_set import BakeOptions
 from voxfield.render.camera import Camera
-from voxfield.render.renderers import render_lod
+from voxfield.render.primary import render_lod
 from voxfield.render.result import RenderResult
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo.build import build_octree
@@ -297,27 +295,16 @@ def build_octree_at(scene: VoxelScene):
 
 
 @pytest.fixture
-def run(monkeypatch):
-    """``voxfield.cli.main`` with ``probe-render`` registered (whether or not the main parser
-    already registers it)."""
-    build = cli.build_parser
-
-    def with_probe_render():
-        parser = build()
-        sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-        if "probe-render" not in sub.choices:
-            add_probe_render_parser(sub)
-        return parser
-
-    monkeypatch.setattr(cli, "build_parser", with_probe_render)
+def run():
+    """``voxfield.cli.main``."""
     return cli.main
 
 
 @pytest.fixture(scope="module")
 def cornell_folder(tmp_path_factory):
     """A tiny probe-set folder of builtin:cornell, as ``voxfield bake`` writes it."""
-    from voxfield.probes.storage import bake_to_folder
-    from voxfield.svo.io import open_octree
+    from voxfield.probes.folder_bake import bake_to_folder
+    from voxfield.svo.open import open_octree
 
     octree = open_octree("builtin:cornell")
     grid = ProbeGrid.fit(*octree.voxel_bounds, (2, 1, 1))

@@ -11,6 +11,7 @@ import pytest
 
 from random_scenes import random_scene
 from ray_oracle import first_hits
+from voxfield.cli.cmd_light import register as add_light_parser
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.sampling import cmj_sample
 from voxfield.kernels.sun_bake import cosine_direction
@@ -22,8 +23,7 @@ from voxfield.lighting import (
     sun_at,
     sun_visibility,
 )
-from voxfield.lighting import bake as bake_module
-from voxfield.lighting.cli_light import add_light_parser
+from voxfield.lighting import sun_bake as bake_module
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
 from voxfield.svo.io import load_octree

@@ -12,7 +12,7 @@ from voxfield.errors import VoxfieldError
 from voxfield.kernels.octahedral import oct_encode, texel_directions
 from voxfield.kernels.primary import normal_from_code
 from voxfield.metrics import compare_images
-from voxfield.probes.bake import bake_cube_faces, bake_probe, bake_probes
+from voxfield.probes.bake import bake_cube_faces, bake_probe, bake_probes, export_cube_faces
 from voxfield.probes.grid import ProbeGrid
 from voxfield.probes.probe_set import (
     NO_NORMAL,
@@ -159,10 +159,10 @@ def test_cube_face_centres_see_the_axis_distance_of_the_octahedral_map(plain_box
 def test_probe_set_cube_faces_need_the_baked_octree(box_octree, plain_box):
     probes = bake_probes(box_octree, PointGrid([PROBE]), BakeOptions(resolution=8,
                                                                         renderer="lod"))
-    radiance, distance = probes.cube_faces(box_octree, 0)
+    radiance, distance = export_cube_faces(probes, box_octree, 0)
     assert radiance.shape == (6, 4, 4, 3) and np.isfinite(distance).all()
     with pytest.raises(VoxfieldError, match="not the one"):
-        probes.cube_faces(plain_box, 0)
+        export_cube_faces(probes, plain_box, 0)
 
 
 def test_renderer_choice_changes_radiance_not_geometry(box_octree):
@@ -310,7 +310,7 @@ def _check_real_bake(octree, probes: ProbeSet, r: int, min_covered: float):
 
 def test_cornell_box_room_bakes_on_a_small_grid(shared_data):
     from voxfield.scene.loaders import SceneOptions
-    from voxfield.svo.io import open_octree
+    from voxfield.svo.open import open_octree
 
     obj = shared_data / "mesh" / "cornell" / "CornellBox-Original.obj"
     octree = open_octree(str(obj), SceneOptions(mesh_resolution=32))
@@ -324,7 +324,7 @@ def test_cornell_box_room_bakes_on_a_small_grid(shared_data):
 
 
 def test_vox_scene_bakes_on_a_small_grid(shared_data):
-    from voxfield.svo.io import open_octree
+    from voxfield.svo.open import open_octree
 
     octree = open_octree(str(shared_data / "vox" / "chr_knight.vox"))
     lo, hi = octree.voxel_bounds

@@ -8,7 +8,7 @@ import pytest
 from PIL import Image
 
 from voxfield import cli
-from voxfield.probes.storage import open_probe_set
+from voxfield.probes.probe_folder import open_probe_set
 
 
 @pytest.fixture
@@ -64,7 +64,7 @@ def test_bake_and_show_end_to_end(run, tmp_path, capsys):
 def test_export_cubes_traces_faces_from_the_baked_scene(run, tmp_path):
     from voxfield.render.image_io import load_exr
     from voxfield.render.ray_query import trace
-    from voxfield.svo.io import open_octree
+    from voxfield.svo.open import open_octree
 
     out = tmp_path / "probes"
     assert run(["bake", "builtin:cornell", "--grid", "2x1x1", "--resolution", "8",

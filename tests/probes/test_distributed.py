@@ -7,9 +7,10 @@ import pytest
 
 from voxfield.probes.bake import bake_probes
 from voxfield.probes.distributed import SchedulerError, bake_probes_dask
+from voxfield.probes.folder_bake import bake_to_folder
 from voxfield.probes.grid import ProbeGrid
+from voxfield.probes.probe_folder import open_probe_set
 from voxfield.probes.probe_set import BakeOptions
-from voxfield.probes.storage import bake_to_folder, open_probe_set
 
 # Error-aware radiance: the renderer with the most branching, so a scheduler that changed
 # anything (seeds, thread count, probe order) would show.

@@ -16,10 +16,10 @@ import json
 import numpy as np
 import pytest
 
+from voxfield.cli.cmd_shadows import register as add_shadow_parser
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.direct_light import distance_lod
-from voxfield.render.camera import Camera
-from voxfield.render.cli_shadow import add_shadow_parser, beam_camera
+from voxfield.render.camera import Camera, beam_camera
 from voxfield.render.direct_light import (
     emitter_faces,
     light_on_surface,
@@ -165,7 +165,7 @@ def test_done_when_distance_lod_cuts_the_beam_off_and_error_aware_does_not(box):
 def test_done_when_in_the_rendered_image(box):
     """The same on pixels: the floor behind the grid is dark with the baseline, lit with the
     error-aware shadow rays."""
-    cam = beam_camera(box, 48)
+    cam = beam_camera(*box.voxel_bounds, size=48)
     images = {mode: render_direct_light(box, cam, shadow_lod=mode, light_samples=16).image
               for mode in ("reference", "distance", "error-aware")}
     floor = (slice(26, 48), slice(12, 36))  # the beam in front of the box, below the grid
@@ -178,7 +178,7 @@ def test_done_when_in_the_rendered_image(box):
 
 
 def test_forced_refinement_is_the_reference_and_infinite_threshold_the_baseline(box):
-    cam = beam_camera(box, 32)
+    cam = beam_camera(*box.voxel_bounds, size=32)
     options = {"light_samples": 4, "seed": 5, "lod_distance": 8.0}
     reference = render_direct_light(box, cam, shadow_lod="reference", **options)
     forced = render_direct_light(box, cam, shadow_lod="error-aware", threshold=-1.0, **options)
@@ -195,7 +195,7 @@ def test_forced_refinement_is_the_reference_and_infinite_threshold_the_baseline(
 
 
 def test_one_refinement_level_at_most(box):
-    cam = beam_camera(box, 32)
+    cam = beam_camera(*box.voxel_bounds, size=32)
     options = {"light_samples": 4, "lod_distance": 8.0, "shadow_lod": "error-aware"}
     capped = render_direct_light(box, cam, max_refinements=0, **options)
     baseline = render_direct_light(box, cam, shadow_lod="distance", light_samples=4,
@@ -204,7 +204,7 @@ def test_one_refinement_level_at_most(box):
 
 
 def test_same_result_for_any_thread_count(box):
-    cam = beam_camera(box, 32)
+    cam = beam_camera(*box.voxel_bounds, size=32)
     one = render_direct_light(box, cam, shadow_lod="error-aware", light_samples=4, threads=1)
     two = render_direct_light(box, cam, shadow_lod="error-aware", light_samples=4, threads=2)
     for name in ("image", "depth", "ray_count", "steps"):
@@ -214,7 +214,7 @@ def test_same_result_for_any_thread_count(box):
 
 
 def test_counters_add_up(box):
-    cam = beam_camera(box, 24)
+    cam = beam_camera(*box.voxel_bounds, size=24)
     result = render_direct_light(box, cam, shadow_lod="error-aware", light_samples=4)
     maps = result.maps
     assert (maps["shadow_traversals"] >= maps["shadow_rays"]).all()

@@ -2,19 +2,17 @@
 
 from __future__ import annotations
 
-import argparse
 import json
 
 import numpy as np
 import pytest
 from PIL import Image
 
-from voxfield.cli import default_output
+from voxfield.cli.options import default_output
 from voxfield.errors import VoxfieldError
 from voxfield.render import Camera, render_lod, render_reference
 from voxfield.scene.builtin import pillars
 from voxfield.studies import compare
-from voxfield.studies.cli_compare import add_compare_parser
 from voxfield.studies.report import StudyFolder, markdown_table, params_key
 from voxfield.svo import build_octree
 
@@ -57,7 +55,8 @@ def stub_renderers(monkeypatch):
         return render_reference(*args, **kwargs)
 
     renderers = {"reference": reference, "adaptive": adaptive, "error-aware": error_aware}
-    monkeypatch.setattr(compare, "_renderers", lambda: renderers)
+    monkeypatch.setattr(compare, "render", lambda octree, camera, name, **options:
+                        renderers[name](octree, camera, **options))
     return calls
 
 
@@ -170,9 +169,6 @@ def test_command_line_entry(scene, stub_renderers, tmp_path, capsys):
     from voxfield.cli import build_parser
 
     parser = build_parser()
-    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
-    if "compare" not in sub.choices:  # until cli.py registers it itself
-        add_compare_parser(sub)
     out = tmp_path / "cmp"
     args = parser.parse_args(["compare", "builtin:sphere", "--size", "16", "--camera", "orbit",
                               "--base-lod", "1", "--out", str(out)])

@@ -8,8 +8,9 @@ import json
 import pytest
 
 from voxfield.errors import VoxfieldError
-from voxfield.studies.probe_study import parse_counts, room_camera, run_probe_study
-from voxfield.svo.io import open_octree
+from voxfield.render.camera import room_camera
+from voxfield.studies.probe_study import parse_counts, run_probe_study
+from voxfield.svo.open import open_octree
 
 TINY = {"resolutions": (16, 32), "probe_counts": ((1, 1, 1), (2, 2, 2)), "timing_repeats": 1}
 
@@ -21,7 +22,7 @@ def cornell():
 
 @pytest.fixture(scope="module")
 def camera(cornell):
-    return room_camera(cornell.voxel_bounds, 24)
+    return room_camera(*cornell.voxel_bounds, size=24)
 
 
 @pytest.fixture(scope="module")

@@ -57,13 +57,13 @@ def test_resolution_study_counts_and_resumes(tmp_path):
 
 
 def test_study_cli_parses_resolution():
-    from voxfield.studies.cli_study import add_study_parser
+    from voxfield.cli.cmd_study import register as add_study_parser
 
     parser = argparse.ArgumentParser()
     add_study_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["study", "resolution", "builtin:pillars", "--sizes", "64,128",
                               "--threshold", "0.2"])
     assert args.sizes == (64, 128) and args.threshold == 0.2
-    assert args.func.__name__ == "cmd_study_resolution"
+    assert args.func.__name__ == "run_resolution"
     with pytest.raises(SystemExit):
         parser.parse_args(["study", "resolution", "builtin:pillars", "--sizes", "0,8"])

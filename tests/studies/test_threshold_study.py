@@ -42,14 +42,14 @@ def test_threshold_study_is_monotone_and_resumable(scene, tmp_path):
 
 
 def test_study_cli_parses_thresholds():
-    from voxfield.studies.cli_study import add_study_parser
+    from voxfield.cli.cmd_study import register as add_study_parser
 
     parser = argparse.ArgumentParser()
     add_study_parser(parser.add_subparsers(dest="command"))
     args = parser.parse_args(["study", "thresholds", "builtin:pillars", "--thresholds",
                               "0.1,0.2", "--base-lod", "cone", "--size", "32"])
     assert args.thresholds == (0.1, 0.2) and args.base_lod is None and args.size == 32
-    assert args.func.__name__ == "cmd_study_thresholds"
+    assert args.func.__name__ == "run_thresholds"
 
 
 def test_a_scaled_channel_is_studied_apart_with_the_same_costs(scene, tmp_path):

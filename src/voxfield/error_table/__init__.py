@@ -6,10 +6,8 @@ from voxfield.error_table.table import (
     build_error_table,
     fit_report,
     load_error_table,
-    oct_error,
     raycast_errors,
     save_error_table,
-    sh_error,
 )
 
 __all__ = [
@@ -18,8 +16,6 @@ __all__ = [
     "build_error_table",
     "fit_report",
     "load_error_table",
-    "oct_error",
     "raycast_errors",
     "save_error_table",
-    "sh_error",
 ]

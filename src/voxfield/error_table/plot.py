@@ -7,7 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.error_table.table import ErrorTable
+from voxfield.atomic import atomic_path
+from voxfield.error_table.table import THESIS_THRESHOLD, ErrorTable
 from voxfield.errors import VoxfieldError
 
 #: (name, viewer position) of the sphere views; the viewer looks at the origin.
@@ -56,13 +57,15 @@ def _child_boxes(ax, mask: int) -> None:
 
 
 def plot_mask_error(
-    table: ErrorTable, mask: int, path: str | Path, *, threshold: float = 0.154,
+    table: ErrorTable, mask: int, path: str | Path, *, threshold: float = THESIS_THRESHOLD,
     encoding: str | None = None,
 ) -> Path:
     """Write a PNG: the child configuration and three sphere views with the threshold marked."""
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib
 
     matplotlib.use("Agg")
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib.pyplot as plt
 
     if not 0 <= int(mask) <= 255:
@@ -90,7 +93,6 @@ def plot_mask_error(
     fig.colorbar(image, ax=fig.axes[1:], fraction=0.02, pad=0.02, label="error")
     fig.suptitle(f"sampling error of a node instead of its children ({encoding} encoding); "
                  "red: above threshold", fontsize=10)
-    from voxfield.atomic import atomic_path
 
     path = Path(path)
     with atomic_path(path) as tmp:

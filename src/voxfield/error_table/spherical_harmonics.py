@@ -3,14 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-SH_COUNT = 9
-_C0 = 0.28209479177387814
-_C1 = 0.4886025119029199
-_C2 = 1.0925484305920792
-_C3 = 0.31539156525252005
-_C4 = 0.5462742152960396
+from voxfield.kernels.error_lookup import SH_C0, SH_C1, SH_C2, SH_C3, SH_C4, SH_COUNT
+
+__all__ = ["SH_COUNT", "fit_sh", "sh_basis"]
 
 
 def sh_basis(directions: np.ndarray) -> np.ndarray:
@@ -19,33 +15,17 @@ def sh_basis(directions: np.ndarray) -> np.ndarray:
     x, y, z = d[:, 0], d[:, 1], d[:, 2]
     return np.stack(
         [
-            np.full_like(x, _C0),
-            _C1 * y,
-            _C1 * z,
-            _C1 * x,
-            _C2 * x * y,
-            _C2 * y * z,
-            _C3 * (3.0 * z * z - 1.0),
-            _C2 * x * z,
-            _C4 * (x * x - y * y),
+            np.full_like(x, SH_C0),
+            SH_C1 * y,
+            SH_C1 * z,
+            SH_C1 * x,
+            SH_C2 * x * y,
+            SH_C2 * y * z,
+            SH_C3 * (3.0 * z * z - 1.0),
+            SH_C2 * x * z,
+            SH_C4 * (x * x - y * y),
         ],
         axis=1,
-    )
-
-
-@njit(cache=True, nogil=True)
-def sh_evaluate(coeffs: np.ndarray, x: float, y: float, z: float) -> float:
-    """Sum of 9 coefficients times the basis at one unit direction (kernel form)."""
-    return (
-        coeffs[0] * _C0
-        + coeffs[1] * _C1 * y
-        + coeffs[2] * _C1 * z
-        + coeffs[3] * _C1 * x
-        + coeffs[4] * _C2 * x * y
-        + coeffs[5] * _C2 * y * z
-        + coeffs[6] * _C3 * (3.0 * z * z - 1.0)
-        + coeffs[7] * _C2 * x * z
-        + coeffs[8] * _C4 * (x * x - y * y)
     )
 
 

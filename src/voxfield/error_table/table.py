@@ -13,20 +13,25 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from voxfield.atomic import atomic_path
-from voxfield.error_table.directions import fibonacci_directions
-from voxfield.error_table.spherical_harmonics import fit_sh, sh_basis, sh_evaluate
+from voxfield.error_table.directions import fibonacci_directions, random_directions
+from voxfield.error_table.spherical_harmonics import fit_sh, sh_basis
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.error_lookup import oct_error_many
 from voxfield.kernels.error_raycast import (
     child_hit_histograms,
     errors_from_histograms,
     image_plane_samples,
 )
-from voxfield.kernels.octahedral import add_border, oct_bilinear, oct_encode, texel_directions
+from voxfield.kernels.octahedral import add_border, texel_directions
+from voxfield.progress import progress_bar
 
 ENCODINGS = ("sh", "oct")
+#: The error model's calibration on the thesis's Desert terrain (EA §5.1.4): refine where
+#: ``e(r, N) + THESIS_DECAY · mean_c e(r, c)`` exceeds ``THESIS_THRESHOLD``.
+THESIS_THRESHOLD = 0.154
+THESIS_DECAY = 0.2
 FORMAT = "voxfield-error-table"
 FORMAT_VERSION = 1
 DEFAULT_TABLE = Path(__file__).parent / "data" / "error_table.npz"
@@ -77,31 +82,10 @@ class ErrorTable:
         if encoding == "sh":
             out = np.einsum("ij,ij->i", sh_basis(flat_d), self.sh[flat_m].astype(np.float64))
         elif encoding == "oct":
-            out = _oct_lookup_many(self.oct_map, flat_m, flat_d)
+            out = oct_error_many(self.oct_map, flat_m, flat_d)
         else:
             raise VoxfieldError(f"unknown encoding {encoding!r}; choose one of {ENCODINGS}")
         return np.clip(out, 0.0, 1.0).reshape(masks.shape)
-
-
-@njit(cache=True, nogil=True)
-def oct_error(oct_map: np.ndarray, mask: int, x: float, y: float, z: float) -> float:
-    """Kernel form of ``ErrorTable.error`` with the octahedral encoding."""
-    u, v = oct_encode(x, y, z)
-    return oct_bilinear(oct_map[mask], u, v)
-
-
-@njit(cache=True, nogil=True)
-def sh_error(sh: np.ndarray, mask: int, x: float, y: float, z: float) -> float:
-    """Kernel form of ``ErrorTable.error`` with the SH encoding."""
-    return sh_evaluate(sh[mask], x, y, z)
-
-
-@njit(cache=True)
-def _oct_lookup_many(oct_map, masks, dirs):
-    out = np.empty(masks.shape[0])
-    for i in range(masks.shape[0]):
-        out[i] = oct_error(oct_map, masks[i], dirs[i, 0], dirs[i, 1], dirs[i, 2])
-    return out
 
 
 def raycast_errors(directions: np.ndarray, resolution: int = 512, seed: int = 0) -> np.ndarray:
@@ -124,8 +108,6 @@ def build_error_table(
     progress: bool = False,
 ) -> ErrorTable:
     """Ray-cast the errors and fit both encodings (deterministic for fixed parameters)."""
-    from voxfield.progress import progress_bar
-
     if n_directions < 9:
         raise VoxfieldError("need at least 9 directions to fit 9 SH coefficients")
     if not 2 <= oct_resolution <= 256:
@@ -245,8 +227,6 @@ def _read_error_table(path: Path) -> ErrorTable:
 def fit_report(table: ErrorTable, n_holdout: int = 512, seed: int = 12345) -> dict:
     """Max and RMS difference of each encoding from fresh ray-cast errors at held-out random
     directions (same framebuffer resolution and seed as the table)."""
-    from voxfield.error_table.directions import random_directions
-
     dirs = random_directions(n_holdout, seed)
     truth = raycast_errors(dirs, table.params.get("resolution", 512), table.params.get("seed", 0))
     masks = np.arange(1, 256)  # mask 0 is no node at all

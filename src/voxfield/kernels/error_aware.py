@@ -20,16 +20,15 @@ everywhere then still reproduces the reference, with 16 rays per pixel instead o
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
-from voxfield.error_table.lighting import colour_error
-from voxfield.error_table.spherical_harmonics import sh_evaluate
-from voxfield.error_table.table import oct_error, sh_error
 from voxfield.kernels.beam import start_distance
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.colour import node_rgb
+from voxfield.kernels.error_lookup import colour_error, oct_error, sh_error, sh_evaluate
 from voxfield.kernels.node_descriptor import descriptor_first_child
 from voxfield.kernels.primary import normal_from_code, store_pixel
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
@@ -163,47 +162,90 @@ def lighting_node_error(
     return error + decay * total / count
 
 
+class OctreeView(NamedTuple):
+    """What a traversal reads of an octree: packed descriptors, depth, one colour channel."""
+
+    inner_nodes: np.ndarray
+    depth: int
+    colors: np.ndarray
+
+
+class Refinement(NamedTuple):
+    """Where a pixel's first ray stops and how far refinement may go (EA §5.1.3, §6.2)."""
+
+    base_stop_level: int
+    cone_scale: float
+    max_refinements: int
+    reuse_parent: bool
+
+
+class ErrorModel(NamedTuple):
+    """The refinement test: ``e(r, N) + decay · mean_c e(r, c) > threshold``, the geometric
+    table in one encoding, and the optional lighting-aware colour error (EA §6.1)."""
+
+    threshold: float
+    decay: float
+    encoding: int
+    oct_map: np.ndarray
+    sh: np.ndarray
+    children_sh: np.ndarray
+    lighting_aware: bool
+    bright_ratio: float
+    light_map: np.ndarray
+    class_of: np.ndarray
+    symmetry_of: np.ndarray
+    symmetries: np.ndarray
+
+
+class BeamBounds(NamedTuple):
+    """Per pixel block, the distance its rays may start at (``kernels.beam``)."""
+
+    bound: np.ndarray
+    block: int
+
+
+class ErrorAwareOutputs(NamedTuple):
+    """Per-pixel output rows: the ``RenderResult`` buffers plus refinements and discards."""
+
+    color: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    rays: np.ndarray
+    hits: np.ndarray
+    steps: np.ndarray
+    lod: np.ndarray
+    refined: np.ndarray
+    discarded: np.ndarray
+
+
 @njit(parallel=True, cache=True, nogil=True)
 def render_error_aware_rows(
     cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
-    inner_nodes: np.ndarray, depth: int, base_stop_level: int, cone_scale: float,
-    max_refinements: int, threshold: float, decay: float, reuse_parent: bool,
-    encoding: int, oct_map: np.ndarray, sh: np.ndarray, children_sh: np.ndarray,
-    colors: np.ndarray, lighting_aware: bool, bright_ratio: float, light_map: np.ndarray,
-    class_of: np.ndarray, symmetry_of: np.ndarray, symmetries: np.ndarray,
-    beam_bound: np.ndarray, block: int,
-    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
-    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
-    out_refined: np.ndarray, out_discarded: np.ndarray,
+    view: OctreeView, refinement: Refinement, model: ErrorModel, beam: BeamBounds,
+    out: ErrorAwareOutputs,
 ) -> None:
-    """Trace rows ``[row0, row1)``; ``cone_scale`` > 0 picks the base LOD by pixel cone;
-    ``lighting_aware`` adds the bright-flag colour error to the geometric one."""
+    """Trace rows ``[row0, row1)``; ``refinement.cone_scale`` > 0 picks the base LOD by pixel
+    cone; ``model.lighting_aware`` adds the bright-flag colour error to the geometric one."""
     for row in prange(row0, row1):
-        render_error_aware_row(
-            cam, width, height, row0, row1, seed, inner_nodes, depth, base_stop_level,
-            cone_scale, max_refinements, threshold, decay, reuse_parent, encoding,
-            oct_map, sh, children_sh, colors, lighting_aware, bright_ratio, light_map,
-            class_of, symmetry_of, symmetries, beam_bound, block, out_color, out_depth,
-            out_normal, out_rays, out_hits, out_steps, out_lod, out_refined, out_discarded, row,
-        )
+        render_error_aware_row(cam, width, height, row0, seed, view, refinement, model, beam,
+                               out, row)
 
 
 @njit(cache=True, nogil=True)
 def render_error_aware_row(
-    cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
-    inner_nodes: np.ndarray, depth: int, base_stop_level: int, cone_scale: float,
-    max_refinements: int, threshold: float, decay: float, reuse_parent: bool,
-    encoding: int, oct_map: np.ndarray, sh: np.ndarray, children_sh: np.ndarray,
-    colors: np.ndarray, lighting_aware: bool, bright_ratio: float, light_map: np.ndarray,
-    class_of: np.ndarray, symmetry_of: np.ndarray, symmetries: np.ndarray,
-    beam_bound: np.ndarray, block: int,
-    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
-    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
-    out_refined: np.ndarray, out_discarded: np.ndarray,
+    cam: np.ndarray, width: int, height: int, row0: int, seed: int, view: OctreeView,
+    refinement: Refinement, model: ErrorModel, beam: BeamBounds, out: ErrorAwareOutputs,
     row: int,
 ) -> None:
     """One row of ``render_error_aware_rows`` (the traversal is inlined here, never straight
     into a ``prange`` body, where Numba's parfor pass would hoist its initialisations)."""
+    inner_nodes, depth, colors = view
+    base_stop_level, cone_scale, max_refinements, reuse_parent = refinement
+    (threshold, decay, encoding, oct_map, sh, children_sh, lighting_aware, bright_ratio,
+     light_map, class_of, symmetry_of, symmetries) = model
+    beam_bound, block = beam
+    (out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod, out_refined,
+     out_discarded) = out
     fine = 1 << max_refinements  # finest cells per pixel side
     radius, spread = pixel_cone(cam, height)
     radius *= cone_scale

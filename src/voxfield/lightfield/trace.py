@@ -17,7 +17,7 @@ from voxfield.errors import VoxfieldError
 from voxfield.kernels import probe_march as pm
 from voxfield.kernels import probe_multi as mk
 from voxfield.lightfield.packed import PackedProbes
-from voxfield.render.renderers import thread_count
+from voxfield.parallel import thread_count
 
 #: Result kinds, as stored in ``kind`` arrays.
 MISS = pm.MISS

@@ -18,10 +18,9 @@ import numpy as np
 from voxfield.errors import VoxfieldError
 from voxfield.probes.probe_set import BakeCost, BakeOptions, ProbeMaps, ProbeSet, encode_normals
 from voxfield.progress import progress_bar
-from voxfield.render.adaptive import render_adaptive
 from voxfield.render.camera import Camera, cube_cameras
-from voxfield.render.error_aware import render_error_aware
-from voxfield.render.renderers import render_lod, render_reference
+from voxfield.render.primary import render_lod
+from voxfield.render.registry import render, renderer_options
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
 
@@ -73,7 +72,7 @@ def bake_probes(octree: Octree, grid, options: BakeOptions, *, progress: bool = 
                 continue
             probes.append(bake_probe(octree, position, options, threads=threads))
             bar.update(1)
-    return ProbeSet.assemble(grid, options, probes, octree_fingerprint(octree, options.channel),
+    return ProbeSet.assemble(grid, options, probes, octree.fingerprint(options.channel),
                              positions=positions)
 
 
@@ -98,11 +97,18 @@ def bake_cube_faces(octree: Octree, position, size: int, options: BakeOptions, *
     return radiance, distance
 
 
-def octree_fingerprint(octree: Octree, channel: str) -> str:
-    """``studies.report.scene_fingerprint``: identifies the octree and baked channel."""
-    from voxfield.studies.report import scene_fingerprint
-
-    return scene_fingerprint(octree, channel)
+def export_cube_faces(probe_set: ProbeSet, octree: Octree, probe: int, size: int | None = None,
+                      *, threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Probe ``probe``'s six cube-map faces for engines, traced straight from ``octree``
+    (which must be the baked one): see ``bake_cube_faces``. ``size`` defaults to R/2."""
+    if not -probe_set.count <= probe < probe_set.count:
+        raise VoxfieldError(f"probe index {probe} is outside 0..{probe_set.count - 1}")
+    if octree.fingerprint(probe_set.options.channel) != probe_set.fingerprint:
+        raise VoxfieldError("this octree (or channel) is not the one the probes were "
+                            "baked from; open the baked scene to export its cube faces")
+    size = max(1, probe_set.resolution // 2) if size is None else size
+    return bake_cube_faces(octree, probe_set.positions[probe], size, probe_set.options,
+                           threads=threads)
 
 
 def _check(octree: Octree, options: BakeOptions) -> None:
@@ -130,18 +136,22 @@ def _passes(octree: Octree, camera: Camera, options: BakeOptions,
     return radiance, geometry
 
 
+def radiance_renderer(options: BakeOptions) -> tuple[str, object]:
+    """The registered renderer and its options for a bake's radiance pass: the bake's flat,
+    file-recorded fields mapped onto the renderer's own options."""
+    fields = {
+        "reference": {"side": options.samples},
+        "lod": {"lod": options.lod, "cone_scale": options.cone_scale},
+        # The adaptive renderer's first pass picks the cone LOD at scale 1 (no scale option).
+        "adaptive": {"base_lod": options.lod},
+        "error-aware": {"threshold": options.threshold, "decay": options.decay,
+                        "base_lod": options.lod, "cone_scale": options.cone_scale},
+    }[options.renderer]
+    return options.renderer, renderer_options(options.renderer, **fields)
+
+
 def _radiance(octree: Octree, camera: Camera, options: BakeOptions,
               threads: int | None) -> RenderResult:
-    common = {"seed": options.seed, "channel": options.channel, "threads": threads}
-    if options.renderer == "reference":
-        return render_reference(octree, camera, side=options.samples, **common)
-    if options.renderer == "lod":
-        return render_lod(octree, camera, lod=options.lod, cone_scale=options.cone_scale,
-                          **common)
-    if options.renderer == "adaptive":
-        # Its first pass picks the cone LOD at scale 1 (render_adaptive has no scale option).
-        return render_adaptive(octree, camera, base_lod=options.lod, **common)
-    return render_error_aware(octree, camera, threshold=options.threshold,
-                              decay=options.decay, base_lod=options.lod,
-                              cone_scale=options.cone_scale, **common)
-
+    name, renderer_settings = radiance_renderer(options)
+    return render(octree, camera, name, renderer_settings, seed=options.seed,
+                  channel=options.channel, threads=threads)

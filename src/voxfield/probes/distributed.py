@@ -16,7 +16,7 @@ of ``bake.bake_probes``. Schedulers (the ``scheduler`` argument, ``voxfield bake
 
 With a ``distributed`` client the octree is scattered to the workers once (it is the large
 argument) and each task receives only a probe position. Results come back to this process as
-they complete and are handed to a callback in completion order — ``storage`` writes each one at
+they complete and are handed to a callback in completion order — ``folder_bake`` writes each one at
 once, which is what makes a killed bake resumable.
 
 Inside a task the kernels run single-threaded when several probes run at once, so probes,
@@ -26,11 +26,14 @@ not pixels, are the parallel axis and the cores are not oversubscribed.
 from __future__ import annotations
 
 import os
+import uuid
 from collections.abc import Callable, Sequence
 
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.probes.bake import bake_probe
+from voxfield.probes.probe_set import ProbeSet
 from voxfield.progress import progress_bar
 
 LOCAL_SCHEDULERS = ("threads", "processes", "serial")
@@ -42,8 +45,6 @@ class SchedulerError(VoxfieldError):
 
 def bake_probe_task(octree, position, options, kernel_threads: int | None = None):
     """One probe, as a Dask task runs it (module level so workers can import it)."""
-    from voxfield.probes.bake import bake_probe
-
     return bake_probe(octree, np.asarray(position, np.float64), options,
                       threads=kernel_threads)
 
@@ -82,9 +83,6 @@ def bake_each(
 
 def bake_probes_dask(octree, grid, options, *, scheduler=None, progress: bool = False):
     """``bake.bake_probes`` through a Dask scheduler, in memory: the same ``ProbeSet``."""
-    from voxfield.probes.bake import octree_fingerprint
-    from voxfield.probes.probe_set import ProbeSet
-
     enabled = np.asarray(grid.enabled, bool).reshape(-1)
     probes: list = [None] * len(enabled)
 
@@ -94,12 +92,13 @@ def bake_probes_dask(octree, grid, options, *, scheduler=None, progress: bool = 
     bake_each(octree, grid, options, np.flatnonzero(enabled), keep, scheduler=scheduler,
               progress=progress)
     return ProbeSet.assemble(grid, options, probes,
-                             octree_fingerprint(octree, options.channel))
+                             octree.fingerprint(options.channel))
 
 
 def _run_threads(task, octree, positions, options, indices, emit) -> None:
     """Dask's threaded scheduler; a post-task callback hands each result over as it lands
     (the local scheduler runs callbacks in the calling thread)."""
+    # heavy: Dask loads only when a bake runs on a scheduler
     import dask
     from dask.callbacks import Callback
 
@@ -124,8 +123,8 @@ def _run_threads(task, octree, positions, options, indices, emit) -> None:
 
 def _run_client(client, task, octree, positions, options, indices, emit) -> None:
     """Scatter the octree once, submit one task per probe, deliver results as they finish."""
-    import uuid
 
+    # heavy: Dask loads only when a bake runs on a scheduler
     from distributed import as_completed
 
     shared = client.scatter(octree, broadcast=True, hash=False)
@@ -152,6 +151,7 @@ class _client:
         self.owned: list = []
 
     def __enter__(self):
+        # heavy: Dask loads only when a bake runs on a scheduler
         from distributed import Client, LocalCluster
 
         s = self.scheduler

@@ -23,12 +23,14 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
+from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.octahedral import decode_normals_snorm16, encode_normals_snorm16
-from voxfield.render.error_aware import THESIS_DECAY, THESIS_THRESHOLD
+from voxfield.render.primary import LodOptions, ReferenceOptions
+from voxfield.render.registry import RENDERERS
 
 #: Radiance renderers a bake can use (``reference`` = side×side CMJ rays at LOD 0).
-BAKE_RENDERERS = ("reference", "lod", "adaptive", "error-aware")
+BAKE_RENDERERS = tuple(RENDERERS)
 MIN_RESOLUTION = 4
 MAX_RESOLUTION = 2048
 #: Stored in both normal channels where a texel has no surface normal. No encoder output has
@@ -56,9 +58,9 @@ class BakeOptions:
     resolution: int = 64
     renderer: str = "error-aware"
     channel: str = "albedo"
-    samples: int = 4
+    samples: int = ReferenceOptions.side
     lod: int | None = None
-    cone_scale: float = 1.0
+    cone_scale: float = LodOptions.cone_scale
     threshold: float = THESIS_THRESHOLD
     decay: float = THESIS_DECAY
     seed: int = 0
@@ -227,7 +229,7 @@ class ProbeSet:
     ``ProbeMaps`` describes them, plus per-probe cost arrays (``cost[name]``, (N,), names in
     ``COST_FIELDS``), ``enabled`` (N,) (disabled probes hold ``ProbeMaps.empty``), the probe
     ``positions`` (N, 3), the ``grid`` and ``options`` it was baked with, and the
-    ``fingerprint`` of the octree and channel (``studies.report.scene_fingerprint``)."""
+    ``fingerprint`` of the octree and channel (``Octree.fingerprint``)."""
 
     grid: object
     options: BakeOptions
@@ -301,21 +303,6 @@ class ProbeSet:
     def distance_mips(self) -> list[np.ndarray]:
         """The conservative min-distance chain of every probe: ``min_distance_mips``."""
         return min_distance_mips(self.distance)
-
-    def cube_faces(self, octree, probe: int, size: int | None = None, *,
-                   threads: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Probe ``probe``'s six cube-map faces for engines, traced straight from ``octree``
-        (which must be the baked one): see ``bake.bake_cube_faces``. ``size`` defaults to R/2."""
-        from voxfield.probes.bake import bake_cube_faces, octree_fingerprint
-
-        if not -self.count <= probe < self.count:
-            raise VoxfieldError(f"probe index {probe} is outside 0..{self.count - 1}")
-        if octree_fingerprint(octree, self.options.channel) != self.fingerprint:
-            raise VoxfieldError("this octree (or channel) is not the one the probes were "
-                                "baked from; open the baked scene to export its cube faces")
-        size = max(1, self.resolution // 2) if size is None else size
-        return bake_cube_faces(octree, self.positions[probe], size, self.options,
-                               threads=threads)
 
 
 def _stack(arrays: list[np.ndarray], empty_shape: tuple, dtype) -> np.ndarray:

@@ -17,6 +17,11 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.atomic import atomic_path
+from voxfield.probes.probe_set import decode_normals
+from voxfield.render.camera import framing_camera
+from voxfield.render.image_io import shade_for_display
+from voxfield.render.primary import render_lod
+from voxfield.scene.voxel_scene import linear_to_srgb
 
 GAP = 1  # texels between tiles
 ESCAPED_GREY = 0.35
@@ -46,8 +51,6 @@ def tile_origins(count: int, resolution: int) -> list[tuple[int, int]]:
 def display_atlases(probe_set) -> dict[str, np.ndarray]:
     """The three atlases as displayable arrays: radiance linear RGB, distance (NaN where
     escaped) and normals RGB in [0, 1]."""
-    from voxfield.probes.probe_set import decode_normals
-
     radiance = np.asarray(probe_set.radiance, np.float32)
     distance = np.asarray(probe_set.distance, np.float32)
     normals = decode_normals(probe_set.normal)
@@ -73,23 +76,15 @@ def project(camera, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndar
 
 
 def overview_camera(octree, positions: np.ndarray, size: int):
-    """An orbit camera framing the scene and every probe."""
-    from voxfield.render.camera import orbit_camera
-
+    """A view framing the scene and every probe."""
     points = np.asarray(positions, np.float64).reshape(-1, 3)
     if octree is not None:
-        lo, hi = (np.asarray(b, np.float64) for b in octree.voxel_bounds)
-        points = np.concatenate([points, [lo, hi]])
-    lo, hi = points.min(axis=0), points.max(axis=0)
-    pad = np.maximum((hi - lo) * 0.02, 0.5)
-    return orbit_camera(lo - pad, hi + pad, size=size)
+        points = np.concatenate([points, np.asarray(octree.voxel_bounds, np.float64)])
+    return framing_camera(points, size=size)
 
 
 def render_overview(octree, camera):
     """A quick shaded render (one LOD-0 ray per pixel) and its per-pixel hit distance."""
-    from voxfield.cli import shade_for_display
-    from voxfield.render.renderers import render_lod
-
     result = render_lod(octree, camera, lod=0, side=1)
     hit = np.isfinite(result.depth)
     image = np.where(hit[..., None], shade_for_display(result), 0.08)
@@ -98,10 +93,10 @@ def render_overview(octree, camera):
 
 def figure(probe_set, *, octree=None, title: str = "", size: int = 512):
     """The matplotlib Figure: three atlases and the 3D overview."""
+    # heavy: matplotlib loads only when a figure is drawn
     from matplotlib.figure import Figure
     from matplotlib.lines import Line2D
 
-    from voxfield.scene.voxel_scene import linear_to_srgb
 
     atlases = display_atlases(probe_set)
     fig = Figure(figsize=(14, 12), facecolor="white")
@@ -122,6 +117,7 @@ def figure(probe_set, *, octree=None, title: str = "", size: int = 512):
     distance = atlases["distance"]
     finite = distance[np.isfinite(distance)]
     vmax = float(finite.max()) if finite.size and finite.max() > 0 else 1.0
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib
 
     cmap = matplotlib.colormaps["viridis"].with_extremes(bad=(ESCAPED_GREY,) * 3, under="white")
@@ -162,7 +158,6 @@ def _draw_overview(ax, probe_set, octree, size: int) -> None:
     base = np.asarray(getattr(grid, "base_positions", positions), np.float64)
     camera = overview_camera(octree, positions, size)
     if octree is not None:
-        from voxfield.scene.voxel_scene import linear_to_srgb
 
         image, depth = render_overview(octree, camera)
         ax.imshow(linear_to_srgb(image), interpolation="nearest")

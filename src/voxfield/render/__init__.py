@@ -9,10 +9,12 @@ from voxfield.render.camera import (
     top_down_camera,
 )
 from voxfield.render.error_aware import render_error_aware
-from voxfield.render.renderers import render, render_lod, render_reference
+from voxfield.render.primary import render_lod, render_reference
+from voxfield.render.registry import RENDERERS, render, renderer_options
 from voxfield.render.result import RenderResult
 
 __all__ = [
+    "RENDERERS",
     "Camera",
     "RenderResult",
     "cube_cameras",
@@ -23,5 +25,6 @@ __all__ = [
     "render_error_aware",
     "render_lod",
     "render_reference",
+    "renderer_options",
     "top_down_camera",
 ]

@@ -10,15 +10,17 @@ still counts (as a discarded hit, ``maps["refined"]``).
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 
 import numpy as np
 from scipy import ndimage
 
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.primary import render_pixels
+from voxfield.parallel import thread_count
 from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
-from voxfield.render.renderers import render_lod, thread_count
+from voxfield.render.primary import render_lod
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
 
@@ -30,6 +32,20 @@ HIGH_CUT = 0.75
 LOW_CUT = 0.25
 #: Class → samples-per-pixel side: 0 keeps the first ray, 1 → 2×2, 2 → 4×4.
 CLASS_SIDE = (1, 2, 4)
+
+
+@dataclass(frozen=True)
+class AdaptiveOptions:
+    """The variance-adaptive baseline's parameters (EA §5.1.2)."""
+
+    base_lod: int | None = field(default=2, metadata={
+        "help": "LOD of the first ray, or 'cone' (default 2, the thesis's setup)",
+        "type": "lod"})
+    iterations: int = field(default=1, metadata={
+        "help": "refinement iterations (default 1, as the thesis)"})
+    variance_normalisation: float = field(default=VARIANCE_NORMALISATION, metadata={
+        "help": "divisor of the 3×3 luminance SSD before the 0.25/0.75 cut-offs",
+        "cli": False})
 
 
 def luminance(image: np.ndarray) -> np.ndarray:
@@ -58,8 +74,9 @@ def refinement_classes(variance: np.ndarray, valid: np.ndarray) -> np.ndarray:
 
 
 def render_adaptive(
-    octree: Octree, camera: Camera, *, base_lod: int | None = 2, iterations: int = 1,
-    variance_normalisation: float = VARIANCE_NORMALISATION, seed: int = 0,
+    octree: Octree, camera: Camera, *, base_lod: int | None = AdaptiveOptions.base_lod,
+    iterations: int = AdaptiveOptions.iterations,
+    variance_normalisation: float = AdaptiveOptions.variance_normalisation, seed: int = 0,
     channel: str = "albedo", threads: int | None = None, progress: bool = False,
 ) -> RenderResult:
     """Render 1 ray per pixel, then refine high-variance pixels at LOD 0 (``iterations`` times;

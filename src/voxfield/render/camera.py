@@ -177,3 +177,78 @@ def orbit_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 45
     az, el = np.radians(azimuth_deg), np.radians(elevation_deg)
     offset = dist * np.array([np.cos(el) * np.sin(az), np.sin(el), np.cos(el) * np.cos(az)])
     return Camera.look_at(center + offset, center, fov_deg=fov_deg, width=size)
+
+
+def beam_camera(bounds_min, bounds_max, *, size: int = 256, fov_deg: float = 58.0) -> Camera:
+    """In front of the box (+z), above its floor, looking down at the floor in front of its
+    middle: for the EA thesis's shadow box, the grid and the whole beam of light."""
+    lo = np.asarray(bounds_min, np.float64)
+    hi = np.asarray(bounds_max, np.float64)
+    extent = float(max(hi[0] - lo[0], hi[2] - lo[2]))
+    centre = (lo + hi) / 2.0
+    eye = (centre[0] + 0.125 * extent, lo[1] + 0.4 * extent, hi[2] + 0.12 * extent)
+    target = (centre[0], lo[1], centre[2] + 0.2 * extent)
+    return Camera.look_at(eye, target, fov_deg=fov_deg, width=size)
+
+
+def room_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 70.0) -> Camera:
+    """From just inside the box's +z face towards the middle of its -z face: the Cornell box
+    seen through its open front, or a room from its doorway."""
+    lo = np.asarray(bounds_min, np.float64)
+    hi = np.asarray(bounds_max, np.float64)
+    c = (lo + hi) / 2.0
+    depth = hi[2] - lo[2]
+    eye = (c[0], c[1], hi[2] - 0.02 * depth)
+    return Camera.look_at(eye, (c[0], c[1], lo[2]), fov_deg=fov_deg, width=size)
+
+
+def ortho_top_camera(bounds_min, bounds_max, *, size: int = 512) -> Camera:
+    """Orthographic, straight down, the view just spanning the box's horizontal extent."""
+    lo = np.asarray(bounds_min, np.float64)
+    hi = np.asarray(bounds_max, np.float64)
+    c = (lo + hi) / 2.0
+    extent = float(max(hi[0] - lo[0], hi[2] - lo[2]))
+    return Camera.orthographic((c[0], hi[1] + 1.0, c[2]), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0),
+                               view_height=extent, width=size)
+
+
+def framing_camera(points, *, size: int = 512) -> Camera:
+    """An orbit view framing every point (for example a scene's corners and its probes)."""
+    points = np.asarray(points, np.float64).reshape(-1, 3)
+    lo, hi = points.min(axis=0), points.max(axis=0)
+    pad = np.maximum((hi - lo) * 0.02, 0.5)
+    return orbit_camera(lo - pad, hi + pad, size=size)
+
+
+#: Named views of a scene's box: vertical field of view (None: orthographic or cube face)
+#: and what each is for. ``preset_camera`` builds them.
+CAMERA_PRESETS = {
+    "top": (90.0, "the EA thesis's setup: centred above the map, 90° looking straight down"),
+    "oblique": (90.0, "the map centre from the south at 45° elevation"),
+    "orbit": (45.0, "a three-quarter view framing the whole box"),
+    "ortho-top": (None, "orthographic, straight down over the whole map"),
+    "beam": (58.0, "in front of the box above its floor (the shadow box's beam)"),
+    "room": (70.0, "from just inside the +z face towards the -z face (Cornell box)"),
+    **{f"cube{face}": (None, f"the {face} face of a cube map at the box centre")
+       for face, _, _ in CUBE_FACES},
+}
+
+
+def preset_camera(name: str, bounds_min, bounds_max, *, size: int = 512,
+                  fov_deg: float | None = None) -> Camera:
+    """The preset view ``name`` of the box (see ``CAMERA_PRESETS``); ``fov_deg`` overrides
+    the preset's field of view where it has one."""
+    name = "cube+x" if name == "cube" else name
+    if name not in CAMERA_PRESETS:
+        raise CameraError(f"unknown camera {name!r}; use {', '.join(CAMERA_PRESETS)} "
+                            "or --eye/--target")
+    fov = fov_deg or CAMERA_PRESETS[name][0]
+    lo = np.asarray(bounds_min, np.float64)
+    hi = np.asarray(bounds_max, np.float64)
+    if name.startswith("cube"):
+        return Camera.cube_face((lo + hi) / 2.0, name[4:], size=size)
+    if name == "ortho-top":
+        return ortho_top_camera(lo, hi, size=size)
+    make = {"top": top_down_camera, "oblique": oblique_camera, "orbit": orbit_camera,
+            "beam": beam_camera, "room": room_camera}[name]
+    return make(lo, hi, size=size, fov_deg=fov)

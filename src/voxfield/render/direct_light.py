@@ -14,7 +14,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from voxfield.error_table.table import ENCODINGS, ErrorTable, load_error_table
+from voxfield.error_table.table import (
+    ENCODINGS,
+    THESIS_DECAY,
+    THESIS_THRESHOLD,
+    ErrorTable,
+    load_error_table,
+)
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.direct_light import (
     SHADOW_DISTANCE,
@@ -24,9 +30,8 @@ from voxfield.kernels.direct_light import (
     render_direct_light_rows,
 )
 from voxfield.kernels.error_aware import ENCODING_OCT, ENCODING_SH
+from voxfield.parallel import run_in_bands, thread_count
 from voxfield.render.camera import Camera
-from voxfield.render.error_aware import THESIS_DECAY, THESIS_THRESHOLD
-from voxfield.render.renderers import run_in_bands, thread_count
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
 

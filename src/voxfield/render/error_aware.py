@@ -2,36 +2,79 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
-from voxfield.error_table.lighting import LightingErrorTable, load_lighting_error_table
-from voxfield.error_table.table import ENCODINGS, ErrorTable, load_error_table
+from voxfield.error_table.lighting_table import LightingErrorTable, load_lighting_error_table
+from voxfield.error_table.table import (
+    ENCODINGS,
+    THESIS_DECAY,
+    THESIS_THRESHOLD,
+    ErrorTable,
+    load_error_table,
+)
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.error_aware import (
     ENCODING_OCT,
     ENCODING_SH,
     MAX_REFINEMENTS,
+    BeamBounds,
+    ErrorAwareOutputs,
+    ErrorModel,
+    OctreeView,
+    Refinement,
     render_error_aware_rows,
 )
+from voxfield.parallel import run_in_bands, thread_count
 from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
-from voxfield.render.renderers import run_in_bands, thread_count
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
 
-#: The thesis's calibration on its Desert terrain (§5.1.4).
-THESIS_DECAY = 0.2
-THESIS_THRESHOLD = 0.154
-#: Lighting-aware error: a child is bright above this luminance ratio to its parent, minus 1.
-DEFAULT_BRIGHT_RATIO = 0.25
+
+@dataclass(frozen=True)
+class ErrorAwareOptions:
+    """The error-aware renderer's parameters (EA §5.1.3, §6.1, §6.2). Threshold and decay
+    default to the thesis's calibration on its Desert terrain (§5.1.4)."""
+
+    threshold: float = field(default=THESIS_THRESHOLD, metadata={
+        "help": "refinement threshold (the thesis's calibration, EA §5.1.4)"})
+    decay: float = field(default=THESIS_DECAY, metadata={
+        "help": "weight of the children's error"})
+    base_lod: int | None = field(default=2, metadata={
+        "help": "LOD of the first ray, or 'cone' (default 2, the thesis's setup)",
+        "type": "lod"})
+    cone_scale: float = field(default=1.0, metadata={
+        "help": "cone mode: node size accepted per pixel footprint (default 1)"})
+    max_refinements: int = field(default=2, metadata={
+        "help": "maximum 2×2 refinements per pixel (default 2 → ≤ 21 rays)",
+        "flag": "--refinements"})
+    encoding: str | None = field(default=None, metadata={
+        "help": "error-table encoding (default: the table's)", "choices": ENCODINGS})
+    reuse_parent: bool = field(default=False, metadata={
+        "help": "continue a refined ray as one of its 4 sub-rays (EA §6.2)"})
+    lighting_aware: bool = field(default=False, metadata={
+        "help": "add the bright-flag colour error (EA §6.1)"})
+    bright_ratio: float = field(default=0.25, metadata={
+        "help": "lighting-aware: a child is bright above (1 + R) × its parent's luminance "
+        "(default 0.25)"})
+
+
+DEFAULT_BRIGHT_RATIO = ErrorAwareOptions.bright_ratio
 
 
 def render_error_aware(
     octree: Octree, camera: Camera, table: ErrorTable | None = None, *,
-    threshold: float = THESIS_THRESHOLD, decay: float = THESIS_DECAY,
-    base_lod: int | None = 2, cone_scale: float = 1.0, max_refinements: int = 2,
-    encoding: str | None = None, reuse_parent: bool = False, lighting_aware: bool = False,
-    bright_ratio: float = DEFAULT_BRIGHT_RATIO, lighting_table: LightingErrorTable | None = None,
+    threshold: float = ErrorAwareOptions.threshold, decay: float = ErrorAwareOptions.decay,
+    base_lod: int | None = ErrorAwareOptions.base_lod,
+    cone_scale: float = ErrorAwareOptions.cone_scale,
+    max_refinements: int = ErrorAwareOptions.max_refinements,
+    encoding: str | None = ErrorAwareOptions.encoding,
+    reuse_parent: bool = ErrorAwareOptions.reuse_parent,
+    lighting_aware: bool = ErrorAwareOptions.lighting_aware,
+    bright_ratio: float = ErrorAwareOptions.bright_ratio,
+    lighting_table: LightingErrorTable | None = None,
     seed: int = 0, channel: str = "albedo", threads: int | None = None, progress: bool = False,
 ) -> RenderResult:
     """One ray per pixel at ``base_lod`` (or, with ``base_lod=None``, the LOD whose nodes match
@@ -67,13 +110,14 @@ def render_error_aware(
     refined = np.empty((h, w), np.int32)
     discarded = np.empty((h, w), np.int32)
     stop_level = octree.depth - (0 if base_lod is None else base_lod)
-    args = (
-        octree.inner_nodes, octree.depth, stop_level, cone_scale if base_lod is None else 0.0,
-        max_refinements, float(threshold), float(decay), bool(reuse_parent),
-        ENCODING_SH if encoding == "sh" else ENCODING_OCT,
+    view = OctreeView(octree.inner_nodes, octree.depth, colors)
+    refinement = Refinement(stop_level, cone_scale if base_lod is None else 0.0,
+                            max_refinements, bool(reuse_parent))
+    model = ErrorModel(
+        float(threshold), float(decay), ENCODING_SH if encoding == "sh" else ENCODING_OCT,
         np.ascontiguousarray(table.oct_map, np.float64), np.ascontiguousarray(table.sh, np.float64),
         children_sh_means(octree, table) if encoding == "sh" else np.zeros((0, 9)),
-        colors, bool(lighting_aware), float(bright_ratio), *light,
+        bool(lighting_aware), float(bright_ratio), *light,
     )
     cam = camera.params
     with thread_count(threads):
@@ -81,9 +125,9 @@ def render_error_aware(
                             cone_scale=cone_scale if base_lod is None else 0.0)
 
     def band(rows: slice) -> None:
-        render_error_aware_rows(cam, w, h, rows.start, rows.stop, seed, *args,
-                                beam.bound, beam.block, *result.buffers(rows), refined[rows],
-                                discarded[rows])
+        out = ErrorAwareOutputs(*result.buffers(rows), refined[rows], discarded[rows])
+        render_error_aware_rows(cam, w, h, rows.start, rows.stop, seed, view, refinement,
+                                model, BeamBounds(beam.bound, beam.block), out)
 
     result.seconds = beam.seconds + run_in_bands(h, band, label="error-aware", threads=threads,
                                                  progress=progress)

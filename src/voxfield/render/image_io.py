@@ -29,6 +29,7 @@ def save_png(image: np.ndarray, path: str | os.PathLike, *, encode_srgb: bool = 
 
 def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike) -> Path:
     """Write float32 channels (``{"RGB": H×W×3, "Z": H×W}``) to an EXR file, linear."""
+    # optional: OpenEXR loads only when an EXR file is read or written
     import OpenEXR
 
     path = Path(path)
@@ -41,6 +42,7 @@ def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike) -> Path:
 
 def load_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     """Read every channel of an EXR file (RGB kept together)."""
+    # optional: OpenEXR loads only when an EXR file is read or written
     import OpenEXR
 
     with OpenEXR.File(str(path), separate_channels=True) as f:
@@ -59,3 +61,16 @@ def save_result_image(result, path: str | os.PathLike) -> Path:
     if suffix == ".exr":
         return save_exr({"RGB": result.image, "Z": result.depth}, path)
     raise VoxfieldError(f"unsupported image format {suffix!r}; use .png or .exr")
+
+
+#: Display shading: a fixed key light (normalised) and a weak side light on the face normals.
+_KEY_LIGHT = np.array([0.45, 0.8, 0.4]) / np.linalg.norm([0.45, 0.8, 0.4])
+_SIDE_LIGHT = np.array([0.8, 0.0, -0.6])
+
+
+def shade_for_display(result) -> np.ndarray:
+    """Albedo times a fixed key light on the face normals: easier on the eye, not for metrics."""
+    lambert = np.clip(result.normal @ _KEY_LIGHT, 0.0, 1.0)
+    side = np.abs(result.normal @ _SIDE_LIGHT)
+    factor = 0.35 + 0.55 * lambert + 0.1 * side
+    return (result.image * factor[..., None]).astype(np.float32)

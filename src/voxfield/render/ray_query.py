@@ -9,7 +9,7 @@ import numpy as np
 
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.ray_batch import occlude_rays, trace_rays
-from voxfield.render.renderers import thread_count
+from voxfield.parallel import thread_count
 from voxfield.svo.octree import Octree
 
 

@@ -22,6 +22,7 @@ from itertools import chain
 from pathlib import Path
 
 import numpy as np
+from PIL import Image, UnidentifiedImageError
 
 from voxfield.errors import DataNotFoundError, SceneFormatError
 from voxfield.scene.voxel_scene import srgb_to_linear
@@ -450,7 +451,6 @@ def _texture_path(mtl: Path, rest: str) -> Path | None:
 
 
 def _read_texture(path: Path, owner: Path) -> np.ndarray | None:
-    from PIL import Image, UnidentifiedImageError
 
     try:
         with Image.open(path) as img:
@@ -469,6 +469,7 @@ def _read_texture(path: Path, owner: Path) -> np.ndarray | None:
 
 
 def _load_with_trimesh(path: Path) -> TriangleMesh:
+    # heavy: trimesh loads only when a mesh file is read
     import trimesh
 
     try:
@@ -487,6 +488,7 @@ def _load_with_trimesh(path: Path) -> TriangleMesh:
 
 def _from_trimesh(geom, linear_vertex_colors: bool) -> dict:
     """One trimesh geometry → TriangleMesh fields (textures as a list)."""
+    # heavy: trimesh loads only when a mesh file is read
     from trimesh.visual.color import ColorVisuals
     from trimesh.visual.texture import TextureVisuals
 

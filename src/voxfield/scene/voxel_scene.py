@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.fingerprint import array_fingerprint
 
 #: Largest coordinate extent a scene may span (21 bits per axis fit a 63-bit Morton code).
 MAX_EXTENT = 1 << 21
@@ -45,6 +46,14 @@ class VoxelScene:
 
     def __len__(self) -> int:
         return len(self.coords)
+
+    def fingerprint(self) -> str:
+        """Names the voxels and every colour channel: equal scenes give equal fingerprints."""
+        arrays = [self.coords, self.color]
+        if self.emission is not None:
+            arrays.append(self.emission)
+        arrays += [self.channels[k] for k in sorted(self.channels)]
+        return array_fingerprint(*arrays)
 
     @property
     def bounds(self) -> tuple[np.ndarray, np.ndarray]:

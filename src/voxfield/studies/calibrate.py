@@ -10,12 +10,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from voxfield.error_table.table import THESIS_DECAY
 from voxfield.errors import VoxfieldError
 from voxfield.metrics import psnr
 from voxfield.progress import progress_bar
 from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
-from voxfield.render.renderers import render_reference
+from voxfield.render.primary import render_reference
 from voxfield.svo.octree import Octree
 
 
@@ -37,7 +38,7 @@ class Calibration:
 
 def calibrate_threshold(
     octree: Octree, camera: Camera, *, target_rays: int | None = None,
-    target_psnr: float | None = None, decay: float = 0.2, base_lod: int | None = 2,
+    target_psnr: float | None = None, decay: float = THESIS_DECAY, base_lod: int | None = 2,
     low: float = 0.0, high: float = 1.0, iterations: int = 14, table=None, seed: int = 0,
     channel: str = "albedo",
     progress: bool = False,

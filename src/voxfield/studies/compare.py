@@ -11,9 +11,15 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
 from voxfield.errors import VoxfieldError
+from voxfield.fingerprint import array_fingerprint
 from voxfield.metrics import MISSED, compare_images, cost_summary, flip_available
+from voxfield.render.adaptive import AdaptiveOptions
 from voxfield.render.camera import Camera
+from voxfield.render.error_aware import ErrorAwareOptions
+from voxfield.render.primary import ReferenceOptions
+from voxfield.render.registry import render
 from voxfield.render.result import RenderResult
 from voxfield.studies.figures import (
     Panel,
@@ -23,15 +29,10 @@ from voxfield.studies.figures import (
     refinement_map,
     variance_map,
 )
-from voxfield.studies.report import StudyFolder, array_fingerprint, fmt, markdown_table
+from voxfield.studies.report import StudyFolder, fmt, markdown_table
 from voxfield.svo.octree import Octree
 
 #: The thesis's reference: 4×4 CMJ rays per pixel, all at LOD 0 (§5.1.1).
-REFERENCE_SIDE = 4
-#: The thesis limits the adaptive renderer to one refinement pass for a fair count (§5.1.2).
-ADAPTIVE_ITERATIONS = 1
-#: Two refinements: at most 1 + 4 + 16 = 21 rays per pixel (§5.1.3).
-MAX_REFINEMENTS = 2
 RENDERERS = ("reference", "adaptive", "error-aware")
 #: The optional fourth row: error-aware with parent-ray reuse (EA §6.2).
 REUSE_ROW = "error-aware+reuse"
@@ -41,23 +42,9 @@ RAY_NOTE = ("Rays are counted as in the thesis: only rays that hit a voxel (disc
             "error-aware rays included); rays/pixel is over the pixels that show geometry.")
 
 
-def _renderers() -> dict:
-    """The three renderers, imported here so this module loads before they all exist."""
-    from voxfield.render.renderers import render_reference
-
-    try:
-        from voxfield.render.adaptive import render_adaptive
-        from voxfield.render.error_aware import render_error_aware
-    except ImportError as exc:
-        raise VoxfieldError(f"the comparison needs the adaptive and error-aware renderers: "
-                            f"{exc}") from None
-    return {"reference": render_reference, "adaptive": render_adaptive,
-            "error-aware": render_error_aware, REUSE_ROW: render_error_aware}
-
-
 def run_compare(
-    octree: Octree, camera: Camera, out_dir: str | Path, *, threshold: float = 0.154,
-    decay: float = 0.2, base_lod: int | None = 2, seed: int = 0, channel: str = "albedo",
+    octree: Octree, camera: Camera, out_dir: str | Path, *, threshold: float = THESIS_THRESHOLD,
+    decay: float = THESIS_DECAY, base_lod: int | None = 2, seed: int = 0, channel: str = "albedo",
     reuse_parent: bool = False, camera_label: str = "", threads: int | None = None,
     fresh: bool = False, progress: bool = False,
 ) -> dict:
@@ -69,19 +56,19 @@ def run_compare(
     """
     if base_lod is not None and not 0 <= base_lod <= octree.depth:
         raise VoxfieldError(f"base LOD must be between 0 and {octree.depth}, got {base_lod}")
-    render = _renderers()
     folder = StudyFolder(out_dir, fresh=fresh)
     scene = {"name": octree.name, "depth": octree.depth, "voxels": octree.voxel_count,
-             "fingerprint": array_fingerprint(octree.level_offsets, octree.child_mask,
-                                              octree.channel(channel))}
+             "fingerprint": octree.fingerprint(channel)}
     common = {"scene": scene["fingerprint"], "camera": array_fingerprint(camera.params),
               "width": camera.width, "height": camera.height, "seed": seed, "channel": channel}
     options = {"seed": seed, "channel": channel, "threads": threads, "progress": progress}
+    # The renderers' defaults are the thesis's fair setup: 4×4 reference rays, one adaptive
+    # pass (§5.1.2), at most two error-aware refinements (≤ 21 rays a pixel, §5.1.3).
     settings = {
-        "reference": {"side": REFERENCE_SIDE},
-        "adaptive": {"base_lod": base_lod, "iterations": ADAPTIVE_ITERATIONS},
+        "reference": {"side": ReferenceOptions.side},
+        "adaptive": {"base_lod": base_lod, "iterations": AdaptiveOptions.iterations},
         "error-aware": {"threshold": threshold, "decay": decay, "base_lod": base_lod,
-                        "max_refinements": MAX_REFINEMENTS},
+                        "max_refinements": ErrorAwareOptions.max_refinements},
     }
     names = list(RENDERERS)
     if reuse_parent:
@@ -93,7 +80,8 @@ def run_compare(
         keys[name] = {**common, "renderer": name, **settings[name]}
         results[name] = folder.render_item(
             _slug(name), keys[name],
-            lambda name=name: render[name](octree, camera, **settings[name], **options),
+            lambda name=name: render(octree, camera, _renderer_of(name), **settings[name],
+                                     **options),
         )
     reference = results["reference"]
     rows = []
@@ -125,6 +113,11 @@ def run_compare(
     written.append(folder.write_text("results.md", results_markdown(report)))
     return {**report, "folder": str(folder.root), "written": [str(p) for p in written],
             "computed": folder.computed, "reused": folder.reused}
+
+
+def _renderer_of(row: str) -> str:
+    """The registered renderer drawing a row (the reuse row is error-aware with an option)."""
+    return "error-aware" if row == REUSE_ROW else row
 
 
 def _slug(name: str) -> str:

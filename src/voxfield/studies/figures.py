@@ -13,6 +13,7 @@ import numpy as np
 
 from voxfield.errors import VoxfieldError
 from voxfield.render.result import RenderResult
+from voxfield.scene.voxel_scene import linear_to_srgb
 
 
 def _map(result: RenderResult, name: str) -> np.ndarray:
@@ -71,9 +72,9 @@ def contact_sheet(cells: Sequence[Panel | str], *, columns: int, title: str = ""
                   panel_inches: float = 4.0):
     """A matplotlib Figure of the cells in a grid, row by row: each Panel pixel-exact (nearest)
     under its title, each string as monospaced text (a results table, settings)."""
+    # heavy: matplotlib loads only when a figure is drawn
     from matplotlib.figure import Figure
 
-    from voxfield.scene.voxel_scene import linear_to_srgb
 
     rows = max(1, -(-len(cells) // columns))
     fig = Figure(figsize=(panel_inches * columns, panel_inches * rows + 0.6), facecolor="white")

@@ -14,19 +14,18 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
 from voxfield.errors import VoxfieldError
 from voxfield.progress import progress_bar
-from voxfield.render.adaptive import render_adaptive
 from voxfield.render.camera import Camera
-from voxfield.render.error_aware import DEFAULT_BRIGHT_RATIO, render_error_aware
-from voxfield.render.renderers import render_reference
+from voxfield.render.error_aware import DEFAULT_BRIGHT_RATIO
+from voxfield.render.registry import render, renderer_options
 from voxfield.studies.figures import Panel, contact_sheet, finest_lod_map, refinement_map
 from voxfield.studies.report import (
     StudyFolder,
     costs_and_quality,
     fmt,
     markdown_table,
-    scene_fingerprint,
 )
 from voxfield.svo.octree import Octree
 
@@ -47,7 +46,7 @@ def lighting_channels(octree: Octree) -> list[str]:
 
 def run_lighting_study(
     octree: Octree, camera: Camera, out_dir: str | Path, *, channels: list[str] | None = None,
-    threshold: float = 0.154, decay: float = 0.2, base_lod: int | None = 2,
+    threshold: float = THESIS_THRESHOLD, decay: float = THESIS_DECAY, base_lod: int | None = 2,
     bright_ratio: float = DEFAULT_BRIGHT_RATIO, seed: int = 0, scene_name: str = "scene",
     progress: bool = False, fresh: bool = False,
 ) -> dict:
@@ -61,32 +60,33 @@ def run_lighting_study(
                             "`voxfield light SCENE` and study the octree file it writes")
     folder = StudyFolder(out_dir, fresh=fresh)
     settings = {"threshold": threshold, "decay": decay, "base_lod": base_lod}
-    renders = {
-        "reference": lambda c: render_reference(octree, camera, side=4, seed=seed, channel=c),
-        "adaptive": lambda c: render_adaptive(octree, camera, base_lod=base_lod, seed=seed,
-                                              channel=c),
-        "error_aware": lambda c: render_error_aware(octree, camera, seed=seed, channel=c,
-                                                    **settings),
-        "lighting_aware": lambda c: render_error_aware(
-            octree, camera, seed=seed, channel=c, lighting_aware=True,
-            bright_ratio=bright_ratio, **settings),
+    # Row → (registered renderer, its options); the thesis's 4×4 reference is the default.
+    rows_drawn = {
+        "reference": ("reference", renderer_options("reference")),
+        "adaptive": ("adaptive", renderer_options("adaptive", base_lod=base_lod)),
+        "error_aware": ("error-aware", renderer_options("error-aware", **settings)),
+        "lighting_aware": ("error-aware", renderer_options(
+            "error-aware", lighting_aware=True, bright_ratio=bright_ratio, **settings)),
     }
+    renders = {row: (lambda c, name=name, options=options: render(
+        octree, camera, name, options, seed=seed, channel=c))
+        for row, (name, options) in rows_drawn.items()}
     rows, sheet = [], []
     with progress_bar(total=len(channels) * len(renders), desc="lighting", unit="render",
                       enabled=progress) as bar:
         for channel in channels:
-            view = {"scene": scene_name, "fingerprint": scene_fingerprint(octree, channel),
+            view = {"scene": scene_name, "fingerprint": octree.fingerprint(channel),
                     "camera": camera.params.tolist(), "size": camera.width, "seed": seed,
                     "channel": channel}
             results = {}
-            for name, render in renders.items():
+            for name, draw in renders.items():
                 params = {**view} if name in ("reference", "adaptive") else {**view, **settings}
                 if name == "lighting_aware":
                     params["bright_ratio"] = bright_ratio
                 if name == "adaptive":
                     params["base_lod"] = base_lod
                 results[name] = folder.render_item(f"{name}-{channel}", params,
-                                                   lambda r=render, c=channel: r(c))
+                                                   lambda r=draw, c=channel: r(c))
                 bar.update(1)
             reference = results["reference"]
             row = {"channel": channel, "luminance": image_luminance(reference.image)}
@@ -152,9 +152,11 @@ def results_markdown(report: dict) -> str:
 
 
 def _figure(report: dict):
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib
 
     matplotlib.use("Agg")
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib.pyplot as plt
 
     rows = report["rows"]

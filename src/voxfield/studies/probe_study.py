@@ -25,7 +25,6 @@ only what a missing item needs, and a finished study re-runs without baking at a
 
 from __future__ import annotations
 
-import argparse
 import math
 import re
 import time
@@ -36,13 +35,28 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.lightfield.packed import PackedProbes
+from voxfield.lightfield.probe_render import render_from_probes, result_kinds
+from voxfield.lightfield.trace import MARCHERS as KNOWN_MARCHERS
+from voxfield.lightfield.trace import ORDERINGS as KNOWN_ORDERINGS
+from voxfield.lightfield.trace import LightFieldOptions
+from voxfield.metrics import compare_images
+from voxfield.probes.bake import bake_probes
+from voxfield.probes.grid import DEFAULT_CLEARANCE_FRACTION, ProbeGrid, relocate
+from voxfield.probes.probe_set import MAX_RESOLUTION, MIN_RESOLUTION, BakeOptions
 from voxfield.progress import progress_bar
 from voxfield.render.camera import Camera
+from voxfield.render.primary import render_lod
+from voxfield.studies.probe_study_figures import (
+    contact_sheet_figure,
+    count_figure,
+    ordering_figure,
+    resolution_figure,
+)
 from voxfield.studies.report import (
     StudyFolder,
     fmt,
     markdown_table,
-    scene_fingerprint,
 )
 
 #: Map sides of the resolution section (the issue's 64² … 1024²).
@@ -83,7 +97,6 @@ def run_probe_study(
     ordering are varied by the study (the options' own are the defaults elsewhere). With
     ``relocate_probes`` probes are moved out of geometry (``probes.grid.relocate``) first.
     """
-    from voxfield.lightfield.trace import LightFieldOptions
 
     options = LightFieldOptions() if options is None else options
     plan = _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, marchers,
@@ -144,12 +157,6 @@ def run_probe_study(
         "grids": study.grid_notes, "metrics_on": "linear RGB in [0, 1]",
         "items": {"computed": len(folder.computed), "reused": len(folder.reused)},
     }
-    from voxfield.studies.probe_study_figures import (
-        contact_sheet_figure,
-        count_figure,
-        ordering_figure,
-        resolution_figure,
-    )
 
     folder.write_json("results.json", report)
     folder.write_text("results.md", results_markdown(report))
@@ -167,11 +174,6 @@ def run_probe_study(
 def _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, marchers,
                   count_resolution, options, timing_repeats) -> dict:
     """The study's parameters, validated, as plain tuples; bad ones raise VoxfieldError."""
-    from voxfield.lightfield.trace import MARCHERS as KNOWN_MARCHERS
-    from voxfield.lightfield.trace import ORDERINGS as KNOWN_ORDERINGS
-    from voxfield.lightfield.trace import LightFieldOptions
-    from voxfield.probes.probe_set import MAX_RESOLUTION, MIN_RESOLUTION
-
     if not isinstance(camera, Camera):
         raise VoxfieldError(f"camera must be a voxfield Camera, got {type(camera).__name__}")
     if not isinstance(options, LightFieldOptions):
@@ -262,7 +264,7 @@ class _Study:
         self.seed = seed
         self.relocate_probes = relocate_probes
         self._relocation = f"clearance<={RELOCATION_CLEARANCE}" if relocate_probes else False
-        self.view = {"scene": scene_name, "fingerprint": scene_fingerprint(octree, channel),
+        self.view = {"scene": scene_name, "fingerprint": octree.fingerprint(channel),
                      "camera": camera.params.tolist(), "width": camera.width,
                      "height": camera.height, "seed": seed, "channel": channel}
         self.grid_notes: dict[str, dict] = {}
@@ -275,8 +277,6 @@ class _Study:
 
     def grid(self, counts):
         """The grid fitted to the scene's voxel box, relocated out of geometry if asked."""
-        from voxfield.probes.grid import DEFAULT_CLEARANCE_FRACTION, ProbeGrid, relocate
-
         lo, hi = self.octree.voxel_bounds
         grid = ProbeGrid.fit(lo, hi, counts)
         summary = None
@@ -305,10 +305,6 @@ class _Study:
 
     def probe_set(self, counts, resolution: int):
         """The baked probe set and its packed maps; the last bake is kept for reuse."""
-        from voxfield.lightfield.packed import PackedProbes
-        from voxfield.probes.bake import bake_probes
-        from voxfield.probes.probe_set import BakeOptions
-
         key = (tuple(counts), int(resolution))
         if self._bake_key != key:
             self.drop_bake()
@@ -345,15 +341,12 @@ class _Study:
 
     def reference(self):
         """The direct octree render of the same rays: one LOD-0 ray per pixel centre."""
-        from voxfield.render.renderers import render_lod
-
         if self._reference is None:
             self._reference = self.folder.render_item("reference", self.view, lambda: render_lod(
                 self.octree, self.camera, lod=0, seed=self.seed, channel=self.channel))
         return self._reference
 
     def _render(self, counts, resolution, method, options):
-        from voxfield.lightfield.render import render_from_probes
 
         probe_set, packed, _ = self.probe_set(counts, resolution)
         if method == "light-field":
@@ -388,8 +381,6 @@ class _Study:
     def timing(self, counts, resolution: int, marchers, repeats: int) -> dict:
         """Warm wall times (the best of ``repeats``) of the direct octree render and of each
         probe render of the same view; compilation is excluded by a first untimed run."""
-        from voxfield.render.renderers import render_lod
-
         params = self._params(counts, resolution, marchers=list(marchers), repeats=repeats,
                               options=_options_dict(self.options))
 
@@ -416,9 +407,6 @@ class _Study:
 def measurements(reference, result) -> dict:
     """What every section reads from a probe render: answer kinds as fractions of pixels,
     per-pixel fetches, steps and probes tried, first-probe success, quality, seconds."""
-    from voxfield.lightfield.render import result_kinds
-    from voxfield.metrics import compare_images
-
     codes = result_kinds()
     kind = np.asarray(result.maps["result_kind"]).ravel()
     tried = np.asarray(result.maps["probes_tried"]).ravel()
@@ -583,122 +571,3 @@ def results_markdown(report: dict) -> str:
               "- `contact_sheet.png`: reference, the three probe renders, result kinds and "
               "fetches per pixel", ""]
     return "\n".join(lines)
-
-
-# --------------------------------------------------------------------------- command line
-
-
-def add_probe_study_parser(actions) -> argparse.ArgumentParser:
-    """Register ``probes`` on the ``voxfield study`` actions."""
-    from voxfield.cli import _add_channel_option, _add_scene_options, _add_view_options
-    from voxfield.lightfield.trace import EPSILON_MODES, LightFieldOptions
-
-    p = actions.add_parser(
-        "probes", help="the probe thesis's analysis (ch. 9): quality, fetches per marcher "
-        "per resolution, failures per probe count, orderings, wall time",
-        description="Bake probes on the scene and render one view from them: PSNR/SSIM of the "
-        "light-field, environment and box-proxy renders against the octree's own render of "
-        "the same rays; texel fetches per pixel for each marcher per probe resolution (with "
-        "the growth exponent against the thesis's O(sqrt r) and O(log r)); failures and "
-        "fetches per probe count; first-probe success per ordering; wall time against direct "
-        "octree tracing. Writes results.json, results.md, plots and a contact sheet. "
-        "Resumable. The default camera, room, looks from just inside the scene box's +z face "
-        "towards its -z face (the Cornell box through its open front); --camera top, oblique, "
-        "... or --eye/--target choose another.",
-    )
-    _add_scene_options(p)
-    p.add_argument("--grid", default="1x1x1", metavar="NXxNYxNZ",
-                   help="main probe grid fitted to the scene (default 1x1x1: one probe at the "
-                   "centre, the thesis's Holodeck test)")
-    p.add_argument("--resolutions", type=_int_list, default=THESIS_RESOLUTIONS,
-                   help="comma-separated probe map sides (default 64,128,256,512,1024)")
-    p.add_argument("--probe-counts", type=_counts_list,
-                   default=DEFAULT_PROBE_COUNTS, metavar="GRIDS",
-                   help="comma-separated grids for the probe-count section (default "
-                   "1x1x1,2x2x2,3x3x3,4x4x4)")
-    p.add_argument("--count-resolution", type=int, default=None, metavar="R",
-                   help="probe map side of the probe-count and ordering sections (default "
-                   "the largest resolution up to 256)")
-    p.add_argument("--marchers", type=_name_list, default=MARCHERS,
-                   help="comma-separated marchers (default march3d,dda,hierarchical)")
-    p.add_argument("--orderings", type=_name_list, default=ORDERINGS,
-                   help="comma-separated orderings (default signed-dot,nearest,fixed)")
-    defaults = LightFieldOptions()
-    p.add_argument("--epsilon", choices=tuple(EPSILON_MODES), default=defaults.epsilon,
-                   help=f"hit acceptance rule (default {defaults.epsilon})")
-    p.add_argument("--epsilon-value", type=float, default=defaults.epsilon_value, metavar="E",
-                   help=f"constant epsilon in voxels (default {defaults.epsilon_value})")
-    p.add_argument("--epsilon-k", type=float, default=defaults.epsilon_k, metavar="K",
-                   help=f"adaptive/angular epsilon scale (default {defaults.epsilon_k})")
-    p.add_argument("--backface", action="store_true", help="reject backface hits")
-    p.add_argument("--no-fallback", action="store_true",
-                   help="leave rays every probe loses unknown instead of falling back")
-    p.add_argument("--no-relocate", action="store_true",
-                   help="keep probes on their lattice points even inside geometry")
-    p.add_argument("--repeats", type=int, default=3,
-                   help="timed runs per renderer in the wall-time section (default 3)")
-    p.add_argument("--out", default=None, help="output folder (default out/probe_study_SCENE)")
-    p.add_argument("--fresh", action="store_true", help="ignore cached items")
-    _add_channel_option(p)
-    _add_view_options(p, size=256)
-    p.set_defaults(func=cmd_study_probes, camera="room")
-    return p
-
-
-def _int_list(text: str) -> tuple[int, ...]:
-    try:
-        values = tuple(int(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"expected sizes like 64,128, got {text!r}") from None
-    if any(v < 1 for v in values):
-        raise argparse.ArgumentTypeError(f"sizes must be positive, got {text!r}")
-    return values
-
-
-def _counts_list(text: str) -> tuple[tuple[int, int, int], ...]:
-    try:
-        return tuple(parse_counts(part) for part in text.split(","))
-    except VoxfieldError as exc:
-        raise argparse.ArgumentTypeError(str(exc)) from None
-
-
-def _name_list(text: str) -> tuple[str, ...]:
-    return tuple(v.strip() for v in text.split(",") if v.strip())
-
-
-def room_camera(bounds, size: int, fov_deg: float | None = None) -> Camera:
-    """A view from just inside the scene box's +z face towards the middle of its -z face:
-    the Cornell box seen through its open front, or a room from its doorway."""
-    lo, hi = (np.asarray(b, np.float64) for b in bounds)
-    c = (lo + hi) / 2.0
-    depth = hi[2] - lo[2]
-    eye = (c[0], c[1], hi[2] - 0.02 * depth)
-    return Camera.look_at(eye, (c[0], c[1], lo[2]), fov_deg=fov_deg or 70.0, width=size)
-
-
-def cmd_study_probes(args) -> int:
-    from voxfield.cli import _camera, _open_octree, default_output
-    from voxfield.lightfield.trace import LightFieldOptions
-
-    quiet = getattr(args, "quiet", False)
-    octree = _open_octree(args)
-    if args.camera == "room" and args.eye is None and args.target is None:
-        camera = room_camera(octree.voxel_bounds, args.size, args.fov)
-    else:
-        camera = _camera(args, octree)
-    options = LightFieldOptions(epsilon=args.epsilon, epsilon_value=args.epsilon_value,
-                                epsilon_k=args.epsilon_k, backface=args.backface,
-                                fallback=not args.no_fallback)
-    out = args.out or default_output("probe_study", args.scene)
-    report = run_probe_study(
-        octree, out, scene_name=args.scene, camera=camera, grid_counts=parse_counts(args.grid),
-        resolutions=args.resolutions, probe_counts=args.probe_counts,
-        orderings=args.orderings, marchers=args.marchers,
-        count_resolution=args.count_resolution, options=options,
-        relocate_probes=not args.no_relocate, channel=args.channel,
-        timing_repeats=args.repeats, seed=args.seed, progress=not quiet, fresh=args.fresh)
-    if not quiet:
-        print(results_markdown(report))
-        print(f"wrote {out}/results.md, results.json, fetches_vs_resolution.png, "
-              "probe_count.png, orderings.png, contact_sheet.png")
-    return 0

@@ -10,6 +10,7 @@ import math
 
 import numpy as np
 
+from voxfield.lightfield.probe_render import result_kinds
 from voxfield.studies.figures import Panel, contact_sheet
 
 #: Colours of the result-kind map: hit, miss, unknown, fallback, environment.
@@ -19,9 +20,11 @@ KIND_COLOURS = {"hit": (0.1, 0.75, 0.2), "miss": (0.15, 0.35, 0.95),
 
 
 def _plt():
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib
 
     matplotlib.use("Agg")
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib.pyplot as plt
 
     return plt
@@ -116,8 +119,6 @@ def ordering_figure(report: dict):
 
 def kind_image(result) -> np.ndarray:
     """The result-kind map as colours (``KIND_COLOURS``; black for anything else)."""
-    from voxfield.lightfield.render import result_kinds
-
     kind = np.asarray(result.maps["result_kind"])
     out = np.zeros((*kind.shape, 3), np.float32)
     for name, code in result_kinds().items():

@@ -18,9 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
+import voxfield
 from voxfield.atomic import atomic_path
 from voxfield.errors import VoxfieldError
 from voxfield.metrics import compare_images
+from voxfield.render.image_io import save_png
 from voxfield.render.result import RenderResult
 
 #: Bump when the cached item layout changes, so old caches are recomputed, not misread.
@@ -51,21 +53,9 @@ def to_json(value):
 def params_key(params: dict) -> str:
     """A short stable hash of an item's parameters (canonical JSON, sorted keys) and of the
     code that computes it: a changed renderer never serves results of the old one."""
-    from voxfield import SOURCE_DIGEST
-
-    text = json.dumps(to_json({"cache_version": CACHE_VERSION, "code": SOURCE_DIGEST,
+    text = json.dumps(to_json({"cache_version": CACHE_VERSION, "code": voxfield.SOURCE_DIGEST,
                                **params}), sort_keys=True)
     return hashlib.blake2b(text.encode(), digest_size=8).hexdigest()
-
-
-def array_fingerprint(*arrays: np.ndarray) -> str:
-    """A hash of array contents, shapes and types: identifies a scene or camera in item keys."""
-    digest = hashlib.blake2b(digest_size=16)
-    for a in arrays:
-        a = np.ascontiguousarray(a)
-        digest.update(f"{a.dtype.str}{a.shape}".encode())
-        digest.update(memoryview(a).cast("B"))
-    return digest.hexdigest()
 
 
 def result_to_arrays(result: RenderResult) -> tuple[dict, dict[str, np.ndarray]]:
@@ -168,8 +158,6 @@ class StudyFolder:
     def write_png(self, name: str, image: np.ndarray, *, encode_srgb: bool = True) -> Path:
         """A linear image as sRGB PNG (``encode_srgb=False`` for maps that are already grey
         levels or colours)."""
-        from voxfield.render.image_io import save_png
-
         return save_png(image, self.path(name), encode_srgb=encode_srgb)
 
     def write_figure(self, name: str, figure, *, dpi: int = 100) -> Path:
@@ -206,11 +194,6 @@ def fmt(value, spec: str = ",") -> str:
     if isinstance(value, float) and math.isnan(value):
         return "—"
     return format(value, spec)
-
-
-def scene_fingerprint(octree, channel: str = "albedo") -> str:
-    """Identifies the octree's structure and the rendered colour channel in cache keys."""
-    return array_fingerprint(octree.level_offsets, octree.child_mask, octree.channel(channel))
 
 
 def costs(result) -> dict:

@@ -12,19 +12,19 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
 from voxfield.errors import VoxfieldError
 from voxfield.progress import progress_bar
 from voxfield.render.adaptive import render_adaptive
 from voxfield.render.camera import top_down_camera
 from voxfield.render.error_aware import render_error_aware
-from voxfield.render.renderers import render_reference
+from voxfield.render.primary import render_reference
 from voxfield.studies.report import (
     StudyFolder,
     costs,
     costs_and_quality,
     fmt,
     markdown_table,
-    scene_fingerprint,
 )
 from voxfield.studies.threshold_study import PANELS, plot_value
 from voxfield.svo.octree import Octree
@@ -50,8 +50,8 @@ def map_footprint(octree: Octree) -> int:
 
 
 def run_resolution_study(
-    octree: Octree, out_dir: str | Path, *, sizes=THESIS_SIZES, threshold: float = 0.154,
-    decay: float = 0.2, seed: int = 0, channel: str = "albedo", scene_name: str = "scene",
+    octree: Octree, out_dir: str | Path, *, sizes=THESIS_SIZES, threshold: float = THESIS_THRESHOLD,
+    decay: float = THESIS_DECAY, seed: int = 0, channel: str = "albedo", scene_name: str = "scene",
     progress: bool = False,
     fresh: bool = False,
 ) -> dict:
@@ -60,7 +60,7 @@ def run_resolution_study(
     folder = StudyFolder(out_dir, fresh=fresh)
     lo, hi = octree.voxel_bounds
     footprint = map_footprint(octree)
-    fingerprint = scene_fingerprint(octree, channel)
+    fingerprint = octree.fingerprint(channel)
     rows = []
     with progress_bar(total=3 * len(sizes), desc="resolution", unit="render",
                       enabled=progress) as bar:
@@ -131,9 +131,11 @@ def _markdown(report) -> str:
 
 
 def _figure(report):
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib
 
     matplotlib.use("Agg")
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib.pyplot as plt
 
     rows = sorted(report["rows"], key=lambda r: r["size"])

@@ -15,7 +15,15 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD, load_error_table
 from voxfield.errors import VoxfieldError
+from voxfield.fingerprint import array_fingerprint
+from voxfield.metrics import psnr
+from voxfield.render.camera import top_down_camera
+from voxfield.render.direct_light import light_on_surface, render_direct_light
+from voxfield.scene.shadow_box import shadow_box_layout
+from voxfield.scene.voxel_scene import linear_to_srgb
+from voxfield.studies.report import StudyFolder, fmt, markdown_table
 
 #: Bump when the shadow kernels' results change, so cached renders are not reused.
 STUDY_VERSION = 1
@@ -36,18 +44,13 @@ METRIC_NOTE = ("PSNR on linear RGB in [0, 1] (images clamped to it) against the 
 def run_shadow_study(
     octree, camera, out_dir: str | Path, *, light_samples: int = 16,
     reference_samples: int = 256, floor_samples: int = 64, lod_distance: float = 16.0,
-    threshold: float = 0.154, decay: float = 0.2, max_refinements: int | None = None,
+    threshold: float = THESIS_THRESHOLD, decay: float = THESIS_DECAY,
+    max_refinements: int | None = None,
     encoding: str | None = None, seed: int = 0, camera_label: str = "",
     threads: int | None = None, fresh: bool = False, progress: bool = False,
 ) -> dict:
     """Render, measure and write the study into ``out_dir``; returns ``results.json``'s
     content plus ``folder``, ``written``, ``computed`` and ``reused``."""
-    from voxfield.error_table.table import load_error_table
-    from voxfield.metrics import psnr
-    from voxfield.render.camera import top_down_camera
-    from voxfield.render.direct_light import render_direct_light
-    from voxfield.studies.report import StudyFolder, array_fingerprint
-
     table = load_error_table()
     folder = StudyFolder(out_dir, fresh=fresh)
     shadow = {"lod_distance": float(lod_distance), "threshold": float(threshold),
@@ -124,9 +127,6 @@ def _measure_beam(folder, octree, key, *, floor_samples: int, **options) -> dict
     """Light on the floor strip in front of the grid, per shadow LOD mode: the mean over the
     strip, over its far part (from twice the LOD distance on, where the baseline samples LOD 1
     or coarser) and the profile along the beam. None for scenes other than the shadow box."""
-    from voxfield.render.direct_light import light_on_surface
-    from voxfield.scene.shadow_box import shadow_box_layout
-
     if octree.name != "shadowbox":
         return None
     lo, hi = octree.voxel_bounds
@@ -167,6 +167,7 @@ def _measure_beam(folder, octree, key, *, floor_samples: int, **options) -> dict
 def lod_colors(lod: np.ndarray, max_lod: int) -> np.ndarray:
     """The LOD-used map as colours (EA fig. 3.6: darker = finer, LOD 0 black), light grey
     where no shadow ray was cast."""
+    # heavy: matplotlib loads only when a figure is drawn
     from matplotlib import colormaps
 
     rgb = colormaps[LOD_COLORMAP](np.clip(lod, 0.0, max_lod) / max(max_lod, 1))[..., :3]
@@ -176,6 +177,7 @@ def lod_colors(lod: np.ndarray, max_lod: int) -> np.ndarray:
 
 def _lod_figure(title: str, lod: np.ndarray, max_lod: int):
     """One LOD-used map with its legend."""
+    # heavy: matplotlib loads only when a figure is drawn
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(6.2, 5.2), facecolor="white", layout="constrained")
@@ -187,6 +189,7 @@ def _lod_figure(title: str, lod: np.ndarray, max_lod: int):
 
 def _draw_lod(fig, ax, lod: np.ndarray, max_lod: int) -> None:
     """The map, a colour bar of LODs and a legend entry for pixels without shadow rays."""
+    # heavy: matplotlib loads only when a figure is drawn
     from matplotlib import colormaps
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
@@ -202,6 +205,7 @@ def _draw_lod(fig, ax, lod: np.ndarray, max_lod: int) -> None:
 
 
 def _profile_figure(beam: dict, lod_distance: float):
+    # heavy: matplotlib loads only when a figure is drawn
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(6.2, 4.0), facecolor="white", layout="constrained")
@@ -246,9 +250,9 @@ def _write_pictures(folder, results: dict, top_maps: dict, beam: dict | None, de
 
 def _sheet(results: dict, top_maps: dict, beam: dict | None, max_lod: int, report: dict):
     """Images on top (fig. 3.5), LOD-used maps and the beam profile below (fig. 3.6)."""
+    # heavy: matplotlib loads only when a figure is drawn
     from matplotlib.figure import Figure
 
-    from voxfield.scene.voxel_scene import linear_to_srgb
 
     rows = {row["renderer"]: row for row in report["rows"]}
     fig = Figure(figsize=(19, 10), facecolor="white", layout="constrained")
@@ -278,7 +282,6 @@ def _sheet(results: dict, top_maps: dict, beam: dict | None, max_lod: int, repor
 
 
 def results_markdown(report: dict) -> str:
-    from voxfield.studies.report import fmt, markdown_table
 
     s = report["settings"]
     headers = ["renderer", "light spp", "PSNR (dB)", "shadow rays", "traversals",
@@ -321,7 +324,6 @@ def results_markdown(report: dict) -> str:
 
 
 def _light_cells(value, reference) -> list[str]:
-    from voxfield.studies.report import fmt
 
     share = None if value is None or not reference else 100.0 * value / reference
     return [fmt(value, ".4f"), fmt(share, ".1f")]
@@ -329,8 +331,6 @@ def _light_cells(value, reference) -> list[str]:
 
 def summary_text(report: dict) -> str:
     """The console summary: one line per renderer, then where the files went."""
-    from voxfield.studies.report import fmt
-
     lines = [f"{'renderer':<13}{'spp':>5}{'PSNR':>8}{'shadow steps':>15}{'floor light':>13}"
              f"{'far':>9}{'seconds':>9}"]
     for row in report["rows"]:

@@ -11,13 +11,12 @@ from voxfield.progress import progress_bar
 from voxfield.render.adaptive import render_adaptive
 from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
-from voxfield.render.renderers import render_reference
+from voxfield.render.primary import render_reference
 from voxfield.studies.report import (
     StudyFolder,
     costs_and_quality,
     fmt,
     markdown_table,
-    scene_fingerprint,
 )
 from voxfield.svo.octree import Octree
 
@@ -35,7 +34,7 @@ def run_sweep(
     """Render the grid (resumable: finished cells are reused) and write results.json,
     results.md and sweep.png into ``out_dir``."""
     folder = StudyFolder(out_dir, fresh=fresh)
-    view = {"scene": scene_name, "fingerprint": scene_fingerprint(octree, channel),
+    view = {"scene": scene_name, "fingerprint": octree.fingerprint(channel),
             "camera": camera.params.tolist(), "size": camera.width, "seed": seed,
             "channel": channel,
             "base_lod": base_lod}
@@ -104,9 +103,11 @@ def _markdown(report, decays, thresholds) -> str:
 
 
 def _figure(report, decays, thresholds):
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib
 
     matplotlib.use("Agg")
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib.pyplot as plt
 
     cells = {(c["decay"], c["threshold"]): c for c in report["cells"]}

@@ -6,18 +6,18 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+from voxfield.error_table.table import THESIS_DECAY
 from voxfield.progress import progress_bar
 from voxfield.render.adaptive import render_adaptive
 from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
-from voxfield.render.renderers import render_reference
+from voxfield.render.primary import render_reference
 from voxfield.studies.report import (
     StudyFolder,
     costs,
     costs_and_quality,
     fmt,
     markdown_table,
-    scene_fingerprint,
 )
 from voxfield.svo.octree import Octree
 
@@ -31,14 +31,14 @@ PANELS = (("rays", "rays", True), ("steps", "traversal steps", True),
 
 def run_threshold_study(
     octree: Octree, camera: Camera, out_dir: str | Path, *,
-    thresholds=THESIS_THRESHOLDS, decay: float = 0.2, base_lod: int | None = 2,
+    thresholds=THESIS_THRESHOLDS, decay: float = THESIS_DECAY, base_lod: int | None = 2,
     seed: int = 0, channel: str = "albedo", scene_name: str = "scene", progress: bool = False,
     fresh: bool = False,
 ) -> dict:
     """Render the error-aware renderer per threshold (resumable) and write results.json,
     results.md and thresholds.png into ``out_dir``."""
     folder = StudyFolder(out_dir, fresh=fresh)
-    view = {"scene": scene_name, "fingerprint": scene_fingerprint(octree, channel),
+    view = {"scene": scene_name, "fingerprint": octree.fingerprint(channel),
             "camera": camera.params.tolist(), "size": camera.width, "height": camera.height,
             "seed": seed, "channel": channel, "base_lod": base_lod}
     with progress_bar(total=len(thresholds) + 2, desc="thresholds", unit="render",
@@ -109,9 +109,11 @@ def plot_value(value) -> float:
 
 
 def _figure(report):
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib
 
     matplotlib.use("Agg")
+    # heavy: matplotlib loads only when a figure is drawn
     import matplotlib.pyplot as plt
 
     rows = sorted(report["rows"], key=lambda r: r["threshold"])

@@ -11,7 +11,9 @@ from voxfield.errors import SceneTooLargeError, VoxfieldError
 from voxfield.kernels.colour import SRGB8, STORAGES, encode_channel
 from voxfield.kernels.node_descriptor import pack_descriptors
 from voxfield.progress import progress_bar
+from voxfield.scene.surface import face_mask
 from voxfield.scene.voxel_scene import MAX_EXTENT, VoxelScene
+from voxfield.svo.channels import propagate_channel
 from voxfield.svo.octree import Octree
 
 _SPREAD_MASKS = (
@@ -164,9 +166,6 @@ def build_octree(
 
 def _surface_weighted(octree: Octree) -> Octree:
     """Every attribute's inner levels re-averaged over the voxels with an exposed face."""
-    from voxfield.scene.surface import face_mask
-    from voxfield.svo.channels import propagate_channel
-
     leaves = octree.level_slice(octree.depth)
     exposed = face_mask(octree.node_coords(octree.depth)).any(axis=1)
     weights = exposed.astype(np.float64)

@@ -144,25 +144,3 @@ def validate_octree(octree: Octree, where: str = "octree") -> None:
             raise OctreeFormatError(f"{where}: child pointers of level {level} are not contiguous")
         if off[level + 2] - off[level + 1] != counts[sl].sum():
             raise OctreeFormatError(f"{where}: level {level + 1} holds the wrong number of nodes")
-
-
-def open_octree(spec: str, options=None, *, progress: bool = False,
-                lod_colour: str = "mean", colour_storage: str = "srgb8") -> Octree:
-    """An octree from a saved octree file, or built from any scene description (inner-node
-    colours by ``lod_colour``, see ``build.LOD_COLOURS``, albedo kept as ``colour_storage``;
-    a saved octree keeps its own)."""
-    from voxfield.scene.loaders import block_source, load_scene, npz_kind
-    from voxfield.svo.build import build_octree
-    from voxfield.svo.streamed_build import build_octree_streamed
-
-    path = Path(spec)
-    if path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree":
-        return load_octree(path)
-    if lod_colour == "mean":
-        # Terrains arrive in column blocks: built streamed, in bounded memory (same octree).
-        source = block_source(spec, options)
-        if source is not None:
-            return build_octree_streamed(source, progress=progress,
-                                         colour_storage=colour_storage)
-    return build_octree(load_scene(spec, options), progress=progress,
-                        lod_colour=lod_colour, colour_storage=colour_storage)

@@ -22,6 +22,8 @@ from functools import cached_property
 
 import numpy as np
 
+from voxfield.errors import VoxfieldError
+from voxfield.fingerprint import array_fingerprint
 from voxfield.kernels.colour import decode_channel
 from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT
 
@@ -157,10 +159,13 @@ class Octree:
         per_node["total"] = self.nbytes / n
         return per_node
 
+    def fingerprint(self, channel: str = "albedo") -> str:
+        """Names this octree's structure and one colour channel in cache keys and probe
+        files: equal octrees give equal fingerprints, any change in either gives another."""
+        return array_fingerprint(self.level_offsets, self.child_mask, self.channel(channel))
+
     def channel(self, name: str) -> np.ndarray:
         """A channel as stored (``kernels.colour``: 8-bit sRGB or float32): what kernels take."""
-        from voxfield.errors import VoxfieldError
-
         if name == "albedo":
             name = "color"
         if name not in self.attributes:

@@ -2,37 +2,39 @@
 
 from __future__ import annotations
 
-import contextlib
-import time
+from dataclasses import dataclass, field
 
-import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.primary import render_pixels
-from voxfield.progress import progress_bar
+from voxfield.parallel import run_in_bands, thread_count
 from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
 
-RENDERERS = ("reference", "lod")
+
+@dataclass(frozen=True)
+class ReferenceOptions:
+    """The ground-truth renderer's parameters (EA §5.1.1)."""
+
+    side: int = field(default=4, metadata={
+        "help": "side of the CMJ sample grid per pixel (default 4 → 16 rays, as the thesis)",
+        "flag": "--spp-side", "type": "positive"})
 
 
-@contextlib.contextmanager
-def thread_count(threads: int | None):
-    """Run kernels on ``threads`` threads (None: all); results do not depend on it."""
-    if threads is None:
-        yield
-        return
-    if threads < 1:
-        raise VoxfieldError(f"thread count must be at least 1, got {threads}")
-    previous = numba.get_num_threads()
-    numba.set_num_threads(min(int(threads), numba.config.NUMBA_NUM_THREADS))
-    try:
-        yield
-    finally:
-        numba.set_num_threads(previous)
+@dataclass(frozen=True)
+class LodOptions:
+    """The fixed-LOD / cone-LOD renderer's parameters (EA §5.1.1)."""
+
+    lod: int | None = field(default=None, metadata={
+        "help": "a fixed LOD (0 = voxels) or 'cone' (default: chosen from the pixel footprint)",
+        "type": "lod"})
+    cone_scale: float = field(default=1.0, metadata={
+        "help": "cone mode: node size accepted per pixel footprint (default 1)"})
+    side: int = field(default=1, metadata={
+        "help": "side of the CMJ sample grid per pixel (default 1)", "cli": False})
 
 
 def trace_image(
@@ -64,7 +66,8 @@ def trace_image(
         flat = (b.reshape(len(pixels), *b.shape[2:]) for b in result.buffers(rows))
         render_pixels(cam, w, h, pixels, rows.start * w, side, seed, *args, *flat)
 
-    seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress)
+    seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress,
+                           granule=TILE)
     result.seconds = seconds + bounds.seconds
     result.steps += bounds.pixel_steps(np.arange(h * w), w).reshape(h, w)
     return result
@@ -84,25 +87,9 @@ def tile_order(height: int, width: int) -> np.ndarray:
     return np.argsort(key, kind="stable")
 
 
-def run_in_bands(height: int, band, *, label: str, threads: int | None, progress: bool) -> float:
-    """Call ``band(rows)`` over bands of rows with a progress bar; returns the seconds spent.
-
-    Bands hold whole tile rows (``TILE``). An empty first band loads (or compiles) the
-    kernel outside the timed region.
-    """
-    band(slice(0, 0))
-    rows = max(TILE, min(64, height // 16 or 1)) // TILE * TILE
-    start = time.perf_counter()
-    options = {"total": height, "desc": label, "unit": "row", "enabled": progress}
-    with thread_count(threads), progress_bar(**options) as bar:
-        for row0 in range(0, height, rows):
-            band(slice(row0, min(height, row0 + rows)))
-            bar.update(min(height, row0 + rows) - row0)
-    return time.perf_counter() - start
-
-
 def render_reference(
-    octree: Octree, camera: Camera, *, side: int = 4, seed: int = 0, channel: str = "albedo",
+    octree: Octree, camera: Camera, *, side: int = ReferenceOptions.side, seed: int = 0,
+    channel: str = "albedo",
     threads: int | None = None, progress: bool = False, beam: bool = True,
 ) -> RenderResult:
     """Ground truth: ``side``×``side`` CMJ rays per pixel, all sampling LOD 0 (thesis: 4×4).
@@ -117,8 +104,9 @@ def render_reference(
 
 
 def render_lod(
-    octree: Octree, camera: Camera, *, lod: int | None = None, cone_scale: float = 1.0,
-    side: int = 1, seed: int = 0, channel: str = "albedo",
+    octree: Octree, camera: Camera, *, lod: int | None = LodOptions.lod,
+    cone_scale: float = LodOptions.cone_scale, side: int = LodOptions.side, seed: int = 0,
+    channel: str = "albedo",
     threads: int | None = None, progress: bool = False, beam: bool = True,
 ) -> RenderResult:
     """One ray per pixel sampling a fixed LOD, or (``lod=None``) the LOD whose nodes match the
@@ -140,12 +128,3 @@ def render_lod(
         "samples_per_pixel": side * side, "seed": seed, "channel": channel,
     }
     return result
-
-
-def render(octree: Octree, camera: Camera, renderer: str = "reference", **options) -> RenderResult:
-    """Render with a renderer chosen by name (``reference`` or ``lod``)."""
-    if renderer == "reference":
-        return render_reference(octree, camera, **options)
-    if renderer == "lod":
-        return render_lod(octree, camera, **options)
-    raise VoxfieldError(f"unknown renderer {renderer!r}; choose one of {', '.join(RENDERERS)}")

@@ -3,24 +3,39 @@ show`` (a PNG to check it by eye)."""
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
+from voxfield.cli.options import (
+    add_channel_option,
+    add_quiet,
+    add_scene_options,
+    default_output,
+    lod_arg,
+    open_octree,
+    positive_int,
+)
 from voxfield.errors import VoxfieldError
+from voxfield.probes.bake import export_cube_faces
+from voxfield.probes.folder_bake import bake_to_folder
+from voxfield.probes.grid import parse_grid, relocate
+from voxfield.probes.probe_folder import open_probe_set, read_header
+from voxfield.probes.probe_set import BAKE_RENDERERS, BakeOptions
+from voxfield.probes.show import write_show
+from voxfield.progress import progress_bar
+from voxfield.render.camera import CUBE_FACES
+from voxfield.render.image_io import save_exr
+from voxfield.scene.loaders import SceneOptions
+from voxfield.svo.open import open_octree as open_octree_from_spec
 
 
-def add_probe_parsers(subparsers) -> None:
+def register(subparsers) -> None:
     """Register ``bake`` and ``probes show`` on the main parser's sub-commands."""
-    from voxfield.cli import _add_channel_option, _add_scene_options, _lod_arg, _positive_int
-    from voxfield.probes.probe_set import BAKE_RENDERERS, BakeOptions
 
     defaults = BakeOptions()
-    quiet = {"action": "store_true", "default": argparse.SUPPRESS,
-             "help": "no progress bars or summaries"}
 
     p = subparsers.add_parser(
         "bake", help="bake a grid of light probes (radiance, distance, normals)",
@@ -29,19 +44,19 @@ def add_probe_parsers(subparsers) -> None:
         "finish: re-running the same command resumes a stopped bake. Probes run through Dask: "
         "local threads by default, --scheduler processes or a cluster address.",
     )
-    _add_scene_options(p)
+    add_scene_options(p)
     p.add_argument("--grid", required=True, metavar="SPEC",
                    help='probe grid: "NXxNYxNZ" fitted to the scene (e.g. 4x2x4), or '
                    '"origin=x,y,z;spacing=s or sx,sy,sz;counts=nx,ny,nz" in voxels')
-    p.add_argument("--resolution", type=_positive_int, default=defaults.resolution,
+    p.add_argument("--resolution", type=positive_int, default=defaults.resolution,
                    metavar="R", help=f"octahedral map side in texels, even "
                    f"(default {defaults.resolution})")
     p.add_argument("--renderer", choices=BAKE_RENDERERS, default=defaults.renderer,
                    help=f"radiance renderer (default {defaults.renderer}); distance and "
                    "normals always come from one exact LOD-0 ray per texel")
-    p.add_argument("--samples", type=_positive_int, default=defaults.samples,
+    p.add_argument("--samples", type=positive_int, default=defaults.samples,
                    help=f"reference: CMJ rays per texel side (default {defaults.samples})")
-    p.add_argument("--lod", type=_lod_arg, default=defaults.lod,
+    p.add_argument("--lod", type=lod_arg, default=defaults.lod,
                    help="lod renderer: fixed LOD; adaptive/error-aware: base LOD; 'cone' "
                    "(default) picks it from the texel footprint")
     p.add_argument("--cone-scale", type=float, default=defaults.cone_scale,
@@ -50,7 +65,7 @@ def add_probe_parsers(subparsers) -> None:
                    help=f"error-aware: refinement threshold (default {defaults.threshold})")
     p.add_argument("--decay", type=float, default=defaults.decay,
                    help=f"error-aware: weight of the children's error (default {defaults.decay})")
-    _add_channel_option(p)
+    add_channel_option(p)
     p.add_argument("--relocate", action="store_true",
                    help="move probes out of and away from geometry first; probes that cannot "
                    "move clear are disabled")
@@ -61,8 +76,8 @@ def add_probe_parsers(subparsers) -> None:
                    help="probe-set folder (default out/probes_NAME, NAME from the scene)")
     p.add_argument("--fresh", action="store_true",
                    help="discard what the folder holds (even from another scene) and start over")
-    p.add_argument("--quiet", **quiet)
-    p.set_defaults(func=cmd_bake)
+    add_quiet(p)
+    p.set_defaults(func=run_bake)
 
     probes = subparsers.add_parser("probes", help="inspect a baked probe set",
                                    description="Look at a probe-set folder.")
@@ -80,10 +95,10 @@ def add_probe_parsers(subparsers) -> None:
                    help="scene for the overview render (default: the one the bake recorded)")
     s.add_argument("--no-scene", action="store_true",
                    help="draw the probe positions without rendering the scene")
-    s.add_argument("--size", type=_positive_int, default=512,
+    s.add_argument("--size", type=positive_int, default=512,
                    help="overview render size in pixels (default 512)")
-    s.add_argument("--quiet", **quiet)
-    s.set_defaults(func=cmd_probes_show)
+    add_quiet(s)
+    s.set_defaults(func=run_show)
 
     c = sub.add_parser(
         "export-cubes", help="six cube-map faces per probe as EXR, for engines",
@@ -92,18 +107,16 @@ def add_probe_parsers(subparsers) -> None:
         "per face with linear RGB radiance and Z = radial distance.",
     )
     c.add_argument("folder", help="probe-set folder written by voxfield bake")
-    c.add_argument("--size", type=_positive_int, default=None,
+    c.add_argument("--size", type=positive_int, default=None,
                    help="face side in pixels (default half the octahedral resolution)")
     c.add_argument("--out", default=None, help="output folder (default FOLDER/cubes)")
     c.add_argument("--scene", default=None,
                    help="the baked scene (default: the one the bake recorded)")
-    c.add_argument("--quiet", **quiet)
-    c.set_defaults(func=cmd_probes_export_cubes)
+    add_quiet(c)
+    c.set_defaults(func=run_export_cubes)
 
 
 def _bake_options(args):
-    from voxfield.probes.probe_set import BakeOptions
-
     return BakeOptions(
         resolution=args.resolution, renderer=args.renderer, channel=args.channel,
         samples=args.samples, lod=args.lod, cone_scale=args.cone_scale,
@@ -122,14 +135,10 @@ def _source(args) -> dict:
             "seed": args.seed, "lod_colour": args.lod_colour}
 
 
-def cmd_bake(args) -> int:
-    from voxfield.cli import _open_octree, default_output
-    from voxfield.probes.grid import parse_grid, relocate
-    from voxfield.probes.storage import bake_to_folder, read_header
-
+def run_bake(args) -> int:
     options = _bake_options(args)  # bad options fail before the scene is built
     out = Path(args.out) if args.out else default_output("probes", args.scene)
-    octree = _open_octree(args)
+    octree = open_octree(args)
     grid = parse_grid(args.grid, octree.voxel_bounds)
     report = None
     if args.relocate:
@@ -180,10 +189,7 @@ def bake_summary(probe_set, run: dict, wall: float, out) -> str:
     return "\n".join(lines)
 
 
-def cmd_probes_show(args) -> int:
-    from voxfield.probes.show import write_show
-    from voxfield.probes.storage import open_probe_set, read_header
-
+def run_show(args) -> int:
     folder = Path(args.folder)
     probe_set = open_probe_set(folder)
     header = read_header(folder)
@@ -200,12 +206,7 @@ def cmd_probes_show(args) -> int:
     return 0
 
 
-def cmd_probes_export_cubes(args) -> int:
-    from voxfield.probes.storage import open_probe_set, read_header
-    from voxfield.progress import progress_bar
-    from voxfield.render.camera import CUBE_FACES
-    from voxfield.render.image_io import save_exr
-
+def run_export_cubes(args) -> int:
     folder = Path(args.folder)
     probe_set = open_probe_set(folder)
     octree = _reopen_scene(read_header(folder), args.scene, args.quiet)
@@ -217,7 +218,7 @@ def cmd_probes_export_cubes(args) -> int:
     with progress_bar(total=len(probes), desc="cube faces", unit="probe",
                       enabled=not args.quiet) as bar:
         for i in probes:
-            radiance, distance = probe_set.cube_faces(octree, i, args.size)
+            radiance, distance = export_cube_faces(probe_set, octree, i, args.size)
             for f, (name, _, _) in enumerate(CUBE_FACES):
                 save_exr({"RGB": radiance[f].astype(np.float32), "Z": distance[f]},
                          out / f"probe_{i:05d}_{name.replace('+', 'pos').replace('-', 'neg')}"
@@ -231,10 +232,6 @@ def cmd_probes_export_cubes(args) -> int:
 def _reopen_scene(header: dict, scene: str | None, quiet: bool):
     """The baked scene for the overview: ``scene`` if given, else the recorded source; None
     (probes drawn without the render) when it cannot be opened or is not the baked one."""
-    from voxfield.probes.bake import octree_fingerprint
-    from voxfield.scene.loaders import SceneOptions
-    from voxfield.svo.io import open_octree
-
     source = dict(header["scene"].get("source") or {})
     spec = scene or source.get("scene")
     if not spec:
@@ -246,14 +243,14 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool):
         vertical_scale=source.get("vertical_scale"), seed=source.get("seed", 0),
     )
     try:
-        octree = open_octree(spec, options, progress=not quiet,
+        octree = open_octree_from_spec(spec, options, progress=not quiet,
                              lod_colour=source.get("lod_colour", "mean"))
     except VoxfieldError as exc:
         _note(f"cannot open the scene {spec!r} ({exc}); drawing probes without it", quiet)
         return None
     channel = header["scene"].get("channel", "albedo")
     try:
-        same = octree_fingerprint(octree, channel) == header["scene"]["fingerprint"]
+        same = octree.fingerprint(channel) == header["scene"]["fingerprint"]
     except VoxfieldError:
         same = False
     if not same:

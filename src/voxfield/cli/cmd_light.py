@@ -6,11 +6,25 @@ import argparse
 import json
 from pathlib import Path
 
+from voxfield.atomic import atomic_path
+from voxfield.cli.options import (
+    add_quiet,
+    add_scene_options,
+    default_output,
+    int_at_least,
+    open_octree,
+    positive_int,
+)
+from voxfield.lighting.sun import parse_suns
+from voxfield.lighting.sun_bake import bake_sun_lighting
+from voxfield.render.camera import top_down_camera
+from voxfield.render.image_io import save_png
+from voxfield.render.primary import render_reference
+from voxfield.svo.io import save_octree
 
-def add_light_parser(subparsers) -> argparse.ArgumentParser:
+
+def register(subparsers) -> argparse.ArgumentParser:
     """Register ``light`` on the main parser's sub-commands (scene options as ``render``)."""
-    from voxfield.cli import _add_scene_options, _int_at_least, _positive_int
-
     p = subparsers.add_parser(
         "light", help="bake sun and sky lighting for times of day into colour channels",
         description="Per voxel and sun: lit colour = albedo × (sun × cos θ × shadow-ray "
@@ -19,41 +33,34 @@ def add_light_parser(subparsers) -> argparse.ArgumentParser:
         "--channel NAME). Coarse levels average the voxels that see the sky. Writes the "
         "octree file, a top-down preview per sun and a JSON cost report.",
     )
-    _add_scene_options(p)
+    add_scene_options(p)
     p.add_argument(
         "--times", default="all", metavar="SUNS",
         help="times of day: morning, noon, afternoon, evening (or the thesis's time0..time3), "
         "comma-separated; or suns as AZ,EL / NAME=AZ,EL in degrees (azimuth clockwise from "
         "north = -z, east = +x), ';'-separated (default all four times)",
     )
-    p.add_argument("--sky-rays", type=_int_at_least(0), default=16, metavar="K",
+    p.add_argument("--sky-rays", type=int_at_least(0), default=16, metavar="K",
                    help="cosine-weighted sky rays per surface voxel; 0 turns sky light off "
                    "(black shadows, as the thesis's data) (default 16)")
-    p.add_argument("--shadow-rays", type=_positive_int, default=4, metavar="R",
+    p.add_argument("--shadow-rays", type=positive_int, default=4, metavar="R",
                    help="shadow rays per sun-facing voxel face, stratified over the face "
                    "(default 4; 1 = one from the face centre)")
-    p.add_argument("--threads", type=_positive_int, default=None, help="kernel threads")
+    p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
     p.add_argument("--out", default=None,
                    help="output octree file (default out/lit_NAME.npz, NAME from the scene)")
-    p.add_argument("--preview-size", type=_positive_int, default=256, metavar="N",
+    p.add_argument("--preview-size", type=positive_int, default=256, metavar="N",
                    help="side of the top-down preview PNG per sun (default 256)")
     p.add_argument("--no-preview", action="store_true", help="write no preview images")
-    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS,
-                   help="no progress bars or summaries")
-    p.set_defaults(func=cmd_light)
+    add_quiet(p)
+    p.set_defaults(func=run)
     return p
 
 
-def cmd_light(args) -> int:
-    from voxfield.atomic import atomic_path
-    from voxfield.cli import _open_octree, default_output
-    from voxfield.lighting.bake import bake_sun_lighting
-    from voxfield.lighting.sun import parse_suns
-    from voxfield.svo.io import save_octree
-
+def run(args) -> int:
     suns = parse_suns(args.times)  # before the (slow) scene load: bad input fails fast
     args.quiet = quiet = getattr(args, "quiet", False)  # as ``voxfield.cli.main`` sets it
-    octree = _open_octree(args)
+    octree = open_octree(args)
     lit, report = bake_sun_lighting(
         octree, suns, sky_rays=args.sky_rays, shadow_rays=args.shadow_rays, seed=args.seed,
         threads=args.threads, progress=not quiet,
@@ -88,10 +95,6 @@ def cmd_light(args) -> int:
 def write_previews(octree, channels: list[str], out: Path, *, size: int,
                    threads: int | None = None) -> list[Path]:
     """A top-down reference render (2×2 rays per pixel) of each channel, beside ``out``."""
-    from voxfield.render.camera import top_down_camera
-    from voxfield.render.image_io import save_png
-    from voxfield.render.renderers import render_reference
-
     lo, hi = octree.voxel_bounds
     camera = top_down_camera(lo, hi, size=size)
     paths = []

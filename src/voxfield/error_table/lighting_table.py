@@ -19,15 +19,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from voxfield.atomic import atomic_path
 from voxfield.error_table.symmetry import cube_symmetries, octant_permutation
 from voxfield.error_table.table import ErrorTableError, _checksum, read_table_file
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.error_lookup import colour_error_many
 from voxfield.kernels.error_raycast import image_plane_samples
 from voxfield.kernels.lighting_error import configuration_colour_errors
-from voxfield.kernels.octahedral import add_border, oct_bilinear, oct_encode, texel_directions
+from voxfield.kernels.octahedral import add_border, texel_directions
+from voxfield.progress import progress_bar
 
 FORMAT = "voxfield-lighting-error-table"
 FORMAT_VERSION = 1
@@ -103,39 +104,11 @@ class LightingErrorTable:
             raise VoxfieldError("directions must be non-zero")
         masks, brights, dx, dy, dz = np.broadcast_arrays(
             masks, brights, *np.moveaxis(dirs / norms, -1, 0))
-        out = _colour_error_many(
+        out = colour_error_many(
             self.oct_map, self.class_of, self.symmetry_of, self.symmetries,
             np.array(masks.ravel()), np.array(brights.ravel()),
             np.array(dx.ravel()), np.array(dy.ravel()), np.array(dz.ravel()))
         return out.reshape(masks.shape)
-
-
-@njit(cache=True, nogil=True)
-def colour_error(
-    oct_map: np.ndarray, class_of: np.ndarray, symmetry_of: np.ndarray,
-    symmetries: np.ndarray, mask: int, bright: int, x: float, y: float, z: float,
-) -> float:
-    """Kernel form of ``LightingErrorTable.colour_error`` for one configuration and ray."""
-    index = mask | (bright << 8)
-    cls = class_of[index]
-    if cls < 0:
-        return 0.0
-    g = symmetries[symmetry_of[index]]
-    u, v = oct_encode(
-        g[0, 0] * x + g[0, 1] * y + g[0, 2] * z,
-        g[1, 0] * x + g[1, 1] * y + g[1, 2] * z,
-        g[2, 0] * x + g[2, 1] * y + g[2, 2] * z,
-    )
-    return max(0.0, oct_bilinear(oct_map[cls], u, v))
-
-
-@njit(cache=True)
-def _colour_error_many(oct_map, class_of, symmetry_of, symmetries, masks, brights, x, y, z):
-    out = np.empty(masks.shape[0])
-    for i in range(masks.shape[0]):
-        out[i] = colour_error(oct_map, class_of, symmetry_of, symmetries,
-                              masks[i], brights[i], x[i], y[i], z[i])
-    return out
 
 
 def raycast_colour_errors(masks, brights, directions, resolution: int = 512,
@@ -154,7 +127,6 @@ def build_lighting_error_table(
     resolution: int = 512, oct_resolution: int = 32, seed: int = 0, progress: bool = False,
 ) -> LightingErrorTable:
     """Ray-cast one octahedral map per symmetry class at the texel-centre directions."""
-    from voxfield.progress import progress_bar
 
     if not 2 <= oct_resolution <= 256:
         raise VoxfieldError(f"octahedral map resolution must be in 2..256, got {oct_resolution}")

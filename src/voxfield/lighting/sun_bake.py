@@ -13,13 +13,14 @@ import time
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
+import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.sun_bake import bake_sun_visibility
 from voxfield.lighting.sun import SunLight
+from voxfield.parallel import thread_count
 from voxfield.progress import progress_bar
-from voxfield.render.renderers import thread_count
 from voxfield.scene.surface import face_mask
 from voxfield.svo.channels import with_channels
 from voxfield.svo.octree import Octree
@@ -215,7 +216,6 @@ def bake_sun_lighting(
 
 
 def _threads_used(threads: int | None) -> int:
-    import numba
 
     if threads is None:
         return numba.get_num_threads()

@@ -18,16 +18,33 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.atomic import atomic_path
+from voxfield.cli.options import (
+    add_view_options,
+    camera,
+    default_output,
+    positive_int,
+    vector_arg,
+)
 from voxfield.errors import VoxfieldError
+from voxfield.lightfield.baselines import FILTERS
+from voxfield.lightfield.probe_render import METHODS, probe_set_bounds, render_from_probes
+from voxfield.lightfield.probe_render_figures import (
+    map_summary,
+    write_probe_maps,
+    write_side_by_side,
+)
+from voxfield.lightfield.trace import EPSILON_MODES, MARCHERS, ORDERINGS, LightFieldOptions
+from voxfield.metrics import compare_images
+from voxfield.probes.probe_folder import open_probe_set
+from voxfield.render.image_io import save_result_image
+from voxfield.render.primary import render_lod, render_reference
+from voxfield.scene.loaders import SceneOptions
+from voxfield.svo.open import open_octree
 
 
-def add_probe_render_parser(subparsers) -> argparse.ArgumentParser:
+def register(subparsers) -> argparse.ArgumentParser:
     """Register ``probe-render`` on the main parser's sub-commands."""
-    from voxfield.cli import _add_view_options, _positive_int, _vector_arg
-    from voxfield.lightfield.baselines import FILTERS
-    from voxfield.lightfield.render import METHODS
-    from voxfield.lightfield.trace import EPSILON_MODES, MARCHERS, ORDERINGS, LightFieldOptions
-
     p = subparsers.add_parser(
         "probe-render", help="render a camera view from a baked probe set",
         description="Render one ray per pixel centre from a probe-set folder (voxfield bake) "
@@ -66,16 +83,16 @@ def add_probe_render_parser(subparsers) -> argparse.ArgumentParser:
                    "reading the nearest probe as an environment map")
     p.add_argument("--filter", choices=FILTERS, default="bilinear",
                    help="baselines: bilinear (bordered map, default) or nearest texel")
-    p.add_argument("--box-min", type=_vector_arg, default=None, metavar="X,Y,Z",
+    p.add_argument("--box-min", type=vector_arg, default=None, metavar="X,Y,Z",
                    help="box-proxy: proxy box minimum corner (with --box-max; default: the "
                    "scene's voxel box with --scene, else the box the probe grid fills)")
-    p.add_argument("--box-max", type=_vector_arg, default=None, metavar="X,Y,Z")
+    p.add_argument("--box-max", type=vector_arg, default=None, metavar="X,Y,Z")
     p.add_argument("--scene", default=None,
                    help="the baked scene (file, builtin:NAME, ...): its bounds frame the "
                    "camera and proxy box, and --compare renders it")
-    p.add_argument("--mesh-resolution", type=_positive_int, default=256, metavar="N",
+    p.add_argument("--mesh-resolution", type=positive_int, default=256, metavar="N",
                    help="--scene mesh: voxels along the longest side (default 256)")
-    p.add_argument("--footprint", type=_positive_int, default=512, metavar="N",
+    p.add_argument("--footprint", type=positive_int, default=512, metavar="N",
                    help="--scene terrain: footprint in voxels per side (default 512)")
     p.add_argument("--vertical-scale", type=float, default=None, metavar="S",
                    help="--scene terrain: height multiplier (default: true scale)")
@@ -85,25 +102,20 @@ def add_probe_render_parser(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--compare", action="store_true",
                    help="with --scene: also render the view from the octree, print PSNR and "
                    "SSIM, and write a side-by-side PNG")
-    p.add_argument("--spp-side", type=_positive_int, default=1,
+    p.add_argument("--spp-side", type=positive_int, default=1,
                    help="--compare: octree reference samples per pixel side (default 1: one "
                    "LOD-0 ray per pixel centre, the probe render's own rays)")
-    p.add_argument("--threads", type=_positive_int, default=None, help="kernel threads")
+    p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
     p.add_argument("--counters", action="store_true",
                    help="also write probes-tried, texel-fetch and result maps and a JSON summary")
     p.add_argument("--out", default=None,
                    help="output .png or .exr (default out/probe_render_NAME_METHOD.png)")
-    _add_view_options(p, size=256)
-    p.set_defaults(func=cmd_probe_render)
+    add_view_options(p, size=256)
+    p.set_defaults(func=run)
     return p
 
 
-def cmd_probe_render(args) -> int:
-    from voxfield.cli import _camera, default_output
-    from voxfield.lightfield.render import probe_set_bounds, render_from_probes
-    from voxfield.probes.storage import open_probe_set
-    from voxfield.render.image_io import save_result_image
-
+def run(args) -> int:
     out = Path(args.out) if args.out else default_output(
         "probe_render", Path(args.probes).name or "probes", f"_{args.method}.png")
     if out.suffix.lower() not in (".png", ".exr"):
@@ -119,18 +131,18 @@ def cmd_probe_render(args) -> int:
     probe_set = open_probe_set(folder)
     octree = _open_scene(args, probe_set) if args.scene else None
     bounds = octree.voxel_bounds if octree is not None else probe_set_bounds(probe_set)
-    camera = _camera(args, _Bounds(bounds))
+    view = camera(args, bounds)
     box = None
     if args.method == "box-proxy":
         box = bounds if args.box_min is None else (args.box_min, args.box_max)
-    result = render_from_probes(probe_set, camera, method=args.method, options=options,
+    result = render_from_probes(probe_set, view, method=args.method, options=options,
                                 box=box, filter=args.filter, threads=args.threads,
                                 progress=not args.quiet)
     save_result_image(result, out)
     written = [out]
     summary = {**result.summary(), **map_summary(result)}
     if args.compare:
-        metrics, reference = _compare(args, octree, camera, probe_set, result)
+        metrics, reference = _compare(args, octree, view, probe_set, result)
         summary["compare"] = metrics
         written.append(write_side_by_side(result, reference, metrics,
                                           f"{out.with_suffix('')}_compare.png"))
@@ -148,17 +160,8 @@ def cmd_probe_render(args) -> int:
     return 0
 
 
-class _Bounds:
-    """Stands in for an octree where ``voxfield.cli._camera`` only needs its voxel box."""
-
-    def __init__(self, bounds) -> None:
-        self.voxel_bounds = (np.asarray(bounds[0], np.float64), np.asarray(bounds[1], np.float64))
-
-
 def _trace_options(args):
     """``LightFieldOptions`` from the command line (it checks the values)."""
-    from voxfield.lightfield.trace import LightFieldOptions
-
     return LightFieldOptions(
         marcher=args.marcher, step=args.step, epsilon=args.epsilon,
         epsilon_value=args.epsilon_value, epsilon_k=args.epsilon_k, backface=args.backface,
@@ -167,17 +170,13 @@ def _trace_options(args):
 
 def _open_scene(args, probe_set):
     """The octree of ``--scene``; a note on stderr when it is not the one the probes saw."""
-    from voxfield.probes.bake import octree_fingerprint
-    from voxfield.scene.loaders import SceneOptions
-    from voxfield.svo.io import open_octree
-
     options = SceneOptions(mesh_resolution=args.mesh_resolution,
                            terrain_footprint=args.footprint,
                            vertical_scale=args.vertical_scale, seed=args.seed)
     octree = open_octree(args.scene, options, progress=not args.quiet,
                          lod_colour=args.lod_colour)
     try:
-        same = octree_fingerprint(octree, probe_set.options.channel) == probe_set.fingerprint
+        same = octree.fingerprint(probe_set.options.channel) == probe_set.fingerprint
     except VoxfieldError:
         same = False
     if not same and not args.quiet:
@@ -186,44 +185,20 @@ def _open_scene(args, probe_set):
     return octree
 
 
-def _compare(args, octree, camera, probe_set, result) -> tuple[dict, object]:
+def _compare(args, octree, view, probe_set, result) -> tuple[dict, object]:
     """Render the view from the octree and measure the probe render against it."""
-    from voxfield.metrics import compare_images
-    from voxfield.render.renderers import render_lod, render_reference
-
     common = {"channel": probe_set.options.channel, "threads": args.threads,
               "progress": not args.quiet, "seed": args.seed}
     if args.spp_side == 1:
-        reference = render_lod(octree, camera, lod=0, **common)
+        reference = render_lod(octree, view, lod=0, **common)
         name = "LOD 0, 1 ray per pixel centre"
     else:
-        reference = render_reference(octree, camera, side=args.spp_side, **common)
+        reference = render_reference(octree, view, side=args.spp_side, **common)
         name = f"reference, {args.spp_side}x{args.spp_side} rays per pixel"
     # Metrics read linear [0, 1]; an emitter's radiance above 1 is clipped on both sides.
     metrics = compare_images(np.clip(reference.image, 0.0, 1.0), np.clip(result.image, 0.0, 1.0))
     metrics["reference"] = name
     return metrics, reference
-
-
-# --------------------------------------------------------------------------- maps and text
-
-
-def map_summary(result) -> dict:
-    """Totals and means of the probe maps, and how many pixels got each kind of answer."""
-    from voxfield.lightfield.render import kind_names
-
-    maps = result.maps
-    pixels = max(result.ray_count.size, 1)
-    names = kind_names()
-    kinds, counts = np.unique(maps["result_kind"], return_counts=True)
-    return {
-        "probes_tried": int(maps["probes_tried"].sum()),
-        "probes_tried_per_pixel": float(maps["probes_tried"].sum() / pixels),
-        "texel_fetches": int(maps["texel_fetches"].sum()),
-        "texel_fetches_per_pixel": float(maps["texel_fetches"].sum() / pixels),
-        "pixels_by_kind": {names.get(int(k), str(int(k))): int(c)
-                           for k, c in zip(kinds, counts, strict=True)},
-    }
 
 
 def summary_line(summary: dict) -> str:
@@ -234,107 +209,7 @@ def summary_line(summary: dict) -> str:
             f"{summary['seconds']:.2f} s; pixels: {kinds}")
 
 
-def write_probe_maps(result, image_path) -> list[Path]:
-    """``<stem>_probes_tried.png``, ``<stem>_texel_fetches.png`` and ``<stem>_kind.png``
-    beside the image: each map colour-mapped, with its legend."""
-    from voxfield.lightfield.render import kind_names
-
-    stem = Path(image_path).with_suffix("")
-    maps = result.maps
-    tried = maps["probes_tried"]
-    return [
-        _write_figure(_count_figure(tried, "probes tried per pixel", discrete=True),
-                      f"{stem}_probes_tried.png"),
-        _write_figure(_count_figure(maps["texel_fetches"], "texel fetches per pixel",
-                                    discrete=False), f"{stem}_texel_fetches.png"),
-        _write_figure(_kind_figure(maps["result_kind"], kind_names()), f"{stem}_kind.png"),
-    ]
-
-
-def _count_figure(values: np.ndarray, title: str, *, discrete: bool):
-    """A per-pixel count on a colour scale with a colour bar; small integer ranges get one
-    colour per value."""
-    from matplotlib import colormaps
-    from matplotlib.colors import BoundaryNorm, Normalize
-    from matplotlib.figure import Figure
-
-    values = np.asarray(values)
-    top = int(values.max()) if values.size else 0
-    fig = Figure(figsize=(6.0, 5.0), facecolor="white", layout="constrained")
-    ax = fig.add_subplot()
-    if discrete and top <= 16:
-        bounds = np.arange(-0.5, top + 1.5)
-        cmap = colormaps["viridis"].resampled(top + 1)
-        norm = BoundaryNorm(bounds, cmap.N)
-        image = ax.imshow(values, cmap=cmap, norm=norm, interpolation="nearest")
-        fig.colorbar(image, ax=ax, ticks=np.arange(top + 1), label=title)
-    else:
-        image = ax.imshow(values, cmap=colormaps["magma"], norm=Normalize(0, max(top, 1)),
-                          interpolation="nearest")
-        fig.colorbar(image, ax=ax, label=title)
-    ax.set_title(f"{title}: mean {values.mean():.2f}, max {top}")
-    ax.set_axis_off()
-    return fig
-
-
-def _kind_figure(kind: np.ndarray, names: dict[int, str]):
-    """What answered each pixel, one colour per kind, with a legend."""
-    from matplotlib.colors import ListedColormap
-    from matplotlib.figure import Figure
-    from matplotlib.patches import Patch
-
-    palette = ["#2a9d8f", "#264653", "#e76f51", "#e9c46a", "#8ab17d", "#f4a261", "#6d597a"]
-    codes = sorted(names)
-    index = {c: i for i, c in enumerate(codes)}
-    picture = np.vectorize(lambda k: index.get(int(k), len(codes)))(kind) if kind.size else kind
-    colours = [palette[i % len(palette)] for i in range(len(codes))] + ["#ff00ff"]
-    fig = Figure(figsize=(7.0, 5.0), facecolor="white", layout="constrained")
-    ax = fig.add_subplot()
-    ax.imshow(picture, cmap=ListedColormap(colours), vmin=-0.5, vmax=len(codes) + 0.5,
-              interpolation="nearest")
-    present = set(np.unique(kind).tolist())
-    handles = [Patch(color=colours[index[c]], label=f"{names[c]} ({int((kind == c).sum()):,})")
-               for c in codes if c in present]
-    fig.legend(handles=handles, loc="outside right upper", fontsize=8)
-    ax.set_title("answer per pixel")
-    ax.set_axis_off()
-    return fig
-
-
-def write_side_by_side(result, reference, metrics: dict, path) -> Path:
-    """Probe render, octree render and their absolute difference (×4) side by side, sRGB."""
-    from matplotlib.figure import Figure
-
-    from voxfield.scene.voxel_scene import linear_to_srgb
-
-    probe = np.clip(result.image, 0.0, 1.0)
-    direct = np.clip(reference.image, 0.0, 1.0)
-    difference = np.clip(4.0 * np.abs(probe - direct), 0.0, 1.0)
-    fig = Figure(figsize=(13.5, 4.8), facecolor="white", layout="constrained")
-    panels = [(linear_to_srgb(probe), f"{result.renderer}"),
-              (linear_to_srgb(direct), f"octree: {metrics['reference']}"),
-              (difference, f"|difference| × 4: PSNR {metrics['psnr']:.2f} dB, "
-                           f"SSIM {metrics['ssim']:.3f}")]
-    for k, (image, title) in enumerate(panels):
-        ax = fig.add_subplot(1, 3, k + 1)
-        ax.imshow(image, interpolation="nearest")
-        ax.set_title(title, fontsize=9)
-        ax.set_axis_off()
-    return _write_figure(fig, path)
-
-
-def _write_figure(fig, path) -> Path:
-    from voxfield.atomic import atomic_path
-
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=100, facecolor="white")
-    return path
-
-
 def _write_summary(summary: dict, path) -> Path:
-    from voxfield.atomic import atomic_path
-
     path = Path(path)
     with atomic_path(path) as tmp:
         tmp.write_text(json.dumps(summary, indent=2, default=_plain))

@@ -21,10 +21,12 @@ found.
 from __future__ import annotations
 
 import math
+from dataclasses import asdict, is_dataclass
 
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.camera_rays import OCTAHEDRAL, ORTHOGRAPHIC
 from voxfield.lightfield.baselines import (
     FETCHES,
     FILTERS,
@@ -33,6 +35,9 @@ from voxfield.lightfield.baselines import (
     environment_lookup,
     nearest_probe,
 )
+from voxfield.lightfield.packed import PackedProbes
+from voxfield.lightfield.trace import KIND_NAMES, LightFieldOptions, trace_light_field
+from voxfield.parallel import run_in_bands
 from voxfield.render.camera import Camera
 from voxfield.render.result import RenderResult
 
@@ -55,7 +60,6 @@ def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field"
     ``seed`` is accepted for symmetry with the octree renderers: rays go through pixel
     centres, so it changes nothing. Results do not depend on ``threads``.
     """
-    from voxfield.render.renderers import run_in_bands
 
     if method not in METHODS:
         raise VoxfieldError(f"unknown probe render method {method!r}; choose one of "
@@ -127,8 +131,6 @@ def _baseline_query(probe_set, method: str, filter: str, box):
 
 def _light_field_query(probe_set, camera: Camera, options, packed):
     """A band function for ``trace_light_field``, and the options to record."""
-    from voxfield.lightfield.packed import PackedProbes
-    from voxfield.lightfield.trace import LightFieldOptions, trace_light_field
 
     options = LightFieldOptions() if options is None else options
     if not isinstance(options, LightFieldOptions):
@@ -186,7 +188,6 @@ def _allocate(h: int, w: int, method: str) -> RenderResult:
 
 def _options_dict(options) -> dict:
     """The trace options as plain values for the summary."""
-    from dataclasses import asdict, is_dataclass
 
     if not is_dataclass(options):
         return {}
@@ -198,7 +199,6 @@ def result_kinds() -> dict[str, int]:
     """Codes of the ``result_kind`` map: the trace's own (``lightfield.trace.KIND_NAMES``),
     plus ``environment`` for an answer read at infinity (the environment lookup, a ray that
     leaves the proxy box)."""
-    from voxfield.lightfield.trace import KIND_NAMES
 
     codes = {name: int(code) for code, name in KIND_NAMES.items()}
     codes["environment"] = max(codes.values()) + 1
@@ -213,7 +213,6 @@ def kind_names() -> dict[int, str]:
 def pixel_angle_of(camera: Camera) -> float:
     """The angle one pixel subtends at the image centre (radians; 0 for orthographic views,
     whose rays are parallel): what an adaptive epsilon scales with."""
-    from voxfield.kernels.camera_rays import OCTAHEDRAL, ORTHOGRAPHIC
 
     if camera.kind == ORTHOGRAPHIC:
         return 0.0

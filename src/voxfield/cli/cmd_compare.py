@@ -4,11 +4,21 @@ from __future__ import annotations
 
 import argparse
 
+from voxfield.cli.options import (
+    add_renderer_options,
+    add_scene_options,
+    add_view_options,
+    camera,
+    default_output,
+    open_octree,
+    positive_int,
+)
+from voxfield.studies.compare import run_compare
+from voxfield.studies.report import fmt
 
-def add_compare_parser(subparsers) -> argparse.ArgumentParser:
+
+def register(subparsers) -> argparse.ArgumentParser:
     """Register ``compare`` on the main parser's sub-commands (scene options as ``render``)."""
-    from voxfield.cli import _add_scene_options, _add_view_options, _lod_arg, _positive_int
-
     p = subparsers.add_parser(
         "compare", help="reference vs adaptive vs error-aware: cost and quality tables",
         description="Render the reference (4×4 rays at LOD 0), the variance-adaptive and the "
@@ -17,37 +27,29 @@ def add_compare_parser(subparsers) -> argparse.ArgumentParser:
         "results.json, results.md, images, cost maps and contact_sheet.png; finished renders "
         "are cached, so a re-run resumes.",
     )
-    _add_scene_options(p)
-    _add_view_options(p)
-    p.add_argument("--threshold", type=float, default=0.154,
-                   help="error-aware error threshold (default 0.154, the thesis's calibration)")
-    p.add_argument("--decay", type=float, default=0.2,
-                   help="error-aware decay factor for children's errors (default 0.2)")
-    p.add_argument("--base-lod", type=_lod_arg, default=2,
-                   help="LOD of the first ray per pixel in both cheap renderers, or 'cone' "
-                   "(default 2, the thesis's setup)")
+    add_scene_options(p)
+    add_view_options(p)
+    add_renderer_options(p, ("error-aware", "adaptive"),
+                         only=("threshold", "decay", "base_lod"))
     p.add_argument("--reuse-parent", action="store_true",
                    help="add a row: error-aware with parent-ray reuse (3 new rays per "
                    "refinement, EA §6.2)")
     p.add_argument("--channel", default="albedo", help="colour channel (default albedo)")
-    p.add_argument("--threads", type=_positive_int, default=None, help="kernel threads")
+    p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
     p.add_argument("--fresh", action="store_true",
                    help="ignore cached renders and metrics in the output folder")
     p.add_argument("--out", default=None,
                    help="output folder (default out/compare_NAME, NAME from the scene)")
-    p.set_defaults(func=cmd_compare)
+    p.set_defaults(func=run)
     return p
 
 
-def cmd_compare(args) -> int:
-    from voxfield.cli import _camera, _open_octree, default_output
-    from voxfield.studies.compare import run_compare
-
-    octree = _open_octree(args)
-    camera = _camera(args, octree)
+def run(args) -> int:
+    octree = open_octree(args)
+    view = camera(args, octree.voxel_bounds)
     label = "custom" if args.eye is not None else args.camera
     report = run_compare(
-        octree, camera, args.out or default_output("compare", args.scene),
+        octree, view, args.out or default_output("compare", args.scene),
         threshold=args.threshold, decay=args.decay, base_lod=args.base_lod, seed=args.seed,
         channel=args.channel, reuse_parent=args.reuse_parent,
         camera_label=label, threads=args.threads, fresh=args.fresh, progress=not args.quiet,
@@ -59,8 +61,6 @@ def cmd_compare(args) -> int:
 
 def summary_text(report: dict) -> str:
     """The console summary: one line per renderer, then where the files went."""
-    from voxfield.studies.report import fmt
-
     lines = [f"{'renderer':<12}{'rays':>12}{'rays/px':>9}{'steps':>14}{'PSNR':>8}"
              f"{'RMSE':>9}{'SSIM':>7}{'FLIP':>7}"]
     for row in report["rows"]:

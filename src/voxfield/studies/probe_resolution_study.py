@@ -20,13 +20,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
 from voxfield.errors import VoxfieldError
 from voxfield.metrics import compare_images
 from voxfield.probes.bake import bake_probe
 from voxfield.probes.probe_set import BakeOptions
 from voxfield.progress import progress_bar
-from voxfield.render.error_aware import THESIS_DECAY, THESIS_THRESHOLD
-from voxfield.studies.report import fmt, markdown_table, scene_fingerprint
+from voxfield.studies.report import fmt, markdown_table
 from voxfield.svo.octree import Octree
 
 STUDY_RESOLUTIONS = (64, 128, 256)
@@ -70,7 +70,7 @@ def probe_resolution_study(
                     bar.update(1)
                 rows.append(_row(resolution, baker, maps, reference))
     return {
-        "scene": scene_name, "fingerprint": scene_fingerprint(octree, channel),
+        "scene": scene_name, "fingerprint": octree.fingerprint(channel),
         "depth": octree.depth, "probes": positions.tolist(), "resolutions": list(resolutions),
         "threshold": threshold, "decay": decay, "reference_samples": samples * samples,
         "seed": seed, "channel": channel, "lod_rule": "texel-footprint cone, scale 1",

@@ -7,17 +7,17 @@ import json
 import numpy as np
 import pytest
 
-from voxfield.probes import storage
+from voxfield.probes import probe_folder
 from voxfield.probes.bake import bake_probe, bake_probes
+from voxfield.probes.folder_bake import bake_to_folder
 from voxfield.probes.grid import ProbeGrid
-from voxfield.probes.probe_set import BakeOptions, ProbeMaps
-from voxfield.probes.storage import (
+from voxfield.probes.probe_folder import (
     ProbeFileError,
     ProbeHeaderError,
     ProbeSetMismatchError,
-    bake_to_folder,
     open_probe_set,
 )
+from voxfield.probes.probe_set import BakeOptions, ProbeMaps
 from voxfield.scene.builtin import cornell
 from voxfield.svo.build import build_octree
 
@@ -131,7 +131,7 @@ def test_killed_bake_leaves_whole_files_and_resumes(tmp_path, octree, grid, loca
                        baker=Counting(fail_after=2))
     names = sorted(p.name for p in tmp_path.iterdir())
     assert names == ["probe_00000.npz", "probe_00001.npz", "probes.json"]  # no temp files
-    header = storage.read_header(tmp_path)
+    header = probe_folder.read_header(tmp_path)
     assert sorted(header["probes"]) == ["0", "1"] and not header["complete"]
 
     counting = Counting()
@@ -145,9 +145,9 @@ def test_failed_write_leaves_no_partial_file(tmp_path, monkeypatch, local):
         file.write(b"PK\x03\x04 half a zip")
         raise OSError("disk full")
 
-    monkeypatch.setattr(storage.np, "savez_compressed", broken)
+    monkeypatch.setattr(probe_folder.np, "savez_compressed", broken)
     with pytest.raises(OSError, match="disk full"):
-        storage.write_probe(tmp_path, 3, local.probe(3))
+        probe_folder.write_probe(tmp_path, 3, local.probe(3))
     assert list(tmp_path.iterdir()) == []
 
 
@@ -204,7 +204,7 @@ def test_bad_folders_give_clear_errors(tmp_path, octree, grid):
     small = (np.zeros((4, 4, 3), np.float16), np.zeros((4, 4), np.float32),
              np.zeros((4, 4, 2), np.int16))
     np.savez(probe0, radiance=small[0], distance=small[1], normal=small[2])
-    header["probes"]["0"]["checksum"] = storage.maps_checksum(*small)
+    header["probes"]["0"]["checksum"] = probe_folder.maps_checksum(*small)
     header_path.write_text(json.dumps(header))
     with pytest.raises(ProbeFileError, match=r"radiance is float16 \(4, 4, 3\)"):
         open_probe_set(tmp_path)

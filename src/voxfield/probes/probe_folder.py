@@ -14,7 +14,7 @@ The header ``probes.json`` holds:
 
 - ``format`` (``"voxfield-probes"``) and ``version`` (1): readers refuse anything else;
 - ``scene``: ``fingerprint`` (a hash of the octree structure and the baked colour channel,
-  ``voxfield.studies.report.scene_fingerprint``), ``channel`` and ``name``;
+  ``Octree.fingerprint``), ``channel`` and ``name``;
 - ``grid``: ``ProbeGrid.to_dict()`` (origin, spacing, counts, per-probe offsets, enabled);
 - ``options``: ``BakeOptions.to_dict()`` (renderer, resolution, samples, threshold, seed, ...);
 - ``resolution`` R and ``probe_count`` N;
@@ -38,8 +38,8 @@ The header ``probes.json`` holds:
 Every file is written atomically (temporary file, then rename), so a killed bake leaves only
 whole files. The per-probe ``.npz`` files are the source of truth; the atlases are derived
 from them for engines. A probe counts as done only when its file exists, loads, and matches
-the checksum the header recorded; ``bake_to_folder`` re-run on the same scene, grid and
-options bakes only the probes that are not done.
+the checksum the header recorded; ``probes.folder_bake.bake_to_folder`` re-run on the same
+scene, grid and options bakes only the probes that are not done.
 """
 
 from __future__ import annotations
@@ -47,7 +47,6 @@ from __future__ import annotations
 import json
 import math
 import os
-import time
 import zipfile
 from pathlib import Path
 
@@ -55,16 +54,16 @@ import numpy as np
 
 from voxfield.atomic import atomic_path
 from voxfield.errors import VoxfieldError
+from voxfield.fingerprint import array_fingerprint
+from voxfield.kernels.octahedral import add_border
+from voxfield.probes.grid import ProbeGrid
+from voxfield.probes.probe_set import COST_FIELDS, BakeCost, BakeOptions, ProbeMaps, ProbeSet
 
 FORMAT_NAME = "voxfield-probes"
 FORMAT_VERSION = 1
 HEADER_NAME = "probes.json"
 ATLAS_FILES = {"radiance": "radiance.exr", "distance": "distance.exr", "normal": "normal.exr"}
 MAP_NAMES = ("radiance", "distance", "normal")
-
-#: Seconds between header rewrites while baking: a probe whose record missed the last
-#: rewrite is simply baked again on resume, so this bounds lost work, not correctness.
-HEADER_FLUSH_SECONDS = 1.0
 
 
 class ProbeStorageError(VoxfieldError):
@@ -102,8 +101,6 @@ def encodings(resolution: int) -> dict:
 
 def maps_checksum(radiance: np.ndarray, distance: np.ndarray, normal: np.ndarray) -> str:
     """A hash of one probe's three arrays (content, dtype and shape)."""
-    from voxfield.studies.report import array_fingerprint
-
     return array_fingerprint(radiance, distance, normal)
 
 
@@ -117,8 +114,8 @@ def new_header(*, grid, options, fingerprint: str, channel: str, scene_name: str
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
         "scene": {"fingerprint": fingerprint, "channel": channel, "name": scene_name},
-        "grid": _jsonable(grid.to_dict()),
-        "options": _jsonable(options.to_dict()),
+        "grid": jsonable(grid.to_dict()),
+        "options": jsonable(options.to_dict()),
         "resolution": resolution,
         "probe_count": int(grid.count),
         "encodings": encodings(resolution),
@@ -128,15 +125,15 @@ def new_header(*, grid, options, fingerprint: str, channel: str, scene_name: str
     }
 
 
-def _jsonable(value):
+def jsonable(value):
     """Plain JSON types: NumPy arrays and scalars become lists and numbers (inf stays a float
     and is written as ``Infinity``, which Python's json reads back)."""
     if isinstance(value, dict):
-        return {str(k): _jsonable(v) for k, v in value.items()}
+        return {str(k): jsonable(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_jsonable(v) for v in value]
+        return [jsonable(v) for v in value]
     if isinstance(value, np.ndarray):
-        return _jsonable(value.tolist())
+        return jsonable(value.tolist())
     if isinstance(value, np.generic):
         return value.item()
     return value
@@ -203,7 +200,7 @@ def identity(header: dict) -> dict:
             "options": header["options"]}
 
 
-def _differences(old: dict, new: dict) -> list[str]:
+def differences(old: dict, new: dict) -> list[str]:
     """Human-readable names of what differs between two identities."""
     out = []
     if old["scene"] != new["scene"]:
@@ -222,8 +219,6 @@ def _differences(old: dict, new: dict) -> list[str]:
 
 def write_probe(folder: Path, index: int, maps) -> dict:
     """Write one probe's maps atomically; returns its header record (file, checksum, cost)."""
-    from voxfield.probes.probe_set import COST_FIELDS
-
     radiance, distance, normal = _probe_arrays(maps)
     name = probe_file_name(index)
     with atomic_path(Path(folder) / name) as tmp, open(tmp, "wb") as f:
@@ -292,8 +287,6 @@ def open_probe_set(path: str | os.PathLike):
     Raises ``ProbeHeaderError`` for a missing or foreign header and ``ProbeFileError`` for a
     missing, corrupt or mismatched probe file, each saying how to recover.
     """
-    from voxfield.probes.grid import ProbeGrid
-    from voxfield.probes.probe_set import BakeOptions, ProbeSet
 
     folder = Path(path)
     header = read_header(folder)
@@ -322,8 +315,6 @@ def open_probe_set(path: str | os.PathLike):
 
 def _load_maps(folder: Path, index: int, header: dict):
     """Probe ``index`` as ``ProbeMaps``, its cost taken from the header's record."""
-    from voxfield.probes.probe_set import COST_FIELDS, BakeCost, ProbeMaps
-
     record = header["probes"][str(index)]
     try:
         cost = BakeCost(**{k: record[k] for k in COST_FIELDS})
@@ -344,8 +335,6 @@ def atlas_layout(count: int) -> tuple[int, int]:
 
 def atlas(maps: np.ndarray, fill: float = 0.0) -> np.ndarray:
     """Tile (N, R, R[, C]) probe maps into one image of bordered (R + 2)² tiles."""
-    from voxfield.kernels.octahedral import add_border
-
     n, r = maps.shape[0], maps.shape[1]
     channels = maps.shape[3:]
     # add_border works on the last two axes: move channels first and back again.
@@ -361,6 +350,7 @@ def atlas(maps: np.ndarray, fill: float = 0.0) -> np.ndarray:
 
 def write_atlases(folder: Path, radiance, distance, normal) -> dict:
     """Write the engine-facing EXR atlases; returns their header description."""
+    # optional: OpenEXR loads only when an EXR file is read or written
     import OpenEXR
 
     normal_float = normal.astype(np.float32) / np.float32(32767.0)
@@ -380,99 +370,6 @@ def write_atlases(folder: Path, radiance, distance, normal) -> dict:
             "files": dict(ATLAS_FILES),
             "channels": {"radiance": "RGB half", "distance": "Z float",
                          "normal": "U, V float (octahedral, [-1, 1])"}}
-
-
-# --------------------------------------------------------------------------- baking
-
-
-def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = False,
-                   progress: bool = False, source: dict | None = None, relocation=None,
-                   baker=None):
-    """Bake ``grid`` into the probe-set folder ``out`` and return the finished ``ProbeSet``.
-
-    The header is written first; each probe's file is written (atomically) as soon as it is
-    baked, and the header records it. Re-running on a folder baked from the same scene,
-    grid and options bakes only the probes that are missing or fail their checksum, so a
-    killed bake continues where it stopped. A folder from another scene, grid or options is
-    refused with ``ProbeSetMismatchError`` unless ``fresh`` (start over, deleting its
-    probe files). ``scheduler`` picks where probes run (see ``voxfield.probes.distributed``);
-    ``baker`` replaces ``bake_probe`` (tests count calls with it).
-
-    ``source`` (how to reopen the scene, e.g. the CLI's scene argument and options) and
-    ``relocation`` (a ``RelocationReport``) are recorded for ``voxfield probes show``; they
-    are not part of what must match on resume. ``last_run`` in the header says how many
-    probes this run baked and reused, on which scheduler, in how many wall-clock seconds.
-    """
-    from voxfield.probes.bake import octree_fingerprint
-    from voxfield.probes.distributed import bake_each
-
-    started = time.perf_counter()
-    folder = Path(out)
-    if folder.exists() and not folder.is_dir():
-        raise ProbeStorageError(f"{folder} exists and is not a folder; pick another --out")
-    channel = getattr(options, "channel", "albedo")
-    header = new_header(grid=grid, options=options,
-                        fingerprint=octree_fingerprint(octree, channel), channel=channel,
-                        scene_name=getattr(octree, "name", "scene"))
-    if source is not None:
-        header["scene"]["source"] = _jsonable(source)
-    if relocation is not None:
-        report = relocation.to_dict() if hasattr(relocation, "to_dict") else dict(relocation)
-        report.pop("offsets", None)  # the grid holds them
-        header["relocation"] = _jsonable(report)
-    if fresh:
-        clear_folder(folder)
-    elif (folder / HEADER_NAME).exists():
-        old = read_header(folder)
-        differs = _differences(identity(old), identity(header))
-        if differs:
-            raise ProbeSetMismatchError(
-                f"{folder} holds probes baked from a different " + " and ".join(differs)
-                + "; use another --out, or --fresh to discard them"
-            )
-        header["probes"] = old["probes"]
-    folder.mkdir(parents=True, exist_ok=True)
-
-    done = verified_probes(folder, header)
-    header["probes"] = {str(i): header["probes"][str(i)] for i in sorted(done)}
-    enabled = np.asarray(grid.enabled, bool).reshape(-1)
-    todo = [i for i in range(grid.count) if enabled[i] and i not in done]
-    header["complete"] = False
-    header.pop("atlas", None)
-    header["last_run"] = {"baked": len(todo), "reused": len(done),
-                          "scheduler": _scheduler_name(scheduler)}
-    write_header(folder, header)
-
-    last_flush = time.monotonic()
-
-    def store(index: int, maps) -> None:
-        nonlocal last_flush
-        header["probes"][str(index)] = write_probe(folder, index, maps)
-        if time.monotonic() - last_flush >= HEADER_FLUSH_SECONDS:
-            write_header(folder, header)
-            last_flush = time.monotonic()
-
-    try:
-        bake_each(octree, grid, options, todo, store, scheduler=scheduler, progress=progress,
-                  baker=baker)
-    finally:
-        # Whatever finished before an error or Ctrl-C is kept for the next run.
-        write_header(folder, header)
-
-    probe_set = open_probe_set(folder)
-    header["atlas"] = write_atlases(folder, probe_set.radiance, probe_set.distance,
-                                    probe_set.normal)
-    header["complete"] = True
-    header["last_run"]["wall_seconds"] = time.perf_counter() - started
-    write_header(folder, header)
-    return probe_set
-
-
-def _scheduler_name(scheduler) -> str:
-    if scheduler is None or isinstance(scheduler, str):
-        return scheduler or "threads"
-    address = getattr(getattr(scheduler, "scheduler", None), "address", None)
-    return str(address or type(scheduler).__name__)
 
 
 def clear_folder(folder: Path) -> None:

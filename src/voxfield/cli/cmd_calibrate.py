@@ -1,0 +1,55 @@
+"""``voxfield calibrate``: the error threshold meeting a ray budget or a PSNR (EA §5.1.4)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+from voxfield.atomic import atomic_path
+from voxfield.cli.options import (
+    add_channel_option,
+    add_renderer_options,
+    add_scene_options,
+    add_view_options,
+    camera,
+    open_octree,
+    positive_int,
+)
+from voxfield.studies.calibrate import calibrate_threshold
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "calibrate", help="solve for the error threshold meeting a ray budget or PSNR",
+        description="Bisection on the error-aware renderer's threshold (EA §5.1.4): the "
+        "smallest threshold within a ray budget, or the largest meeting a PSNR target.",
+    )
+    add_scene_options(p)
+    target = p.add_mutually_exclusive_group(required=True)
+    target.add_argument("--target-rays", type=positive_int, help="ray budget for the image")
+    target.add_argument("--target-psnr", type=float, help="PSNR target in dB vs the reference")
+    add_renderer_options(p, ("error-aware",), only=("decay", "base_lod"), prefix=False)
+    p.add_argument("--iterations", type=positive_int, default=14, help="bisection steps")
+    p.add_argument("--out", default=None, help="write the result and trail as JSON")
+    add_channel_option(p)
+    add_view_options(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    octree = open_octree(args)
+    view = camera(args, octree.voxel_bounds)
+    cal = calibrate_threshold(
+        octree, view, target_rays=args.target_rays, target_psnr=args.target_psnr,
+        decay=args.decay, base_lod=args.base_lod, iterations=args.iterations, seed=args.seed,
+        channel=args.channel, progress=not args.quiet,
+    )
+    if args.out:
+        with atomic_path(args.out) as tmp:
+            tmp.write_text(json.dumps(cal.as_dict(), indent=2))
+    if not args.quiet:
+        quality = f", PSNR {cal.psnr:.2f} dB" if np.isfinite(cal.psnr) else ""
+        print(f"threshold {cal.threshold:.4f} (decay {args.decay}): {cal.rays:,} rays, "
+              f"{cal.steps:,} steps{quality}; {len(cal.trail)} renders")
+    return 0

@@ -1,0 +1,150 @@
+"""``voxfield errors build|build-lighting|info|show``: the error tables (EA §3.1–3.2, §6.1)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from voxfield.cli.options import add_quiet, positive_int
+from voxfield.error_table import build_error_table, fit_report, load_error_table, save_error_table
+from voxfield.error_table.lighting_table import (
+    DEFAULT_LIGHTING_TABLE,
+    build_lighting_error_table,
+    save_lighting_error_table,
+)
+from voxfield.error_table.plot import plot_mask_error
+from voxfield.error_table.symmetry import distinct_mask_count
+from voxfield.error_table.table import DEFAULT_TABLE, ENCODINGS, THESIS_THRESHOLD
+
+
+def mask_arg(text: str) -> int:
+    """A child mask, 0..255, in any Python integer notation."""
+    try:
+        value = int(text, 0)
+    except ValueError:
+        message = f"a child mask is 0..255 (e.g. 15, 0x0f, 0b1111), got {text!r}"
+        raise argparse.ArgumentTypeError(message) from None
+    if not 0 <= value <= 255:
+        raise argparse.ArgumentTypeError(f"a child mask is 0..255, got {value}")
+    return value
+
+
+def _add_raycast_options(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--resolution", type=positive_int, default=512,
+                   help="framebuffer side in rays per direction (default 512, as the thesis)")
+    p.add_argument("--oct-resolution", type=positive_int, default=32,
+                   help="octahedral map side in texels (default 32)")
+    p.add_argument("--seed", type=int, default=0, help="CMJ jitter seed")
+
+
+def register(subparsers) -> None:
+    errors = subparsers.add_parser(
+        "errors", help="error tables: build, inspect, picture one mask",
+        description="The error of sampling a node instead of its children (EA §3.1–3.2).",
+    )
+    actions = errors.add_subparsers(dest="errors_command", required=True, metavar="ACTION")
+
+    p = actions.add_parser("build", help="ray-cast the table for all 256 masks and fit encodings",
+                           description="Ray-cast e = 1 - hits(children)/hits(parent) for every "
+                           "child mask over a Fibonacci set of directions (CMJ-jittered "
+                           "orthographic rays), fit 9 SH coefficients and octahedral maps.")
+    p.add_argument("--directions", type=positive_int, default=1024,
+                   help="Fibonacci directions for the SH fit (default 1024; thesis 256)")
+    _add_raycast_options(p)
+    p.add_argument("--out", default=None,
+                   help="output file (default: the table shipped with the package)")
+    p.add_argument("--report", action="store_true",
+                   help="also measure both encodings against held-out directions")
+    add_quiet(p)
+    p.set_defaults(func=run_build)
+
+    p = actions.add_parser(
+        "build-lighting", help="ray-cast the lighting-aware (bright-flag) colour error table",
+        description="Ray-cast the colour error of every child mask with every subset of "
+        "children flagged bright (EA §6.1), one octahedral map per cube-symmetry class.")
+    _add_raycast_options(p)
+    p.add_argument("--out", default=None,
+                   help="output file (default: the lighting table shipped with the package)")
+    add_quiet(p)
+    p.set_defaults(func=run_build_lighting)
+
+    p = actions.add_parser("info", help="parameters of a table, symmetry classes, fit quality",
+                           description="Describe an error table.")
+    p.add_argument("--table", default=None, help="table file (default: the packaged one)")
+    p.add_argument("--report", action="store_true", help="measure both encodings' fit")
+    add_quiet(p)
+    p.set_defaults(func=run_info)
+
+    p = actions.add_parser("show", help="picture one mask's error over the sphere (EA fig. 3.2)",
+                           description="Child configuration and three views of the error "
+                           "sphere, directions above the threshold marked red.")
+    p.add_argument("mask", type=mask_arg, help="child mask 0..255 (bit c = x | y<<1 | z<<2)")
+    p.add_argument("--threshold", type=float, default=THESIS_THRESHOLD,
+                   help=f"error threshold to mark (default {THESIS_THRESHOLD}, the thesis's "
+                   "calibration)")
+    p.add_argument("--encoding", choices=tuple(reversed(ENCODINGS)), default=None,
+                   help="encoding to show (default: the table's default)")
+    p.add_argument("--table", default=None, help="table file (default: the packaged one)")
+    p.add_argument("--out", default=None, help="output PNG (default out/error_mask_MASK.png)")
+    add_quiet(p)
+    p.set_defaults(func=run_show)
+
+
+def run_build(args) -> int:
+    table = build_error_table(
+        n_directions=args.directions, resolution=args.resolution,
+        oct_resolution=args.oct_resolution, seed=args.seed, progress=not args.quiet,
+    )
+    out = Path(args.out) if args.out else DEFAULT_TABLE
+    save_error_table(table, out)
+    if not args.quiet:
+        p = table.params
+        print(f"256 masks × {p['n_directions']} directions (+ {p['oct_resolution']}² octahedral "
+              f"texels) at {p['resolution']}² rays in {p['build_seconds']:.1f} s; wrote {out}")
+        if args.report:
+            _print_fit_report(fit_report(table))
+    return 0
+
+
+def run_build_lighting(args) -> int:
+    table = build_lighting_error_table(resolution=args.resolution,
+                                       oct_resolution=args.oct_resolution, seed=args.seed,
+                                       progress=not args.quiet)
+    out = Path(args.out) if args.out else DEFAULT_LIGHTING_TABLE
+    save_lighting_error_table(table, out)
+    if not args.quiet:
+        p = table.params
+        print(f"{p['configurations']} bright-flag configurations in {p['classes']} symmetry "
+              f"classes × {p['oct_resolution']}² octahedral texels at {p['resolution']}² rays "
+              f"in {p['build_seconds']:.1f} s; wrote {out}")
+    return 0
+
+
+def _print_fit_report(report: dict) -> None:
+    print(f"fit against {report['n_holdout']} held-out directions (fresh ray casts), masks 1..255:")
+    print(f"{'encoding':>9} {'max |err|':>10} {'rms':>8} {'mean |err|':>11}")
+    for encoding in ("sh", "oct"):
+        r = report[encoding]
+        print(f"{encoding:>9} {r['max_abs']:>10.4f} {r['rms']:>8.4f} {r['mean_abs']:>11.4f}")
+
+
+def run_info(args) -> int:
+    table = load_error_table(args.table)
+    p = table.params
+    print(f"error table: {p.get('n_directions')} Fibonacci directions, {p.get('resolution')}² "
+          f"rays per direction, seed {p.get('seed')}, octahedral maps {table.oct_resolution}², "
+          f"default encoding {table.default_encoding}")
+    print(f"child masks distinct under the 48 cube symmetries: {distinct_mask_count()} of 256")
+    if args.report:
+        _print_fit_report(fit_report(table))
+    return 0
+
+
+def run_show(args) -> int:
+    table = load_error_table(args.table)
+    out = args.out or f"out/error_mask_{args.mask}.png"
+    path = plot_mask_error(table, args.mask, out, threshold=args.threshold,
+                           encoding=args.encoding)
+    if not args.quiet:
+        print(f"wrote {path}")
+    return 0

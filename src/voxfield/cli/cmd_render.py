@@ -1,0 +1,64 @@
+"""``voxfield render``: one image of a scene with any registered renderer."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from voxfield.cli.options import (
+    add_renderer_options,
+    add_scene_options,
+    add_view_options,
+    camera,
+    open_octree,
+    positive_int,
+    renderer_options_from,
+)
+from voxfield.render.counter_maps import write_counter_maps
+from voxfield.render.image_io import save_result_image, shade_for_display
+from voxfield.render.registry import RENDERERS, render
+
+
+def register(subparsers) -> argparse.ArgumentParser:
+    p = subparsers.add_parser("render", help="render a scene to PNG or EXR",
+                              description="Trace a scene with any of voxfield's renderers.")
+    add_scene_options(p)
+    p.add_argument("--renderer", choices=tuple(RENDERERS), default="reference",
+                   help="; ".join(f"{name}: {entry.summary}" for name, entry in RENDERERS.items())
+                   + " (default reference)")
+    add_view_options(p)
+    add_renderer_options(p, ("reference", "lod", "error-aware", "adaptive"))
+    p.add_argument("--channel", default="albedo", help="colour channel to show (default albedo)")
+    p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
+    p.add_argument("--shade", action="store_true",
+                   help="light the albedo with a fixed key light (display only, not for metrics)")
+    p.add_argument("--counters", action="store_true",
+                   help="also write traversal-step and LOD maps and a JSON summary")
+    p.add_argument("--out", required=True, help="output .png (sRGB) or .exr (linear RGB + Z)")
+    p.set_defaults(func=run)
+    return p
+
+
+def run(args) -> int:
+    octree = open_octree(args)
+    view = camera(args, octree.voxel_bounds)
+    result = render(octree, view, args.renderer, renderer_options_from(args, args.renderer),
+                    seed=args.seed, channel=args.channel, threads=args.threads,
+                    progress=not args.quiet)
+    out = Path(args.out)
+    if args.shade:
+        result.image = shade_for_display(result)
+    save_result_image(result, out)
+    written = [out]
+    if args.counters:
+        written += write_counter_maps(result, out, octree.depth)
+    if not args.quiet:
+        s = result.summary()
+        print(
+            f"{s['renderer']}: {s['width']}x{s['height']}, {s['rays']:,} rays, "
+            f"{s['traversal_steps']:,} steps ({s['steps_per_ray']:.2f}/ray), "
+            f"{s['seconds']:.2f} s, {s['mrays_per_second']:.2f} Mrays/s"
+        )
+        for path in written:
+            print(f"wrote {path}")
+    return 0

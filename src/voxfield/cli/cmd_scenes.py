@@ -1,0 +1,97 @@
+"""``voxfield info``, ``build`` and ``scenes``: what a scene becomes as an octree, saving it,
+and the scenes that need no files."""
+
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+from voxfield.cli.options import add_quiet, add_scene_options, open_octree, scene_options
+from voxfield.scene.builtin import BUILTIN_SCENES
+from voxfield.scene.loaders import load_scene, npz_kind
+from voxfield.scene.terrain import RECIPES
+from voxfield.svo.build import build_octree
+from voxfield.svo.io import load_octree, save_octree
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser("info", help="build a scene's octree and print its structure",
+                              description="Levels, node counts per level, bytes per node, "
+                              "build time.")
+    add_scene_options(p)
+    p.add_argument("--json", action="store_true", help="print JSON")
+    add_quiet(p)
+    p.set_defaults(func=run_info)
+
+    p = subparsers.add_parser("build", help="build a scene's octree and save it (.npz)",
+                              description="Build the SVO once and save it for fast reuse.")
+    add_scene_options(p)
+    p.add_argument("--out", required=True, help="output octree file (.npz)")
+    add_quiet(p)
+    p.set_defaults(func=run_build)
+
+    p = subparsers.add_parser("scenes", help="list built-in scenes and terrain recipes",
+                              description="Scenes that need no files, and terrain recipes.")
+    p.set_defaults(func=run_scenes)
+
+
+def run_info(args) -> int:
+    path = Path(args.scene)
+    if path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree":
+        octree = load_octree(path)
+        load_note = "loaded"
+    else:
+        start = time.perf_counter()
+        scene = load_scene(args.scene, scene_options(args))
+        load_seconds = time.perf_counter() - start
+        octree = build_octree(scene, progress=not args.quiet)
+        load_note = f"scene read in {load_seconds:.2f} s"
+    lo, hi = octree.voxel_bounds
+    info = {
+        "name": octree.name,
+        "depth": octree.depth,
+        "root_size": octree.size,
+        "voxels": octree.voxel_count,
+        "nodes": octree.node_count,
+        "extent": (hi - lo).tolist(),
+        "nodes_per_level": octree.nodes_per_level(),
+        "bytes_per_node": octree.bytes_per_node(),
+        "channels": sorted("albedo" if k == "color" else k for k in octree.attributes),
+        "build_seconds": octree.build_seconds,
+    }
+    if args.json:
+        print(json.dumps(info, indent=2))
+        return 0
+    print(f"{info['name']}: {info['voxels']:,} voxels, extent {info['extent']}, "
+          f"depth {info['depth']} (root {info['root_size']}^3), {load_note}")
+    print(f"built in {info['build_seconds']:.3f} s; {info['nodes']:,} nodes; "
+          f"channels: {', '.join(info['channels'])}")
+    print(f"{'level':>5} {'lod':>4} {'nodes':>12} {'node size':>10}")
+    for level, count in enumerate(info["nodes_per_level"]):
+        lod = octree.depth - level
+        print(f"{level:>5} {lod:>4} {count:>12,} {1 << lod:>10}")
+    per = info["bytes_per_node"]
+    parts = ", ".join(f"{k} {v:.1f}" for k, v in per.items() if k != "total")
+    print(f"bytes per node: {per['total']:.1f} ({parts})")
+    return 0
+
+
+def run_build(args) -> int:
+    octree = open_octree(args)
+    path = save_octree(octree, args.out)
+    if not args.quiet:
+        print(f"{octree.voxel_count:,} voxels, {octree.node_count:,} nodes, depth {octree.depth}, "
+              f"built in {octree.build_seconds:.2f} s; wrote {path}")
+    return 0
+
+
+def run_scenes(args) -> int:
+    print("built-in scenes (no files needed):")
+    for name, make in sorted(BUILTIN_SCENES.items()):
+        doc = (make.__doc__ or "").strip().splitlines()[0]
+        print(f"  builtin:{name:<10} {doc}")
+    print("terrain recipes over the shared DEMs (see README):")
+    for name, recipe in RECIPES.items():
+        print(f"  terrain:{name:<10} {recipe.description}")
+    return 0

@@ -1,0 +1,289 @@
+"""``voxfield study thresholds|resolution|lighting|probe-resolution|probes``: the EA
+thesis's studies (§5.4, §5.5, §5.3) and the probe thesis's analysis (ch. 9)."""
+
+from __future__ import annotations
+
+import argparse
+
+from voxfield.cli.options import (
+    add_channel_option,
+    add_quiet,
+    add_renderer_options,
+    add_scene_options,
+    add_threshold_options,
+    add_view_options,
+    camera,
+    default_output,
+    float_list,
+    name_list,
+    open_octree,
+    positive_int_list,
+)
+from voxfield.errors import VoxfieldError
+from voxfield.lightfield.trace import EPSILON_MODES, LightFieldOptions
+from voxfield.lighting import bake_sun_lighting, parse_suns
+from voxfield.probes.grid import parse_grid
+from voxfield.studies.lighting_study import lighting_channels, run_lighting_study
+from voxfield.studies.probe_resolution_study import (
+    probe_resolution_markdown,
+    probe_resolution_study,
+)
+from voxfield.studies.probe_study import (
+    DEFAULT_PROBE_COUNTS,
+    MARCHERS,
+    ORDERINGS,
+    THESIS_RESOLUTIONS,
+    parse_counts,
+    results_markdown,
+    run_probe_study,
+)
+from voxfield.studies.report import StudyFolder, fmt
+from voxfield.studies.resolution_study import THESIS_SIZES, run_resolution_study
+from voxfield.studies.threshold_study import THESIS_THRESHOLDS, run_threshold_study
+
+
+def register(subparsers) -> argparse.ArgumentParser:
+    """Register ``study`` with its ``thresholds`` and ``resolution`` actions."""
+    p = subparsers.add_parser(
+        "study", help="thesis studies: error threshold (§5.4), resolution (§5.5)",
+        description="Resumable studies writing results.json, results.md and a plot.",
+    )
+    actions = p.add_subparsers(dest="study", required=True, metavar="STUDY")
+
+    t = actions.add_parser(
+        "thresholds", help="error-aware cost and quality per threshold (EA Tables 5.27-5.28)",
+        description="Render the error-aware renderer at each threshold beside the adaptive "
+        "renderer and the 4×4 reference; rays, steps, PSNR, RMSE, SSIM. Resumable.",
+    )
+    add_scene_options(t)
+    t.add_argument("--thresholds", type=float_list, default=THESIS_THRESHOLDS,
+                   help="comma-separated thresholds (default 0.05..0.3)")
+    add_renderer_options(t, ("error-aware", "adaptive"), only=("decay", "base_lod"))
+    t.add_argument("--out", default=None, help="output folder (default out/thresholds_SCENE)")
+    t.add_argument("--fresh", action="store_true", help="ignore cached cells")
+    add_channel_option(t)
+    add_view_options(t)
+    t.set_defaults(func=run_thresholds)
+
+    r = actions.add_parser(
+        "resolution", help="reference/adaptive/error-aware per image size (EA Tables "
+        "5.29-5.30)",
+        description="Render the top-down 90° view at each size; the base LOD follows the "
+        "resolution (one base-LOD node ≈ one pixel). Resumable.",
+    )
+    add_scene_options(r)
+    r.add_argument("--sizes", type=positive_int_list, default=THESIS_SIZES,
+                   help="comma-separated image sides (default 128,256,512,1024)")
+    add_threshold_options(r)
+    r.add_argument("--out", default=None, help="output folder (default out/resolution_SCENE)")
+    r.add_argument("--fresh", action="store_true", help="ignore cached cells")
+    add_channel_option(r)
+    add_quiet(r)
+    r.set_defaults(func=run_resolution)
+
+    g = actions.add_parser(
+        "lighting", help="adaptive vs error-aware vs lighting-aware per time of day (EA "
+        "Tables 5.18-5.26)",
+        description="Per colour channel (albedo and each baked time of day): the 4×4 "
+        "reference, adaptive, error-aware and lighting-aware error-aware renderers; rays, "
+        "steps, average luminance, PSNR, RMSE, SSIM and a contact sheet. A scene without "
+        "baked channels is baked first (as `voxfield light`). Resumable.",
+    )
+    add_scene_options(g)
+    g.add_argument("--channels", default=None,
+                   help="comma-separated channels (default albedo and every baked one)")
+    g.add_argument("--times", default=None, metavar="SUNS",
+                   help="times of day to bake when the scene has none (default all four)")
+    add_renderer_options(g, ("error-aware", "adaptive"),
+                         only=("threshold", "decay", "base_lod", "bright_ratio"))
+    g.add_argument("--out", default=None, help="output folder (default out/lighting_SCENE)")
+    g.add_argument("--fresh", action="store_true", help="ignore cached renders")
+    add_view_options(g)
+    g.set_defaults(func=run_lighting)
+
+    b = actions.add_parser(
+        "probe-resolution", help="probe bakers' cost and quality per map size (EA Tables "
+        "5.29-5.30, for probes)",
+        description="Bake probes at each octahedral map size with the 4×4 reference baker "
+        "and the cheap bakers (LOD cone, adaptive, error-aware); rays and steps per texel, "
+        "PSNR/RMSE/SSIM of radiance against the reference.",
+    )
+    add_scene_options(b)
+    b.add_argument("--grid", default="1x1x1",
+                   help="probe grid: NXxNYxNZ fitted to the scene, or origin=..;spacing=..;"
+                   "counts=.. (default one probe at the centre)")
+    b.add_argument("--resolutions", type=positive_int_list, default=(64, 128, 256),
+                   help="comma-separated map sides (default 64,128,256)")
+    add_threshold_options(b)
+    add_channel_option(b)
+    b.add_argument("--out", default=None,
+                   help="output folder (default out/probe_resolution_SCENE)")
+    add_quiet(b)
+    b.set_defaults(func=run_probe_resolution)
+
+    _register_probes(actions)
+    return p
+
+
+def run_thresholds(args) -> int:
+    octree = open_octree(args)
+    view = camera(args, octree.voxel_bounds)
+    out = args.out or default_output("thresholds", args.scene)
+    report = run_threshold_study(
+        octree, view, out, thresholds=args.thresholds, decay=args.decay,
+        base_lod=args.base_lod, seed=args.seed, channel=args.channel, scene_name=args.scene,
+        progress=not args.quiet, fresh=args.fresh)
+    if not args.quiet:
+        a = report["adaptive"]
+        print(f"adaptive: {a['rays']:,} rays, {a['steps']:,} steps, "
+              f"PSNR {fmt(a['psnr'], '.2f')} dB")
+        for row in report["rows"]:
+            e = row["error_aware"]
+            print(f"  t={row['threshold']:g}: {e['rays']:,} rays, {e['steps']:,} steps, "
+                  f"PSNR {fmt(e['psnr'], '.2f')} dB")
+        print(f"wrote {out}/results.md, results.json, thresholds.png")
+    return 0
+
+
+def run_resolution(args) -> int:
+    octree = open_octree(args)
+    out = args.out or default_output("resolution", args.scene)
+    report = run_resolution_study(
+        octree, out, sizes=args.sizes, threshold=args.threshold, decay=args.decay,
+        seed=args.seed, channel=args.channel, scene_name=args.scene, progress=not args.quiet,
+        fresh=args.fresh)
+    if not args.quiet:
+        for row in report["rows"]:
+            a, e = row["adaptive"], row["error_aware"]
+            print(f"{row['size']}² (base LOD {row['base_lod']}): adaptive "
+                  f"{a['rays_per_pixel']:.2f} rays/px, PSNR {fmt(a['psnr'], '.2f')} dB; "
+                  f"error-aware {e['rays_per_pixel']:.2f} rays/px, "
+                  f"PSNR {fmt(e['psnr'], '.2f')} dB")
+        print(f"wrote {out}/results.md, results.json, resolution.png")
+    return 0
+
+
+def run_lighting(args) -> int:
+    octree = open_octree(args)
+    if len(lighting_channels(octree)) < 2:
+        suns = parse_suns(args.times or "all")
+        octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet)
+    view = camera(args, octree.voxel_bounds)
+    channels = args.channels.split(",") if args.channels else None
+    out = args.out or default_output("lighting", args.scene)
+    report = run_lighting_study(
+        octree, view, out, channels=channels, threshold=args.threshold, decay=args.decay,
+        base_lod=args.base_lod, bright_ratio=args.bright_ratio, seed=args.seed,
+        scene_name=args.scene, progress=not args.quiet, fresh=args.fresh)
+    if not args.quiet:
+        for row in report["rows"]:
+            parts = [f"{label} {row[key]['steps']:,} steps {fmt(row[key]['psnr'], '.2f')} dB"
+                     for key, label in (("adaptive", "A"), ("error_aware", "EA"),
+                                        ("lighting_aware", "EA-L"))]
+            print(f"{row['channel']:>10}: " + "; ".join(parts))
+        print(f"wrote {out}/results.md, results.json, lighting.png, contact_sheet.png")
+    return 0
+
+
+def run_probe_resolution(args) -> int:
+    octree = open_octree(args)
+    grid = parse_grid(args.grid, octree.voxel_bounds)
+    report = probe_resolution_study(
+        octree, grid.positions[grid.enabled], args.resolutions, threshold=args.threshold,
+        decay=args.decay, seed=args.seed, channel=args.channel, scene_name=args.scene,
+        progress=not args.quiet)
+    folder = StudyFolder(args.out or default_output("probe_resolution", args.scene))
+    folder.write_json("results.json", report)
+    path = folder.write_text("results.md", probe_resolution_markdown(report))
+    if not args.quiet:
+        print(probe_resolution_markdown(report))
+        print(f"wrote {path} and results.json")
+    return 0
+
+
+def _register_probes(actions) -> argparse.ArgumentParser:
+    """``study probes``: the probe thesis's analysis."""
+
+    p = actions.add_parser(
+        "probes", help="the probe thesis's analysis (ch. 9): quality, fetches per marcher "
+        "per resolution, failures per probe count, orderings, wall time",
+        description="Bake probes on the scene and render one view from them: PSNR/SSIM of the "
+        "light-field, environment and box-proxy renders against the octree's own render of "
+        "the same rays; texel fetches per pixel for each marcher per probe resolution (with "
+        "the growth exponent against the thesis's O(sqrt r) and O(log r)); failures and "
+        "fetches per probe count; first-probe success per ordering; wall time against direct "
+        "octree tracing. Writes results.json, results.md, plots and a contact sheet. "
+        "Resumable. The default camera, room, looks from just inside the scene box's +z face "
+        "towards its -z face (the Cornell box through its open front); --camera top, oblique, "
+        "... or --eye/--target choose another.",
+    )
+    add_scene_options(p)
+    p.add_argument("--grid", default="1x1x1", metavar="NXxNYxNZ",
+                   help="main probe grid fitted to the scene (default 1x1x1: one probe at the "
+                   "centre, the thesis's Holodeck test)")
+    p.add_argument("--resolutions", type=positive_int_list, default=THESIS_RESOLUTIONS,
+                   help="comma-separated probe map sides (default 64,128,256,512,1024)")
+    p.add_argument("--probe-counts", type=counts_list,
+                   default=DEFAULT_PROBE_COUNTS, metavar="GRIDS",
+                   help="comma-separated grids for the probe-count section (default "
+                   "1x1x1,2x2x2,3x3x3,4x4x4)")
+    p.add_argument("--count-resolution", type=int, default=None, metavar="R",
+                   help="probe map side of the probe-count and ordering sections (default "
+                   "the largest resolution up to 256)")
+    p.add_argument("--marchers", type=name_list, default=MARCHERS,
+                   help="comma-separated marchers (default march3d,dda,hierarchical)")
+    p.add_argument("--orderings", type=name_list, default=ORDERINGS,
+                   help="comma-separated orderings (default signed-dot,nearest,fixed)")
+    defaults = LightFieldOptions()
+    p.add_argument("--epsilon", choices=tuple(EPSILON_MODES), default=defaults.epsilon,
+                   help=f"hit acceptance rule (default {defaults.epsilon})")
+    p.add_argument("--epsilon-value", type=float, default=defaults.epsilon_value, metavar="E",
+                   help=f"constant epsilon in voxels (default {defaults.epsilon_value})")
+    p.add_argument("--epsilon-k", type=float, default=defaults.epsilon_k, metavar="K",
+                   help=f"adaptive/angular epsilon scale (default {defaults.epsilon_k})")
+    p.add_argument("--backface", action="store_true", help="reject backface hits")
+    p.add_argument("--no-fallback", action="store_true",
+                   help="leave rays every probe loses unknown instead of falling back")
+    p.add_argument("--no-relocate", action="store_true",
+                   help="keep probes on their lattice points even inside geometry")
+    p.add_argument("--repeats", type=int, default=3,
+                   help="timed runs per renderer in the wall-time section (default 3)")
+    p.add_argument("--out", default=None, help="output folder (default out/probe_study_SCENE)")
+    p.add_argument("--fresh", action="store_true", help="ignore cached items")
+    add_channel_option(p)
+    add_view_options(p, size=256)
+    p.set_defaults(func=run_probes, camera="room")
+    return p
+
+
+
+
+def counts_list(text: str) -> tuple[tuple[int, int, int], ...]:
+    try:
+        return tuple(parse_counts(part) for part in text.split(","))
+    except VoxfieldError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+
+
+def run_probes(args) -> int:
+    quiet = getattr(args, "quiet", False)
+    octree = open_octree(args)
+    view = camera(args, octree.voxel_bounds)
+    options = LightFieldOptions(epsilon=args.epsilon, epsilon_value=args.epsilon_value,
+                                epsilon_k=args.epsilon_k, backface=args.backface,
+                                fallback=not args.no_fallback)
+    out = args.out or default_output("probe_study", args.scene)
+    report = run_probe_study(
+        octree, out, scene_name=args.scene, camera=view, grid_counts=parse_counts(args.grid),
+        resolutions=args.resolutions, probe_counts=args.probe_counts,
+        orderings=args.orderings, marchers=args.marchers,
+        count_resolution=args.count_resolution, options=options,
+        relocate_probes=not args.no_relocate, channel=args.channel,
+        timing_repeats=args.repeats, seed=args.seed, progress=not quiet, fresh=args.fresh)
+    if not quiet:
+        print(results_markdown(report))
+        print(f"wrote {out}/results.md, results.json, fetches_vs_resolution.png, "
+              "probe_count.png, orderings.png, contact_sheet.png")
+    return 0

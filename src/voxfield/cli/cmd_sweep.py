@@ -1,0 +1,52 @@
+"""``voxfield sweep``: the decay × threshold grid of EA Table 5.1."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from voxfield.cli.options import (
+    add_channel_option,
+    add_renderer_options,
+    add_scene_options,
+    add_view_options,
+    camera,
+    float_list,
+    open_octree,
+)
+from voxfield.studies.sweep import THESIS_DECAYS, THESIS_THRESHOLDS, run_sweep
+
+
+def register(subparsers) -> None:
+    p = subparsers.add_parser(
+        "sweep", help="decay × threshold grid of ray counts and quality (EA Table 5.1)",
+        description="Render the error-aware renderer over a decay × threshold grid, beside "
+        "the adaptive renderer and the 4×4 reference; resumable.",
+    )
+    add_scene_options(p)
+    p.add_argument("--decays", type=float_list, default=THESIS_DECAYS,
+                   help="comma-separated decays (default the thesis's 0.05..0.3)")
+    p.add_argument("--thresholds", type=float_list, default=THESIS_THRESHOLDS,
+                   help="comma-separated thresholds (default the thesis's 0.175..0.05)")
+    add_renderer_options(p, ("error-aware",), only=("base_lod",), prefix=False)
+    p.add_argument("--out", default=None, help="output folder (default out/sweep_SCENE)")
+    add_channel_option(p)
+    p.add_argument("--fresh", action="store_true", help="ignore cached cells")
+    add_view_options(p)
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    octree = open_octree(args)
+    view = camera(args, octree.voxel_bounds)
+    out = args.out or f"out/sweep_{Path(args.scene).stem.replace(':', '_')}"
+    report = run_sweep(octree, view, out, decays=args.decays, thresholds=args.thresholds,
+                       base_lod=args.base_lod, seed=args.seed, channel=args.channel,
+                       scene_name=args.scene, progress=not args.quiet, fresh=args.fresh)
+    if not args.quiet:
+        print(f"adaptive: {report['adaptive']['rays']:,} rays; per decay, the threshold "
+              "closest to it:")
+        for pick in report["closest_to_adaptive"]:
+            print(f"  d={pick['decay']}: t={pick['threshold']} → {pick['rays']:,} rays, "
+                  f"PSNR {pick['psnr']:.2f} dB")
+        print(f"wrote {out}/results.md, results.json, sweep.png")
+    return 0

@@ -1,0 +1,60 @@
+"""The ``voxfield`` entry point: the main parser, one sub-command group per ``cmd_*`` module.
+
+Bad input prints one line, ``voxfield: error: ...``, and exits with status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from voxfield.cli import (
+    cmd_calibrate,
+    cmd_compare,
+    cmd_errors,
+    cmd_light,
+    cmd_probe_render,
+    cmd_probes,
+    cmd_render,
+    cmd_scenes,
+    cmd_shadows,
+    cmd_study,
+    cmd_sweep,
+)
+from voxfield.cli.options import QUIET_HELP
+from voxfield.errors import VoxfieldError
+
+EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+#: Command groups in the order ``voxfield --help`` lists them.
+COMMAND_GROUPS = (
+    cmd_render, cmd_scenes, cmd_errors, cmd_calibrate, cmd_sweep, cmd_compare, cmd_study,
+    cmd_light, cmd_shadows, cmd_probes, cmd_probe_render,
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="voxfield",
+        description="Sparse voxel octrees with error-aware LOD, light probes and ray queries.",
+    )
+    parser.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+    sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for group in COMMAND_GROUPS:
+        group.register(sub)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    args.quiet = getattr(args, "quiet", False)
+    try:
+        return args.func(args)
+    except VoxfieldError as exc:
+        print(f"voxfield: error: {exc}", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt:
+        print("voxfield: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED

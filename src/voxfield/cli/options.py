@@ -1,0 +1,243 @@
+"""Options shared by the commands: argument types, the scene, view and renderer option
+groups, and turning parsed arguments into an octree, a camera and an output path.
+
+Renderer options are generated from each renderer's options dataclass (``render.registry``),
+so a default or a help text is written once, beside the renderer.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import re
+from pathlib import Path
+
+import numpy as np
+
+from voxfield.errors import VoxfieldError
+from voxfield.render.camera import CAMERA_PRESETS, Camera, preset_camera
+from voxfield.render.registry import RENDERERS
+from voxfield.scene.loaders import SceneOptions
+from voxfield.svo.open import open_octree as open_octree_from_spec
+
+QUIET_HELP = "no progress bars or summaries"
+
+
+# --------------------------------------------------------------------------- argument types
+
+
+def vector_arg(text: str) -> tuple[float, float, float]:
+    """Three comma-separated numbers, ``1,2,3``."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if len(values) != 3:
+        raise argparse.ArgumentTypeError(f"expected three numbers like 1,2,3, got {text!r}")
+    return values
+
+
+def lod_arg(text: str) -> int | None:
+    """A LOD number (0 = voxels) or 'cone' (None: chosen from the pixel footprint)."""
+    if text == "cone":
+        return None
+    try:
+        value = int(text)
+    except ValueError:
+        message = f"expected a LOD (0, 1, 2, ...) or 'cone', got {text!r}"
+        raise argparse.ArgumentTypeError(message) from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"a LOD is 0 or more, got {value}")
+    return value
+
+
+def int_at_least(low: int):
+    """An argparse type: a whole number no smaller than ``low``."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+        if value < low:
+            raise argparse.ArgumentTypeError(f"expected {low} or more, got {text!r}")
+        return value
+
+    return parse
+
+
+positive_int = int_at_least(1)
+
+
+def float_list(text: str) -> tuple[float, ...]:
+    """Comma-separated numbers, at least one."""
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected numbers like 0.1,0.2, got {text!r}") from None
+    return values
+
+
+def positive_int_list(text: str) -> tuple[int, ...]:
+    """Comma-separated positive whole numbers (sizes, resolutions)."""
+    try:
+        values = tuple(int(v) for v in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected sizes like 128,256, got {text!r}") from None
+    if any(v < 1 for v in values):
+        raise argparse.ArgumentTypeError(f"sizes must be positive, got {text!r}")
+    return values
+
+
+def name_list(text: str) -> tuple[str, ...]:
+    """Comma-separated names; blanks dropped."""
+    return tuple(v.strip() for v in text.split(",") if v.strip())
+
+
+#: argparse types named by a renderer option's ``metadata["type"]``.
+_FIELD_TYPES = {"lod": lod_arg, "positive": positive_int}
+
+
+# --------------------------------------------------------------------------- option groups
+
+
+def add_quiet(p: argparse.ArgumentParser) -> None:
+    """``--quiet`` on a sub-command (the main parser's own --quiet still works before it)."""
+    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help=QUIET_HELP)
+
+
+def add_scene_options(p: argparse.ArgumentParser) -> None:
+    """The scene argument and how to read and build it."""
+    p.add_argument(
+        "scene",
+        help="scene: a .vox/.obj/.glb/.ply/.hgt/.tif/.npz file, builtin:NAME, terrain:RECIPE "
+        "or dem:jacksboro (see `voxfield scenes`)",
+    )
+    p.add_argument("--mesh-resolution", type=positive_int, default=256, metavar="N",
+                   help="voxels along a mesh's longest side (default 256)")
+    p.add_argument("--footprint", type=positive_int, default=512, metavar="N",
+                   help="terrain footprint in voxels per side (default 512)")
+    p.add_argument("--vertical-scale", type=float, default=None, metavar="S",
+                   help="terrain height multiplier (default: true scale)")
+    p.add_argument("--seed", type=int, default=0, help="seed for sampling and scattering")
+    p.add_argument("--colour-storage", choices=("srgb8", "float32"), default="srgb8",
+                   help="how a built octree keeps its albedo: 8-bit sRGB, 3 bytes a node "
+                   "(default), or float32, 12 bytes")
+    p.add_argument("--lod-colour", choices=("mean", "surface"), default="mean",
+                   help="inner-node colours: mean of the children (default, as the EA thesis) "
+                   "or mean of the voxels with an exposed face")
+
+
+def add_channel_option(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--channel", default="albedo",
+                   help="colour channel: albedo or a baked time of day (`voxfield light`)")
+
+
+def add_view_options(p: argparse.ArgumentParser, size: int = 512) -> None:
+    """Camera and image options shared by every command that renders, plus --quiet."""
+    p.add_argument("--camera", default="top",
+                   help=f"preset view: {', '.join(_preset_names())} (default top)")
+    p.add_argument("--eye", type=vector_arg, default=None, metavar="X,Y,Z",
+                   help="pinhole eye position in octree voxel units (with --target)")
+    p.add_argument("--target", type=vector_arg, default=None, metavar="X,Y,Z")
+    p.add_argument("--fov", type=float, default=None, help="vertical field of view in degrees")
+    p.add_argument("--size", type=positive_int, default=size,
+                   help=f"image width = height (default {size})")
+    add_quiet(p)
+
+
+def _preset_names() -> list[str]:
+    names = [n for n in CAMERA_PRESETS if not n.startswith("cube")]
+    return [*names, "cube+x..cube-z"]
+
+
+def set_option_help(p: argparse.ArgumentParser, dest: str, help: str) -> None:
+    """Reword a shared option's help for one command (its default changed, say)."""
+    next(a for a in p._actions if a.dest == dest).help = help
+
+
+def add_threshold_options(p: argparse.ArgumentParser) -> None:
+    """The error-aware threshold and decay, for studies that fix the rest."""
+    add_renderer_options(p, ("error-aware",), only=("threshold", "decay"), prefix=False)
+
+
+def add_renderer_options(p: argparse.ArgumentParser, renderers, *, only=None,
+                         prefix: bool = True) -> None:
+    """One option per field of the named renderers' options dataclasses (fields marked
+    ``cli: False`` excepted). A field shared by several renderers becomes one option whose
+    help names them all; ``prefix`` starts each help with the renderers it applies to."""
+    by_flag: dict[str, tuple[dataclasses.Field, list[str]]] = {}
+    for name in renderers:
+        for f in dataclasses.fields(RENDERERS[name].options_type):
+            if f.metadata.get("cli", True) is False or (only and f.name not in only):
+                continue
+            flag = f.metadata.get("flag", "--" + f.name.replace("_", "-"))
+            if flag in by_flag:
+                by_flag[flag][1].append(name)
+            else:
+                by_flag[flag] = (f, [name])
+    for flag, (f, names) in by_flag.items():
+        text = f.metadata.get("help", "")
+        if "default" not in text and f.type not in ("bool",) and f.default is not None:
+            text = f"{text} (default {f.default})"
+        if prefix:
+            text = f"{'/'.join(names)}: {text}"
+        kwargs = {"dest": f.name, "default": f.default, "help": text}
+        if f.type == "bool":
+            p.add_argument(flag, action="store_true", **kwargs)
+            continue
+        if "choices" in f.metadata:
+            kwargs["choices"] = f.metadata["choices"]
+        kwargs["type"] = _FIELD_TYPES.get(f.metadata.get("type"), _python_type(f.type))
+        kwargs["metavar"] = flag[2:].upper().replace("-", "_")
+        p.add_argument(flag, **kwargs)
+
+
+def _python_type(annotation: str):
+    """The argparse type of an options field from its (string) annotation."""
+    head = annotation.split("|")[0].strip()
+    return {"int": int, "float": float, "str": str}[head]
+
+
+def renderer_options_from(args, renderer: str):
+    """The named renderer's options dataclass filled from parsed arguments."""
+    options_type = RENDERERS[renderer].options_type
+    values = {f.name: getattr(args, f.name) for f in dataclasses.fields(options_type)
+              if f.metadata.get("cli", True) is not False and hasattr(args, f.name)}
+    return options_type(**values)
+
+
+# --------------------------------------------------------------------------- arguments → objects
+
+
+def scene_options(args) -> SceneOptions:
+    return SceneOptions(
+        mesh_resolution=args.mesh_resolution, terrain_footprint=args.footprint,
+        vertical_scale=args.vertical_scale, seed=args.seed,
+    )
+
+
+def open_octree(args):
+    """The octree the scene options name: loaded from a file or built (streamed for
+    terrains), with a progress bar unless --quiet."""
+    return open_octree_from_spec(
+        args.scene, scene_options(args), progress=not args.quiet,
+        lod_colour=args.lod_colour, colour_storage=getattr(args, "colour_storage", "srgb8"))
+
+
+def camera(args, bounds) -> Camera:
+    """The view the options ask for over ``bounds`` (an octree's voxel box): --eye/--target,
+    or a preset."""
+    lo, hi = (np.asarray(b, np.float64) for b in bounds)
+    if args.eye is not None or args.target is not None:
+        if args.eye is None or args.target is None:
+            raise VoxfieldError("--eye and --target must be given together")
+        return Camera.look_at(args.eye, args.target, fov_deg=args.fov or 60.0, width=args.size)
+    return preset_camera(args.camera, lo, hi, size=args.size, fov_deg=args.fov)
+
+
+def default_output(prefix: str, scene: str, suffix: str = "") -> Path:
+    """``out/PREFIX_NAME[SUFFIX]``, NAME the scene's file stem or ``kind:NAME`` name, made
+    path-safe: where a command writes when no ``--out`` is given."""
+    name = scene.split(":", 1)[1] if ":" in scene and not Path(scene).exists() else scene
+    name = Path(name).stem or "scene"
+    return Path("out") / f"{prefix}_{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}{suffix}"

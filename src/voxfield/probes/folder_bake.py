@@ -1,0 +1,120 @@
+"""The resumable bake: a probe grid baked into a probe-set folder (``probes.probe_folder``),
+each probe's file written as soon as it is baked, so a stopped bake continues where it
+stopped and a finished one is never baked again."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import numpy as np
+
+from voxfield.probes.distributed import bake_each
+from voxfield.probes.probe_folder import (
+    HEADER_NAME,
+    ProbeSetMismatchError,
+    ProbeStorageError,
+    clear_folder,
+    differences,
+    identity,
+    jsonable,
+    new_header,
+    open_probe_set,
+    read_header,
+    verified_probes,
+    write_atlases,
+    write_header,
+    write_probe,
+)
+
+#: Seconds between header rewrites while baking: a probe whose record missed the last
+#: rewrite is simply baked again on resume, so this bounds lost work, not correctness.
+HEADER_FLUSH_SECONDS = 1.0
+
+
+def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = False,
+                   progress: bool = False, source: dict | None = None, relocation=None,
+                   baker=None):
+    """Bake ``grid`` into the probe-set folder ``out`` and return the finished ``ProbeSet``.
+
+    The header is written first; each probe's file is written (atomically) as soon as it is
+    baked, and the header records it. Re-running on a folder baked from the same scene,
+    grid and options bakes only the probes that are missing or fail their checksum, so a
+    killed bake continues where it stopped. A folder from another scene, grid or options is
+    refused with ``ProbeSetMismatchError`` unless ``fresh`` (start over, deleting its
+    probe files). ``scheduler`` picks where probes run (see ``voxfield.probes.distributed``);
+    ``baker`` replaces ``bake_probe`` (tests count calls with it).
+
+    ``source`` (how to reopen the scene, e.g. the CLI's scene argument and options) and
+    ``relocation`` (a ``RelocationReport``) are recorded for ``voxfield probes show``; they
+    are not part of what must match on resume. ``last_run`` in the header says how many
+    probes this run baked and reused, on which scheduler, in how many wall-clock seconds.
+    """
+
+    started = time.perf_counter()
+    folder = Path(out)
+    if folder.exists() and not folder.is_dir():
+        raise ProbeStorageError(f"{folder} exists and is not a folder; pick another --out")
+    channel = getattr(options, "channel", "albedo")
+    header = new_header(grid=grid, options=options,
+                        fingerprint=octree.fingerprint(channel), channel=channel,
+                        scene_name=getattr(octree, "name", "scene"))
+    if source is not None:
+        header["scene"]["source"] = jsonable(source)
+    if relocation is not None:
+        report = relocation.to_dict() if hasattr(relocation, "to_dict") else dict(relocation)
+        report.pop("offsets", None)  # the grid holds them
+        header["relocation"] = jsonable(report)
+    if fresh:
+        clear_folder(folder)
+    elif (folder / HEADER_NAME).exists():
+        old = read_header(folder)
+        differs = differences(identity(old), identity(header))
+        if differs:
+            raise ProbeSetMismatchError(
+                f"{folder} holds probes baked from a different " + " and ".join(differs)
+                + "; use another --out, or --fresh to discard them"
+            )
+        header["probes"] = old["probes"]
+    folder.mkdir(parents=True, exist_ok=True)
+
+    done = verified_probes(folder, header)
+    header["probes"] = {str(i): header["probes"][str(i)] for i in sorted(done)}
+    enabled = np.asarray(grid.enabled, bool).reshape(-1)
+    todo = [i for i in range(grid.count) if enabled[i] and i not in done]
+    header["complete"] = False
+    header.pop("atlas", None)
+    header["last_run"] = {"baked": len(todo), "reused": len(done),
+                          "scheduler": _scheduler_name(scheduler)}
+    write_header(folder, header)
+
+    last_flush = time.monotonic()
+
+    def store(index: int, maps) -> None:
+        nonlocal last_flush
+        header["probes"][str(index)] = write_probe(folder, index, maps)
+        if time.monotonic() - last_flush >= HEADER_FLUSH_SECONDS:
+            write_header(folder, header)
+            last_flush = time.monotonic()
+
+    try:
+        bake_each(octree, grid, options, todo, store, scheduler=scheduler, progress=progress,
+                  baker=baker)
+    finally:
+        # Whatever finished before an error or Ctrl-C is kept for the next run.
+        write_header(folder, header)
+
+    probe_set = open_probe_set(folder)
+    header["atlas"] = write_atlases(folder, probe_set.radiance, probe_set.distance,
+                                    probe_set.normal)
+    header["complete"] = True
+    header["last_run"]["wall_seconds"] = time.perf_counter() - started
+    write_header(folder, header)
+    return probe_set
+
+
+def _scheduler_name(scheduler) -> str:
+    if scheduler is None or isinstance(scheduler, str):
+        return scheduler or "threads"
+    address = getattr(getattr(scheduler, "scheduler", None), "address", None)
+    return str(address or type(scheduler).__name__)
