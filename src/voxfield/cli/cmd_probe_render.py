@@ -27,14 +27,22 @@ from voxfield.cli.options import (
     vector_arg,
 )
 from voxfield.errors import VoxfieldError
+from voxfield.lightfield.accuracy import depth_agreement, perfect_trace_image, pixel_classes
 from voxfield.lightfield.baselines import FILTERS
+from voxfield.lightfield.packed import PackedProbes
 from voxfield.lightfield.probe_render import METHODS, probe_set_bounds, render_from_probes
 from voxfield.lightfield.probe_render_figures import (
     map_summary,
     write_probe_maps,
     write_side_by_side,
 )
-from voxfield.lightfield.trace import EPSILON_MODES, MARCHERS, ORDERINGS, LightFieldOptions
+from voxfield.lightfield.trace import (
+    COLOUR_FILTERS,
+    EPSILON_MODES,
+    MARCHERS,
+    ORDERINGS,
+    LightFieldOptions,
+)
 from voxfield.metrics import compare_images
 from voxfield.probes.probe_folder import open_probe_set
 from voxfield.render.image_io import save_result_image
@@ -63,11 +71,12 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help=f"light-field: march in 3D, texel by texel (dda) or over min-depth "
                    f"mips (default {defaults.marcher})")
     p.add_argument("--ordering", choices=tuple(ORDERINGS), default=defaults.ordering,
-                   help=f"light-field: which probe of the cage goes first (default "
-                   f"{defaults.ordering}, the probe thesis's)")
+                   help=f"light-field: which probe of each cage goes first (default "
+                   f"{defaults.ordering}; signed-dot is the probe thesis's)")
     p.add_argument("--epsilon", choices=tuple(EPSILON_MODES), default=defaults.epsilon,
-                   help=f"light-field: hit acceptance rule (default {defaults.epsilon}; "
-                   "adaptive is the probe thesis's §7.1)")
+                   help=f"light-field: hit acceptance rule (default {defaults.epsilon}: thick "
+                   "behind a surface by the depth one texel spans; adaptive is the probe "
+                   "thesis's §7.1 as printed, adaptive-text the form its text derives)")
     p.add_argument("--epsilon-value", type=float, default=defaults.epsilon_value, metavar="E",
                    help=f"light-field, constant epsilon: thickness in voxels "
                    f"(default {defaults.epsilon_value})")
@@ -81,6 +90,12 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--no-fallback", action="store_true",
                    help="light-field: leave rays every probe loses unknown (black) instead of "
                    "reading the nearest probe as an environment map")
+    p.add_argument("--consensus", action="store_true",
+                   help="light-field: before taking a hit, ask the other probes around it "
+                   "whether they see empty space there (fewer false hits, more fetches)")
+    p.add_argument("--colour-filter", choices=COLOUR_FILTERS, default=defaults.colour_filter,
+                   help=f"light-field: how a hit's radiance is read (default "
+                   f"{defaults.colour_filter})")
     p.add_argument("--filter", choices=FILTERS, default="bilinear",
                    help="baselines: bilinear (bordered map, default) or nearest texel")
     p.add_argument("--box-min", type=vector_arg, default=None, metavar="X,Y,Z",
@@ -135,14 +150,15 @@ def run(args) -> int:
     box = None
     if args.method == "box-proxy":
         box = bounds if args.box_min is None else (args.box_min, args.box_max)
+    packed = PackedProbes.from_probe_set(probe_set)
     result = render_from_probes(probe_set, view, method=args.method, options=options,
                                 box=box, filter=args.filter, threads=args.threads,
-                                progress=not args.quiet)
+                                progress=not args.quiet, packed=packed)
     save_result_image(result, out)
     written = [out]
     summary = {**result.summary(), **map_summary(result)}
     if args.compare:
-        metrics, reference = _compare(args, octree, view, probe_set, result)
+        metrics, reference = _compare(args, octree, view, probe_set, packed, result)
         summary["compare"] = metrics
         written.append(write_side_by_side(result, reference, metrics,
                                           f"{out.with_suffix('')}_compare.png"))
@@ -155,6 +171,13 @@ def run(args) -> int:
             m = summary["compare"]
             print(f"against the octree ({m['reference']}): PSNR {m['psnr']:.2f} dB, "
                   f"SSIM {m['ssim']:.4f}, RMSE {m['rmse']:.4f} (linear RGB in [0, 1])")
+            print(f"perfect-trace bound {m['bound_psnr']:.2f} dB (gap {m['bound_gap_db']:.2f} "
+                  f"dB); depth: median {m['depth']['median']:.2f}, 99th percentile "
+                  f"{m['depth']['p99']:.2f} voxels, {100 * m['depth']['within_1']:.1f} % "
+                  "within 1 voxel")
+            print("pixels: " + ", ".join(
+                f"{name} {c['pixels']:,} ({100 * c['share_of_error']:.0f} % of the error)"
+                for name, c in m["classes"].items() if c["pixels"]))
         for path in written:
             print(f"wrote {path}")
     return 0
@@ -165,7 +188,8 @@ def _trace_options(args):
     return LightFieldOptions(
         marcher=args.marcher, step=args.step, epsilon=args.epsilon,
         epsilon_value=args.epsilon_value, epsilon_k=args.epsilon_k, backface=args.backface,
-        ordering=args.ordering, fallback=not args.no_fallback)
+        ordering=args.ordering, fallback=not args.no_fallback, consensus=args.consensus,
+        colour_filter=args.colour_filter)
 
 
 def _open_scene(args, probe_set):
@@ -185,8 +209,9 @@ def _open_scene(args, probe_set):
     return octree
 
 
-def _compare(args, octree, view, probe_set, result) -> tuple[dict, object]:
-    """Render the view from the octree and measure the probe render against it."""
+def _compare(args, octree, view, probe_set, packed, result) -> tuple[dict, object]:
+    """Render the view from the octree and measure the probe render against it: quality,
+    the perfect-trace bound, depth agreement and what went wrong where."""
     common = {"channel": probe_set.options.channel, "threads": args.threads,
               "progress": not args.quiet, "seed": args.seed}
     if args.spp_side == 1:
@@ -198,6 +223,13 @@ def _compare(args, octree, view, probe_set, result) -> tuple[dict, object]:
     # Metrics read linear [0, 1]; an emitter's radiance above 1 is clipped on both sides.
     metrics = compare_images(np.clip(reference.image, 0.0, 1.0), np.clip(result.image, 0.0, 1.0))
     metrics["reference"] = name
+    truth = np.clip(reference.image, 0.0, 1.0)
+    bound = perfect_trace_image(packed, view, reference.depth, threads=args.threads)
+    metrics["bound_psnr"] = compare_images(truth, np.clip(bound, 0.0, 1.0))["psnr"]
+    metrics["bound_gap_db"] = metrics["bound_psnr"] - metrics["psnr"]
+    metrics["depth"] = depth_agreement(result.depth, reference.depth)
+    metrics["classes"] = pixel_classes(result.maps["result_kind"], result.depth,
+                                       np.clip(result.image, 0.0, 1.0), reference.depth, truth)
     return metrics, reference
 
 

@@ -213,9 +213,9 @@ def _register_probes(actions) -> argparse.ArgumentParser:
         "the growth exponent against the thesis's O(sqrt r) and O(log r)); failures and "
         "fetches per probe count; first-probe success per ordering; wall time against direct "
         "octree tracing. Writes results.json, results.md, plots and a contact sheet. "
-        "Resumable. The default camera, room, looks from just inside the scene box's +z face "
-        "towards its -z face (the Cornell box through its open front); --camera top, oblique, "
-        "... or --eye/--target choose another.",
+        "Resumable. The default camera, room, looks from inside the scene box, 30% in from "
+        "its +z face and off the probe lattice planes, towards its -z face; --camera top, "
+        "oblique, ... or --eye/--target choose another.",
     )
     add_scene_options(p)
     p.add_argument("--grid", default="1x1x1", metavar="NXxNYxNZ",

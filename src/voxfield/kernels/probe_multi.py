@@ -1,13 +1,18 @@
 """Multi-probe light-field tracing (probe thesis §5.4-5.5, Algorithms 4-6).
 
-Each ray is answered by the 8 probes of the lattice cell around its origin (the cage; points
-outside the grid use the nearest border cell, as ``ProbeGrid.cell_of``). The first probe is
-the one the ordering heuristic prefers; the others follow in the thesis's ``i + 3 mod 8``
-order over the cage corners (corner ``c`` has lattice offset ``(c & 1, c >> 1 & 1,
-c >> 2 & 1)``: bits zyx). Each probe continues from the ``t`` where the previous one lost
-visibility (Algorithm 5), so no part of the ray is marched twice. When every probe of the cage
-has lost the ray, the nearest probe answers as an environment map (§5.4): its radiance in
-direction ω.
+Each ray is answered by the 8 probes of the lattice cell around the point it has reached (the
+cage; points outside the grid use the nearest border cell, as ``ProbeGrid.cell_of``): at
+first its origin. The first probe is the one the ordering heuristic prefers; the others
+follow in the thesis's ``i + 3 mod 8`` order over the cage corners (corner ``c`` has lattice
+offset ``(c & 1, c >> 1 & 1, c >> 2 & 1)``: bits zyx). Each probe continues from the ``t``
+where the previous one lost visibility (Algorithm 5), so no part of the ray is marched twice;
+a probe that loses the ray further on re-forms the cage around that point, so the probes
+near where the ray now is carry it on (the thesis keeps the origin's cage, whose probes may
+all sit on one side of the ray). When no probe can carry the ray further, the nearest probe
+answers as an environment map (§5.4): its radiance in direction ω.
+
+A hit's colour is read at the hit point from the probe that sees that point most nearly
+along the ray (its stored distance agrees), bilinearly over its bordered map.
 """
 
 from __future__ import annotations
@@ -17,8 +22,18 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from voxfield.kernels.octahedral import texel_of_direction
-from voxfield.kernels.probe_march import FALLBACK, HIT, MISS, UNKNOWN, trace_probe
+from voxfield.kernels.octahedral import oct_encode, texel_of_direction
+from voxfield.kernels.probe_march import (
+    FALLBACK,
+    HIT,
+    MISS,
+    P_BILINEAR,
+    P_CONSENSUS,
+    P_EPSILON,
+    UNKNOWN,
+    slope_thickness,
+    trace_probe,
+)
 
 #: First-probe heuristics.
 ORDER_SIGNED_DOT = 0  # max ω · S²(X - P) (thesis §4.3, §5.7)
@@ -27,6 +42,8 @@ ORDER_FIXED = 2  # corner 0 first, whatever the ray
 
 #: Successive corners differ by this, mod 8 (Algorithm 6).
 CORNER_STRIDE = 3
+#: Most probe traces one ray makes across all the cages it passes through.
+MAX_PROBE_TRACES = 32
 
 
 @njit(cache=True, nogil=True)
@@ -131,38 +148,72 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
                           normals: np.ndarray, resolution: int, grid_origin: np.ndarray,
                           grid_spacing: np.ndarray, grid_counts: np.ndarray,
                           ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
-                          tmin: float, tmax: float, corners: np.ndarray):
-    """One ray through its probe cage. Returns ``(kind, t, probe, row, col, tried, fetches,
+                          tmin: float, tmax: float, corners: np.ndarray,
+                          tried_probe: np.ndarray, tried_t: np.ndarray,
+                          corners2: np.ndarray):
+    """One ray through its probe cages. Returns ``(kind, t, probe, row, col, tried, fetches,
     steps)``; ``kind`` is ``HIT``, ``MISS``, ``FALLBACK`` (probe = the environment map used,
     t = its stored distance in direction ω) or ``UNKNOWN`` (every probe lost the ray and
-    fallback is off; t = how far they got). ``corners`` is 8-int scratch."""
-    cage(grid_origin, grid_spacing, grid_counts, ox, oy, oz, corners)
-    corner = first_corner(ordering, corners, positions, enabled, ox, oy, oz, dx, dy, dz)
+    fallback is off; t = how far they got).
+
+    The cage is formed around the point the ray has reached: at first its origin, then,
+    each time a probe loses the ray further on, the point where it was lost, so the probes
+    around that point (not those around the camera) continue it. A probe is never traced
+    twice from the same point. With ``params[P_CONSENSUS]`` a hit that another probe of the
+    cage around it sees through (``seen_through``) is not taken: the ray marches on past it.
+    ``corners`` and ``corners2`` are 8-int scratch; ``tried_probe`` / ``tried_t``
+    (``MAX_PROBE_TRACES`` each) log the traces made."""
     t = tmin
     tried = 0
     fetches = 0
     steps = 0
-    start = corner
-    if start >= 0:
+    while tried < MAX_PROBE_TRACES and t < tmax:
+        qx = ox + t * dx
+        qy = oy + t * dy
+        qz = oz + t * dz
+        cage(grid_origin, grid_spacing, grid_counts, qx, qy, qz, corners)
+        start = first_corner(ordering, corners, positions, enabled, qx, qy, qz, dx, dy, dz)
+        if start < 0:
+            break
+        advanced = False
         for m in range(8):
-            corner = (start + CORNER_STRIDE * m) % 8
-            p = corners[corner]
-            seen = False
-            for earlier in range(m):  # a cage on a one-probe axis repeats probes
-                if corners[(start + CORNER_STRIDE * earlier) % 8] == p:
-                    seen = True
-            if enabled[p] and not seen:
-                tried += 1
-                kind, t_out, row, col, f, s = trace_probe(
-                    marcher, eps_mode, params, positions, mips, mip_offsets, mip_sizes,
-                    normals, resolution, p, ox, oy, oz, dx, dy, dz, t, tmax)
-                fetches += f
-                steps += s
-                if kind == HIT or kind == MISS:
-                    return kind, t_out, p, row, col, tried, fetches, steps
-                t = max(t, t_out)
+            p = corners[(start + CORNER_STRIDE * m) % 8]
+            if not enabled[p] or tried >= MAX_PROBE_TRACES:
+                continue
+            again = False
+            for j in range(tried):
+                if tried_probe[j] == p and tried_t[j] == t:
+                    again = True  # from this very point (a one-probe axis repeats corners)
+            if again:
+                continue
+            tried_probe[tried] = p
+            tried_t[tried] = t
+            tried += 1
+            kind, t_out, row, col, f, s = trace_probe(
+                marcher, eps_mode, params, positions, mips, mip_offsets, mip_sizes,
+                normals, resolution, p, ox, oy, oz, dx, dy, dz, t, tmax)
+            fetches += f
+            steps += s
+            if kind == HIT and params[P_CONSENSUS] != 0.0:
+                fetches += 8
+                if seen_through(positions, enabled, normals, mips, resolution, grid_origin,
+                                grid_spacing, grid_counts, p, ox + t_out * dx,
+                                oy + t_out * dy, oz + t_out * dz, params[P_EPSILON] + 0.5,
+                                corners2):
+                    # Another probe sees empty space at the hit point: march on past it.
+                    kind = UNKNOWN
+                    t_out = t_out + params[P_EPSILON] + 0.5
+            if kind == HIT or kind == MISS:
+                return kind, t_out, p, row, col, tried, fetches, steps
+            if t_out > t:
+                t = t_out
+                advanced = True
+                break  # re-form the cage where this probe lost the ray
+        if not advanced:
+            break
     if not fallback:
         return UNKNOWN, t, -1, -1, -1, tried, fetches, steps
+    cage(grid_origin, grid_spacing, grid_counts, ox, oy, oz, corners)
     p = nearest_enabled(corners, positions, enabled, ox, oy, oz)
     if p < 0:
         return UNKNOWN, t, -1, -1, -1, tried, fetches, steps
@@ -171,45 +222,231 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
             fetches + 1, steps)
 
 
+@njit(cache=True, nogil=True)
+def seen_through(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray,
+                 mips: np.ndarray, resolution: int, grid_origin: np.ndarray,
+                 grid_spacing: np.ndarray, grid_counts: np.ndarray, hit_probe: int, yx: float,
+                 yy: float, yz: float, tolerance: float, corners: np.ndarray) -> bool:
+    """Whether a probe of the cage around ``Y`` (other than the one that found it) stores a
+    surface farther than ``Y`` in ``Y``'s direction, by more than ``tolerance`` plus the
+    texel's slope: it sees empty space where the hit claims a surface."""
+    cage(grid_origin, grid_spacing, grid_counts, yx, yy, yz, corners)
+    for corner in range(8):
+        q = corners[corner]
+        if q == hit_probe or not enabled[q]:
+            continue
+        vx = yx - positions[q, 0]
+        vy = yy - positions[q, 1]
+        vz = yz - positions[q, 2]
+        length = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if length == 0.0:
+            continue
+        cx = vx / length
+        cy = vy / length
+        cz = vz / length
+        row, col = texel_of_direction(cx, cy, cz, resolution)
+        stored = np.float64(mips[q, row * resolution + col])
+        slack = tolerance + slope_thickness(
+            length, cx, cy, cz, np.float64(normals[q, row, col, 0]),
+            np.float64(normals[q, row, col, 1]), np.float64(normals[q, row, col, 2]),
+            resolution)
+        if stored > length + slack:
+            return True
+    return False
+
+
+@njit(cache=True, nogil=True)
+def hit_colour_probe(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray,
+                     distance_bordered: np.ndarray, resolution: int, grid_origin: np.ndarray,
+                     grid_spacing: np.ndarray, grid_counts: np.ndarray, hit_probe: int,
+                     hit_row: int, hit_col: int, yx: float, yy: float, yz: float, dx: float,
+                     dy: float, dz: float, tolerance: float, corners: np.ndarray) -> int:
+    """The probe whose radiance answers a hit at ``Y``: of the cage around ``Y`` (and the
+    probe that found the hit), the one most parallel to the ray that sees ``Y`` itself — its
+    stored distance there within ``tolerance`` (plus the texel's slope) of ``|Y - P|`` and its
+    stored surface facing the same way as the hit's (not a wall's back face)."""
+    hx = np.float64(normals[hit_probe, hit_row, hit_col, 0])
+    hy = np.float64(normals[hit_probe, hit_row, hit_col, 1])
+    hz = np.float64(normals[hit_probe, hit_row, hit_col, 2])
+    cage(grid_origin, grid_spacing, grid_counts, yx, yy, yz, corners)
+    best = hit_probe
+    best_score = -math.inf
+    for corner in range(9):
+        q = hit_probe if corner == 8 else corners[corner]
+        if not enabled[q]:
+            continue
+        vx = yx - positions[q, 0]
+        vy = yy - positions[q, 1]
+        vz = yz - positions[q, 2]
+        length = math.sqrt(vx * vx + vy * vy + vz * vz)
+        if length == 0.0:
+            continue
+        cx = vx / length
+        cy = vy / length
+        cz = vz / length
+        row, col = texel_of_direction(cx, cy, cz, resolution)
+        stored = np.float64(distance_bordered[q, row + 1, col + 1])
+        nx = np.float64(normals[q, row, col, 0])
+        ny = np.float64(normals[q, row, col, 1])
+        nz = np.float64(normals[q, row, col, 2])
+        slack = tolerance + slope_thickness(length, cx, cy, cz, nx, ny, nz, resolution)
+        if not abs(stored - length) <= slack:
+            continue
+        if nx * hx + ny * hy + nz * hz < 0.5:
+            continue
+        score = cx * dx + cy * dy + cz * dz
+        if score > best_score:
+            best_score = score
+            best = q
+    return best
+
+
+@njit(cache=True, nogil=True)
+def radiance_at(radiance_bordered: np.ndarray, distance_bordered: np.ndarray, probe: int,
+                cx: float, cy: float, cz: float, length: float, slack: float,
+                resolution: int) -> tuple[float, float, float]:
+    """Bilinear radiance of ``probe`` in direction ``c`` over its bordered map, leaving out
+    texels whose stored distance disagrees with ``length`` by more than ``slack`` (they show
+    another surface); the nearest texel when all four do."""
+    u, v = oct_encode(cx, cy, cz)
+    x = u * resolution + 0.5
+    y = v * resolution + 0.5
+    x0 = min(max(int(math.floor(x)), 0), resolution)
+    y0 = min(max(int(math.floor(y)), 0), resolution)
+    fx = min(max(x - x0, 0.0), 1.0)
+    fy = min(max(y - y0, 0.0), 1.0)
+    r = 0.0
+    g = 0.0
+    b = 0.0
+    total = 0.0
+    for k in range(4):
+        ix = x0 + (k & 1)
+        iy = y0 + (k >> 1)
+        w = (fx if k & 1 else 1.0 - fx) * (fy if k >> 1 else 1.0 - fy)
+        if w <= 0.0:
+            continue
+        stored = np.float64(distance_bordered[probe, iy, ix])
+        if not abs(stored - length) <= slack:
+            continue
+        r += w * radiance_bordered[probe, iy, ix, 0]
+        g += w * radiance_bordered[probe, iy, ix, 1]
+        b += w * radiance_bordered[probe, iy, ix, 2]
+        total += w
+    if total > 1e-9:
+        return r / total, g / total, b / total
+    row, col = texel_of_direction(cx, cy, cz, resolution)
+    return (np.float64(radiance_bordered[probe, row + 1, col + 1, 0]),
+            np.float64(radiance_bordered[probe, row + 1, col + 1, 1]),
+            np.float64(radiance_bordered[probe, row + 1, col + 1, 2]))
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def trace_light_field_rays(marcher: int, eps_mode: int, ordering: int, fallback: bool,
                            params: np.ndarray, positions: np.ndarray, enabled: np.ndarray,
                            mips: np.ndarray, mip_offsets: np.ndarray, mip_sizes: np.ndarray,
-                           normals: np.ndarray, radiance: np.ndarray, resolution: int,
-                           grid_origin: np.ndarray, grid_spacing: np.ndarray,
+                           normals: np.ndarray, radiance: np.ndarray,
+                           radiance_bordered: np.ndarray, distance_bordered: np.ndarray,
+                           resolution: int, grid_origin: np.ndarray, grid_spacing: np.ndarray,
                            grid_counts: np.ndarray, origins: np.ndarray, dirs: np.ndarray,
                            tmin: np.ndarray, tmax: np.ndarray, out_kind: np.ndarray,
                            out_t: np.ndarray, out_radiance: np.ndarray,
                            out_normal: np.ndarray, out_distance: np.ndarray,
                            out_probe: np.ndarray, out_tried: np.ndarray,
                            out_fetches: np.ndarray, out_steps: np.ndarray) -> None:
-    """Every ray, in parallel blocks; each ray's results depend only on that ray."""
+    """Every ray, in parallel blocks; each ray's results depend only on that ray. A hit's
+    colour comes from ``hit_colour_probe``, read bilinearly at the hit point."""
     n = len(origins)
     block = 256
+    tolerance = params[P_EPSILON] + 0.5
     for b in prange((n + block - 1) // block):
-        corners = np.empty(8, np.int64)
-        for i in range(b * block, min(n, (b + 1) * block)):
-            kind, t, p, row, col, tried, fetches, steps = trace_light_field_ray(
-                marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
-                mip_offsets, mip_sizes, normals, resolution, grid_origin, grid_spacing,
-                grid_counts, origins[i, 0], origins[i, 1], origins[i, 2], dirs[i, 0],
-                dirs[i, 1], dirs[i, 2], tmin[i], tmax[i], corners)
-            out_kind[i] = kind
-            out_t[i] = t
-            out_probe[i] = p
-            out_tried[i] = tried
-            out_fetches[i] = fetches
-            out_steps[i] = steps
-            if (kind == HIT or kind == FALLBACK) and row >= 0:
-                for c in range(3):
-                    out_radiance[i, c] = radiance[p, row, col, c]
-                    out_normal[i, c] = normals[p, row, col, c]
-                out_distance[i] = mips[p, row * resolution + col]
+        trace_block(marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
+                    mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
+                    distance_bordered, resolution, grid_origin, grid_spacing, grid_counts,
+                    origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
+                    out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
+                    b * block, min(n, (b + 1) * block))
+
+
+@njit(cache=True, nogil=True)
+def trace_block(marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
+                mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
+                distance_bordered, resolution, grid_origin, grid_spacing, grid_counts,
+                origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
+                out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
+                i0, i1) -> None:
+    """Rays ``[i0, i1)`` of ``trace_light_field_rays`` (a function of its own, so the
+    parallel loop only calls it)."""
+    corners = np.empty(8, np.int64)
+    corners2 = np.empty(8, np.int64)
+    tried_probe = np.empty(MAX_PROBE_TRACES, np.int64)
+    tried_t = np.empty(MAX_PROBE_TRACES, np.float64)
+    for i in range(i0, i1):
+        ox = origins[i, 0]
+        oy = origins[i, 1]
+        oz = origins[i, 2]
+        dx = dirs[i, 0]
+        dy = dirs[i, 1]
+        dz = dirs[i, 2]
+        kind, t, p, row, col, tried, fetches, steps = trace_light_field_ray(
+            marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
+            mip_offsets, mip_sizes, normals, resolution, grid_origin, grid_spacing,
+            grid_counts, ox, oy, oz, dx, dy, dz, tmin[i], tmax[i], corners, tried_probe,
+            tried_t, corners2)
+        out_kind[i] = kind
+        out_t[i] = t
+        out_probe[i] = p
+        out_tried[i] = tried
+        out_fetches[i] = fetches
+        out_steps[i] = steps
+        if kind == HIT and row >= 0:
+            yx = ox + t * dx
+            yy = oy + t * dy
+            yz = oz + t * dz
+            q = hit_colour_probe(positions, enabled, normals, distance_bordered, resolution,
+                                 grid_origin, grid_spacing, grid_counts, p, row, col, yx, yy,
+                                 yz, dx, dy, dz, tolerance, corners)
+            vx = yx - positions[q, 0]
+            vy = yy - positions[q, 1]
+            vz = yz - positions[q, 2]
+            length = math.sqrt(vx * vx + vy * vy + vz * vz)
+            if length > 0.0:
+                cx = vx / length
+                cy = vy / length
+                cz = vz / length
+                qr, qc = texel_of_direction(cx, cy, cz, resolution)
+                slack = tolerance + slope_thickness(
+                    length, cx, cy, cz, np.float64(normals[q, qr, qc, 0]),
+                    np.float64(normals[q, qr, qc, 1]), np.float64(normals[q, qr, qc, 2]),
+                    resolution)
+                if params[P_BILINEAR] != 0.0:
+                    cr, cg, cb = radiance_at(radiance_bordered, distance_bordered, q, cx, cy,
+                                             cz, length, slack, resolution)
+                else:
+                    cr = np.float64(radiance[q, qr, qc, 0])
+                    cg = np.float64(radiance[q, qr, qc, 1])
+                    cb = np.float64(radiance[q, qr, qc, 2])
+                p, row, col = q, qr, qc
             else:
-                for c in range(3):
-                    out_radiance[i, c] = 0.0
-                    out_normal[i, c] = 0.0
-                out_distance[i] = math.inf
+                cr = np.float64(radiance[p, row, col, 0])
+                cg = np.float64(radiance[p, row, col, 1])
+                cb = np.float64(radiance[p, row, col, 2])
+            out_probe[i] = p
+            out_radiance[i, 0] = cr
+            out_radiance[i, 1] = cg
+            out_radiance[i, 2] = cb
+            for c in range(3):
+                out_normal[i, c] = normals[p, row, col, c]
+            out_distance[i] = mips[p, row * resolution + col]
+        elif kind == FALLBACK and row >= 0:
+            for c in range(3):
+                out_radiance[i, c] = radiance[p, row, col, c]
+                out_normal[i, c] = normals[p, row, col, c]
+            out_distance[i] = mips[p, row * resolution + col]
+        else:
+            for c in range(3):
+                out_radiance[i, c] = 0.0
+                out_normal[i, c] = 0.0
+            out_distance[i] = math.inf
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -233,3 +470,76 @@ def trace_single_rays(marcher: int, eps_mode: int, params: np.ndarray, positions
         out_col[i] = col
         out_fetches[i] = fetches
         out_steps[i] = steps
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def perfect_trace_rays(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray,
+                       radiance_bordered: np.ndarray, distance_bordered: np.ndarray,
+                       resolution: int, points: np.ndarray, dirs: np.ndarray,
+                       tolerance: float, bilinear: bool, out_radiance: np.ndarray,
+                       out_probe: np.ndarray) -> None:
+    """The perfect-trace bound's colours: each ray is given its true hit point and reads the
+    enabled probe most parallel to it among those that see the point (stored distance within
+    ``tolerance`` plus the texel's slope; the most parallel of all when none does), bilinear
+    (as ``radiance_at``) or at the nearest texel."""
+    for i in prange(len(points)):
+        yx = points[i, 0]
+        yy = points[i, 1]
+        yz = points[i, 2]
+        best = -1
+        best_score = -math.inf
+        any_best = -1
+        any_score = -math.inf
+        for q in range(len(positions)):
+            if not enabled[q]:
+                continue
+            vx = yx - positions[q, 0]
+            vy = yy - positions[q, 1]
+            vz = yz - positions[q, 2]
+            length = math.sqrt(vx * vx + vy * vy + vz * vz)
+            if length == 0.0:
+                continue
+            cx = vx / length
+            cy = vy / length
+            cz = vz / length
+            score = cx * dirs[i, 0] + cy * dirs[i, 1] + cz * dirs[i, 2]
+            if score > any_score:
+                any_score = score
+                any_best = q
+            row, col = texel_of_direction(cx, cy, cz, resolution)
+            stored = np.float64(distance_bordered[q, row + 1, col + 1])
+            slack = tolerance + slope_thickness(
+                length, cx, cy, cz, np.float64(normals[q, row, col, 0]),
+                np.float64(normals[q, row, col, 1]), np.float64(normals[q, row, col, 2]),
+                resolution)
+            if abs(stored - length) <= slack and score > best_score:
+                best_score = score
+                best = q
+        q = best if best >= 0 else any_best
+        out_probe[i] = q
+        if q < 0:
+            for c in range(3):
+                out_radiance[i, c] = 0.0
+            continue
+        vx = yx - positions[q, 0]
+        vy = yy - positions[q, 1]
+        vz = yz - positions[q, 2]
+        length = math.sqrt(vx * vx + vy * vy + vz * vz)
+        cx = vx / length
+        cy = vy / length
+        cz = vz / length
+        row, col = texel_of_direction(cx, cy, cz, resolution)
+        if bilinear:
+            slack = tolerance + slope_thickness(
+                length, cx, cy, cz, np.float64(normals[q, row, col, 0]),
+                np.float64(normals[q, row, col, 1]), np.float64(normals[q, row, col, 2]),
+                resolution)
+            r, g, b = radiance_at(radiance_bordered, distance_bordered, q, cx, cy, cz, length,
+                                  slack, resolution)
+        else:
+            r = np.float64(radiance_bordered[q, row + 1, col + 1, 0])
+            g = np.float64(radiance_bordered[q, row + 1, col + 1, 1])
+            b = np.float64(radiance_bordered[q, row + 1, col + 1, 2])
+        out_radiance[i, 0] = r
+        out_radiance[i, 1] = g
+        out_radiance[i, 2] = b

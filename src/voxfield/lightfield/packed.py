@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.octahedral import add_border
 from voxfield.probes.probe_set import decode_normals, min_distance_mips
 
 
@@ -29,6 +30,9 @@ class PackedProbes:
       row-major at ``mips[:, mip_offsets[k]:mip_offsets[k] + mip_sizes[k] ** 2]``.
     - ``grid_origin``, ``grid_spacing`` (3,) float64 and ``grid_counts`` (3,) int64: the probe
       lattice (x fastest, as ``ProbeGrid``), for finding the 8-probe cage around a point.
+    - ``radiance_bordered`` (N, R + 2, R + 2, 3) and ``distance_bordered`` (N, R + 2, R + 2)
+      float32: the maps with their octahedral wrap border (``add_border``), so a bilinear
+      read at any direction finds its four texels.
     """
 
     positions: np.ndarray
@@ -42,6 +46,8 @@ class PackedProbes:
     grid_origin: np.ndarray
     grid_spacing: np.ndarray
     grid_counts: np.ndarray
+    radiance_bordered: np.ndarray
+    distance_bordered: np.ndarray
 
     @property
     def count(self) -> int:
@@ -99,7 +105,10 @@ class PackedProbes:
         packed = cls(positions, enabled, radiance, distance, normals,
                      np.ascontiguousarray(mips, np.float32), offsets, sizes,
                      np.asarray(grid_origin, np.float64).reshape(3).copy(),
-                     np.asarray(grid_spacing, np.float64).reshape(3).copy(), counts.copy())
+                     np.asarray(grid_spacing, np.float64).reshape(3).copy(), counts.copy(),
+                     np.ascontiguousarray(np.moveaxis(add_border(np.moveaxis(radiance, -1, 1)),
+                                                      1, -1)),
+                     np.ascontiguousarray(add_border(distance)))
         for value in vars(packed).values():
             value.flags.writeable = False
         return packed

@@ -27,8 +27,10 @@ FALLBACK = pm.FALLBACK
 KIND_NAMES = {MISS: "miss", HIT: "hit", UNKNOWN: "unknown", FALLBACK: "fallback"}
 
 MARCHERS = {"march3d": pm.MARCH3D, "dda": pm.DDA, "hierarchical": pm.HIERARCHICAL}
-EPSILON_MODES = {"constant": pm.EPS_CONSTANT, "adaptive": pm.EPS_ADAPTIVE,
+EPSILON_MODES = {"footprint": pm.EPS_FOOTPRINT, "constant": pm.EPS_CONSTANT,
+                 "adaptive": pm.EPS_ADAPTIVE, "adaptive-text": pm.EPS_ADAPTIVE_TEXT,
                  "angular": pm.EPS_ANGULAR, "slope": pm.EPS_SLOPE}
+COLOUR_FILTERS = ("bilinear", "nearest")
 ORDERINGS = {"signed-dot": mk.ORDER_SIGNED_DOT, "nearest": mk.ORDER_NEAREST,
              "fixed": mk.ORDER_FIXED}
 
@@ -40,28 +42,40 @@ class LightFieldOptions:
     ``marcher``: ``"march3d"`` (fixed world ``step``, at most ``max_steps`` points per probe),
     ``"dda"`` (texel by texel in octahedral space) or ``"hierarchical"`` (over the min-distance
     mips; same answers as ``"dda"``, fewer fetches).
-    ``epsilon``: hit acceptance — ``"constant"`` (thickness ``epsilon_value`` world units),
-    ``"adaptive"`` (thesis §7.1: ``k · tan θ · d(X, Y) · |α·β| · (1 - β·ν)``, θ the pixel
-    angle given to the trace, ``k = epsilon_k``; see ``kernels.probe_march.epsilon_at``),
+    ``epsilon``: hit acceptance — ``"footprint"`` (the default: ``epsilon_value`` plus the
+    depth one texel spans where the ray crosses it, from the stored surface's slope and the
+    angle between ray and probe direction; ``kernels.probe_march.EPS_FOOTPRINT``),
+    ``"constant"`` (thickness ``epsilon_value`` world units),
+    ``"adaptive"`` (thesis §7.1 as printed: ``k · tan θ · d(X, Y) · |α·β| · (1 - β·ν)``, θ the
+    pixel angle given to the trace, ``k = epsilon_k``; see ``kernels.probe_march.epsilon_at``),
+    ``"adaptive-text"`` (the same with ``(1 - α·ν)``, the form the thesis's text derives),
     ``"angular"`` (accept when the stored point is within ``epsilon_k · θ`` of the ray seen
     from its origin) or ``"slope"`` (``epsilon_value`` plus half the depth the texel's stored
     surface spans across the texel, from its stored normal). ``backface``: reject hits whose
     stored normal faces along the ray (§7.2).
-    ``ordering``: first probe of the cage — ``"signed-dot"`` (max ``ω · S²(X - P)``, the
-    thesis), ``"nearest"`` (McGuire et al. 2017) or ``"fixed"`` (corner 0); the rest follow
-    ``i + 3 mod 8``. ``fallback``: when every probe loses the ray, answer with the nearest
+    ``ordering``: first probe of each cage — ``"nearest"`` (the default, McGuire et al. 2017),
+    ``"signed-dot"`` (max ``ω · S²(X - P)``, the thesis) or ``"fixed"`` (corner 0); the rest
+    follow ``i + 3 mod 8``, and a probe that loses the ray further on re-forms the cage
+    there. ``fallback``: when every probe loses the ray, answer with the nearest
     probe's radiance in direction ω (kind ``FALLBACK``) rather than ``UNKNOWN``.
+    ``consensus``: before a hit is taken, the other probes of the cage around the hit point
+    are asked whether they see empty space there; if one does, the ray marches on.
+    ``colour_filter``: a hit's radiance is read at the hit point from the cage probe that
+    sees it most nearly along the ray, ``"bilinear"`` over its bordered map (texels showing
+    another surface left out) or at the ``"nearest"`` texel.
     """
 
     marcher: str = "hierarchical"
     step: float = 0.25
     max_steps: int = 4096
-    epsilon: str = "constant"
+    epsilon: str = "footprint"
     epsilon_value: float = 0.5
     epsilon_k: float = 1.0
     backface: bool = False
-    ordering: str = "signed-dot"
+    ordering: str = "nearest"
     fallback: bool = True
+    consensus: bool = False
+    colour_filter: str = "bilinear"
 
     def __post_init__(self) -> None:
         for name, table in (("marcher", MARCHERS), ("epsilon", EPSILON_MODES),
@@ -69,6 +83,9 @@ class LightFieldOptions:
             if getattr(self, name) not in table:
                 raise VoxfieldError(f"unknown {name} {getattr(self, name)!r}; choose one of "
                                     f"{', '.join(table)}")
+        if self.colour_filter not in COLOUR_FILTERS:
+            raise VoxfieldError(f"unknown colour filter {self.colour_filter!r}; choose one of "
+                                f"{', '.join(COLOUR_FILTERS)}")
         if not (_finite(self.step) and self.step > 0):
             raise VoxfieldError(f"the march step must be a positive distance, got {self.step!r}")
         if not isinstance(self.max_steps, (int, np.integer)) or self.max_steps < 1:
@@ -88,6 +105,8 @@ class LightFieldOptions:
         out[pm.P_STEP] = self.step
         out[pm.P_MAX_STEPS] = self.max_steps
         out[pm.P_BACKFACE] = 1.0 if self.backface else 0.0
+        out[pm.P_CONSENSUS] = 1.0 if self.consensus else 0.0
+        out[pm.P_BILINEAR] = 1.0 if self.colour_filter == "bilinear" else 0.0
         return out
 
 
@@ -235,7 +254,8 @@ def trace_light_field(packed: PackedProbes, origins, dirs,
             ORDERINGS[options.ordering], bool(options.fallback),
             options.params(_pixel_angle(pixel_angle)), packed.positions, packed.enabled,
             packed.mips, packed.mip_offsets, packed.mip_sizes, packed.normals, packed.radiance,
-            packed.resolution, packed.grid_origin, packed.grid_spacing, packed.grid_counts,
+            packed.radiance_bordered, packed.distance_bordered, packed.resolution,
+            packed.grid_origin, packed.grid_spacing, packed.grid_counts,
             o, d, lo, hi, out.kind, out.t, out.radiance, out.normal, out.distance, out.probe,
             out.probes_tried, out.fetches, out.steps)
     return out

@@ -192,14 +192,18 @@ def beam_camera(bounds_min, bounds_max, *, size: int = 256, fov_deg: float = 58.
 
 
 def room_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 70.0) -> Camera:
-    """From just inside the box's +z face towards the middle of its -z face: the Cornell box
-    seen through its open front, or a room from its doorway."""
+    """Inside the box, a quarter of its depth in from the +z face and three quarters up,
+    looking down towards the lower middle of its -z face: the Cornell box (or a room) as a
+    person standing in it sees it, floor and blocks included. The eye sits a little off the
+    box's centre lines, so it is inside any probe grid of 2, 3 or 4 probes an axis fitted
+    to the box and off its lattice planes, where the probe cage would be ambiguous."""
     lo = np.asarray(bounds_min, np.float64)
     hi = np.asarray(bounds_max, np.float64)
     c = (lo + hi) / 2.0
-    depth = hi[2] - lo[2]
-    eye = (c[0], c[1], hi[2] - 0.02 * depth)
-    return Camera.look_at(eye, (c[0], c[1], lo[2]), fov_deg=fov_deg, width=size)
+    extent = hi - lo
+    eye = (c[0] + 0.07 * extent[0], lo[1] + 0.72 * extent[1], lo[2] + 0.74 * extent[2])
+    target = (c[0], lo[1] + 0.3 * extent[1], lo[2])
+    return Camera.look_at(eye, target, fov_deg=fov_deg, width=size)
 
 
 def ortho_top_camera(bounds_min, bounds_max, *, size: int = 512) -> Camera:
@@ -228,7 +232,7 @@ CAMERA_PRESETS = {
     "orbit": (45.0, "a three-quarter view framing the whole box"),
     "ortho-top": (None, "orthographic, straight down over the whole map"),
     "beam": (58.0, "in front of the box above its floor (the shadow box's beam)"),
-    "room": (70.0, "from just inside the +z face towards the -z face (Cornell box)"),
+    "room": (70.0, "inside the box, towards its -z face (Cornell box, probe grids)"),
     **{f"cube{face}": (None, f"the {face} face of a cube map at the box centre")
        for face, _, _ in CUBE_FACES},
 }

@@ -1,0 +1,130 @@
+"""The light field against what its probes allow: re-caging, the perfect-trace bound, depth
+agreement, the consensus check, and quality as probes are added (probe thesis §5.4-5.5)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from lf_helpers import bake_grid
+
+from voxfield.kernels.probe_multi import MAX_PROBE_TRACES, cage, trace_light_field_ray
+from voxfield.lightfield import HIT, LightFieldOptions, trace_light_field
+from voxfield.lightfield.accuracy import depth_agreement, perfect_trace_image, pixel_classes
+from voxfield.lightfield.probe_render import render_from_probes
+from voxfield.lightfield.trace import EPSILON_MODES, MARCHERS, ORDERINGS
+from voxfield.metrics import compare_images
+from voxfield.probes.grid import ProbeGrid
+from voxfield.render.camera import room_camera
+from voxfield.render.primary import render_lod
+from voxfield.render.ray_query import trace
+
+
+def _grid(counts):
+    return ProbeGrid.fit([2.0, 2.0, 2.0], [30.0, 30.0, 30.0], counts, margin=0.5)
+
+
+@pytest.fixture(scope="module")
+def cornell_probes(cornell):
+    return {n: bake_grid(cornell, _grid((n, n, n)), 48) for n in (2, 3)}
+
+
+@pytest.fixture(scope="module")
+def view(cornell):
+    camera = room_camera(*cornell.voxel_bounds, size=48)
+    return camera, render_lod(cornell, camera, lod=0)
+
+
+def _trace_logged(packed, origin, direction, options):
+    """One ray through the kernel, returning its answer and the (probe, t) traces it made."""
+    corners = np.empty(8, np.int64)
+    probes = np.full(MAX_PROBE_TRACES, -1, np.int64)
+    starts = np.empty(MAX_PROBE_TRACES)
+    out = trace_light_field_ray(
+        MARCHERS[options.marcher], EPSILON_MODES[options.epsilon], ORDERINGS[options.ordering],
+        False, options.params(0.0), packed.positions, packed.enabled, packed.mips,
+        packed.mip_offsets, packed.mip_sizes, packed.normals, packed.resolution,
+        packed.grid_origin, packed.grid_spacing, packed.grid_counts, *origin, *direction,
+        0.0, np.inf, corners, probes, starts, np.empty(8, np.int64))
+    tried = out[5]
+    return out, probes[:tried], starts[:tried]
+
+
+def test_every_probe_is_tried_from_the_cage_around_where_the_ray_was_lost(cornell_probes):
+    packed = cornell_probes[3]
+    rng = np.random.default_rng(4)
+    origins = rng.uniform(3.0, 29.0, (400, 3))
+    dirs = rng.normal(size=(400, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    options = LightFieldOptions(epsilon="constant")
+    recaged = 0
+    corners = np.empty(8, np.int64)
+    for origin, direction in zip(origins, dirs, strict=True):
+        _, probes, starts = _trace_logged(packed, origin, direction, options)
+        for p, t in zip(probes, starts, strict=True):
+            cage(packed.grid_origin, packed.grid_spacing, packed.grid_counts,
+                 *(origin + t * direction), corners)
+            assert p in corners  # a probe of the cage around the point reached
+        cage(packed.grid_origin, packed.grid_spacing, packed.grid_counts, *origin, corners)
+        recaged += any(p not in corners for p in probes)
+        # Never the same probe twice from the same point.
+        pairs = list(zip(probes.tolist(), starts.tolist(), strict=True))
+        assert len(pairs) == len(set(pairs))
+    assert recaged > 10  # rays carried on by probes outside the origin's cage
+
+
+def test_the_bound_is_at_least_every_method(cornell_probes, view):
+    camera, reference = view
+    packed = cornell_probes[2]
+    truth = np.clip(reference.image, 0, 1)
+    bound = compare_images(truth, np.clip(perfect_trace_image(packed, camera, reference.depth),
+                                          0, 1))["psnr"]
+    for method in ("light-field", "environment", "box-proxy"):
+        image = render_from_probes(packed, camera, method=method, packed=packed).image
+        assert compare_images(truth, np.clip(image, 0, 1))["psnr"] <= bound + 1e-9, method
+
+
+def test_quality_does_not_fall_from_8_to_27_probes(cornell_probes, view):
+    camera, reference = view
+    truth = np.clip(reference.image, 0, 1)
+    psnr = [compare_images(truth, np.clip(render_from_probes(cornell_probes[n], camera).image,
+                                          0, 1))["psnr"] for n in (2, 3)]
+    assert psnr[1] >= psnr[0] - 0.1
+
+
+def test_consensus_hits_agree_with_the_octree(cornell, cornell_probes):
+    """Hits the consensus check lets through lie on the octree's surface, within ε and a
+    texel's slope; it takes fewer false hits than the trace without it."""
+    packed = cornell_probes[3]
+    rng = np.random.default_rng(9)
+    origins = rng.uniform(3.0, 29.0, (3000, 3))
+    dirs = rng.normal(size=(3000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    truth = trace(cornell, origins, dirs, lod=0)
+    seen = truth.hit
+    errors = {}
+    for consensus in (False, True):
+        field = trace_light_field(packed, origins, dirs, LightFieldOptions(consensus=consensus))
+        hit = (field.kind == HIT) & seen
+        errors[consensus] = np.abs(field.t[hit] - truth.t[hit])
+    assert np.median(errors[True]) < 0.5
+    assert np.mean(errors[True] > 2.0) <= np.mean(errors[False] > 2.0)
+
+
+def test_depth_agreement_and_pixel_classes_add_up(cornell_probes, view):
+    camera, reference = view
+    result = render_from_probes(cornell_probes[3], camera)
+    agreement = depth_agreement(result.depth, reference.depth)
+    assert agreement["pixels"] == int(np.isfinite(reference.depth).sum())
+    assert 0.0 <= agreement["median"] <= agreement["p99"]
+    classes = pixel_classes(result.maps["result_kind"], result.depth, result.image,
+                            reference.depth, reference.image)
+    counted = sum(c["pixels"] for c in classes.values())
+    kind = result.maps["result_kind"]
+    seen = np.isfinite(reference.depth)
+    # Classes are disjoint: every pixel the octree sees, plus answers where it sees nothing.
+    assert counted == int(seen.sum()) + int((~seen & np.isin(kind, [HIT, 2, 3])).sum())
+    assert abs(sum(c["share_of_error"] for c in classes.values()) - 1.0) < 1e-6
+    # Identical depths are all correct.
+    same = pixel_classes(np.full(reference.depth.shape, HIT), reference.depth, reference.image,
+                         reference.depth, reference.image)
+    assert same["correct"]["pixels"] == int(np.isfinite(reference.depth).sum())
