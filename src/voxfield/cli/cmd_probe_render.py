@@ -46,6 +46,7 @@ from voxfield.lightfield.trace import (
 from voxfield.metrics import compare_images
 from voxfield.probes.probe_folder import open_probe_set
 from voxfield.render.image_io import save_result_image
+from voxfield.render.placement import camera_placement_problem
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.scene.loaders import SceneOptions
 from voxfield.svo.open import open_octree
@@ -147,6 +148,10 @@ def run(args) -> int:
     octree = _open_scene(args, probe_set) if args.scene else None
     bounds = octree.voxel_bounds if octree is not None else probe_set_bounds(probe_set)
     view = camera(args, bounds)
+    problem = None if octree is None else camera_placement_problem(octree, view)
+    if problem is not None and not args.quiet:
+        print(f"voxfield: note: {problem}; its figures describe no real view",
+              file=sys.stderr)
     box = None
     if args.method == "box-proxy":
         box = bounds if args.box_min is None else (args.box_min, args.box_max)

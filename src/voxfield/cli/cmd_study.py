@@ -23,6 +23,7 @@ from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import EPSILON_MODES, LightFieldOptions
 from voxfield.lighting import bake_sun_lighting, parse_suns
 from voxfield.probes.grid import parse_grid
+from voxfield.render.placement import check_camera_placement
 from voxfield.studies.lighting_study import lighting_channels, run_lighting_study
 from voxfield.studies.probe_resolution_study import (
     probe_resolution_markdown,
@@ -271,6 +272,7 @@ def run_probes(args) -> int:
     quiet = getattr(args, "quiet", False)
     octree = open_octree(args)
     view = camera(args, octree.voxel_bounds)
+    check_camera_placement(octree, view)
     options = LightFieldOptions(epsilon=args.epsilon, epsilon_value=args.epsilon_value,
                                 epsilon_k=args.epsilon_k, backface=args.backface,
                                 fallback=not args.no_fallback)

@@ -494,6 +494,12 @@ def results_markdown(report: dict) -> str:
         "(every probe of the cage lost the ray; fallback reads the nearest probe as an "
         "environment map).",
         "",
+        f"Where this differs from `voxfield bake`: the study bakes with the exact LOD-0 "
+        f"renderer (bake's default is {BakeOptions().renderer}) and relocates with a clearance "
+        f"of min({RELOCATION_CLEARANCE:g} voxels, {DEFAULT_CLEARANCE_FRACTION:g} × spacing) "
+        f"(bake: {DEFAULT_CLEARANCE_FRACTION:g} × spacing), so its maps hold no LOD error and "
+        "lone probes can still move.",
+        "",
     ]
     for counts, note in report["grids"].items():
         reloc = f"; {note['relocation']}" if note.get("relocation") else ""
