@@ -223,6 +223,33 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
 
 
 @njit(cache=True, nogil=True)
+def point_from_probe(positions: np.ndarray, normals: np.ndarray, mips: np.ndarray,
+                     resolution: int, probe: int, yx: float, yy: float, yz: float,
+                     tolerance: float):
+    """Point ``Y`` as probe ``probe`` sees it: ``(length, cx, cy, cz, row, col, stored,
+    slack)`` — its distance and unit direction from the probe, the nearest texel, the
+    distance stored there, and how far they may differ while the probe still sees ``Y``
+    (``tolerance`` plus half the depth the texel's surface spans). ``length`` 0: ``Y`` is
+    the probe's centre (the rest undefined)."""
+    vx = yx - positions[probe, 0]
+    vy = yy - positions[probe, 1]
+    vz = yz - positions[probe, 2]
+    length = math.sqrt(vx * vx + vy * vy + vz * vz)
+    if length == 0.0:
+        return 0.0, 0.0, 0.0, 1.0, 0, 0, 0.0, 0.0
+    cx = vx / length
+    cy = vy / length
+    cz = vz / length
+    row, col = texel_of_direction(cx, cy, cz, resolution)
+    stored = np.float64(mips[probe, row * resolution + col])
+    slack = tolerance + slope_thickness(
+        length, cx, cy, cz, np.float64(normals[probe, row, col, 0]),
+        np.float64(normals[probe, row, col, 1]), np.float64(normals[probe, row, col, 2]),
+        resolution)
+    return length, cx, cy, cz, row, col, stored, slack
+
+
+@njit(cache=True, nogil=True)
 def seen_through(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray,
                  mips: np.ndarray, resolution: int, grid_origin: np.ndarray,
                  grid_spacing: np.ndarray, grid_counts: np.ndarray, hit_probe: int, yx: float,
@@ -235,29 +262,16 @@ def seen_through(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray
         q = corners[corner]
         if q == hit_probe or not enabled[q]:
             continue
-        vx = yx - positions[q, 0]
-        vy = yy - positions[q, 1]
-        vz = yz - positions[q, 2]
-        length = math.sqrt(vx * vx + vy * vy + vz * vz)
-        if length == 0.0:
-            continue
-        cx = vx / length
-        cy = vy / length
-        cz = vz / length
-        row, col = texel_of_direction(cx, cy, cz, resolution)
-        stored = np.float64(mips[q, row * resolution + col])
-        slack = tolerance + slope_thickness(
-            length, cx, cy, cz, np.float64(normals[q, row, col, 0]),
-            np.float64(normals[q, row, col, 1]), np.float64(normals[q, row, col, 2]),
-            resolution)
-        if stored > length + slack:
+        length, _, _, _, _, _, stored, slack = point_from_probe(
+            positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
+        if length > 0.0 and stored > length + slack:
             return True
     return False
 
 
 @njit(cache=True, nogil=True)
 def hit_colour_probe(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray,
-                     distance_bordered: np.ndarray, resolution: int, grid_origin: np.ndarray,
+                     mips: np.ndarray, resolution: int, grid_origin: np.ndarray,
                      grid_spacing: np.ndarray, grid_counts: np.ndarray, hit_probe: int,
                      hit_row: int, hit_col: int, yx: float, yy: float, yz: float, dx: float,
                      dy: float, dz: float, tolerance: float, corners: np.ndarray) -> int:
@@ -275,24 +289,12 @@ def hit_colour_probe(positions: np.ndarray, enabled: np.ndarray, normals: np.nda
         q = hit_probe if corner == 8 else corners[corner]
         if not enabled[q]:
             continue
-        vx = yx - positions[q, 0]
-        vy = yy - positions[q, 1]
-        vz = yz - positions[q, 2]
-        length = math.sqrt(vx * vx + vy * vy + vz * vz)
-        if length == 0.0:
+        length, cx, cy, cz, row, col, stored, slack = point_from_probe(
+            positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
+        if length == 0.0 or not abs(stored - length) <= slack:
             continue
-        cx = vx / length
-        cy = vy / length
-        cz = vz / length
-        row, col = texel_of_direction(cx, cy, cz, resolution)
-        stored = np.float64(distance_bordered[q, row + 1, col + 1])
-        nx = np.float64(normals[q, row, col, 0])
-        ny = np.float64(normals[q, row, col, 1])
-        nz = np.float64(normals[q, row, col, 2])
-        slack = tolerance + slope_thickness(length, cx, cy, cz, nx, ny, nz, resolution)
-        if not abs(stored - length) <= slack:
-            continue
-        if nx * hx + ny * hy + nz * hz < 0.5:
+        if (normals[q, row, col, 0] * hx + normals[q, row, col, 1] * hy
+                + normals[q, row, col, 2] * hz < 0.5):
             continue
         score = cx * dx + cy * dy + cz * dz
         if score > best_score:
@@ -402,22 +404,12 @@ def trace_block(marcher, eps_mode, ordering, fallback, params, positions, enable
             yx = ox + t * dx
             yy = oy + t * dy
             yz = oz + t * dz
-            q = hit_colour_probe(positions, enabled, normals, distance_bordered, resolution,
-                                 grid_origin, grid_spacing, grid_counts, p, row, col, yx, yy,
-                                 yz, dx, dy, dz, tolerance, corners)
-            vx = yx - positions[q, 0]
-            vy = yy - positions[q, 1]
-            vz = yz - positions[q, 2]
-            length = math.sqrt(vx * vx + vy * vy + vz * vz)
+            q = hit_colour_probe(positions, enabled, normals, mips, resolution, grid_origin,
+                                 grid_spacing, grid_counts, p, row, col, yx, yy, yz, dx, dy,
+                                 dz, tolerance, corners)
+            length, cx, cy, cz, qr, qc, _, slack = point_from_probe(
+                positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
             if length > 0.0:
-                cx = vx / length
-                cy = vy / length
-                cz = vz / length
-                qr, qc = texel_of_direction(cx, cy, cz, resolution)
-                slack = tolerance + slope_thickness(
-                    length, cx, cy, cz, np.float64(normals[q, qr, qc, 0]),
-                    np.float64(normals[q, qr, qc, 1]), np.float64(normals[q, qr, qc, 2]),
-                    resolution)
                 if params[P_BILINEAR] != 0.0:
                     cr, cg, cb = radiance_at(radiance_bordered, distance_bordered, q, cx, cy,
                                              cz, length, slack, resolution)
@@ -474,7 +466,8 @@ def trace_single_rays(marcher: int, eps_mode: int, params: np.ndarray, positions
 
 @njit(cache=True, nogil=True, parallel=True)
 def perfect_trace_rays(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray,
-                       radiance_bordered: np.ndarray, distance_bordered: np.ndarray,
+                       mips: np.ndarray, radiance_bordered: np.ndarray,
+                       distance_bordered: np.ndarray,
                        resolution: int, points: np.ndarray, dirs: np.ndarray,
                        tolerance: float, bilinear: bool, out_radiance: np.ndarray,
                        out_probe: np.ndarray) -> None:
@@ -493,25 +486,14 @@ def perfect_trace_rays(positions: np.ndarray, enabled: np.ndarray, normals: np.n
         for q in range(len(positions)):
             if not enabled[q]:
                 continue
-            vx = yx - positions[q, 0]
-            vy = yy - positions[q, 1]
-            vz = yz - positions[q, 2]
-            length = math.sqrt(vx * vx + vy * vy + vz * vz)
+            length, cx, cy, cz, _, _, stored, slack = point_from_probe(
+                positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
             if length == 0.0:
                 continue
-            cx = vx / length
-            cy = vy / length
-            cz = vz / length
             score = cx * dirs[i, 0] + cy * dirs[i, 1] + cz * dirs[i, 2]
             if score > any_score:
                 any_score = score
                 any_best = q
-            row, col = texel_of_direction(cx, cy, cz, resolution)
-            stored = np.float64(distance_bordered[q, row + 1, col + 1])
-            slack = tolerance + slope_thickness(
-                length, cx, cy, cz, np.float64(normals[q, row, col, 0]),
-                np.float64(normals[q, row, col, 1]), np.float64(normals[q, row, col, 2]),
-                resolution)
             if abs(stored - length) <= slack and score > best_score:
                 best_score = score
                 best = q
@@ -521,19 +503,9 @@ def perfect_trace_rays(positions: np.ndarray, enabled: np.ndarray, normals: np.n
             for c in range(3):
                 out_radiance[i, c] = 0.0
             continue
-        vx = yx - positions[q, 0]
-        vy = yy - positions[q, 1]
-        vz = yz - positions[q, 2]
-        length = math.sqrt(vx * vx + vy * vy + vz * vz)
-        cx = vx / length
-        cy = vy / length
-        cz = vz / length
-        row, col = texel_of_direction(cx, cy, cz, resolution)
+        length, cx, cy, cz, row, col, _, slack = point_from_probe(
+            positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
         if bilinear:
-            slack = tolerance + slope_thickness(
-                length, cx, cy, cz, np.float64(normals[q, row, col, 0]),
-                np.float64(normals[q, row, col, 1]), np.float64(normals[q, row, col, 2]),
-                resolution)
             r, g, b = radiance_at(radiance_bordered, distance_bordered, q, cx, cy, cz, length,
                                   slack, resolution)
         else:

@@ -52,7 +52,7 @@ def perfect_trace_image(packed: PackedProbes, camera: Camera, depth: np.ndarray,
     colour = np.zeros((len(points), 3), np.float64)
     probe = np.empty(len(points), np.int64)
     with thread_count(threads):
-        perfect_trace_rays(packed.positions, packed.enabled, packed.normals,
+        perfect_trace_rays(packed.positions, packed.enabled, packed.normals, packed.mips,
                            packed.radiance_bordered, packed.distance_bordered,
                            packed.resolution, points, np.ascontiguousarray(dirs[hit]),
                            SEEN_TOLERANCE, colour_filter == "bilinear", colour, probe)
