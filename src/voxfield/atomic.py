@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import stat
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -14,17 +16,32 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """A temporary path in the target's folder; renamed onto ``path`` if the block succeeds.
 
     The temporary name keeps the target's suffix, so writers that pick a format by suffix
-    (Pillow, OpenEXR) still work; on failure it is removed and the target is untouched.
+    (Pillow, OpenEXR) still work; on failure it is removed and the target is untouched. The
+    result has the mode a plain ``open`` would give it: an existing file's own, else
+    0666 less the umask (``mkstemp`` alone would leave every output 0600).
     """
     path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(
-        prefix=f".{path.stem}.", suffix=f".tmp{path.suffix}", dir=path.parent
+        prefix=f".{path.stem[:64]}.", suffix=f".tmp{path.suffix[:16]}", dir=path.parent
     )
     os.close(fd)
     tmp_path = Path(tmp)
     try:
         yield tmp_path
+        os.chmod(tmp_path, _mode_for(path))
         os.replace(tmp_path, path)
     finally:
         tmp_path.unlink(missing_ok=True)
+
+
+def _mode_for(path: Path) -> int:
+    """The permission bits ``path`` should get: its own if it exists, else 0666 & ~umask."""
+    try:
+        return stat.S_IMODE(path.stat().st_mode)
+    except FileNotFoundError:
+        mask = os.umask(0)
+        os.umask(mask)
+        return 0o666 & ~mask

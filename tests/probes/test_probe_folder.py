@@ -140,6 +140,26 @@ def test_killed_bake_leaves_whole_files_and_resumes(tmp_path, octree, grid, loca
     assert counting.indices(grid) == [2, 3, 4, 5]
 
 
+def test_probes_the_header_missed_are_taken_back_not_rebaked(tmp_path, octree, grid, local):
+    """A bake killed between writing probe files and rewriting the header (SIGKILL, a
+    power cut): the files that verify are taken back on resume, only the rest are baked."""
+    bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial")
+    header = probe_folder.read_header(tmp_path)
+    for key in ("1", "3", "5"):
+        del header["probes"][key]
+    header["complete"] = False
+    probe_folder.write_header(tmp_path, header)
+    damaged = tmp_path / "probe_00005.npz"
+    damaged.write_bytes(damaged.read_bytes()[:60])  # this one did not survive
+    counting = Counting()
+    resumed = bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial",
+                             baker=counting)
+    assert counting.indices(grid) == [5]
+    assert_same(resumed, local)
+    header = json.loads((tmp_path / "probes.json").read_text())
+    assert header["last_run"]["reused"] == 5 and header["complete"]
+
+
 def test_failed_write_leaves_no_partial_file(tmp_path, monkeypatch, local):
     def broken(file, **arrays):
         file.write(b"PK\x03\x04 half a zip")

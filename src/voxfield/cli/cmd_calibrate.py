@@ -13,7 +13,9 @@ from voxfield.cli.options import (
     add_scene_options,
     add_view_options,
     camera,
+    int_between,
     open_octree,
+    positive_float,
     positive_int,
 )
 from voxfield.studies.calibrate import calibrate_threshold
@@ -28,9 +30,11 @@ def register(subparsers) -> None:
     add_scene_options(p)
     target = p.add_mutually_exclusive_group(required=True)
     target.add_argument("--target-rays", type=positive_int, help="ray budget for the image")
-    target.add_argument("--target-psnr", type=float, help="PSNR target in dB vs the reference")
+    target.add_argument("--target-psnr", type=positive_float,
+                        help="PSNR target in dB vs the reference")
     add_renderer_options(p, ("error-aware",), only=("decay", "base_lod"), prefix=False)
-    p.add_argument("--iterations", type=positive_int, default=14, help="bisection steps")
+    p.add_argument("--iterations", type=int_between(1, 64, "each is a full render"),
+                   default=14, help="bisection steps, 1..64 (default 14)")
     p.add_argument("--out", default=None, help="write the result and trail as JSON")
     add_channel_option(p)
     add_view_options(p)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from voxfield.cli.options import add_quiet, positive_int
+from voxfield.cli.options import add_quiet, finite_float, int_between, seed_arg
 from voxfield.error_table import build_error_table, fit_report, load_error_table, save_error_table
 from voxfield.error_table.lighting_table import (
     DEFAULT_LIGHTING_TABLE,
@@ -30,11 +30,12 @@ def mask_arg(text: str) -> int:
 
 
 def _add_raycast_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--resolution", type=positive_int, default=512,
-                   help="framebuffer side in rays per direction (default 512, as the thesis)")
-    p.add_argument("--oct-resolution", type=positive_int, default=32,
-                   help="octahedral map side in texels (default 32)")
-    p.add_argument("--seed", type=int, default=0, help="CMJ jitter seed")
+    p.add_argument("--resolution", type=int_between(1, 4096, "rays per direction side"),
+                   default=512, help="framebuffer side in rays per direction, 1..4096 "
+                   "(default 512, as the thesis)")
+    p.add_argument("--oct-resolution", type=int_between(2, 256, "texels a side"), default=32,
+                   help="octahedral map side in texels, 2..256 (default 32)")
+    p.add_argument("--seed", type=seed_arg, default=0, help="CMJ jitter seed")
 
 
 def register(subparsers) -> None:
@@ -48,8 +49,9 @@ def register(subparsers) -> None:
                            description="Ray-cast e = 1 - hits(children)/hits(parent) for every "
                            "child mask over a Fibonacci set of directions (CMJ-jittered "
                            "orthographic rays), fit 9 SH coefficients and octahedral maps.")
-    p.add_argument("--directions", type=positive_int, default=1024,
-                   help="Fibonacci directions for the SH fit (default 1024; thesis 256)")
+    p.add_argument("--directions", type=int_between(16, 65536, "each is a full ray cast"),
+                   default=1024, help="Fibonacci directions for the SH fit, 16..65536 "
+                   "(default 1024; thesis 256)")
     _add_raycast_options(p)
     p.add_argument("--out", default=None,
                    help="output file (default: the table shipped with the package)")
@@ -79,7 +81,7 @@ def register(subparsers) -> None:
                            description="Child configuration and three views of the error "
                            "sphere, directions above the threshold marked red.")
     p.add_argument("mask", type=mask_arg, help="child mask 0..255 (bit c = x | y<<1 | z<<2)")
-    p.add_argument("--threshold", type=float, default=THESIS_THRESHOLD,
+    p.add_argument("--threshold", type=finite_float, default=THESIS_THRESHOLD,
                    help=f"error threshold to mark (default {THESIS_THRESHOLD}, the thesis's "
                    "calibration)")
     p.add_argument("--encoding", choices=tuple(reversed(ENCODINGS)), default=None,

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import math
 import re
 from pathlib import Path
 
@@ -18,6 +19,7 @@ from voxfield.errors import VoxfieldError
 from voxfield.render.camera import CAMERA_PRESETS, Camera, preset_camera
 from voxfield.render.registry import RENDERERS
 from voxfield.scene.loaders import SceneOptions
+from voxfield.scene.terrain.columns import MAX_FOOTPRINT
 from voxfield.svo.open import open_octree as open_octree_from_spec
 
 QUIET_HELP = "no progress bars or summaries"
@@ -68,6 +70,56 @@ def int_at_least(low: int):
 positive_int = int_at_least(1)
 
 
+def int_between(low: int, high: int, why: str = ""):
+    """An argparse type: a whole number in ``low..high`` (``why`` says where the top comes
+    from, for the message)."""
+    def parse(text: str) -> int:
+        value = int_at_least(low)(text)
+        if value > high:
+            reason = f" ({why})" if why else ""
+            raise argparse.ArgumentTypeError(f"expected at most {high:,}{reason}, got {text!r}")
+        return value
+
+    return parse
+
+
+def finite_float(text: str) -> float:
+    """A number that is neither NaN nor infinite."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not math.isfinite(value):
+        raise argparse.ArgumentTypeError(f"expected a finite number, got {text!r}")
+    return value
+
+
+def positive_float(text: str) -> float:
+    """A finite number above zero."""
+    value = finite_float(text)
+    if not value > 0.0:
+        raise argparse.ArgumentTypeError(f"expected a number above 0, got {text!r}")
+    return value
+
+
+def fov_arg(text: str) -> float:
+    """A field of view strictly between 0 and 180 degrees."""
+    value = finite_float(text)
+    if not 0.0 < value < 180.0:
+        raise argparse.ArgumentTypeError(
+            f"a field of view is between 0 and 180 degrees (exclusive), got {text!r}")
+    return value
+
+
+#: Seeds feed 32-bit hashes: larger values would silently wrap, so they are refused.
+MAX_SEED = 2**32 - 1
+seed_arg = int_between(0, MAX_SEED, "seeds are 32-bit")
+#: Size bounds, from memory and time on a workstation: a mesh voxelized at N voxels a side
+#: keeps about 6·N² surface voxels (16 bytes each while building), an image N² pixels.
+MAX_MESH_RESOLUTION = 8192
+MAX_IMAGE_SIZE = 16384
+
+
 def float_list(text: str) -> tuple[float, ...]:
     """Comma-separated numbers, at least one."""
     try:
@@ -112,13 +164,19 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
         help="scene: a .vox/.obj/.glb/.ply/.hgt/.tif/.npz file, builtin:NAME, terrain:RECIPE "
         "or dem:jacksboro (see `voxfield scenes`)",
     )
-    p.add_argument("--mesh-resolution", type=positive_int, default=256, metavar="N",
-                   help="voxels along a mesh's longest side (default 256)")
-    p.add_argument("--footprint", type=positive_int, default=512, metavar="N",
-                   help="terrain footprint in voxels per side (default 512)")
-    p.add_argument("--vertical-scale", type=float, default=None, metavar="S",
-                   help="terrain height multiplier (default: true scale)")
-    p.add_argument("--seed", type=int, default=0, help="seed for sampling and scattering")
+    p.add_argument("--mesh-resolution", default=256, metavar="N",
+                   type=int_between(1, MAX_MESH_RESOLUTION, "about 6·N² surface voxels"),
+                   help=f"voxels along a mesh's longest side, 1..{MAX_MESH_RESOLUTION} "
+                   "(default 256)")
+    p.add_argument("--footprint", default=512, metavar="N",
+                   type=int_between(1, MAX_FOOTPRINT, "a terrain's largest footprint"),
+                   help=f"terrain footprint in voxels per side, 1..{MAX_FOOTPRINT} "
+                   "(default 512)")
+    p.add_argument("--vertical-scale", type=positive_float, default=None, metavar="S",
+                   help="DEM height multiplier, > 0 (default: true scale; terrain:RECIPE "
+                   "scenes set their own)")
+    p.add_argument("--seed", type=seed_arg, default=0,
+                   help=f"seed for sampling and scattering, 0..{MAX_SEED} (default 0)")
     p.add_argument("--colour-storage", choices=("srgb8", "float32"), default="srgb8",
                    help="how a built octree keeps its albedo: 8-bit sRGB, 3 bytes a node "
                    "(default), or float32, 12 bytes")
@@ -139,9 +197,11 @@ def add_view_options(p: argparse.ArgumentParser, size: int = 512) -> None:
     p.add_argument("--eye", type=vector_arg, default=None, metavar="X,Y,Z",
                    help="pinhole eye position in octree voxel units (with --target)")
     p.add_argument("--target", type=vector_arg, default=None, metavar="X,Y,Z")
-    p.add_argument("--fov", type=float, default=None, help="vertical field of view in degrees")
-    p.add_argument("--size", type=positive_int, default=size,
-                   help=f"image width = height (default {size})")
+    p.add_argument("--fov", type=fov_arg, default=None,
+                   help="vertical field of view in degrees, between 0 and 180")
+    p.add_argument("--size", type=int_between(1, MAX_IMAGE_SIZE, "pixels a side"),
+                   default=size, help=f"image width = height, 1..{MAX_IMAGE_SIZE} "
+                   f"(default {size})")
     add_quiet(p)
 
 

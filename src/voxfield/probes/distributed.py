@@ -142,6 +142,17 @@ def _run_client(client, task, octree, positions, options, indices, emit) -> None
         shared.release()
 
 
+def check_scheduler(scheduler) -> None:
+    """Refuse a scheduler that names nothing (before any file is written): threads, serial,
+    processes, a ``host:port`` address or a ``distributed.Client`` are accepted."""
+    if scheduler is None or not isinstance(scheduler, str):
+        return
+    if scheduler in ("threads", "serial", "processes") or ":" in scheduler:
+        return
+    raise SchedulerError(f"scheduler must be threads, processes, serial or a Dask scheduler "
+                         f"address like tcp://host:8786, got {scheduler!r}")
+
+
 class _client:
     """A context manager yielding a ``distributed.Client`` for ``scheduler``: a local
     process cluster for ``"processes"``, a connection for an address, or the given client."""

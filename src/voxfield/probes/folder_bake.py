@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.probes.distributed import bake_each
+from voxfield.probes.distributed import bake_each, check_scheduler
 from voxfield.probes.probe_folder import (
     HEADER_NAME,
     ProbeSetMismatchError,
@@ -21,6 +21,7 @@ from voxfield.probes.probe_folder import (
     new_header,
     open_probe_set,
     read_header,
+    reconcile_probes,
     verified_probes,
     write_atlases,
     write_header,
@@ -52,6 +53,7 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
     """
 
     started = time.perf_counter()
+    check_scheduler(scheduler)
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise ProbeStorageError(f"{folder} exists and is not a folder; pick another --out")
@@ -78,6 +80,7 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
         header["probes"] = old["probes"]
     folder.mkdir(parents=True, exist_ok=True)
 
+    reconcile_probes(folder, header)
     done = verified_probes(folder, header)
     header["probes"] = {str(i): header["probes"][str(i)] for i in sorted(done)}
     enabled = np.asarray(grid.enabled, bool).reshape(-1)

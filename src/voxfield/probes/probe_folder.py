@@ -221,11 +221,42 @@ def write_probe(folder: Path, index: int, maps) -> dict:
     """Write one probe's maps atomically; returns its header record (file, checksum, cost)."""
     radiance, distance, normal = _probe_arrays(maps)
     name = probe_file_name(index)
-    with atomic_path(Path(folder) / name) as tmp, open(tmp, "wb") as f:
-        np.savez_compressed(f, radiance=radiance, distance=distance, normal=normal)
     cost = {k: getattr(maps.cost, k) for k in COST_FIELDS}
-    return {"file": name, "checksum": maps_checksum(radiance, distance, normal),
-            **{k: float(v) if k.endswith("seconds") else int(v) for k, v in cost.items()}}
+    record = {"file": name, "checksum": maps_checksum(radiance, distance, normal),
+              **{k: float(v) if k.endswith("seconds") else int(v) for k, v in cost.items()}}
+    # The file carries its own record, so a bake killed before the header caught up can
+    # take the probe back (``reconcile_probes``) instead of baking it again.
+    with atomic_path(Path(folder) / name) as tmp, open(tmp, "wb") as f:
+        np.savez_compressed(f, radiance=radiance, distance=distance, normal=normal,
+                            record=np.array(json.dumps(record)))
+    return record
+
+
+def reconcile_probes(folder: Path, header: dict) -> list[int]:
+    """Take into ``header`` every probe file on disk the header does not record yet whose own
+    record verifies (shapes as the header's encodings, checksum of its maps): a bake stopped
+    between writing a probe and rewriting the header loses no finished probe. Returns the
+    indices taken back."""
+    taken = []
+    for path in sorted(Path(folder).glob("probe_*.npz")):
+        try:
+            index = int(path.stem.split("_", 1)[1])
+        except ValueError:
+            continue
+        if str(index) in header["probes"] or not 0 <= index < header["probe_count"]:
+            continue
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                record = json.loads(str(data["record"]))
+            if not isinstance(record, dict) or record.get("file") != path.name:
+                continue
+            trial = {**header, "probes": {str(index): record}}
+            read_probe(folder, index, trial)
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, ProbeFileError):
+            continue
+        header["probes"][str(index)] = record
+        taken.append(index)
+    return taken
 
 
 def _probe_arrays(maps) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

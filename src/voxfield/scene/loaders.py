@@ -57,6 +57,7 @@ def load_scene(spec: str, options: SceneOptions | None = None) -> VoxelScene:
     if spec.startswith("builtin:"):
         return builtin_scene(spec.split(":", 1)[1])
     if spec.startswith("terrain:"):
+        _no_vertical_scale(spec, options)
         return recipe_scene(spec.split(":", 1)[1], footprint=options.terrain_footprint)
     if spec.startswith("dem:"):
         return _terrain_from(spec.split(":", 1)[1], options)
@@ -82,6 +83,14 @@ def load_scene(spec: str, options: SceneOptions | None = None) -> VoxelScene:
     )
 
 
+def _no_vertical_scale(spec: str, options: SceneOptions) -> None:
+    """A recipe fixes its own height scale: a vertical scale given with one is refused rather
+    than silently ignored."""
+    if options.vertical_scale is not None:
+        raise VoxfieldError(f"{spec} sets its own height scale; --vertical-scale applies to "
+                            "DEM files and dem:NAME")
+
+
 def _terrain_from(source: str, options: SceneOptions) -> VoxelScene:
     return _terrain_layout(source, options).scene()
 
@@ -98,6 +107,7 @@ def block_source(spec: str, options: SceneOptions | None = None):
     deliver them without making every voxel first (terrains), else None."""
     options = options or SceneOptions()
     if spec.startswith("terrain:"):
+        _no_vertical_scale(spec, options)
         return recipe_layout(spec.split(":", 1)[1], footprint=options.terrain_footprint)
     if spec.startswith("dem:"):
         return _terrain_layout(spec.split(":", 1)[1], options)

@@ -294,12 +294,15 @@ def _closest_point(px, py, pz, ax, ay, az, bx, by, bz, cx, cy, cz):
             v = 1.0  # vertex b
         elif d6 >= 0.0 and d5 <= d6:
             w = 1.0  # vertex c
+        # Each edge case divides by the edge's squared length; an edge whose two vertices
+        # coincide (a degenerate triangle) has none, and its one point is the answer.
         elif vc <= 0.0 and d1 >= 0.0 and d3 <= 0.0:
-            v = d1 / (d1 - d3)  # edge ab
+            v = d1 / (d1 - d3) if d1 != d3 else 0.0  # edge ab
         elif vb <= 0.0 and d2 >= 0.0 and d6 <= 0.0:
-            w = d2 / (d2 - d6)  # edge ac
+            w = d2 / (d2 - d6) if d2 != d6 else 0.0  # edge ac
         elif va <= 0.0 and (d4 - d3) >= 0.0 and (d5 - d6) >= 0.0:
-            w = (d4 - d3) / ((d4 - d3) + (d5 - d6))  # edge bc
+            span = (d4 - d3) + (d5 - d6)
+            w = (d4 - d3) / span if span != 0.0 else 0.0  # edge bc
             v = 1.0 - w
         else:
             denom = va + vb + vc

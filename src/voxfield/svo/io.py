@@ -110,10 +110,16 @@ def _from_version_1(data, offsets: np.ndarray, where: str) -> tuple[np.ndarray, 
 
 def validate_octree(octree: Octree, where: str = "octree") -> None:
     """Check the structural invariants a kernel relies on; raise rather than crash later."""
-    n = octree.node_count
-    off = octree.level_offsets
-    if octree.depth < 1 or octree.depth > 21 or len(off) != octree.depth + 2 or off[0] != 0:
+    off = np.asarray(octree.level_offsets)
+    if (off.ndim != 1 or not np.issubdtype(off.dtype, np.integer) or octree.depth < 1
+            or octree.depth > 21 or len(off) != octree.depth + 2 or off[0] != 0):
         raise OctreeFormatError(f"{where}: inconsistent depth or level offsets")
+    origin = np.asarray(octree.scene_origin)
+    if origin.shape != (3,) or not np.issubdtype(origin.dtype, np.integer):
+        raise OctreeFormatError(f"{where}: the scene origin must be three whole numbers")
+    if not np.issubdtype(np.asarray(octree.voxel_box).dtype, np.integer):
+        raise OctreeFormatError(f"{where}: the voxel box must be whole numbers")
+    n = octree.node_count
     if np.any(np.diff(off) <= 0):
         raise OctreeFormatError(f"{where}: a level has no nodes")
     if octree.descriptors.dtype != np.int64 or octree.descriptors.shape != (int(off[-2]),):

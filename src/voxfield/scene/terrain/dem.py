@@ -227,8 +227,16 @@ def read_geotiff(path) -> Heightmap:
             arr = page.asarray()
             nodata = _gdal_nodata(page)
             geo = geotiff_grid(page)
-    except (tifffile.TiffFileError, ValueError, OSError) as exc:
-        raise SceneFormatError(f"{path}: not a readable TIFF ({exc})") from exc
+    except FileNotFoundError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged file can fail anywhere in tifffile
+        raise SceneFormatError(f"{path}: not a readable TIFF ({type(exc).__name__}: "
+                               f"{exc})") from exc
+    if geo is not None and not (math.isfinite(geo.dx) and math.isfinite(geo.dy)
+                                and geo.dx > 0 and geo.dy > 0 and math.isfinite(geo.x0)
+                                and math.isfinite(geo.y0)):
+        raise SceneFormatError(f"{path}: its georeference gives a pixel size of "
+                               f"{geo.dx} × {geo.dy}; a DEM needs a positive, finite one")
     arr = np.squeeze(arr)
     if arr.ndim != 2:
         raise SceneFormatError(

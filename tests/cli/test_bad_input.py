@@ -1,0 +1,136 @@
+"""Edges a demanding user hits: bad output paths, closed pipes, nonsense option values and
+file modes. Each ends in one ``voxfield: error:`` line and exit status 2, or is refused by
+the option parser (status 2), never a traceback."""
+
+from __future__ import annotations
+
+import os
+import stat
+import subprocess
+import sys
+
+import pytest
+
+from voxfield.atomic import atomic_path
+from voxfield.cli import main
+
+
+def _one_error_line(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("voxfield: error: "), err
+    return err[0]
+
+
+@pytest.fixture
+def a_file(tmp_path):
+    path = tmp_path / "afile.png"
+    path.write_bytes(b"not a folder")
+    return path
+
+
+def test_output_under_a_file_is_one_line(a_file, capsys):
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
+                 "--out", str(a_file / "x.png")]) == 2
+    assert str(a_file) in _one_error_line(capsys)
+
+
+def test_output_naming_a_folder_is_one_line(tmp_path, capsys):
+    folder = tmp_path / "picture.png"
+    folder.mkdir()
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
+                 "--out", str(folder)]) == 2
+    assert "folder" in _one_error_line(capsys)
+
+
+def test_output_name_too_long_is_one_line(tmp_path, capsys):
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
+                 "--out", str(tmp_path / ("x" * 300 + ".png"))]) == 2
+    assert "too long" in _one_error_line(capsys)
+
+
+def test_bake_into_a_file_is_one_line(a_file, capsys):
+    assert main(["bake", "builtin:cornell", "--grid", "1x1x1", "--resolution", "8",
+                 "--quiet", "--out", str(a_file / "pb")]) == 2
+    _one_error_line(capsys)
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders anyway")
+def test_read_only_folder_is_one_line(tmp_path, capsys):
+    folder = tmp_path / "ro"
+    folder.mkdir()
+    folder.chmod(0o555)
+    try:
+        assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
+                     "--out", str(folder / "x.png")]) == 2
+        _one_error_line(capsys)
+    finally:
+        folder.chmod(0o755)
+
+
+def test_a_closed_pipe_is_one_line():
+    proc = subprocess.run(
+        f"{sys.executable} -m voxfield.cli scenes | head -c 10", shell=True,
+        capture_output=True, text=True, timeout=120)
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.strip() == "" or proc.stderr.strip().startswith("voxfield: error:")
+
+
+@pytest.mark.parametrize("argv", [
+    ["render", "builtin:sphere", "--out", "x.png", "--seed", "99999999999999999999"],
+    ["render", "builtin:sphere", "--out", "x.png", "--seed", "-1"],
+    ["render", "builtin:sphere", "--out", "x.png", "--fov", "0"],
+    ["render", "builtin:sphere", "--out", "x.png", "--fov", "nan"],
+    ["render", "builtin:sphere", "--out", "x.png", "--size", "100000"],
+    ["info", "mesh.obj", "--mesh-resolution", "100000"],
+    ["errors", "show", "12", "--threshold", "nan"],
+    ["errors", "build", "--directions", "100000000"],
+    ["calibrate", "builtin:pillars", "--target-psnr", "nan"],
+    ["calibrate", "builtin:pillars", "--target-rays", "10", "--iterations", "100000000"],
+    ["info", "dem:jacksboro", "--vertical-scale", "-5"],
+])
+def test_nonsense_values_are_refused_by_the_parser(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "error:" in err and "Traceback" not in err
+
+
+def test_an_unknown_scheduler_writes_nothing(tmp_path, capsys):
+    out = tmp_path / "probes"
+    assert main(["bake", "builtin:cornell", "--grid", "1x1x1", "--resolution", "8", "--quiet",
+                 "--scheduler", "nowhere", "--out", str(out)]) == 2
+    assert "scheduler" in _one_error_line(capsys)
+    assert not (out / "probes.json").exists()
+
+
+def test_a_recipe_refuses_a_vertical_scale(capsys):
+    assert main(["info", "terrain:mountain", "--vertical-scale", "2", "--quiet"]) == 2
+    assert "vertical-scale" in _one_error_line(capsys)
+
+
+def test_outputs_respect_the_umask_and_keep_an_existing_mode(tmp_path):
+    previous = os.umask(0o022)
+    try:
+        fresh = tmp_path / "fresh.json"
+        with atomic_path(fresh) as tmp:
+            tmp.write_text("{}")
+        assert stat.S_IMODE(fresh.stat().st_mode) == 0o644
+        kept = tmp_path / "kept.json"
+        kept.write_text("old")
+        kept.chmod(0o640)
+        with atomic_path(kept) as tmp:
+            tmp.write_text("new")
+        assert stat.S_IMODE(kept.stat().st_mode) == 0o640 and kept.read_text() == "new"
+    finally:
+        os.umask(previous)
+
+
+def test_rendered_images_are_0644_under_umask_022(tmp_path):
+    previous = os.umask(0o022)
+    try:
+        out = tmp_path / "s.png"
+        assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--out", str(out)]) == 0
+        assert stat.S_IMODE(out.stat().st_mode) == 0o644
+    finally:
+        os.umask(previous)
