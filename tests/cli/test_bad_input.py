@@ -9,10 +9,13 @@ import stat
 import subprocess
 import sys
 
+import numpy as np
 import pytest
+from PIL import Image
 
 from voxfield.atomic import atomic_path
 from voxfield.cli import main
+from voxfield.cli.main import _note_warning
 
 
 def _one_error_line(capsys) -> str:
@@ -134,3 +137,22 @@ def test_rendered_images_are_0644_under_umask_022(tmp_path):
         assert stat.S_IMODE(out.stat().st_mode) == 0o644
     finally:
         os.umask(previous)
+
+
+def test_a_one_pixel_tiff_says_what_a_dem_needs(tmp_path, capsys):
+    path = tmp_path / "tiny.tif"
+    Image.fromarray(np.zeros((1, 1), np.int16)).save(path)
+    assert main(["info", str(path), "--quiet"]) == 2
+    assert "2×2" in _one_error_line(capsys)
+
+
+def test_gltf_with_broken_json_says_so(tmp_path, capsys):
+    path = tmp_path / "broken.gltf"
+    path.write_text("{ not json")
+    assert main(["info", str(path), "--quiet"]) == 2
+    assert "not valid glTF" in _one_error_line(capsys)
+
+
+def test_library_warnings_are_one_plain_note(capsys):
+    _note_warning(UserWarning("model 3 is missing"), UserWarning, "x.py", 1)
+    assert capsys.readouterr().err == "voxfield: note: model 3 is missing\n"

@@ -9,6 +9,7 @@ import argparse
 import errno
 import os
 import sys
+import warnings
 
 from voxfield.cli import (
     cmd_calibrate,
@@ -48,7 +49,14 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _note_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """Library warnings (an unreadable texture, a missing model) as one plain line each,
+    without Python's source-line echo."""
+    print(f"voxfield: note: {message}", file=sys.stderr)
+
+
 def main(argv: list[str] | None = None) -> int:
+    warnings.showwarning = _note_warning
     parser = build_parser()
     args = parser.parse_args(argv)
     args.quiet = getattr(args, "quiet", False)

@@ -16,6 +16,7 @@ Colour conventions (all colours end up linear RGB, see DESIGN.md §4):
 
 from __future__ import annotations
 
+import json
 import warnings
 from dataclasses import dataclass
 from itertools import chain
@@ -451,7 +452,6 @@ def _texture_path(mtl: Path, rest: str) -> Path | None:
 
 
 def _read_texture(path: Path, owner: Path) -> np.ndarray | None:
-
     try:
         with Image.open(path) as img:
             rgb = np.asarray(img.convert("RGB"), dtype=np.float32) / 255.0
@@ -472,6 +472,13 @@ def _load_with_trimesh(path: Path) -> TriangleMesh:
     # heavy: trimesh loads only when a mesh file is read
     import trimesh
 
+    if path.suffix.lower() == ".gltf":
+        # trimesh reports broken glTF JSON as a missing file; say what is wrong instead.
+        try:
+            json.loads(path.read_text(encoding="utf-8"))
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise SceneFormatError(f"{path}: not valid glTF (its JSON does not parse: "
+                                   f"{exc})") from exc
     try:
         scene = trimesh.load_scene(str(path), process=False)
         parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]

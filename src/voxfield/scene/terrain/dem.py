@@ -237,11 +237,17 @@ def read_geotiff(path) -> Heightmap:
                                 and math.isfinite(geo.y0)):
         raise SceneFormatError(f"{path}: its georeference gives a pixel size of "
                                f"{geo.dx} × {geo.dy}; a DEM needs a positive, finite one")
+    raw_shape = arr.shape
     arr = np.squeeze(arr)
+    if arr.ndim < 2 and arr.size < 4:
+        raise SceneFormatError(
+            f"{path}: a DEM needs at least 2×2 heights, this TIFF holds {arr.size} "
+            f"(shape {raw_shape})"
+        )
     if arr.ndim != 2:
         raise SceneFormatError(
             f"{path}: a DEM needs one band of heights, this TIFF holds an array of shape "
-            f"{arr.shape} (an RGB image? pass it as colors= instead)"
+            f"{raw_shape} (an RGB image? pass it as colors= instead)"
         )
     if not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
         raise SceneFormatError(f"{path}: unsupported sample type {arr.dtype}")
