@@ -1,5 +1,5 @@
-"""A camera inside a voxel or under a (hollow) terrain is found; one in a room or above the
-ground is not."""
+"""Standing places over a (hollow) terrain: a camera inside a voxel or under the surface is
+found, one in a room or above the ground is not; a surface probe layer floats at its height."""
 
 from __future__ import annotations
 
@@ -7,8 +7,10 @@ import numpy as np
 import pytest
 
 from voxfield.errors import VoxfieldError
+from voxfield.probes.grid import parse_grid
 from voxfield.render.camera import Camera, room_camera
 from voxfield.render.placement import camera_placement_problem, check_camera_placement
+from voxfield.render.ray_query import trace
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
 from voxfield.svo.open import open_octree
@@ -52,3 +54,13 @@ def test_a_camera_inside_a_voxel_is_refused(hollow_terrain):
 def test_the_room_camera_in_a_closed_box_is_fine():
     cornell = open_octree("builtin:cornell")
     assert camera_placement_problem(cornell, room_camera(*cornell.voxel_bounds, size=16)) is None
+
+
+def test_a_surface_layer_floats_at_its_height_over_the_ground(hollow_terrain):
+    grid = parse_grid("surface:5x4@6", octree=hollow_terrain)
+    assert tuple(grid.counts) == (5, 1, 4)
+    positions = grid.positions
+    down = trace(hollow_terrain, positions, np.tile([0.0, -1.0, 0.0], (len(positions), 1)),
+                 lod=0)
+    assert down.hit.all()
+    np.testing.assert_allclose(down.t, 6.0, atol=1e-9)  # H above the ground below each

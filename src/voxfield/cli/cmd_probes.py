@@ -46,7 +46,8 @@ def register(subparsers) -> None:
     )
     add_scene_options(p)
     p.add_argument("--grid", required=True, metavar="SPEC",
-                   help='probe grid: "NXxNYxNZ" fitted to the scene (e.g. 4x2x4), or '
+                   help='probe grid: "NXxNYxNZ" fitted to the scene (e.g. 4x2x4), '
+                   '"surface:NXxNZ@H" (one layer H voxels above the ground, for terrains) or '
                    '"origin=x,y,z;spacing=s or sx,sy,sz;counts=nx,ny,nz" in voxels')
     p.add_argument("--resolution", type=positive_int, default=defaults.resolution,
                    metavar="R", help=f"octahedral map side in texels, even "
@@ -139,7 +140,7 @@ def run_bake(args) -> int:
     options = _bake_options(args)  # bad options fail before the scene is built
     out = Path(args.out) if args.out else default_output("probes", args.scene)
     octree = open_octree(args)
-    grid = parse_grid(args.grid, octree.voxel_bounds)
+    grid = parse_grid(args.grid, octree.voxel_bounds, octree=octree)
     report = None
     if args.relocate:
         grid, report = relocate(grid, octree, seed=args.seed)

@@ -188,7 +188,7 @@ def run_lighting(args) -> int:
 
 def run_probe_resolution(args) -> int:
     octree = open_octree(args)
-    grid = parse_grid(args.grid, octree.voxel_bounds)
+    grid = parse_grid(args.grid, octree.voxel_bounds, octree=octree)
     report = probe_resolution_study(
         octree, grid.positions[grid.enabled], args.resolutions, threshold=args.threshold,
         decay=args.decay, seed=args.seed, channel=args.channel, scene_name=args.scene,

@@ -241,16 +241,58 @@ def _check_offset_size(offsets: np.ndarray, spacing: np.ndarray) -> None:
 
 
 _DIMS = re.compile(r"^\s*(\d+)\s*[x×]\s*(\d+)\s*[x×]\s*(\d+)\s*$", re.IGNORECASE)
-_GRID_HELP = ('give "NXxNYxNZ" (e.g. 8x4x8, fitted to the scene) or '
+_SURFACE = re.compile(r"^\s*surface\s*:\s*(\d+)\s*[x×]\s*(\d+)\s*@\s*([0-9.eE+-]+)\s*$",
+                      re.IGNORECASE)
+_GRID_HELP = ('give "NXxNYxNZ" (e.g. 8x4x8, fitted to the scene), "surface:NXxNZ@H" (one '
+              'layer H voxels above a terrain\'s surface) or '
               '"origin=x,y,z;spacing=sx,sy,sz;counts=nx,ny,nz"')
 
 
-def parse_grid(text: str, bounds=None) -> ProbeGrid:
+def surface_layer(octree, counts_xz, height: float) -> ProbeGrid:
+    """One layer of ``NX × NZ`` probes, each ``height`` voxels above the surface below it
+    (found by a ray cast straight down): for terrains, whose relief a flat layer would cut
+    through or float far above. The lattice is one probe high; each probe's vertical offset
+    follows the ground, so the cell spans the whole relief."""
+    if not (math.isfinite(height) and height > 0):
+        raise VoxfieldError(f"the layer height must be a distance above 0, got {height}")
+    lo, hi = (np.asarray(b, np.float64) for b in octree.voxel_bounds)
+    nx, nz = (int(c) for c in counts_xz)
+    flat = ProbeGrid.fit(lo, hi, (nx, 1, nz))
+    xz = flat.base_positions[:, [0, 2]]
+    origins = np.column_stack([xz[:, 0], np.full(len(xz), hi[1] + 1.0), xz[:, 1]])
+    down = np.tile([0.0, -1.0, 0.0], (len(xz), 1))
+    hits = trace(octree, origins, down, lod=0)
+    ground = np.where(hits.hit, origins[:, 1] - hits.t, lo[1])
+    target = ground + height
+    centre = 0.5 * (target.min() + target.max())
+    spacing = flat.spacing.copy()
+    spacing[1] = max(2.0 * float(np.abs(target - centre).max()) + 1.0, 1.0)
+    origin = flat.origin.copy()
+    origin[1] = centre
+    offsets = np.zeros((len(xz), 3))
+    offsets[:, 1] = target - centre
+    return ProbeGrid(origin, spacing, (nx, 1, nz), offsets)
+
+
+def parse_grid(text: str, bounds=None, octree=None) -> ProbeGrid:
     """The CLI's ``--grid``: ``"8x4x8"`` fits that many probes to ``bounds`` (lo, hi), e.g. an
-    octree's ``voxel_bounds``; ``"origin=x,y,z;spacing=s or sx,sy,sz;counts=nx,ny,nz"`` gives
-    the lattice explicitly (keys in any order)."""
+    octree's ``voxel_bounds``; ``"surface:8x8@12"`` lays one layer 12 voxels above the
+    ``octree``'s surface (``surface_layer``); ``"origin=x,y,z;spacing=s or sx,sy,sz;
+    counts=nx,ny,nz"`` gives the lattice explicitly (keys in any order)."""
     if not isinstance(text, str) or not text.strip():
         raise VoxfieldError(f"empty probe grid; {_GRID_HELP}")
+    surface = _SURFACE.match(text)
+    if surface:
+        if octree is None:
+            raise VoxfieldError(f"grid {text!r} follows a scene's surface; there is no scene")
+        try:
+            height = float(surface.group(3))
+        except ValueError:
+            raise VoxfieldError(f"the layer height in {text!r} must be a number") from None
+        counts = (int(surface.group(1)), int(surface.group(2)))
+        if min(counts) < 1:
+            raise VoxfieldError(f"probe counts must be 1 or more, got {text!r}")
+        return surface_layer(octree, counts, height)
     dims = _DIMS.match(text)
     if dims:
         if bounds is None:
