@@ -7,6 +7,7 @@ import argparse
 from voxfield.cli.options import (
     add_renderer_options,
     add_scene_options,
+    add_study_folder,
     add_view_options,
     camera,
     default_output,
@@ -36,10 +37,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    "refinement, EA §6.2)")
     p.add_argument("--channel", default="albedo", help="colour channel (default albedo)")
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
-    p.add_argument("--fresh", action="store_true",
-                   help="ignore cached renders and metrics in the output folder")
-    p.add_argument("--out", default=None,
-                   help="output folder (default out/compare_NAME, NAME from the scene)")
+    add_study_folder(p, "compare", "renders and metrics")
     p.set_defaults(func=run)
     return p
 

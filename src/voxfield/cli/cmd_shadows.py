@@ -8,6 +8,7 @@ import argparse
 from voxfield.cli.options import (
     add_renderer_options,
     add_scene_options,
+    add_study_folder,
     add_view_options,
     camera,
     default_output,
@@ -52,9 +53,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--encoding", choices=("oct", "sh"), default=None,
                    help="error-table encoding (default: the table's)")
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
-    p.add_argument("--fresh", action="store_true", help="ignore cached renders in --out")
-    p.add_argument("--out", default=None,
-                   help="output folder (default out/shadows_NAME, NAME from the scene)")
+    add_study_folder(p, "shadows", "renders")
     p.set_defaults(func=run)
     return p
 

@@ -10,6 +10,7 @@ from voxfield.cli.options import (
     add_quiet,
     add_renderer_options,
     add_scene_options,
+    add_study_folder,
     add_threshold_options,
     add_view_options,
     camera,
@@ -60,8 +61,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     t.add_argument("--thresholds", type=float_list, default=THESIS_THRESHOLDS,
                    help="comma-separated thresholds (default 0.05..0.3)")
     add_renderer_options(t, ("error-aware", "adaptive"), only=("decay", "base_lod"))
-    t.add_argument("--out", default=None, help="output folder (default out/thresholds_SCENE)")
-    t.add_argument("--fresh", action="store_true", help="ignore cached cells")
+    add_study_folder(t, "thresholds", "cells")
     add_channel_option(t)
     add_view_options(t)
     t.set_defaults(func=run_thresholds)
@@ -76,8 +76,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--sizes", type=positive_int_list, default=THESIS_SIZES,
                    help="comma-separated image sides (default 128,256,512,1024)")
     add_threshold_options(r)
-    r.add_argument("--out", default=None, help="output folder (default out/resolution_SCENE)")
-    r.add_argument("--fresh", action="store_true", help="ignore cached cells")
+    add_study_folder(r, "resolution", "cells")
     add_channel_option(r)
     add_quiet(r)
     r.set_defaults(func=run_resolution)
@@ -97,8 +96,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="times of day to bake when the scene has none (default all four)")
     add_renderer_options(g, ("error-aware", "adaptive"),
                          only=("threshold", "decay", "base_lod", "bright_ratio"))
-    g.add_argument("--out", default=None, help="output folder (default out/lighting_SCENE)")
-    g.add_argument("--fresh", action="store_true", help="ignore cached renders")
+    add_study_folder(g, "lighting", "renders")
     add_view_options(g)
     g.set_defaults(func=run_lighting)
 
@@ -249,8 +247,7 @@ def _register_probes(actions) -> argparse.ArgumentParser:
                    help="keep probes on their lattice points even inside geometry")
     p.add_argument("--repeats", type=int, default=3,
                    help="timed runs per renderer in the wall-time section (default 3)")
-    p.add_argument("--out", default=None, help="output folder (default out/probe_study_SCENE)")
-    p.add_argument("--fresh", action="store_true", help="ignore cached items")
+    add_study_folder(p, "probe_study")
     add_channel_option(p)
     add_view_options(p, size=256)
     p.set_defaults(func=run_probes, camera="room")

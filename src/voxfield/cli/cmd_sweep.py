@@ -8,6 +8,7 @@ from voxfield.cli.options import (
     add_channel_option,
     add_renderer_options,
     add_scene_options,
+    add_study_folder,
     add_view_options,
     camera,
     float_list,
@@ -28,9 +29,8 @@ def register(subparsers) -> None:
     p.add_argument("--thresholds", type=float_list, default=THESIS_THRESHOLDS,
                    help="comma-separated thresholds (default the thesis's 0.175..0.05)")
     add_renderer_options(p, ("error-aware",), only=("base_lod",), prefix=False)
-    p.add_argument("--out", default=None, help="output folder (default out/sweep_SCENE)")
+    add_study_folder(p, "sweep", "cells")
     add_channel_option(p)
-    p.add_argument("--fresh", action="store_true", help="ignore cached cells")
     add_view_options(p)
     p.set_defaults(func=run)
 

@@ -210,6 +210,14 @@ def _preset_names() -> list[str]:
     return [*names, "cube+x..cube-z"]
 
 
+def add_study_folder(p: argparse.ArgumentParser, prefix: str, cached: str = "items") -> None:
+    """``--out`` (the study folder, ``out/PREFIX_SCENE`` by default) and ``--fresh``: every
+    resumable study reuses what its folder holds unless told to start over."""
+    p.add_argument("--out", default=None,
+                   help=f"output folder (default out/{prefix}_SCENE, SCENE from the scene)")
+    p.add_argument("--fresh", action="store_true", help=f"ignore cached {cached} in --out")
+
+
 def set_option_help(p: argparse.ArgumentParser, dest: str, help: str) -> None:
     """Reword a shared option's help for one command (its default changed, say)."""
     next(a for a in p._actions if a.dest == dest).help = help

@@ -136,6 +136,26 @@ def face_time(plane: int, o: float, inv: float) -> float:
 
 
 @njit(cache=True, nogil=True, inline="always")
+def child_at(x0: int, y0: int, z0: int, size: int, ox: float, oy: float, oz: float,
+             ix: float, iy: float, iz: float, t_min: float, flip: int):
+    """The child (octant bits, corner) of a node at ``(x0, y0, z0)`` whose children have
+    side ``size`` that the ray is in at ``t_min``: past a centre plane once its crossing time
+    is reached, in the mirrored frame (``flip``) the traversal walks in."""
+    idx = (
+        (1 if face_time(x0 + size, ox, ix) <= t_min else 0)
+        | (2 if face_time(y0 + size, oy, iy) <= t_min else 0)
+        | (4 if face_time(z0 + size, oz, iz) <= t_min else 0)
+    ) ^ flip
+    if idx & 1:
+        x0 += size
+    if idx & 2:
+        y0 += size
+    if idx & 4:
+        z0 += size
+    return idx, x0, y0, z0
+
+
+@njit(cache=True, nogil=True, inline="always")
 def entry_normal(tex: float, tey: float, tez: float, tmin: float, dx: float, dy: float,
                  dz: float) -> int:
     """Face code of the axis whose slab is entered last (first maximum wins), or NO_NORMAL
@@ -332,17 +352,7 @@ def traverse(
     # The current node is child ``idx`` (octant bits) at ``(x0, y0, z0)`` of side ``size`` of
     # the inner node ``parent`` at ``level``; the ray enters it at ``t_min``.
     size >>= 1
-    idx = (
-        (1 if face_time(x0 + size, ox, ix) <= t_min else 0)
-        | (2 if face_time(y0 + size, oy, iy) <= t_min else 0)
-        | (4 if face_time(z0 + size, oz, iz) <= t_min else 0)
-    ) ^ flip
-    if idx & 1:
-        x0 += size
-    if idx & 2:
-        y0 += size
-    if idx & 4:
-        z0 += size
+    idx, x0, y0, z0 = child_at(x0, y0, z0, size, ox, oy, oz, ix, iy, iz, t_min, flip)
     while True:
         tx = face_time(x0 + (size & exit_x), ox, ix)
         ty = face_time(y0 + (size & exit_y), oy, iy)
@@ -373,17 +383,7 @@ def traverse(
             if any_hit and (parent & SOLID_BIT) != 0:
                 return node, level, t_min, NO_NORMAL, steps
             size >>= 1
-            idx = (
-                (1 if face_time(x0 + size, ox, ix) <= t_min else 0)
-                | (2 if face_time(y0 + size, oy, iy) <= t_min else 0)
-                | (4 if face_time(z0 + size, oz, iz) <= t_min else 0)
-            ) ^ flip
-            if idx & 1:
-                x0 += size
-            if idx & 2:
-                y0 += size
-            if idx & 4:
-                z0 += size
+            idx, x0, y0, z0 = child_at(x0, y0, z0, size, ox, oy, oz, ix, iy, iz, t_min, flip)
             continue
         # Advance to the next node along the ray: step every axis whose exit comes first.
         if not started:
