@@ -141,10 +141,11 @@ def test_parent_reuse_is_thread_count_independent(table, terrain):
 
 
 def _lit_block():
-    """A solid 16³ block (no geometric error anywhere) whose top layer is bright."""
+    """A solid 16³ block (no geometric error anywhere) whose top layer is bright, coloured
+    as the EA thesis colours LODs (children's mean: the dark interior shows at LOD 1)."""
     coords = np.argwhere(np.ones((16, 16, 16), bool))
     color = np.where((coords[:, 1] == 15)[:, None], 0.9, 0.1) * np.ones(3)
-    return build_octree(VoxelScene(coords, color))
+    return build_octree(VoxelScene(coords, color), lod_colour="mean")
 
 
 def test_lighting_aware_refines_where_only_colour_differs(table):

@@ -63,7 +63,7 @@ def test_lod_zero_with_one_sample_equals_reference_with_one_sample(pillar_octree
 def test_lod_image_equals_the_finest_render_of_the_lod_grid(lod):
     """Rendering LOD k must equal rendering, at LOD 0, a scene made of the LOD-k blocks."""
     scene = random_scene(7, n=400, size=16)
-    octree = build_octree(scene)
+    octree = build_octree(scene, lod_colour="mean")  # a block shows its children's mean
     sl = octree.level_slice(octree.depth - lod)
     corners = octree.lod_voxels(lod)
     block = np.stack(np.meshgrid(*[np.arange(2**lod)] * 3, indexing="ij"), -1).reshape(-1, 3)

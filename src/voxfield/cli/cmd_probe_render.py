@@ -49,6 +49,7 @@ from voxfield.render.image_io import save_result_image
 from voxfield.render.placement import camera_placement_problem
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.scene.loaders import SceneOptions
+from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree
 
 
@@ -112,8 +113,8 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="--scene terrain: footprint in voxels per side (default 512)")
     p.add_argument("--vertical-scale", type=float, default=None, metavar="S",
                    help="--scene terrain: height multiplier (default: true scale)")
-    p.add_argument("--lod-colour", choices=("mean", "surface"), default="mean",
-                   help="--scene: inner-node colour rule (default mean)")
+    p.add_argument("--lod-colour", choices=LOD_COLOURS, default=DEFAULT_LOD_COLOUR,
+                   help=f"--scene: inner-node colour rule (default {DEFAULT_LOD_COLOUR})")
     p.add_argument("--seed", type=int, default=0, help="scene seed (rays use pixel centres)")
     p.add_argument("--compare", action="store_true",
                    help="with --scene: also render the view from the octree, print PSNR and "

@@ -20,6 +20,7 @@ from voxfield.render.camera import CAMERA_PRESETS, Camera, preset_camera
 from voxfield.render.registry import RENDERERS
 from voxfield.scene.loaders import SceneOptions
 from voxfield.scene.terrain.columns import MAX_FOOTPRINT
+from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree as open_octree_from_spec
 
 QUIET_HELP = "no progress bars or summaries"
@@ -180,9 +181,11 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--colour-storage", choices=("srgb8", "float32"), default="srgb8",
                    help="how a built octree keeps its albedo: 8-bit sRGB, 3 bytes a node "
                    "(default), or float32, 12 bytes")
-    p.add_argument("--lod-colour", choices=("mean", "surface"), default="mean",
-                   help="inner-node colours: mean of the children (default, as the EA thesis) "
-                   "or mean of the voxels with an exposed face")
+    p.add_argument("--lod-colour", choices=LOD_COLOURS, default=DEFAULT_LOD_COLOUR,
+                   help="inner-node colours: facing (default; per node the colour seen along each "
+                   "axis, read by ray direction: hidden interiors never show), surface (mean of "
+                   "the voxels weighted by exposed faces) or mean (of the children, as the EA "
+                   "thesis)")
 
 
 def add_channel_option(p: argparse.ArgumentParser) -> None:

@@ -29,6 +29,7 @@ from voxfield.kernels.beam import start_distance
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.error_lookup import colour_error, oct_error, sh_error, sh_evaluate
+from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.node_descriptor import descriptor_first_child
 from voxfield.kernels.primary import normal_from_code, store_pixel
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
@@ -163,11 +164,13 @@ def lighting_node_error(
 
 
 class OctreeView(NamedTuple):
-    """What a traversal reads of an octree: packed descriptors, depth, one colour channel."""
+    """What a traversal reads of an octree: packed descriptors, depth, one colour channel and
+    its directional colours (``kernels.facing_colour``; empty when it has none)."""
 
     inner_nodes: np.ndarray
     depth: int
     colors: np.ndarray
+    facing: np.ndarray
 
 
 class Refinement(NamedTuple):
@@ -239,7 +242,7 @@ def render_error_aware_row(
 ) -> None:
     """One row of ``render_error_aware_rows`` (the traversal is inlined here, never straight
     into a ``prange`` body, where Numba's parfor pass would hoist its initialisations)."""
-    inner_nodes, depth, colors = view
+    inner_nodes, depth, colors, facing = view
     base_stop_level, cone_scale, max_refinements, reuse_parent = refinement
     (threshold, decay, encoding, oct_map, sh, children_sh, lighting_aware, bright_ratio,
      light_map, class_of, symmetry_of, symmetries) = model
@@ -357,7 +360,7 @@ def render_error_aware_row(
                     continue
             weight = 1.0 / (cells * cells)
             hits += 1
-            cr, cg, cb = node_rgb(colors, node)
+            cr, cg, cb = seen_rgb(colors, facing, node, dx, dy, dz)
             r += weight * cr
             g += weight * cg
             b += weight * cb

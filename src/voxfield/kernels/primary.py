@@ -9,7 +9,7 @@ from numba import njit, prange
 
 from voxfield.kernels.beam import start_distance
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
-from voxfield.kernels.colour import node_rgb
+from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.sampling import cmj_sample, pixel_pattern
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
@@ -62,7 +62,7 @@ def render_pixels(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
     side: int, seed: int,
     inner_nodes: np.ndarray, depth: int,
-    stop_level: int, cone_scale: float, colors: np.ndarray,
+    stop_level: int, cone_scale: float, colors: np.ndarray, facing: np.ndarray,
     beam_bound: np.ndarray, block: int,
     out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
     out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
@@ -73,8 +73,9 @@ def render_pixels(
     ``out_base`` is negative.
 
     ``cone_scale`` > 0 stops descent where a node is no larger than ``cone_scale`` times the
-    sub-sample footprint; 0 descends to ``stop_level``. Misses contribute black. Rays of
-    the ``block``×``block`` pixel block ``(by, bx)`` start at ``beam_bound[by, bx]``
+    sub-sample footprint; 0 descends to ``stop_level``. Hits are coloured by
+    ``kernels.facing_colour.seen_rgb`` from ``colors`` and ``facing``; misses contribute black.
+    Rays of the ``block``×``block`` pixel block ``(by, bx)`` start at ``beam_bound[by, bx]``
     (``kernels.beam``; zeros start every ray at the camera).
     """
     n = pixels.shape[0]
@@ -82,7 +83,7 @@ def render_pixels(
     for c in prange((n + chunk - 1) // chunk):
         render_pixel_chunk(
             cam, width, height, pixels, out_base, c * chunk, min(n, (c + 1) * chunk), side, seed,
-            inner_nodes, depth, stop_level, cone_scale, colors, beam_bound, block,
+            inner_nodes, depth, stop_level, cone_scale, colors, facing, beam_bound, block,
             out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
         )
 
@@ -92,7 +93,7 @@ def render_pixel_chunk(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
     first: int, last: int, side: int, seed: int,
     inner_nodes: np.ndarray, depth: int,
-    stop_level: int, cone_scale: float, colors: np.ndarray,
+    stop_level: int, cone_scale: float, colors: np.ndarray, facing: np.ndarray,
     beam_bound: np.ndarray, block: int,
     out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
     out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
@@ -138,7 +139,7 @@ def render_pixel_chunk(
             if node == MISS:
                 continue
             hits += 1
-            cr, cg, cb = node_rgb(colors, node)
+            cr, cg, cb = seen_rgb(colors, facing, node, dx, dy, dz)
             r += cr
             g += cg
             b += cb

@@ -97,14 +97,15 @@ def render_adaptive(
     valid = first.hit_count > 0
     current = np.zeros(valid.shape, np.int8)
     variance = np.zeros(valid.shape)
-    colors = octree.channel(channel)
+    colors, facing = octree.kernel_colours(channel)
     for _ in range(iterations):
         variance = window_variance(luminance(result.image), valid) / variance_normalisation
         wanted = refinement_classes(variance, valid)
         for cls in (1, 2):
             todo = np.flatnonzero((wanted == cls) & (current < cls))
             if len(todo):
-                _refine(octree, camera, todo, CLASS_SIDE[cls], seed, colors, result, threads)
+                _refine(octree, camera, todo, CLASS_SIDE[cls], seed, (colors, facing), result,
+                        threads)
                 current.reshape(-1)[todo] = cls
     result.seconds = first.seconds + time.perf_counter() - start
     result.maps["variance"] = variance
@@ -117,7 +118,7 @@ def render_adaptive(
     return result
 
 
-def _refine(octree, camera, pixels, side, seed, colors, result, threads) -> None:
+def _refine(octree, camera, pixels, side, seed, colours, result, threads) -> None:
     """Re-render the listed pixels with side×side rays at LOD 0; rays and steps add up."""
     n = len(pixels)
     color = np.empty((n, 3), np.float32)
@@ -131,7 +132,7 @@ def _refine(octree, camera, pixels, side, seed, colors, result, threads) -> None
     with thread_count(threads):
         beam = primary_beam(octree, camera, stop_level=octree.depth, side=side, pixels=pixels)
         render_pixels(camera.params, camera.width, camera.height, pixels, -1, side,
-                      seed, octree.inner_nodes, octree.depth, octree.depth, 0.0, colors,
+                      seed, octree.inner_nodes, octree.depth, octree.depth, 0.0, *colours,
                       beam.bound, beam.block, color, depth, normal, rays, hits, steps, lod)
     steps += beam.pixel_steps(pixels, camera.width)
     flat = {name: getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])

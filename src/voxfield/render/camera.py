@@ -143,13 +143,15 @@ def cube_cameras(position, size: int = 128) -> list[Camera]:
 
 def top_down_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 90.0) -> Camera:
     """The EA thesis's setup (§5.1.1): centred above the map, looking straight down, placed so
-    the 90° frustum just spans the map's horizontal extent at the ground."""
+    the 90° frustum just spans the map's horizontal extent at the ground. A scene taller than
+    that (an object, not a map) is framed at its top instead, so the eye is never inside it."""
     lo = np.asarray(bounds_min, np.float64)
     hi = np.asarray(bounds_max, np.float64)
     c = (lo + hi) / 2.0
     half_extent = max(hi[0] - lo[0], hi[2] - lo[2]) / 2.0
     distance = half_extent / np.tan(np.radians(fov_deg) / 2.0)
-    eye = (c[0], lo[1] + distance, c[2])
+    base = lo[1] if lo[1] + distance > hi[1] else hi[1]
+    eye = (c[0], base + distance, c[2])
     return Camera.look_at(eye, (c[0], lo[1], c[2]), (0.0, 0.0, -1.0), fov_deg=fov_deg, width=size)
 
 

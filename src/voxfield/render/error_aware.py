@@ -103,14 +103,14 @@ def render_error_aware(
         raise VoxfieldError(f"bright ratio must be a number >= 0, got {bright_ratio}")
     if base_lod is None and not cone_scale > 0:
         raise VoxfieldError("cone LOD selection needs a positive cone scale")
-    colors = octree.channel(channel)
+    colors, facing = octree.kernel_colours(channel)
     light = _lighting_arrays(lighting_table, lighting_aware)
     h, w = camera.height, camera.width
     result = RenderResult.allocate(h, w, renderer="error-aware")
     refined = np.empty((h, w), np.int32)
     discarded = np.empty((h, w), np.int32)
     stop_level = octree.depth - (0 if base_lod is None else base_lod)
-    view = OctreeView(octree.inner_nodes, octree.depth, colors)
+    view = OctreeView(octree.inner_nodes, octree.depth, colors, facing)
     refinement = Refinement(stop_level, cone_scale if base_lod is None else 0.0,
                             max_refinements, bool(reuse_parent))
     model = ErrorModel(

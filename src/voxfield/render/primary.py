@@ -49,15 +49,15 @@ def trace_image(
     """
     if side < 1 or side > 16:
         raise VoxfieldError(f"samples per pixel side must be in 1..16, got {side}")
-    colors = octree.channel(channel)
+    colors, facing = octree.kernel_colours(channel)
     h, w = camera.height, camera.width
     result = RenderResult.allocate(h, w)
     cam = camera.params
     with thread_count(threads):
         bounds = primary_beam(octree, camera, stop_level=stop_level, cone_scale=cone_scale,
                               side=side, enabled=beam)
-    args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors, bounds.bound,
-            bounds.block)
+    args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors, facing,
+            bounds.bound, bounds.block)
 
     order = tile_order(h, w)
 

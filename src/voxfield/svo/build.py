@@ -11,9 +11,8 @@ from voxfield.errors import SceneTooLargeError, VoxfieldError
 from voxfield.kernels.colour import SRGB8, STORAGES, encode_channel
 from voxfield.kernels.node_descriptor import pack_descriptors
 from voxfield.progress import progress_bar
-from voxfield.scene.surface import face_mask
 from voxfield.scene.voxel_scene import MAX_EXTENT, VoxelScene
-from voxfield.svo.channels import propagate_channel
+from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, apply_lod_colour, check_lod_colour
 from voxfield.svo.octree import Octree
 
 _SPREAD_MASKS = (
@@ -73,24 +72,18 @@ def _add_parent_level(codes, level_masks, level_first, level_solid, level_attrs)
     return parent_codes[starts]
 
 
-#: How inner nodes get their colours: the plain mean of their children (the EA thesis), or the
-#: mean over the voxels with an exposed face (buried voxels, which no ray ever sees at LOD 0,
-#: then do not darken coarse levels).
-LOD_COLOURS = ("mean", "surface")
-
-
 def build_octree(
     scene: VoxelScene, *, memory_limit_bytes: int | None = None, progress: bool = False,
-    lod_colour: str = "mean", colour_storage: str = SRGB8,
+    lod_colour: str = DEFAULT_LOD_COLOUR, colour_storage: str = SRGB8,
 ) -> Octree:
     """Build the SVO of a scene; the scene is moved so its minimum corner is the origin.
+
+    ``lod_colour`` is how coarse levels are coloured (``svo.lod_colours.LOD_COLOURS``).
 
     ``colour_storage`` is how the albedo is kept: 8-bit sRGB (``srgb8``, 3 bytes a node; an
     8-bit input survives exactly) or ``float32`` (12 bytes). Other channels stay float32.
     """
-    if lod_colour not in LOD_COLOURS:
-        raise VoxfieldError(f"unknown LOD colour rule {lod_colour!r}; choose one of "
-                            f"{', '.join(LOD_COLOURS)}")
+    check_lod_colour(lod_colour)
     if colour_storage not in STORAGES:
         raise VoxfieldError(f"unknown colour storage {colour_storage!r}; choose one of "
                             f"{', '.join(STORAGES)}")
@@ -157,18 +150,7 @@ def build_octree(
         build_seconds=time.perf_counter() - start,
         name=scene.name,
     )
-    if lod_colour == "surface":
-        octree = _surface_weighted(octree)
     attributes = dict(octree.attributes)
     attributes["color"] = encode_channel(attributes["color"], colour_storage)
-    return replace(octree, attributes=attributes)
+    return apply_lod_colour(replace(octree, attributes=attributes), lod_colour)
 
-
-def _surface_weighted(octree: Octree) -> Octree:
-    """Every attribute's inner levels re-averaged over the voxels with an exposed face."""
-    leaves = octree.level_slice(octree.depth)
-    exposed = face_mask(octree.node_coords(octree.depth)).any(axis=1)
-    weights = exposed.astype(np.float64)
-    attributes = {k: propagate_channel(octree, v[leaves], weights)
-                  for k, v in octree.attributes.items()}
-    return replace(octree, attributes=attributes)

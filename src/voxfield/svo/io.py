@@ -29,6 +29,7 @@ def save_octree(octree: Octree, path: str | os.PathLike) -> Path:
         "name": octree.name,
         "build_seconds": octree.build_seconds,
         "attributes": sorted(octree.attributes),
+        "facing": octree.facing is not None,
     }
     arrays = {
         "header": np.frombuffer(json.dumps(header).encode(), dtype=np.uint8),
@@ -39,6 +40,8 @@ def save_octree(octree: Octree, path: str | os.PathLike) -> Path:
     }
     for name, values in octree.attributes.items():
         arrays[f"attr_{name}"] = values
+    if octree.facing is not None:
+        arrays["facing"] = octree.facing
     with atomic_path(path) as tmp, open(tmp, "wb") as f:
         np.savez(f, **arrays)
     return path
@@ -76,6 +79,7 @@ def load_octree(path: str | os.PathLike) -> Octree:
                 scene_origin=data["scene_origin"],
                 build_seconds=float(header.get("build_seconds", 0.0)),
                 name=str(header.get("name", path.stem)),
+                facing=data["facing"] if header.get("facing") else None,
             )
     except OctreeFormatError:
         raise
@@ -136,6 +140,9 @@ def validate_octree(octree: Octree, where: str = "octree") -> None:
                                     "sRGB or float32")
         if values.dtype == np.float32 and not np.all(np.isfinite(values)):
             raise OctreeFormatError(f"{where}: attribute {name!r} holds NaN or infinity")
+    facing = octree.facing
+    if facing is not None and (facing.dtype != np.uint8 or facing.shape != (int(off[-2]), 6, 4)):
+        raise OctreeFormatError(f"{where}: directional colours have the wrong type or shape")
     masks = octree.descriptors & 0xFF
     if np.any(masks == 0):
         raise OctreeFormatError(f"{where}: inner node without children")

@@ -25,6 +25,7 @@ import numpy as np
 from voxfield.errors import VoxfieldError
 from voxfield.fingerprint import array_fingerprint
 from voxfield.kernels.colour import decode_channel
+from voxfield.kernels.facing_colour import NO_FACING
 from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT
 
 
@@ -40,6 +41,8 @@ class Octree:
     scene_origin: np.ndarray = field(default_factory=lambda: np.zeros(3, np.int64))
     build_seconds: float = 0.0
     name: str = "scene"
+    #: ``(inner nodes, 6, 4)`` uint8 directional albedo (``svo.lod_colours``), or None.
+    facing: np.ndarray | None = None
 
     @property
     def node_count(self) -> int:
@@ -144,6 +147,8 @@ class Octree:
         arrays = {"descriptors": self.descriptors, "level_offsets": self.level_offsets,
                   "voxel_box": self.voxel_box}
         arrays.update({f"attr:{k}": v for k, v in self.attributes.items()})
+        if self.facing is not None:
+            arrays["facing"] = self.facing
         return arrays
 
     @property
@@ -162,7 +167,19 @@ class Octree:
     def fingerprint(self, channel: str = "albedo") -> str:
         """Names this octree's structure and one colour channel in cache keys and probe
         files: equal octrees give equal fingerprints, any change in either gives another."""
-        return array_fingerprint(self.level_offsets, self.child_mask, self.channel(channel))
+        arrays = [self.level_offsets, self.child_mask, self.channel(channel)]
+        if self.facing is not None and channel in ("albedo", "color"):
+            arrays.append(self.facing)
+        return array_fingerprint(*arrays)
+
+    def kernel_colours(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """What colour-reading kernels take for a channel (``kernels.facing_colour.seen_rgb``):
+        the stored channel and the directional colours, empty unless the channel is the
+        albedo of an octree that has them."""
+        stored = self.channel(name)
+        if self.facing is not None and name in ("albedo", "color"):
+            return stored, self.facing
+        return stored, NO_FACING
 
     def channel(self, name: str) -> np.ndarray:
         """A channel as stored (``kernels.colour``: 8-bit sRGB or float32): what kernels take."""

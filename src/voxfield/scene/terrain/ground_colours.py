@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import gaussian_filter
 
 from voxfield.errors import SceneFormatError, VoxfieldError
 from voxfield.scene.terrain.columns import TerrainColumns, square_crop
@@ -39,6 +40,9 @@ class ColorRamp:
     (rise per run) are ``rock``; above ``snow_line`` and flatter than ``snow_max_slope``, snow.
     ``jitter`` moves band edges per column (ragged, partly covered borders, like the thesis's
     snow lines) and ``noise`` varies brightness per column (texture noise); both are seeded.
+    ``smoothing`` blurs the finished colours, image or ramp, over that many columns (Gaussian
+    sigma), so colour changes at the scale of a few voxels, not per column. ``earth`` is the
+    colour the voxels under the surface mix in; ``None`` gives them the surface colour.
     """
 
     low: tuple[float, float, float] = (0.78, 0.70, 0.50)
@@ -48,13 +52,14 @@ class ColorRamp:
     snow: tuple[float, float, float] = (0.93, 0.94, 0.97)
     shallow: tuple[float, float, float] = (0.16, 0.40, 0.50)
     deep: tuple[float, float, float] = (0.03, 0.11, 0.24)
-    earth: tuple[float, float, float] = (0.35, 0.25, 0.17)
+    earth: tuple[float, float, float] | None = (0.35, 0.25, 0.17)
     beach_line: float = 0.03
     snow_line: float = 0.8
     rock_slope: float = 1.5
     snow_max_slope: float = 2.0
     jitter: float = 0.04
     noise: float = 0.06
+    smoothing: float = 0.0
 
 
 def ramp_colors(cols: TerrainColumns, ramp: ColorRamp, rng: np.random.Generator) -> np.ndarray:
@@ -85,6 +90,13 @@ def ramp_colors(cols: TerrainColumns, ramp: ColorRamp, rng: np.random.Generator)
     if ramp.noise:
         rgb *= (1 + np.float32(ramp.noise) * uniform())[..., None]
     return np.clip(rgb, 0.0, 1.0, out=rgb)
+
+
+def smoothed(rgb: np.ndarray, sigma: float) -> np.ndarray:
+    """Per-column colours blurred over ``sigma`` columns (Gaussian), edges held."""
+    if sigma <= 0:
+        return rgb
+    return gaussian_filter(rgb, sigma=(sigma, sigma, 0), mode="nearest").astype(np.float32)
 
 
 def _read_color_image(source) -> tuple[np.ndarray, GeoGrid | None]:

@@ -15,7 +15,13 @@ from voxfield.errors import SceneTooLargeError, VoxfieldError
 from voxfield.scene.terrain.asset_scatter import AssetGroup, AssetVoxels, scatter_assets
 from voxfield.scene.terrain.columns import TerrainColumns, terrain_columns
 from voxfield.scene.terrain.dem import load_heightmap
-from voxfield.scene.terrain.ground_colours import ColorRamp, image_colors, linear_rgb, ramp_colors
+from voxfield.scene.terrain.ground_colours import (
+    ColorRamp,
+    image_colors,
+    linear_rgb,
+    ramp_colors,
+    smoothed,
+)
 from voxfield.scene.voxel_scene import VoxelScene
 
 #: Default cap on the voxels one terrain may hold (≈ 36 bytes each once built): a memory guard.
@@ -80,7 +86,9 @@ def terrain_layout(
     if colors is not None and not (isinstance(colors, str) and colors == "ramp"):
         img, covered = image_colors(cols, hm, colors, fit)
         surface = np.where(covered[..., None], img, surface)
-    return TerrainLayout(cols, surface, linear_rgb(ramp.earth), extra,
+    surface = smoothed(surface, ramp.smoothing)
+    earth = None if ramp.earth is None else linear_rgb(ramp.earth)
+    return TerrainLayout(cols, surface, earth, extra,
                          name or f"terrain:{cols.name}")
 
 
@@ -105,7 +113,7 @@ class TerrainLayout:
 
     cols: TerrainColumns
     surface: np.ndarray  # (footprint, footprint, 3) float32 linear, indexed [z, x]
-    earth: np.ndarray  # (3,) linear earth colour the fill mixes in
+    earth: np.ndarray | None  # (3,) linear earth colour the fill mixes in; None: no mix
     extra: AssetVoxels
     name: str
 
@@ -129,6 +137,8 @@ class TerrainLayout:
         return lo.astype(np.int64), hi.astype(np.int64)
 
     def _fill(self, surface: np.ndarray) -> np.ndarray:
+        if self.earth is None:
+            return surface.astype(np.float32)
         return (0.8 * (0.4 * surface + 0.6 * self.earth)).astype(np.float32)
 
     def _ground(self, zs: slice, xs: slice) -> tuple[np.ndarray, np.ndarray]:

@@ -8,7 +8,7 @@ to the footprint), so ``terrain:NAME`` scenes mean the same thing at every size.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -182,6 +182,34 @@ RECIPES: dict[str, Recipe] = {
     ),
 }
 
+
+
+def _thesis_regime(name: str, vertical_scale: float, fill_depth: int, tree_colour, *,
+                   density: float = 1.0) -> Recipe:
+    """The recipe ``name`` in the EA thesis's colour regime (its Table 4.1 and §5.2): the
+    buried voxels carry the surface colour, colour is smooth over about four columns (no
+    per-column noise or ragged band edges), columns hold 3.5-6.7 voxels on average, and the
+    trees are repainted close to the ground they stand on (low-contrast vegetation)."""
+    base = RECIPES[name]
+    ramp = replace(base.ramp, noise=0.0, jitter=0.0, smoothing=2.0, earth=None)
+    assets = tuple(
+        replace(a, color=tree_colour if a.file == _PINE else a.color,
+                density=a.density * density)
+        for a in base.assets
+    )
+    return replace(
+        base, description=f"{name} in the EA thesis's smooth-colour regime: " + base.description,
+        vertical_scale=vertical_scale, fill_depth=fill_depth, ramp=ramp, assets=assets,
+    )
+
+
+#: The thesis-regime variants; the four above stay as the hard-colour set.
+RECIPES.update({
+    "desert-smooth": _thesis_regime("desert", 6.0, 3, (0.70, 0.60, 0.42), density=0.5),
+    "forest-smooth": _thesis_regime("forest", 3.0, 2, (0.22, 0.33, 0.14)),
+    "mountain-smooth": _thesis_regime("mountain", 9.0, 3, (0.26, 0.35, 0.17)),
+    "biomes-smooth": _thesis_regime("biomes", 5.0, 3, (0.24, 0.34, 0.16)),
+})
 
 def _asset_models(spec: AssetSpec, root: Path, footprint: int) -> list[VoxelScene]:
     """The model of one AssetSpec, loaded, repainted and downsampled to its footprint size."""

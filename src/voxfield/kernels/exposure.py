@@ -1,0 +1,96 @@
+"""Which faces of each voxel no other voxel covers, found in the octree itself.
+
+A face is exposed when the voxel across it is absent. Faces toward a sibling are read from
+the parent's child mask; the others by a point lookup from the root. Memory stays at one
+byte per voxel, so this runs on streamed terrains far larger than their coordinate arrays.
+Bits follow ``scene.surface.DIRECTIONS``: -x, +x, -y, +y, -z, +z.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+from voxfield.kernels.node_descriptor import child_index
+
+
+@njit(cache=True, nogil=True)
+def voxel_present(descriptors, depth: int, x: int, y: int, z: int) -> bool:
+    """Is there a voxel at integer position ``(x, y, z)``? (Outside the root cube: no.)"""
+    root = 1 << depth
+    if x < 0 or y < 0 or z < 0 or x >= root or y >= root or z >= root:
+        return False
+    node = 0
+    for level in range(depth):
+        shift = depth - level - 1
+        octant = ((x >> shift) & 1) | (((y >> shift) & 1) << 1) | (((z >> shift) & 1) << 2)
+        descriptor = descriptors[node]
+        if not (descriptor >> octant) & 1:
+            return False
+        node = child_index(descriptor, octant)
+    return True
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def leaf_exposure(descriptors, depth: int, start_level: int, start_first: int,
+                  start_coords, out) -> None:
+    """Exposed-face bits of every voxel into ``out`` (one byte per voxel, leaf order).
+
+    The subtrees below the ``start_level`` nodes (flat indices from ``start_first``, corners
+    ``start_coords`` in that level's node units) run in parallel, each depth first.
+    """
+    inner = descriptors.shape[0]
+    for s in prange(start_coords.shape[0]):
+        stack_node = np.empty(8 * (depth + 1), np.int64)
+        stack_level = np.empty(8 * (depth + 1), np.int64)
+        stack_pos = np.empty((8 * (depth + 1), 3), np.int64)
+        top = 0
+        stack_node[0] = start_first + s
+        stack_level[0] = start_level
+        stack_pos[0, 0] = start_coords[s, 0]
+        stack_pos[0, 1] = start_coords[s, 1]
+        stack_pos[0, 2] = start_coords[s, 2]
+        top = 1
+        while top > 0:
+            top -= 1
+            node = stack_node[top]
+            level = stack_level[top]
+            px = stack_pos[top, 0]
+            py = stack_pos[top, 1]
+            pz = stack_pos[top, 2]
+            descriptor = descriptors[node]
+            mask = descriptor & 0xFF
+            if level + 1 < depth:
+                for octant in range(8):
+                    if (mask >> octant) & 1:
+                        stack_node[top] = child_index(descriptor, octant)
+                        stack_level[top] = level + 1
+                        stack_pos[top, 0] = 2 * px + (octant & 1)
+                        stack_pos[top, 1] = 2 * py + ((octant >> 1) & 1)
+                        stack_pos[top, 2] = 2 * pz + ((octant >> 2) & 1)
+                        top += 1
+                continue
+            # Children are voxels: their faces toward siblings from the mask, others by lookup.
+            for octant in range(8):
+                if not (mask >> octant) & 1:
+                    continue
+                x = 2 * px + (octant & 1)
+                y = 2 * py + ((octant >> 1) & 1)
+                z = 2 * pz + ((octant >> 2) & 1)
+                bits = 0
+                for axis in range(3):
+                    bit = 1 << axis
+                    high = (octant & bit) != 0
+                    sibling_present = (mask >> (octant ^ bit)) & 1
+                    # Toward the sibling: the high child's low face, the low child's high face.
+                    inward_face = 2 * axis + (0 if high else 1)
+                    outward_face = 2 * axis + (1 if high else 0)
+                    if not sibling_present:
+                        bits |= 1 << inward_face
+                    step = 1 if high else -1
+                    nx = x + (step if axis == 0 else 0)
+                    ny = y + (step if axis == 1 else 0)
+                    nz = z + (step if axis == 2 else 0)
+                    if not voxel_present(descriptors, depth, nx, ny, nz):
+                        bits |= 1 << outward_face
+                out[child_index(descriptor, octant) - inner] = bits

@@ -1,0 +1,155 @@
+"""Directional LOD colours: what a ray travelling along each axis sees of a node.
+
+A coarse node that averages all its children shows colours no ray could see at full
+resolution: the inside of a hull, the buried earth under a terrain's surface, the
+underside of the ground. Instead each inner node keeps, for each of the six travel
+directions ``2·axis + (1 if the ray runs up the axis else 0)``, the colour and coverage a
+viewer looking along that direction sees (the anisotropic voxels of Crassin et al. 2011,
+for opaque voxels):
+
+- a voxel covers its face fully and shows its own colour;
+- looking along an axis, a node is four columns of two children, front and back; a column
+  covers ``a_f + (1 - a_f)·a_b`` and shows the front child over the back one
+  (front-to-back "over" compositing of the children's coverages and colours);
+- the node's coverage is the mean of its four columns' and its colour the coverage-weighted
+  mean of theirs.
+
+A ray with direction ``d`` reads the three faces it looks into, weighted by ``d_a²·coverage``
+(``seen_rgb``). Stored per inner node as 6 × (sRGB8 colour, 8-bit coverage): 24 bytes.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from voxfield.kernels.colour import SRGB8_TO_LINEAR, node_rgb
+from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT
+
+#: Bytes per direction: sRGB red, green, blue codes, then coverage in 1/255.
+FACING_CHANNELS = 4
+_DECODE = SRGB8_TO_LINEAR.astype(np.float64)
+#: Linear value at the midpoint between consecutive sRGB codes: encoding is a search.
+_ENCODE_EDGES = ((SRGB8_TO_LINEAR[1:].astype(np.float64) + SRGB8_TO_LINEAR[:-1]) / 2.0)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def encode_srgb8(linear: float) -> int:
+    """Nearest 8-bit sRGB code of a linear value in [0, 1] (midpoint search)."""
+    return int(np.searchsorted(_ENCODE_EDGES, linear))
+
+
+@njit(cache=True, nogil=True)
+def _child_view(node: int, inner: int, colors, facing, exposure, direction: int):
+    """Colour and coverage of one node seen along ``direction``: a voxel covers fully when
+    the face the ray enters it through (``direction ^ 1`` in face order) is exposed."""
+    if node >= inner:
+        r, g, b = node_rgb(colors, node)
+        return r, g, b, float((exposure[node - inner] >> (direction ^ 1)) & 1)
+    return (_DECODE[facing[node, direction, 0]], _DECODE[facing[node, direction, 1]],
+            _DECODE[facing[node, direction, 2]], facing[node, direction, 3] / 255.0)
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def facing_level(descriptors, first: int, last: int, colors, exposure, facing) -> None:
+    """Fill the directional colours of inner nodes ``first..last-1`` (one level) from their
+    children's: the next level's, already filled, or the voxels' own (``colors``, one row per
+    node; ``exposure``, their exposed-face bits, ``kernels.exposure``). ``facing`` is
+    ``(inner nodes, 6, FACING_CHANNELS)`` uint8."""
+    inner = descriptors.shape[0]
+    for node in prange(first, last):
+        descriptor = descriptors[node]
+        mask = descriptor & 0xFF
+        base = descriptor >> FIRST_CHILD_SHIFT
+        # Flat index of each octant's child, -1 where absent.
+        child = np.full(8, -1, np.int64)
+        k = 0
+        for octant in range(8):
+            if (mask >> octant) & 1:
+                child[octant] = base + k
+                k += 1
+        for axis in range(3):
+            bit = 1 << axis
+            for up in range(2):
+                direction = 2 * axis + up
+                front_bit = 0 if up else bit  # a ray running up the axis meets the low half first
+                cover_sum = 0.0
+                r = 0.0
+                g = 0.0
+                b = 0.0
+                for octant in range(8):
+                    if octant & bit:
+                        continue  # each column once, from its low-half octant
+                    front = child[octant | front_bit]
+                    back = child[octant | (bit ^ front_bit)]
+                    fr = fg = fb = fa = 0.0
+                    br = bg = bb = ba = 0.0
+                    if front >= 0:
+                        fr, fg, fb, fa = _child_view(front, inner, colors, facing, exposure,
+                                                     direction)
+                    if back >= 0:
+                        br, bg, bb, ba = _child_view(back, inner, colors, facing, exposure,
+                                                     direction)
+                    through = (1.0 - fa) * ba
+                    cover_sum += fa + through
+                    r += fa * fr + through * br
+                    g += fa * fg + through * bg
+                    b += fa * fb + through * bb
+                if cover_sum > 0.0:
+                    r /= cover_sum
+                    g /= cover_sum
+                    b /= cover_sum
+                facing[node, direction, 0] = encode_srgb8(r)
+                facing[node, direction, 1] = encode_srgb8(g)
+                facing[node, direction, 2] = encode_srgb8(b)
+                # Any visible surface keeps a coverage of at least 1/255.
+                cover = int(math.floor(cover_sum / 4.0 * 255.0 + 0.5))
+                facing[node, direction, 3] = max(cover, 1) if cover_sum > 0.0 else 0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def facing_rgb(facing, node: int, dx: float, dy: float, dz: float):
+    """Linear colour of inner node ``node`` seen by a ray with direction ``d`` and its weight:
+    the three faces it looks into, weighted by ``d_axis² × coverage``; where none of them
+    shows an exposed surface, the coverage-weighted mean of all six. Weight 0: no surface."""
+    fx = 1 if dx > 0.0 else 0
+    fy = 3 if dy > 0.0 else 2
+    fz = 5 if dz > 0.0 else 4
+    w = np.zeros(6)
+    w[fx] = dx * dx * facing[node, fx, 3]
+    w[fy] = dy * dy * facing[node, fy, 3]
+    w[fz] = dz * dz * facing[node, fz, 3]
+    total = w[fx] + w[fy] + w[fz]
+    if not total > 0.0:
+        for k in range(6):
+            w[k] = float(facing[node, k, 3])
+            total += w[k]
+        if not total > 0.0:
+            return 0.0, 0.0, 0.0, 0.0
+    r = 0.0
+    g = 0.0
+    b = 0.0
+    for k in range(6):
+        if w[k] > 0.0:
+            r += w[k] * _DECODE[facing[node, k, 0]]
+            g += w[k] * _DECODE[facing[node, k, 1]]
+            b += w[k] * _DECODE[facing[node, k, 2]]
+    return r / total, g / total, b / total, total
+
+
+@njit(cache=True, nogil=True, inline="always")
+def seen_rgb(colors, facing, node: int, dx: float, dy: float, dz: float):
+    """Linear colour of ``node`` as a ray with direction ``d`` sees it: from the directional
+    colours ``facing`` where it has a row for the node and a visible surface there, else the
+    stored channel ``colors`` (an empty ``facing`` turns this into ``node_rgb``)."""
+    if node < facing.shape[0]:
+        r, g, b, weight = facing_rgb(facing, node, dx, dy, dz)
+        if weight > 0.0:
+            return r, g, b
+    return node_rgb(colors, node)
+
+
+#: The ``facing`` argument of octrees without directional colours.
+NO_FACING = np.zeros((0, 6, FACING_CHANNELS), np.uint8)

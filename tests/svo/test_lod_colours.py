@@ -1,0 +1,215 @@
+"""LOD colours a ray can see: the hull test, two-sided walls, and the directional colours and
+exposed faces against dense brute-force oracles."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from tests.random_scenes import random_scene
+
+from voxfield.kernels.colour import from_srgb8
+from voxfield.render.camera import Camera, preset_camera
+from voxfield.render.primary import render_lod
+from voxfield.scene.loaders import SceneOptions, load_scene
+from voxfield.scene.surface import face_mask
+from voxfield.scene.voxel_scene import VoxelScene
+from voxfield.svo import build_octree
+from voxfield.svo.io import load_octree, save_octree
+from voxfield.svo.lod_colours import (
+    DEFAULT_LOD_COLOUR,
+    exposed_face_weights,
+    exposed_faces,
+    facing_colours,
+)
+from voxfield.svo.open import open_octree
+
+
+def hull_scene(n: int = 24, offset: int = 0) -> VoxelScene:
+    """A grey hull one voxel thick around a bright red interior."""
+    g = np.argwhere(np.ones((n, n, n), bool))
+    shell = (g == 0).any(axis=1) | (g == n - 1).any(axis=1)
+    colour = np.where(shell[:, None], [0.5, 0.5, 0.5], [1.0, 0.1, 0.0]).astype(np.float32)
+    return VoxelScene(g + offset, colour, name="hull")
+
+
+def colour_shift(octree, camera, lod: int) -> float:
+    """Largest per-channel change of the mean colour over pixels hit at LOD 0 and ``lod``."""
+    reference = render_lod(octree, camera, lod=0)
+    coarse = render_lod(octree, camera, lod=lod)
+    hit = (reference.hit_count > 0) & (coarse.hit_count > 0)
+    return float(np.abs(coarse.image[hit].mean(axis=0) - reference.image[hit].mean(axis=0)).max())
+
+
+def hull_cameras(lo, hi):
+    """Preset views and three from outside the sides and from below."""
+    centre = (lo + hi) / 2.0
+    span = float((hi - lo).max())
+    cameras = [preset_camera(view, lo, hi, size=48) for view in ("oblique", "orbit", "top")]
+    for offset in ((2.0, 0.3, 0.4), (-0.5, 0.2, -2.0), (0.3, -2.0, 0.5)):
+        eye = centre + span * np.array(offset)
+        cameras.append(Camera.look_at(eye, centre, fov_deg=40, width=48))
+    return cameras
+
+
+@pytest.mark.parametrize("offset", [0, 1])
+@pytest.mark.parametrize("rule", ["facing", "surface"])
+def test_a_grey_hull_renders_grey_at_every_lod(rule, offset):
+    octree = build_octree(hull_scene(offset=offset), lod_colour=rule)
+    cameras = hull_cameras(*octree.voxel_bounds)
+    if rule == "surface":
+        cameras = cameras[:-1]  # it leaves out the floor's faces: the hull's bottom is unseen
+    for k, camera in enumerate(cameras):
+        assert colour_shift(octree, camera, 1) <= 0.015, k
+        assert colour_shift(octree, camera, 2) <= 0.03, k
+
+
+def test_the_thesis_mean_shows_the_hull_interior():
+    """The failure the other rules fix: children's means bleed the interior through."""
+    octree = build_octree(hull_scene(), lod_colour="mean")
+    lo, hi = octree.voxel_bounds
+    camera = preset_camera("oblique", lo, hi, size=48)
+    assert colour_shift(octree, camera, 1) > 0.1
+
+
+def two_sided_walls() -> VoxelScene:
+    """Walls two voxels thick, white on their low-z face and red on their high-z face."""
+    slab = np.argwhere(np.ones((32, 16, 2), bool))
+    coords, colours = [], []
+    for z0 in (5, 21):
+        c = slab + [0, 0, z0]
+        coords.append(c)
+        colours.append(np.where((c[:, 2] == z0)[:, None], [0.9, 0.9, 0.9], [0.8, 0.1, 0.1]))
+    return VoxelScene(np.concatenate(coords), np.concatenate(colours).astype(np.float32))
+
+
+def test_facing_colours_show_each_side_of_a_wall():
+    """Between the walls, looking at the high-z face of one and the low-z face of the other."""
+    facing = build_octree(two_sided_walls(), lod_colour="facing")
+    surface = build_octree(two_sided_walls(), lod_colour="surface")
+    for target in ((16, 8, 0), (16, 8, 30)):
+        camera = Camera.look_at((16, 8, 14), target, fov_deg=70, width=48)
+        for lod in (1, 2):
+            assert colour_shift(facing, camera, lod) <= 0.015
+        # One colour per node cannot be both sides at once.
+        assert colour_shift(surface, camera, 1) > 0.2
+
+
+def dense_grid(octree):
+    """Occupancy and linear colours of the voxels on the full ``2**depth`` grid."""
+    size = octree.size
+    occupied = np.zeros((size,) * 3, bool)
+    colour = np.zeros((size,) * 3 + (3,))
+    coords = octree.node_coords(octree.depth)
+    occupied[tuple(coords.T)] = True
+    colour[tuple(coords.T)] = octree.color[octree.level_slice(octree.depth)]
+    return occupied, colour
+
+
+def dense_exposure(occupied: np.ndarray) -> np.ndarray:
+    """(size, size, size, 6) bool: a voxel's face k (-x, +x, -y, +y, -z, +z) has no neighbour."""
+    padded = np.pad(occupied, 1)
+    inner = (slice(1, -1),) * 3
+    out = []
+    for axis in range(3):
+        for step in (-1, 1):
+            out.append(~np.roll(padded, -step, axis=axis)[inner])
+    return np.stack(out, axis=-1) & occupied[..., None]
+
+
+def dense_facing(occupied, colour, levels: int):
+    """Per level above the voxels, per travel direction: coverage and colour, by compositing
+    front over back along the axis and averaging the four columns (float, no quantisation)."""
+    exposed = dense_exposure(occupied)
+    cover = [exposed[..., [d ^ 1 for d in range(6)]].astype(float)]  # entered face per direction
+    premult = [cover[0][..., None] * colour[..., None, :]]
+    out = []
+    for _ in range(levels):
+        a, p = cover[-1], premult[-1]
+        s = a.shape[0] // 2
+        a8 = a.reshape(s, 2, s, 2, s, 2, 6)
+        p8 = p.reshape(s, 2, s, 2, s, 2, 6, 3)
+        new_a = np.empty((s, s, s, 6))
+        new_p = np.empty((s, s, s, 6, 3))
+        for direction in range(6):
+            axis, up = divmod(direction, 2)
+            front, back = (0, 1) if up else (1, 0)
+            ax = 1 + 2 * axis
+            af = np.take(a8[..., direction], front, axis=ax)
+            ab = np.take(a8[..., direction], back, axis=ax)
+            pf = np.take(p8[..., direction, :], front, axis=ax)
+            pb = np.take(p8[..., direction, :], back, axis=ax)
+            column_a = af + (1 - af) * ab
+            column_p = pf + ((1 - af) / 1.0)[..., None] * pb
+            others = tuple(1 + 2 * k for k in range(3) if k != axis)
+            others = tuple(o - (1 if o > ax else 0) for o in others)
+            new_a[..., direction] = column_a.mean(axis=others)
+            new_p[..., direction, :] = column_p.mean(axis=others)
+        cover.append(new_a)
+        premult.append(new_p)
+        out.append((new_a, new_p))
+    return out
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_exposed_faces_match_the_dense_grid(seed):
+    octree = build_octree(random_scene(seed, n=700, size=16))
+    occupied, _ = dense_grid(octree)
+    coords = octree.node_coords(octree.depth)
+    expected = dense_exposure(occupied)[tuple(coords.T)]
+    bits = exposed_faces(octree)
+    got = (bits[:, None] >> np.arange(6)) & 1
+    assert np.array_equal(got.astype(bool), expected)
+    assert np.array_equal(expected, face_mask(coords))  # and the mesher's own rule
+
+
+@pytest.mark.parametrize("seed", [3, 4])
+def test_facing_colours_match_dense_compositing(seed):
+    octree = build_octree(random_scene(seed, n=900, size=16), colour_storage="float32",
+                          lod_colour="mean")
+    occupied, colour = dense_grid(octree)
+    facing = facing_colours(octree)
+    levels = dense_facing(occupied, colour, octree.depth)
+    for lod, (cover, premult) in enumerate(levels, start=1):
+        level = octree.depth - lod
+        coords = octree.node_coords(level)
+        sl = octree.level_slice(level)
+        want_cover = cover[tuple(coords.T)]
+        got_cover = facing[sl, :, 3] / 255.0
+        np.testing.assert_allclose(got_cover, want_cover, atol=2.5 / 255 * lod)
+        visible = want_cover > 0.05
+        want_rgb = premult[tuple(coords.T)][visible] / want_cover[visible][:, None]
+        got_rgb = from_srgb8(facing[sl, :, :3])[visible]
+        np.testing.assert_allclose(got_rgb, want_rgb, atol=0.02 * lod)
+
+
+def test_exposed_face_weights_skip_the_floor():
+    """Two stacked voxels on the floor: the lower has 4 side faces (its bottom is on the
+    floor), the upper 4 sides and its top."""
+    scene = VoxelScene(np.array([[0, 0, 0], [0, 1, 0]]), np.full((2, 3), 0.5, np.float32))
+    octree = build_octree(scene, lod_colour="surface")
+    coords = octree.node_coords(octree.depth)
+    weights = dict(zip(map(tuple, coords.tolist()), exposed_face_weights(octree),
+                       strict=True))
+    assert weights == {(0, 0, 0): 4.0, (0, 1, 0): 5.0}
+
+
+def test_facing_colours_survive_a_file_and_change_the_fingerprint(tmp_path):
+    scene = hull_scene(8)
+    facing = build_octree(scene, lod_colour="facing")
+    mean = build_octree(scene, lod_colour="mean")
+    back = load_octree(save_octree(facing, tmp_path / "hull.npz"))
+    assert np.array_equal(back.facing, facing.facing)
+    assert back.fingerprint() == facing.fingerprint() != mean.fingerprint()
+    assert mean.facing is None and facing.nbytes == mean.nbytes + facing.facing.nbytes
+
+
+def test_a_streamed_terrain_gets_the_same_facing_colours_as_a_monolithic_build(tmp_path):
+    x, z = np.meshgrid(np.arange(40.0), np.arange(36.0))
+    np.savez(tmp_path / "dem.npz", elevation=90.0 * np.sin(x / 7.0) * np.cos(z / 5.0) + 120.0,
+             spacing=30.0)
+    spec = str(tmp_path / "dem.npz")
+    options = SceneOptions(terrain_footprint=32)
+    streamed = open_octree(spec, options)
+    whole = build_octree(load_scene(spec, options))
+    assert DEFAULT_LOD_COLOUR == "facing"
+    assert np.array_equal(streamed.facing, whole.facing)
