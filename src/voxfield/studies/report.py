@@ -161,10 +161,15 @@ class StudyFolder:
         return save_png(image, self.path(name), encode_srgb=encode_srgb)
 
     def write_figure(self, name: str, figure, *, dpi: int = 100) -> Path:
-        """A matplotlib Figure as PNG."""
+        """A matplotlib Figure as PNG; the figure is closed (pyplot keeps every open one)."""
         path = self.path(name)
-        with atomic_path(path) as tmp:
-            figure.savefig(tmp, format="png", dpi=dpi, facecolor=figure.get_facecolor())
+        try:
+            with atomic_path(path) as tmp:
+                figure.savefig(tmp, format="png", dpi=dpi, facecolor=figure.get_facecolor())
+        finally:
+            import matplotlib.pyplot as plt  # heavy: loaded already by whoever drew the figure
+
+            plt.close(figure)
         return path
 
     @staticmethod
