@@ -42,3 +42,8 @@ def test_curves_that_do_not_overlap_or_have_one_point_are_refused():
         bd_quality(COST[:1], quality(COST[:1]), COST, quality(COST))
     with pytest.raises(VoxfieldError, match="positive"):
         bd_cost(-COST, quality(COST), COST, quality(COST))
+
+
+def test_a_sliver_of_overlap_is_refused():
+    with pytest.raises(VoxfieldError, match="too little"):
+        bd_quality(COST, quality(COST), COST * 99.0, quality(COST))

@@ -1,9 +1,10 @@
-"""``voxfield study thresholds|resolution|lighting|probe-resolution|probes``: the EA
+"""``voxfield study thresholds|resolution|lighting|curves|probe-resolution|probes``: the EA
 thesis's studies (§5.4, §5.5, §5.3) and the probe thesis's analysis (ch. 9)."""
 
 from __future__ import annotations
 
 import argparse
+import math
 
 from voxfield.cli.options import (
     add_channel_option,
@@ -16,6 +17,8 @@ from voxfield.cli.options import (
     camera,
     default_output,
     float_list,
+    int_between,
+    lod_arg,
     name_list,
     open_octree,
     positive_int_list,
@@ -24,7 +27,16 @@ from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import EPSILON_MODES, LightFieldOptions
 from voxfield.lighting import bake_sun_lighting, parse_suns
 from voxfield.probes.grid import parse_grid
+from voxfield.render.camera import preset_camera
 from voxfield.render.placement import check_camera_placement
+from voxfield.studies.curves_study import (
+    CURVE_CAMERAS,
+    CURVE_DECAYS,
+    CURVE_LODS,
+    CURVE_NORMALISATIONS,
+    CURVE_THRESHOLDS,
+    run_curves_study,
+)
 from voxfield.studies.lighting_study import lighting_channels, run_lighting_study
 from voxfield.studies.probe_resolution_study import (
     probe_resolution_markdown,
@@ -120,8 +132,76 @@ def register(subparsers) -> argparse.ArgumentParser:
     add_quiet(b)
     b.set_defaults(func=run_probe_resolution)
 
+    _register_curves(actions)
     _register_probes(actions)
     return p
+
+
+def _lod_list(text: str) -> tuple[int, ...]:
+    """Comma-separated LOD numbers (0 = voxels)."""
+    values = tuple(lod_arg(v.strip()) for v in text.split(",") if v.strip())
+    if not values or any(v is None for v in values):
+        raise argparse.ArgumentTypeError(f"expected LOD numbers like 4,2,0, got {text!r}")
+    return values
+
+
+def _register_curves(actions) -> None:
+    c = actions.add_parser(
+        "curves", help="cost-quality curves of EA, adaptive and LOD, with Bjøntegaard deltas",
+        description="Sweep each cheap renderer over its own knob (EA: threshold per decay; "
+        "adaptive: variance normalisation; LOD: level) under each camera; PSNR/SSIM against "
+        "the 4×4 reference per traversal step and ray; BD-PSNR at equal steps and rays and "
+        "the step change at equal PSNR against adaptive and LOD. Resumable.",
+    )
+    add_scene_options(c)
+    c.add_argument("--cameras", type=name_list, default=CURVE_CAMERAS,
+                   help=f"comma-separated preset views (default {','.join(CURVE_CAMERAS)}: "
+                   "perspective and orthographic)")
+    c.add_argument("--size", type=int_between(16, 4096, "an image side"), default=256,
+                   help="image side in pixels, 16..4096 (default 256)")
+    c.add_argument("--thresholds", type=float_list, default=CURVE_THRESHOLDS,
+                   help="EA thresholds (default " + ",".join(f"{t:g}" for t in CURVE_THRESHOLDS)
+                   + ")")
+    c.add_argument("--decays", type=float_list, default=CURVE_DECAYS,
+                   help="EA decays, one curve each (default "
+                   + ",".join(f"{d:g}" for d in CURVE_DECAYS) + ")")
+    c.add_argument("--normalisations", type=float_list, default=CURVE_NORMALISATIONS,
+                   help="adaptive variance normalisations (default "
+                   + ",".join(f"{n:g}" for n in CURVE_NORMALISATIONS) + ")")
+    c.add_argument("--lods", type=_lod_list, default=CURVE_LODS,
+                   help="LOD levels (default " + ",".join(map(str, CURVE_LODS)) + ")")
+    c.add_argument("--base-lod", type=lod_arg, default=2,
+                   help="EA and adaptive first-ray LOD, or 'cone' (default 2)")
+    add_study_folder(c, "curves", "renders")
+    add_channel_option(c)
+    add_quiet(c)
+    c.set_defaults(func=run_curves)
+
+
+def run_curves(args) -> int:
+    for name, values in (("--thresholds", args.thresholds), ("--decays", args.decays),
+                         ("--normalisations", args.normalisations)):
+        if any(not math.isfinite(v) or v < 0 for v in values):
+            raise VoxfieldError(f"{name} must be finite and not negative")
+    octree = open_octree(args)
+    lo, hi = octree.voxel_bounds
+    cameras = {name: preset_camera(name, lo, hi, size=args.size) for name in args.cameras}
+    for view in cameras.values():
+        check_camera_placement(octree, view)
+    out = args.out or default_output("curves", args.scene)
+    report = run_curves_study(
+        octree, cameras, out, thresholds=args.thresholds, decays=args.decays,
+        normalisations=args.normalisations, lods=args.lods, base_lod=args.base_lod,
+        seed=args.seed, channel=args.channel, scene_name=args.scene,
+        progress=not args.quiet, fresh=args.fresh)
+    if not args.quiet:
+        for cam_name, cam in report["cameras"].items():
+            for d in cam["deltas"]:
+                print(f"{cam_name}: {d['curve']} vs {d['against']}: BD-PSNR "
+                      f"{fmt(d['bd_psnr_steps'], '+.2f')} dB at equal steps, "
+                      f"{fmt(d['bd_steps_percent'], '+.1f')} % steps at equal PSNR")
+        print(f"wrote {out}/results.md, results.json, curves.png")
+    return 0
 
 
 def run_thresholds(args) -> int:

@@ -7,7 +7,8 @@ directions ``2·axis + (1 if the ray runs up the axis else 0)``, the colour and 
 viewer looking along that direction sees (the anisotropic voxels of Crassin et al. 2011,
 for opaque voxels):
 
-- a voxel covers its face fully and shows its own colour;
+- a voxel shows its own colour and covers fully through a face no other voxel covers, not
+  at all through a covered one (so buried and interior voxels weigh nothing);
 - looking along an axis, a node is four columns of two children, front and back; a column
   covers ``a_f + (1 - a_f)·a_b`` and shows the front child over the back one
   (front-to-back "over" compositing of the children's coverages and colours);
@@ -110,6 +111,12 @@ def facing_level(descriptors, first: int, last: int, colors, exposure, facing) -
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _face_rgb(facing, node: int, face: int):
+    return (_DECODE[facing[node, face, 0]], _DECODE[facing[node, face, 1]],
+            _DECODE[facing[node, face, 2]])
+
+
+@njit(cache=True, nogil=True, inline="always")
 def facing_rgb(facing, node: int, dx: float, dy: float, dz: float):
     """Linear colour of inner node ``node`` seen by a ray with direction ``d`` and its weight:
     the three faces it looks into, weighted by ``d_axis² × coverage``; where none of them
@@ -117,25 +124,28 @@ def facing_rgb(facing, node: int, dx: float, dy: float, dz: float):
     fx = 1 if dx > 0.0 else 0
     fy = 3 if dy > 0.0 else 2
     fz = 5 if dz > 0.0 else 4
-    w = np.zeros(6)
-    w[fx] = dx * dx * facing[node, fx, 3]
-    w[fy] = dy * dy * facing[node, fy, 3]
-    w[fz] = dz * dz * facing[node, fz, 3]
-    total = w[fx] + w[fy] + w[fz]
-    if not total > 0.0:
-        for k in range(6):
-            w[k] = float(facing[node, k, 3])
-            total += w[k]
-        if not total > 0.0:
-            return 0.0, 0.0, 0.0, 0.0
+    wx = dx * dx * facing[node, fx, 3]
+    wy = dy * dy * facing[node, fy, 3]
+    wz = dz * dz * facing[node, fz, 3]
+    total = wx + wy + wz
+    if total > 0.0:
+        xr, xg, xb = _face_rgb(facing, node, fx)
+        yr, yg, yb = _face_rgb(facing, node, fy)
+        zr, zg, zb = _face_rgb(facing, node, fz)
+        return ((wx * xr + wy * yr + wz * zr) / total, (wx * xg + wy * yg + wz * zg) / total,
+                (wx * xb + wy * yb + wz * zb) / total, total)
     r = 0.0
     g = 0.0
     b = 0.0
-    for k in range(6):
-        if w[k] > 0.0:
-            r += w[k] * _DECODE[facing[node, k, 0]]
-            g += w[k] * _DECODE[facing[node, k, 1]]
-            b += w[k] * _DECODE[facing[node, k, 2]]
+    for face in range(6):
+        w = float(facing[node, face, 3])
+        fr, fg, fb = _face_rgb(facing, node, face)
+        r += w * fr
+        g += w * fg
+        b += w * fb
+        total += w
+    if not total > 0.0:
+        return 0.0, 0.0, 0.0, 0.0
     return r / total, g / total, b / total, total
 
 

@@ -19,6 +19,10 @@ from scipy.interpolate import PchipInterpolator
 
 from voxfield.errors import VoxfieldError
 
+#: Narrowest common range worth a mean: 20 % in cost (log scale), 0.25 dB in PSNR.
+MIN_COST_OVERLAP = float(np.log(1.2))
+MIN_PSNR_OVERLAP = 0.25
+
 
 def _curve(x, y, what: str) -> tuple[np.ndarray, np.ndarray]:
     """Points sorted by x, duplicates in x averaged; at least two distinct finite points."""
@@ -35,12 +39,15 @@ def _curve(x, y, what: str) -> tuple[np.ndarray, np.ndarray]:
     return xs, ys
 
 
-def _mean_gap(xa, ya, xb, yb, what: str) -> float:
-    """Mean of ``fb(x) - fa(x)`` over the x range both curves cover."""
+def _mean_gap(xa, ya, xb, yb, what: str, min_overlap: float) -> float:
+    """Mean of ``fb(x) - fa(x)`` over the x range both curves cover (at least
+    ``min_overlap`` wide: a mean over a sliver says nothing)."""
     lo = max(xa[0], xb[0])
     hi = min(xa[-1], xb[-1])
     if not hi > lo:
         raise VoxfieldError(f"{what}: the two curves do not overlap")
+    if hi - lo < min_overlap:
+        raise VoxfieldError(f"{what}: the two curves overlap too little to compare")
     fa = PchipInterpolator(xa, ya)
     fb = PchipInterpolator(xb, yb)
     return float((fb.integrate(lo, hi) - fa.integrate(lo, hi)) / (hi - lo))
@@ -52,7 +59,7 @@ def bd_quality(cost_a, psnr_a, cost_b, psnr_b) -> float:
         raise VoxfieldError("BD-PSNR: costs must be positive")
     xa, ya = _curve(np.log(cost_a), psnr_a, "BD-PSNR")
     xb, yb = _curve(np.log(cost_b), psnr_b, "BD-PSNR")
-    return _mean_gap(xa, ya, xb, yb, "BD-PSNR")
+    return _mean_gap(xa, ya, xb, yb, "BD-PSNR", MIN_COST_OVERLAP)
 
 
 def bd_cost(cost_a, psnr_a, cost_b, psnr_b) -> float:
@@ -62,4 +69,4 @@ def bd_cost(cost_a, psnr_a, cost_b, psnr_b) -> float:
     # Cost as a function of quality: each curve must rise with cost to be inverted.
     xa, ya = _curve(psnr_a, np.log(cost_a), "BD-rate")
     xb, yb = _curve(psnr_b, np.log(cost_b), "BD-rate")
-    return float((np.exp(_mean_gap(xa, ya, xb, yb, "BD-rate")) - 1.0) * 100.0)
+    return float((np.exp(_mean_gap(xa, ya, xb, yb, "BD-rate", MIN_PSNR_OVERLAP)) - 1.0) * 100.0)

@@ -1,0 +1,209 @@
+"""Cost–quality curves: each cheap renderer swept over its own knob, compared as curves.
+
+One operating point per renderer (the thesis's tables) cannot say which renderer is better
+when neither is both cheaper and sharper. Here each renderer traces a curve of (traversal
+steps, rays, PSNR, SSIM) against the 4×4 reference:
+
+- error-aware (EA): the error threshold, one curve per decay;
+- adaptive (A): its variance normalisation (how much image variance asks for 4 or 16 rays);
+- LOD: the level sampled (one ray a pixel).
+
+The Bjøntegaard deltas (``studies.bjontegaard``) then give EA's mean PSNR gain over A at
+equal steps and its step saving at equal PSNR, per camera (perspective and orthographic).
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from voxfield.error_table.table import THESIS_DECAY
+from voxfield.errors import VoxfieldError
+from voxfield.kernels.camera_rays import ORTHOGRAPHIC
+from voxfield.progress import progress_bar
+from voxfield.render.adaptive import render_adaptive
+from voxfield.render.camera import Camera
+from voxfield.render.error_aware import render_error_aware
+from voxfield.render.primary import render_lod, render_reference
+from voxfield.studies.bjontegaard import bd_cost, bd_quality
+from voxfield.studies.report import StudyFolder, costs, costs_and_quality, fmt, markdown_table
+from voxfield.svo.octree import Octree
+
+#: Knob values: from refining almost everything to almost nothing.
+CURVE_THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
+CURVE_DECAYS = (0.0, THESIS_DECAY)
+CURVE_NORMALISATIONS = (0.001, 0.003, 0.01, 0.03, 0.08, 0.25, 0.8)
+CURVE_LODS = (4, 3, 2, 1, 0)
+#: A perspective and an orthographic view of the same ground (EA §5.1.1 and its flat-ground
+#: refinement, which only perspective shows).
+CURVE_CAMERAS = ("top", "ortho-top")
+
+
+def ea_curve_name(decay: float) -> str:
+    return f"EA d={decay:g}"
+
+
+def run_curves_study(
+    octree: Octree, cameras: dict[str, Camera], out_dir: str | Path, *,
+    thresholds=CURVE_THRESHOLDS, decays=CURVE_DECAYS, normalisations=CURVE_NORMALISATIONS,
+    lods=CURVE_LODS, base_lod: int | None = 2, seed: int = 0, channel: str = "albedo",
+    scene_name: str = "scene", progress: bool = False, fresh: bool = False,
+) -> dict:
+    """Sweep every curve under every camera (each point cached and resumable) and write
+    results.json, results.md and curves.png into ``out_dir``."""
+    if not cameras:
+        raise VoxfieldError("the curves study needs at least one camera")
+    lods = [lod for lod in lods if 0 <= lod <= octree.depth]
+    if min(len(thresholds), len(normalisations), len(lods)) < 2 or not decays:
+        raise VoxfieldError("each curve needs at least two knob values (and one decay)")
+    folder = StudyFolder(out_dir, fresh=fresh)
+    points = len(cameras) * (1 + len(decays) * len(thresholds) + len(normalisations) + len(lods))
+    report = {"scene": scene_name, "base_lod": base_lod, "seed": seed, "channel": channel,
+              "metrics_on": "linear RGB in [0, 1]", "cameras": {}}
+    settings = {"base_lod": base_lod, "seed": seed, "channel": channel}
+    with progress_bar(total=points, desc="curves", unit="render", enabled=progress) as bar:
+        for cam_name, camera in cameras.items():
+            sweep = CameraSweep(folder, octree, cam_name, camera, scene_name, settings, bar)
+            curves = {}
+            for decay in decays:
+                curves[ea_curve_name(decay)] = sweep.curve("threshold", [
+                    sweep.point(f"ea-d{decay:g}-t{t:g}", {"decay": decay, "threshold": t},
+                                lambda c, t=t, d=decay: render_error_aware(
+                                    octree, c, threshold=t, decay=d, **settings))
+                    for t in thresholds])
+            curves["A"] = sweep.curve("variance_normalisation", [
+                sweep.point(f"a-n{n:g}", {"variance_normalisation": n},
+                            lambda c, n=n: render_adaptive(octree, c, variance_normalisation=n,
+                                                           **settings))
+                for n in normalisations])
+            curves["LOD"] = sweep.curve("lod", [
+                sweep.point(f"lod{lod}", {"lod": lod}, lambda c, lod=lod: render_lod(
+                    octree, c, lod=lod, seed=seed, channel=channel))
+                for lod in lods])
+            report["cameras"][cam_name] = {
+                "kind": "orthographic" if camera.kind == ORTHOGRAPHIC else "perspective",
+                "width": camera.width, "height": camera.height,
+                "reference": costs(sweep.reference), "curves": curves,
+                "deltas": curve_deltas(curves, [ea_curve_name(d) for d in decays]),
+            }
+    folder.write_json("results.json", report)
+    folder.write_text("results.md", results_markdown(report))
+    folder.write_figure("curves.png", curves_figure(report))
+    return report
+
+
+class CameraSweep:
+    """The cached points of one camera: its reference first, then any renderer's point."""
+
+    def __init__(self, folder: StudyFolder, octree: Octree, name: str, camera: Camera,
+                 scene_name: str, settings: dict, bar):
+        self.folder, self.name, self.camera, self.bar = folder, name, camera, bar
+        self.view = {"scene": scene_name, "fingerprint": octree.fingerprint(settings["channel"]),
+                     "camera": camera.params.tolist(), "size": camera.width,
+                     "height": camera.height, **settings}
+        self.reference = folder.render_item(f"{name}-reference", self.view, lambda: (
+            render_reference(octree, camera, side=4, seed=settings["seed"],
+                             channel=settings["channel"])))
+        bar.update(1)
+
+    def point(self, name: str, params: dict, render) -> dict:
+        """Costs and quality of ``render(camera)``, cached under the camera's name."""
+        value = self.folder.value_item(
+            f"{self.name}-{name}", {**self.view, **params},
+            lambda: costs_and_quality(self.reference, render(self.camera)))
+        self.bar.update(1)
+        return {**params, **value}
+
+    @staticmethod
+    def curve(knob: str, points: list[dict]) -> dict:
+        return {"knob": knob, "points": points}
+
+
+def _series(curve: dict, cost: str) -> tuple[list[float], list[float]]:
+    """(cost, PSNR) of a curve's points; an infinite PSNR (stored as None) is left out."""
+    xs, ys = [], []
+    for p in curve["points"]:
+        if p.get("psnr") is not None and math.isfinite(p["psnr"]) and p[cost] > 0:
+            xs.append(float(p[cost]))
+            ys.append(float(p["psnr"]))
+    return xs, ys
+
+
+def curve_deltas(curves: dict, tested: list[str]) -> list[dict]:
+    """BD-PSNR (dB) at equal steps and at equal rays, and BD-rate in steps (%), of each tested
+    curve against A and against LOD; None with the reason where the curves do not overlap."""
+    rows = []
+    for name in tested:
+        for baseline in ("A", "LOD"):
+            row = {"curve": name, "against": baseline}
+            for key, cost, fn in (("bd_psnr_steps", "steps", bd_quality),
+                                  ("bd_psnr_rays", "rays", bd_quality),
+                                  ("bd_steps_percent", "steps", bd_cost)):
+                try:
+                    row[key] = fn(*_series(curves[baseline], cost), *_series(curves[name], cost))
+                except VoxfieldError as exc:
+                    row[key] = None
+                    row.setdefault("note", str(exc))
+            rows.append(row)
+    return rows
+
+
+def results_markdown(report: dict) -> str:
+    lines = [f"# Cost–quality curves — {report['scene']}", "",
+             f"Base LOD {report['base_lod']}, seed {report['seed']}, channel "
+             f"{report['channel']}. Quality against the 4×4 reference on linear RGB in [0, 1]. "
+             "BD-PSNR: mean PSNR gain of the curve over the baseline at equal cost (log "
+             "scale); BD-steps: mean step change at equal PSNR (negative: cheaper).", ""]
+    for cam_name, cam in report["cameras"].items():
+        lines += [f"## {cam_name} ({cam['kind']}, {cam['width']}×{cam['height']})", "",
+                  "### Bjøntegaard deltas", ""]
+        lines.append(markdown_table(
+            ["curve", "against", "BD-PSNR at equal steps (dB)", "BD-PSNR at equal rays (dB)",
+             "BD-steps (%)"],
+            [[d["curve"], d["against"], fmt(d["bd_psnr_steps"], "+.2f"),
+              fmt(d["bd_psnr_rays"], "+.2f"), fmt(d["bd_steps_percent"], "+.1f")]
+             for d in cam["deltas"]]))
+        notes = sorted({d["note"] for d in cam["deltas"] if "note" in d})
+        lines += [f"- {n}" for n in notes]
+        lines += ["", "### Points", ""]
+        rows = []
+        for name, curve in cam["curves"].items():
+            for p in curve["points"]:
+                rows.append([name, f"{curve['knob']} {fmt(p[curve['knob']], 'g')}",
+                             fmt(p["rays"]), fmt(p["steps"]), fmt(p["psnr"], ".2f"),
+                             fmt(p["ssim"], ".4f")])
+        lines.append(markdown_table(["curve", "knob", "rays", "steps", "PSNR", "SSIM"], rows))
+        lines.append("")
+    return "\n".join(lines)
+
+
+def curves_figure(report: dict):
+    # heavy: matplotlib loads only when a figure is drawn
+    import matplotlib
+
+    matplotlib.use("Agg")
+    # heavy: matplotlib loads only when a figure is drawn
+    import matplotlib.pyplot as plt
+    from matplotlib.ticker import NullFormatter
+
+    cams = list(report["cameras"].items())
+    fig, axes = plt.subplots(len(cams), 3, figsize=(15, 4.0 * len(cams)), squeeze=False)
+    for row, (cam_name, cam) in zip(axes, cams, strict=True):
+        for name, curve in cam["curves"].items():
+            points = sorted(curve["points"], key=lambda p: p["steps"])
+            for ax, (x, y) in zip(row, (("steps", "psnr"), ("rays", "psnr"),
+                                        ("steps", "ssim")), strict=True):
+                ys = [math.nan if p[y] is None else p[y] for p in points]
+                ax.plot([p[x] for p in points], ys, marker="o", label=name)
+        for ax, (x, y) in zip(row, (("traversal steps", "PSNR (dB)"), ("rays", "PSNR (dB)"),
+                                    ("traversal steps", "SSIM")), strict=True):
+            ax.set_xscale("log")
+            ax.xaxis.set_minor_formatter(NullFormatter())
+            ax.set_xlabel(x)
+            ax.set_ylabel(y)
+            ax.set_title(f"{cam_name} ({cam['kind']})")
+            ax.grid(alpha=0.3)
+        row[0].legend(fontsize=8)
+    fig.suptitle(f"cost–quality curves — {report['scene']}")
+    fig.tight_layout()
+    return fig

@@ -1,0 +1,85 @@
+"""The curves study: each renderer's knob traces a curve with the published trends, the
+deltas compare them, files are written, and a second run recomputes nothing."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from voxfield.cli.main import main
+from voxfield.render import Camera
+from voxfield.scene.builtin import pillars
+from voxfield.studies.curves_study import run_curves_study
+from voxfield.svo import build_octree
+
+KNOBS = {"thresholds": (0.4, 0.05, 0.15), "decays": (0.0, 0.2),
+         "normalisations": (0.001, 0.03, 0.8), "lods": (2, 1, 0)}
+
+
+@pytest.fixture(scope="module")
+def octree():
+    return build_octree(pillars(64))
+
+
+def cameras():
+    perspective = Camera.look_at((70, 60, 90), (32, 10, 32), fov_deg=50, width=24)
+    orthographic = Camera.orthographic((32, 80, 32), (0, -1, 0), (0, 0, -1), view_height=64.0,
+                                       width=24)
+    return {"persp": perspective, "ortho": orthographic}
+
+
+def test_curves_follow_their_knobs_and_resume(octree, tmp_path):
+    report = run_curves_study(octree, cameras(), tmp_path, scene_name="pillars", **KNOBS)
+    assert set(report["cameras"]) == {"persp", "ortho"}
+    assert report["cameras"]["ortho"]["kind"] == "orthographic"
+    for cam in report["cameras"].values():
+        curves = cam["curves"]
+        assert set(curves) == {"EA d=0", "EA d=0.2", "A", "LOD"}
+        ea = sorted(curves["EA d=0"]["points"], key=lambda p: p["threshold"])
+        assert [p["rays"] for p in ea] == sorted((p["rays"] for p in ea), reverse=True)
+        a = sorted(curves["A"]["points"], key=lambda p: p["variance_normalisation"])
+        assert [p["rays"] for p in a] == sorted((p["rays"] for p in a), reverse=True)
+        lod = sorted(curves["LOD"]["points"], key=lambda p: p["lod"])
+        assert all(p["rays"] == 24 * 24 for p in lod)  # one ray a pixel at every level
+        assert [p["steps"] for p in lod] == sorted((p["steps"] for p in lod), reverse=True)
+        assert len(cam["deltas"]) == 4  # two EA curves against A and LOD
+        for d in cam["deltas"]:
+            assert d["bd_psnr_steps"] is None or np.isfinite(d["bd_psnr_steps"])
+            assert d["bd_psnr_steps"] is not None or d["note"]
+    for name in ("results.json", "results.md", "curves.png"):
+        assert (tmp_path / name).is_file()
+    assert "Bjøntegaard deltas" in (tmp_path / "results.md").read_text()
+    items = sorted((tmp_path / "items").glob("*.json"))
+    assert len(items) == 2 * (1 + 2 * 3 + 3 + 3)
+    stamps = {p.name: p.stat().st_mtime_ns for p in items}
+    again = run_curves_study(octree, cameras(), tmp_path, scene_name="pillars", **KNOBS)
+    assert {p.name: p.stat().st_mtime_ns for p in items} == stamps
+    assert again["cameras"] == json.loads(json.dumps(report["cameras"]))
+
+
+def test_curves_from_the_command_line(tmp_path, capsys):
+    out = tmp_path / "curves"
+    code = main(["--quiet", "study", "curves", "builtin:pillars", "--size", "16",
+                 "--thresholds", "0.1,0.4", "--decays", "0.2", "--normalisations", "0.01,0.3",
+                 "--lods", "1,0", "--out", str(out)])
+    assert code == 0
+    report = json.loads((out / "results.json").read_text())
+    assert set(report["cameras"]) == {"top", "ortho-top"}
+
+
+@pytest.mark.parametrize("bad", [["--thresholds", "nan,0.1"], ["--decays", "-1"],
+                                 ["--cameras", "nowhere"]])
+def test_bad_curve_values_are_one_line_and_exit_2(bad, tmp_path, capsys):
+    code = main(["--quiet", "study", "curves", "builtin:pillars", "--size", "16",
+                 "--out", str(tmp_path / "c"), *bad])
+    assert code == 2
+    assert len(capsys.readouterr().err.strip().splitlines()) == 1
+    assert not (tmp_path / "c").exists()
+
+
+def test_a_lod_list_that_is_not_numbers_is_an_argument_error(tmp_path):
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--quiet", "study", "curves", "builtin:pillars", "--lods", "2,x"])
+    assert exit_info.value.code == 2
