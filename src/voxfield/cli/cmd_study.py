@@ -16,6 +16,7 @@ from voxfield.cli.options import (
     add_view_options,
     camera,
     default_output,
+    finite_float,
     float_list,
     int_between,
     lod_arg,
@@ -29,6 +30,7 @@ from voxfield.lighting import bake_sun_lighting, parse_suns
 from voxfield.probes.grid import parse_grid
 from voxfield.render.camera import preset_camera
 from voxfield.render.placement import check_camera_placement
+from voxfield.studies.adaptive_normalisation import run_normalisation_study
 from voxfield.studies.curves_study import (
     CURVE_CAMERAS,
     CURVE_DECAYS,
@@ -133,6 +135,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     b.set_defaults(func=run_probe_resolution)
 
     _register_curves(actions)
+    _register_normalisation(actions)
     _register_probes(actions)
     return p
 
@@ -176,6 +179,47 @@ def _register_curves(actions) -> None:
     add_channel_option(c)
     add_quiet(c)
     c.set_defaults(func=run_curves)
+
+
+def _register_normalisation(actions) -> None:
+    n = actions.add_parser(
+        "normalisation", help="the adaptive renderer's one variance normalisation across "
+        "several scenes (EA §5.1.2)",
+        description="Render each scene's first adaptive pass and find the one constant that "
+        "maps the largest 3×3 luminance variance of them all to 1 (the thesis normalises "
+        "'across all datasets'); pass it to --variance-normalisation.",
+    )
+    add_scene_options(n)
+    n.add_argument("more_scenes", nargs="*", metavar="SCENE",
+                   help="further scenes, read with the same options")
+    n.add_argument("--quantile", type=finite_float, default=1.0,
+                   help="use this quantile of all windows' variance instead of the largest, "
+                   "in (0, 1] (default 1: the largest)")
+    n.add_argument("--base-lod", type=lod_arg, default=2,
+                   help="first-pass LOD, or 'cone' (default 2)")
+    n.add_argument("--out", default=None,
+                   help="output folder (default out/normalisation_SCENE)")
+    add_channel_option(n)
+    add_view_options(n, size=256)
+    n.set_defaults(func=run_normalisation)
+
+
+def run_normalisation(args) -> int:
+    if not 0.0 < args.quantile <= 1.0:
+        raise VoxfieldError(f"--quantile must be in (0, 1], got {args.quantile}")
+    scenes = {}
+    for spec in (args.scene, *args.more_scenes):
+        args.scene = spec
+        octree = open_octree(args)
+        scenes[spec] = (octree, camera(args, octree.voxel_bounds))
+    out = args.out or default_output("normalisation", next(iter(scenes)))
+    report = run_normalisation_study(scenes, out, base_lod=args.base_lod,
+                                     quantile=args.quantile, seed=args.seed,
+                                     channel=args.channel)
+    if not args.quiet:
+        print(f"variance normalisation across {len(scenes)} scene(s): "
+              f"{report['normalisation']:.5g} (wrote {out}/results.md)")
+    return 0
 
 
 def run_curves(args) -> int:

@@ -147,7 +147,7 @@ def name_list(text: str) -> tuple[str, ...]:
 
 
 #: argparse types named by a renderer option's ``metadata["type"]``.
-_FIELD_TYPES = {"lod": lod_arg, "positive": positive_int}
+_FIELD_TYPES = {"lod": lod_arg, "positive": positive_int, "positive_float": positive_float}
 
 
 # --------------------------------------------------------------------------- option groups

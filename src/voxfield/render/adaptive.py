@@ -44,8 +44,9 @@ class AdaptiveOptions:
     iterations: int = field(default=1, metadata={
         "help": "refinement iterations (default 1, as the thesis)"})
     variance_normalisation: float = field(default=VARIANCE_NORMALISATION, metadata={
-        "help": "divisor of the 3×3 luminance SSD before the 0.25/0.75 cut-offs",
-        "cli": False})
+        "help": "divisor of the 3×3 luminance SSD before the 0.25/0.75 cut-offs, > 0 "
+        f"(default {VARIANCE_NORMALISATION}; `voxfield study normalisation` finds the "
+        "thesis's one constant across a set of scenes)", "type": "positive_float"})
 
 
 def luminance(image: np.ndarray) -> np.ndarray:
@@ -65,6 +66,24 @@ def window_variance(lum: np.ndarray, valid: np.ndarray) -> np.ndarray:
     s2 = ndimage.convolve(y * y, kernel, mode="constant")
     ssd = s2 - s1 * s1 / np.maximum(n, 1.0)
     return np.where(valid, np.maximum(ssd, 0.0), 0.0)
+
+
+def normalisation_across(first_passes, quantile: float = 1.0) -> float:
+    """The thesis's normalisation "across all datasets": one divisor that maps the largest
+    3×3 luminance SSD of any scene's first pass (``RenderResult``s at the base LOD) to 1, so
+    ray counts compare between scenes. ``quantile`` < 1 takes that quantile of all scenes'
+    SSDs instead of the maximum (robust to a few outlier windows)."""
+    if not 0.0 < quantile <= 1.0:
+        raise VoxfieldError(f"quantile must be in (0, 1], got {quantile}")
+    pooled = []
+    for result in first_passes:
+        valid = result.hit_count > 0
+        pooled.append(window_variance(luminance(result.image), valid)[valid])
+    values = np.concatenate(pooled) if pooled else np.zeros(0)
+    if not len(values) or not np.max(values) > 0.0:
+        raise VoxfieldError("the first passes show no variance to normalise (empty or flat "
+                            "images)")
+    return float(np.quantile(values, quantile))
 
 
 def refinement_classes(variance: np.ndarray, valid: np.ndarray) -> np.ndarray:

@@ -139,6 +139,9 @@ def curve_deltas(curves: dict, tested: list[str]) -> list[dict]:
             for key, cost, fn in (("bd_psnr_steps", "steps", bd_quality),
                                   ("bd_psnr_rays", "rays", bd_quality),
                                   ("bd_steps_percent", "steps", bd_cost)):
+                if baseline == "LOD" and cost == "rays":
+                    row[key] = None  # one ray a pixel at every level: no curve in rays
+                    continue
                 try:
                     row[key] = fn(*_series(curves[baseline], cost), *_series(curves[name], cost))
                 except VoxfieldError as exc:
@@ -163,7 +166,9 @@ def results_markdown(report: dict) -> str:
             [[d["curve"], d["against"], fmt(d["bd_psnr_steps"], "+.2f"),
               fmt(d["bd_psnr_rays"], "+.2f"), fmt(d["bd_steps_percent"], "+.1f")]
              for d in cam["deltas"]]))
-        notes = sorted({d["note"] for d in cam["deltas"] if "note" in d})
+        notes = sorted({f"{d['curve']} against {d['against']}: {d['note']}"
+                        for d in cam["deltas"] if "note" in d})
+        lines += ["LOD casts one ray a pixel at every level, so it has no curve in rays.", ""]
         lines += [f"- {n}" for n in notes]
         lines += ["", "### Points", ""]
         rows = []
