@@ -209,3 +209,24 @@ def _sh_basis(d):
     from voxfield.error_table.spherical_harmonics import sh_basis
 
     return sh_basis(d[None, :])[0]
+
+
+def test_the_hybrid_refines_colour_edges_the_geometric_error_cannot_see(table):
+    """A flat slab, half dark and half bright: no geometric error anywhere, so EA keeps one
+    ray a pixel; the hybrid refines the pixels along the colour edge, and only those."""
+    coords = np.argwhere(np.ones((32, 1, 32), bool))
+    color = np.where((coords[:, 0] < 15)[:, None], 0.05, 0.9) * np.ones(3)
+    octree = build_octree(VoxelScene(coords, color))
+    cam = Camera.orthographic((16, 10, 16), (0, -1, 0), (0, 0, -1), view_height=32.0, width=32)
+    plain = render_error_aware(octree, cam, table, threshold=0.2, base_lod=1)
+    hybrid = render_error_aware(octree, cam, table, threshold=0.2, base_lod=1,
+                                colour_variance=0.08)
+    assert plain.total_rays == 32 * 32
+    redone = hybrid.maps["variance_refined"].astype(bool)
+    columns = np.flatnonzero(redone.any(axis=0))
+    assert len(columns) > 0 and columns.min() >= 12 and columns.max() <= 18  # at the edge
+    assert hybrid.total_rays > plain.total_rays
+    reference = render_reference(octree, cam)
+    assert _psnr(reference.image, hybrid.image) > _psnr(reference.image, plain.image) + 3
+    with pytest.raises(VoxfieldError, match="colour variance"):
+        render_error_aware(octree, cam, table, colour_variance=0.0)

@@ -86,6 +86,23 @@ def normalisation_across(first_passes, quantile: float = 1.0) -> float:
     return float(np.quantile(values, quantile))
 
 
+def refine_by_variance(octree: Octree, camera: Camera, result: RenderResult,
+                       normalisation: float, seed: int, colours, threads=None) -> np.ndarray:
+    """Refine the pixels of a finished render whose 3×3 luminance variance (normalised by
+    ``normalisation``) asks for more rays than they have: class 2 → 4×4 below 16 rays,
+    class 1 → 2×2 below 4 rays. Returns the class each pixel asked for (-1: background)."""
+    valid = result.hit_count > 0
+    wanted = refinement_classes(window_variance(luminance(result.image), valid)
+                                / normalisation, valid)
+    rays = result.ray_count.reshape(-1)
+    for cls in (2, 1):
+        side = CLASS_SIDE[cls]
+        todo = np.flatnonzero((wanted.reshape(-1) == cls) & (rays < side * side))
+        if len(todo):
+            refine_pixels(octree, camera, todo, side, seed, colours, result, threads)
+    return wanted
+
+
 def refinement_classes(variance: np.ndarray, valid: np.ndarray) -> np.ndarray:
     """-1 background, 0 keep, 1 → 2×2, 2 → 4×4 by the thesis's cut-offs."""
     classes = np.where(variance >= HIGH_CUT, 2, np.where(variance >= LOW_CUT, 1, 0))
@@ -123,7 +140,8 @@ def render_adaptive(
         for cls in (1, 2):
             todo = np.flatnonzero((wanted == cls) & (current < cls))
             if len(todo):
-                _refine(octree, camera, todo, CLASS_SIDE[cls], seed, (colors, facing), result,
+                refine_pixels(octree, camera, todo, CLASS_SIDE[cls], seed, (colors, facing),
+                              result,
                         threads)
                 current.reshape(-1)[todo] = cls
     result.seconds = first.seconds + time.perf_counter() - start
@@ -137,8 +155,9 @@ def render_adaptive(
     return result
 
 
-def _refine(octree, camera, pixels, side, seed, colours, result, threads) -> None:
-    """Re-render the listed pixels with side×side rays at LOD 0; rays and steps add up."""
+def refine_pixels(octree, camera, pixels, side, seed, colours, result, threads) -> None:
+    """Re-render the listed pixels with side×side rays at LOD 0 into ``result`` (colours as
+    ``Octree.kernel_colours`` gives them); their rays and steps add to what they had."""
     n = len(pixels)
     color = np.empty((n, 3), np.float32)
     depth = np.empty(n, np.float32)

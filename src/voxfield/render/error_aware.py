@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -27,6 +28,7 @@ from voxfield.kernels.error_aware import (
     render_error_aware_rows,
 )
 from voxfield.parallel import run_in_bands, thread_count
+from voxfield.render.adaptive import refine_by_variance
 from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
 from voxfield.render.result import RenderResult
@@ -59,6 +61,10 @@ class ErrorAwareOptions:
     bright_ratio: float = field(default=0.25, metadata={
         "help": "lighting-aware: a child is bright above (1 + R) × its parent's luminance "
         "(default 0.25)"})
+    colour_variance: float | None = field(default=None, metadata={
+        "help": "hybrid: afterwards also refine, at LOD 0, the pixels whose 3×3 luminance "
+        "variance divided by this asks for more rays (the adaptive renderer's cut-offs; "
+        "default off)", "type": "positive_float"})
 
 
 DEFAULT_BRIGHT_RATIO = ErrorAwareOptions.bright_ratio
@@ -74,6 +80,7 @@ def render_error_aware(
     reuse_parent: bool = ErrorAwareOptions.reuse_parent,
     lighting_aware: bool = ErrorAwareOptions.lighting_aware,
     bright_ratio: float = ErrorAwareOptions.bright_ratio,
+    colour_variance: float | None = ErrorAwareOptions.colour_variance,
     lighting_table: LightingErrorTable | None = None,
     seed: int = 0, channel: str = "albedo", threads: int | None = None, progress: bool = False,
 ) -> RenderResult:
@@ -88,6 +95,9 @@ def render_error_aware(
     lighting table's error for that configuration joins ``E_N(r)``, decayed alike.
     ``maps["refined"]`` counts refinements per pixel, ``maps["discarded"]`` the rays that hit
     but left no sample (all refined rays without reuse; with it, continued rays that missed).
+    ``colour_variance`` makes it a hybrid: the geometric error refines first, then pixels
+    whose image variance asks for more rays are re-rendered as the adaptive renderer does
+    (``adaptive.refine_by_variance``; their earlier rays count as spent).
     """
     table = load_error_table() if table is None else table
     encoding = encoding or table.default_encoding
@@ -101,6 +111,9 @@ def render_error_aware(
         raise VoxfieldError("threshold must be a number (inf: never refine) and decay >= 0")
     if lighting_aware and not (np.isfinite(bright_ratio) and bright_ratio >= 0):
         raise VoxfieldError(f"bright ratio must be a number >= 0, got {bright_ratio}")
+    if colour_variance is not None and not (np.isfinite(colour_variance)
+                                            and colour_variance > 0):
+        raise VoxfieldError(f"colour variance normalisation must be > 0, got {colour_variance}")
     if base_lod is None and not cone_scale > 0:
         raise VoxfieldError("cone LOD selection needs a positive cone scale")
     colors, facing = octree.kernel_colours(channel)
@@ -140,6 +153,17 @@ def render_error_aware(
     }
     if lighting_aware:
         result.params["bright_ratio"] = float(bright_ratio)
+    if colour_variance is not None:
+        start = time.perf_counter()
+        hits_before = result.hit_count.copy()
+        rays_before = result.ray_count.copy()
+        refine_by_variance(octree, camera, result, colour_variance, seed, (colors, facing),
+                           threads)
+        redone = result.ray_count != rays_before
+        discarded[redone] += hits_before[redone]  # their earlier samples no longer show
+        result.maps["variance_refined"] = redone.astype(np.int32)
+        result.params["colour_variance"] = float(colour_variance)
+        result.seconds += time.perf_counter() - start
     result.maps["refined"] = refined
     result.maps["discarded"] = discarded
     return result

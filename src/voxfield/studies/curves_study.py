@@ -5,6 +5,9 @@ when neither is both cheaper and sharper. Here each renderer traces a curve of (
 steps, rays, PSNR, SSIM) against the 4×4 reference:
 
 - error-aware (EA): the error threshold, one curve per decay;
+- hybrid: EA at the thesis's decay, then the pixels whose image variance asks for more rays
+  refined as the adaptive renderer does (geometry from the error tables, colour from the
+  image), over the same thresholds;
 - adaptive (A): its variance normalisation (how much image variance asks for 4 or 16 rays);
 - LOD: the level sampled (one ray a pixel).
 
@@ -21,7 +24,7 @@ from voxfield.error_table.table import THESIS_DECAY
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.camera_rays import ORTHOGRAPHIC
 from voxfield.progress import progress_bar
-from voxfield.render.adaptive import render_adaptive
+from voxfield.render.adaptive import VARIANCE_NORMALISATION, render_adaptive
 from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_lod, render_reference
@@ -34,6 +37,9 @@ CURVE_THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
 CURVE_DECAYS = (0.0, THESIS_DECAY)
 CURVE_NORMALISATIONS = (0.001, 0.003, 0.01, 0.03, 0.08, 0.25, 0.8)
 CURVE_LODS = (4, 3, 2, 1, 0)
+#: EA's geometric error plus the image variance for colour (``colour_variance``), at the
+#: thesis's decay and the adaptive renderer's default normalisation.
+HYBRID = f"hybrid d={THESIS_DECAY:g}"
 #: A perspective and an orthographic view of the same ground (EA §5.1.1 and its flat-ground
 #: refinement, which only perspective shows).
 CURVE_CAMERAS = ("top", "ortho-top")
@@ -57,7 +63,8 @@ def run_curves_study(
     if min(len(thresholds), len(normalisations), len(lods)) < 2 or not decays:
         raise VoxfieldError("each curve needs at least two knob values (and one decay)")
     folder = StudyFolder(out_dir, fresh=fresh)
-    points = len(cameras) * (1 + len(decays) * len(thresholds) + len(normalisations) + len(lods))
+    points = len(cameras) * (1 + (len(decays) + 1) * len(thresholds) + len(normalisations)
+                             + len(lods))
     report = {"scene": scene_name, "base_lod": base_lod, "seed": seed, "channel": channel,
               "metrics_on": "linear RGB in [0, 1]", "cameras": {}}
     settings = {"base_lod": base_lod, "seed": seed, "channel": channel}
@@ -71,6 +78,14 @@ def run_curves_study(
                                 lambda c, t=t, d=decay: render_error_aware(
                                     octree, c, threshold=t, decay=d, **settings))
                     for t in thresholds])
+            curves[HYBRID] = sweep.curve("threshold", [
+                sweep.point(f"hybrid-d{THESIS_DECAY:g}-t{t:g}",
+                            {"decay": THESIS_DECAY, "threshold": t,
+                             "colour_variance": VARIANCE_NORMALISATION},
+                            lambda c, t=t: render_error_aware(
+                                octree, c, threshold=t, decay=THESIS_DECAY,
+                                colour_variance=VARIANCE_NORMALISATION, **settings))
+                for t in thresholds])
             curves["A"] = sweep.curve("variance_normalisation", [
                 sweep.point(f"a-n{n:g}", {"variance_normalisation": n},
                             lambda c, n=n: render_adaptive(octree, c, variance_normalisation=n,
@@ -84,7 +99,7 @@ def run_curves_study(
                 "kind": "orthographic" if camera.kind == ORTHOGRAPHIC else "perspective",
                 "width": camera.width, "height": camera.height,
                 "reference": costs(sweep.reference), "curves": curves,
-                "deltas": curve_deltas(curves, [ea_curve_name(d) for d in decays]),
+                "deltas": curve_deltas(curves, [*(ea_curve_name(d) for d in decays), HYBRID]),
             }
     folder.write_json("results.json", report)
     folder.write_text("results.md", results_markdown(report))
