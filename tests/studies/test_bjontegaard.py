@@ -47,3 +47,12 @@ def test_curves_that_do_not_overlap_or_have_one_point_are_refused():
 def test_a_sliver_of_overlap_is_refused():
     with pytest.raises(VoxfieldError, match="too little"):
         bd_quality(COST, quality(COST), COST * 99.0, quality(COST))
+
+
+def test_a_dominated_setting_changes_nothing():
+    """A point costing more for less quality is never chosen: it leaves the deltas alone."""
+    worse_cost = np.append(COST, 5e5)
+    worse_psnr = np.append(quality(COST), 21.0)
+    base = bd_quality(COST, quality(COST), COST, quality(COST) + 1.0)
+    assert bd_quality(worse_cost, worse_psnr, COST, quality(COST) + 1.0) == pytest.approx(base)
+    assert bd_cost(worse_cost, worse_psnr, 0.8 * COST, quality(COST)) == pytest.approx(-20.0)

@@ -8,8 +8,10 @@ each cannot say which is better when neither is both cheaper and sharper; the cu
 - ``bd_cost``: the mean relative cost change (percent) of B against A at equal PSNR across
   the PSNR range both cover (BD-rate; negative: B is cheaper).
 
-Curves are interpolated piecewise-cubic and monotone (PCHIP, as later VCEG/JVET practice
-recommends over the original cubic fit, which overshoots on few points).
+Each curve is first reduced to its Pareto front (a point that another beats in both cost
+and PSNR is a setting nobody would choose), then interpolated piecewise-cubic and monotone
+(PCHIP, as later VCEG/JVET practice recommends over the original cubic fit, which
+overshoots on few points).
 """
 
 from __future__ import annotations
@@ -39,6 +41,23 @@ def _curve(x, y, what: str) -> tuple[np.ndarray, np.ndarray]:
     return xs, ys
 
 
+def pareto_front(cost, psnr) -> tuple[np.ndarray, np.ndarray]:
+    """The points no other point beats in both: cheaper-or-equal and strictly sharper."""
+    cost = np.asarray(cost, np.float64)
+    psnr = np.asarray(psnr, np.float64)
+    keep = np.isfinite(cost) & np.isfinite(psnr)
+    cost, psnr = cost[keep], psnr[keep]
+    order = np.lexsort((-psnr, cost))  # by cost, the sharpest first among equal costs
+    best = -np.inf
+    front = []
+    for i in order:
+        if psnr[i] > best:
+            front.append(i)
+            best = psnr[i]
+    front = np.array(front, np.int64)
+    return cost[front], psnr[front]
+
+
 def _mean_gap(xa, ya, xb, yb, what: str, min_overlap: float) -> float:
     """Mean of ``fb(x) - fa(x)`` over the x range both curves cover (at least
     ``min_overlap`` wide: a mean over a sliver says nothing)."""
@@ -57,6 +76,8 @@ def bd_quality(cost_a, psnr_a, cost_b, psnr_b) -> float:
     """Mean PSNR gain (dB) of curve B over curve A at equal cost (log scale)."""
     if np.any(np.asarray(cost_a, float) <= 0) or np.any(np.asarray(cost_b, float) <= 0):
         raise VoxfieldError("BD-PSNR: costs must be positive")
+    cost_a, psnr_a = pareto_front(cost_a, psnr_a)
+    cost_b, psnr_b = pareto_front(cost_b, psnr_b)
     xa, ya = _curve(np.log(cost_a), psnr_a, "BD-PSNR")
     xb, yb = _curve(np.log(cost_b), psnr_b, "BD-PSNR")
     return _mean_gap(xa, ya, xb, yb, "BD-PSNR", MIN_COST_OVERLAP)
@@ -66,7 +87,9 @@ def bd_cost(cost_a, psnr_a, cost_b, psnr_b) -> float:
     """Mean cost change (percent) of curve B against curve A at equal PSNR."""
     if np.any(np.asarray(cost_a, float) <= 0) or np.any(np.asarray(cost_b, float) <= 0):
         raise VoxfieldError("BD-rate: costs must be positive")
-    # Cost as a function of quality: each curve must rise with cost to be inverted.
+    # Cost as a function of quality: the Pareto fronts rise with cost, so they invert.
+    cost_a, psnr_a = pareto_front(cost_a, psnr_a)
+    cost_b, psnr_b = pareto_front(cost_b, psnr_b)
     xa, ya = _curve(psnr_a, np.log(cost_a), "BD-rate")
     xb, yb = _curve(psnr_b, np.log(cost_b), "BD-rate")
     return float((np.exp(_mean_gap(xa, ya, xb, yb, "BD-rate", MIN_PSNR_OVERLAP)) - 1.0) * 100.0)
