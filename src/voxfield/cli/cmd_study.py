@@ -209,8 +209,7 @@ def run_normalisation(args) -> int:
         raise VoxfieldError(f"--quantile must be in (0, 1], got {args.quantile}")
     scenes = {}
     for spec in (args.scene, *args.more_scenes):
-        args.scene = spec
-        octree = open_octree(args)
+        octree = open_octree(argparse.Namespace(**{**vars(args), "scene": spec}))
         scenes[spec] = (octree, camera(args, octree.voxel_bounds))
     out = args.out or default_output("normalisation", next(iter(scenes)))
     report = run_normalisation_study(scenes, out, base_lod=args.base_lod,

@@ -167,10 +167,9 @@ class Octree:
     def fingerprint(self, channel: str = "albedo") -> str:
         """Names this octree's structure and one colour channel in cache keys and probe
         files: equal octrees give equal fingerprints, any change in either gives another."""
-        arrays = [self.level_offsets, self.child_mask, self.channel(channel)]
-        if self.facing is not None and channel in ("albedo", "color"):
-            arrays.append(self.facing)
-        return array_fingerprint(*arrays)
+        stored, facing = self.kernel_colours(channel)
+        arrays = [self.level_offsets, self.child_mask, stored]
+        return array_fingerprint(*arrays, *([facing] if facing.size else []))
 
     def kernel_colours(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """What colour-reading kernels take for a channel (``kernels.facing_colour.seen_rgb``):
