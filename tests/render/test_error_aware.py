@@ -14,7 +14,7 @@ import pytest
 from voxfield.error_table import build_error_table
 from voxfield.errors import VoxfieldError
 from voxfield.render import Camera, render_lod, render_reference
-from voxfield.render.error_aware import render_error_aware
+from voxfield.render.error_aware import colour_error, colour_spread, render_error_aware
 from voxfield.scene.builtin import pillars
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
@@ -230,3 +230,37 @@ def test_the_hybrid_refines_colour_edges_the_geometric_error_cannot_see(table):
     assert _psnr(reference.image, hybrid.image) > _psnr(reference.image, plain.image) + 3
     with pytest.raises(VoxfieldError, match="colour variance"):
         render_error_aware(octree, cam, table, colour_variance=0.0)
+
+
+def test_colour_spread_is_the_luminance_deviation_of_the_visible_children():
+    """A 2×1×2 slab, two black and two white voxels, equally exposed: the LOD-1 node's
+    children have luminance 0 and 1 in equal shares, a standard deviation of 0.5."""
+    coords = np.array([[0, 0, 0], [1, 0, 0], [0, 0, 1], [1, 0, 1]])
+    color = np.array([[0, 0, 0], [1, 1, 1], [0, 0, 0], [1, 1, 1]], np.float32)
+    octree = build_octree(VoxelScene(coords, color), colour_storage="float32")
+    spread = colour_spread(octree)
+    assert spread[octree.level_slice(octree.depth - 1)] == pytest.approx([0.5])
+    assert colour_error(octree, 0.5) == pytest.approx(spread)  # voxel children add nothing
+    # Stripes over a 4×4 slab: the root adds decay × the mean of its children's spreads.
+    slab = np.argwhere(np.ones((4, 1, 4), bool))
+    stripes = (slab[:, :1] % 2 * np.ones(3)).astype(np.float32)
+    octree = build_octree(VoxelScene(slab, stripes), colour_storage="float32")
+    spread = colour_spread(octree)
+    children = spread[octree.level_slice(1)]
+    assert np.all(children > 0.3)
+    assert colour_error(octree, 0.5)[0] == pytest.approx(spread[0] + 0.5 * children.mean())
+
+
+def test_the_colour_term_refines_a_colour_edge_and_is_off_at_zero(table):
+    coords = np.argwhere(np.ones((32, 1, 32), bool))
+    color = np.where((coords[:, 0] < 15)[:, None], 0.05, 0.9) * np.ones(3)
+    octree = build_octree(VoxelScene(coords, color))
+    cam = Camera.orthographic((16, 10, 16), (0, -1, 0), (0, 0, -1), view_height=32.0, width=32)
+    plain = render_error_aware(octree, cam, table, threshold=0.2, base_lod=1)
+    off = render_error_aware(octree, cam, table, threshold=0.2, base_lod=1, colour_term=0.0)
+    on = render_error_aware(octree, cam, table, threshold=0.2, base_lod=1, colour_term=1.0)
+    assert np.array_equal(plain.image, off.image) and plain.total_rays == off.total_rays
+    refined_columns = np.flatnonzero((on.maps["refined"] > 0).any(axis=0))
+    assert len(refined_columns) and refined_columns.min() >= 12 and refined_columns.max() <= 18
+    reference = render_reference(octree, cam)
+    assert _psnr(reference.image, on.image) > _psnr(reference.image, plain.image) + 3

@@ -184,7 +184,8 @@ class Refinement(NamedTuple):
 
 class ErrorModel(NamedTuple):
     """The refinement test: ``e(r, N) + decay · mean_c e(r, c) > threshold``, the geometric
-    table in one encoding, and the optional lighting-aware colour error (EA §6.1)."""
+    table in one encoding, the optional lighting-aware colour error (EA §6.1) and the
+    optional colour term (``colour_weight`` times a per-node ``colour_error``)."""
 
     threshold: float
     decay: float
@@ -198,6 +199,8 @@ class ErrorModel(NamedTuple):
     class_of: np.ndarray
     symmetry_of: np.ndarray
     symmetries: np.ndarray
+    colour_weight: float
+    colour_error: np.ndarray
 
 
 class BeamBounds(NamedTuple):
@@ -245,7 +248,7 @@ def render_error_aware_row(
     inner_nodes, depth, colors, facing = view
     base_stop_level, cone_scale, max_refinements, reuse_parent = refinement
     (threshold, decay, encoding, oct_map, sh, children_sh, lighting_aware, bright_ratio,
-     light_map, class_of, symmetry_of, symmetries) = model
+     light_map, class_of, symmetry_of, symmetries, colour_weight, colour_error) = model
     beam_bound, block = beam
     (out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod, out_refined,
      out_discarded) = out
@@ -332,6 +335,8 @@ def render_error_aware_row(
                     error += lighting_node_error(
                         node, level, depth, inner_nodes, decay, colors, bright_ratio,
                         light_map, class_of, symmetry_of, symmetries, dx, dy, dz)
+                if colour_weight > 0.0:
+                    error += colour_weight * colour_error[node]
                 if error > threshold:
                     # Discard this sample; its cell is covered by four finer rays.
                     refined += 1

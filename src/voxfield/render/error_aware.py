@@ -16,6 +16,7 @@ from voxfield.error_table.table import (
     load_error_table,
 )
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.colour import decode_channel
 from voxfield.kernels.error_aware import (
     ENCODING_OCT,
     ENCODING_SH,
@@ -32,6 +33,7 @@ from voxfield.render.adaptive import refine_by_variance
 from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
 from voxfield.render.result import RenderResult
+from voxfield.svo.lod_colours import exposed_face_weights
 from voxfield.svo.octree import Octree
 
 
@@ -61,6 +63,10 @@ class ErrorAwareOptions:
     bright_ratio: float = field(default=0.25, metadata={
         "help": "lighting-aware: a child is bright above (1 + R) × its parent's luminance "
         "(default 0.25)"})
+    colour_term: float = field(default=0.0, metadata={
+        "help": "weight of the colour term: the spread (std) of the luminance of a node's "
+        "children as rays see them, plus decay × its children's, added to the error "
+        "(default 0: the thesis's geometric error alone)"})
     colour_variance: float | None = field(default=None, metadata={
         "help": "hybrid: afterwards also refine, at LOD 0, the pixels whose 3×3 luminance "
         "variance divided by this asks for more rays (the adaptive renderer's cut-offs; "
@@ -80,6 +86,7 @@ def render_error_aware(
     reuse_parent: bool = ErrorAwareOptions.reuse_parent,
     lighting_aware: bool = ErrorAwareOptions.lighting_aware,
     bright_ratio: float = ErrorAwareOptions.bright_ratio,
+    colour_term: float = ErrorAwareOptions.colour_term,
     colour_variance: float | None = ErrorAwareOptions.colour_variance,
     lighting_table: LightingErrorTable | None = None,
     seed: int = 0, channel: str = "albedo", threads: int | None = None, progress: bool = False,
@@ -95,6 +102,8 @@ def render_error_aware(
     lighting table's error for that configuration joins ``E_N(r)``, decayed alike.
     ``maps["refined"]`` counts refinements per pixel, ``maps["discarded"]`` the rays that hit
     but left no sample (all refined rays without reuse; with it, continued rays that missed).
+    ``colour_term`` adds ``colour_term × (s(N) + decay · mean_c s(c))`` to the error, ``s``
+    the visibility-weighted luminance spread of a node's children (``colour_spread``).
     ``colour_variance`` makes it a hybrid: the geometric error refines first, then pixels
     whose image variance asks for more rays are re-rendered as the adaptive renderer does
     (``adaptive.refine_by_variance``; their earlier rays count as spent).
@@ -111,6 +120,8 @@ def render_error_aware(
         raise VoxfieldError("threshold must be a number (inf: never refine) and decay >= 0")
     if lighting_aware and not (np.isfinite(bright_ratio) and bright_ratio >= 0):
         raise VoxfieldError(f"bright ratio must be a number >= 0, got {bright_ratio}")
+    if not (np.isfinite(colour_term) and colour_term >= 0):
+        raise VoxfieldError(f"colour term weight must be a number >= 0, got {colour_term}")
     if colour_variance is not None and not (np.isfinite(colour_variance)
                                             and colour_variance > 0):
         raise VoxfieldError(f"colour variance normalisation must be > 0, got {colour_variance}")
@@ -130,7 +141,8 @@ def render_error_aware(
         float(threshold), float(decay), ENCODING_SH if encoding == "sh" else ENCODING_OCT,
         np.ascontiguousarray(table.oct_map, np.float64), np.ascontiguousarray(table.sh, np.float64),
         children_sh_means(octree, table) if encoding == "sh" else np.zeros((0, 9)),
-        bool(lighting_aware), float(bright_ratio), *light,
+        bool(lighting_aware), float(bright_ratio), *light, float(colour_term),
+        colour_error(octree, decay, channel) if colour_term > 0 else np.zeros(1),
     )
     cam = camera.params
     with thread_count(threads):
@@ -153,6 +165,8 @@ def render_error_aware(
     }
     if lighting_aware:
         result.params["bright_ratio"] = float(bright_ratio)
+    if colour_term > 0:
+        result.params["colour_term"] = float(colour_term)
     if colour_variance is not None:
         start = time.perf_counter()
         hits_before = result.hit_count.copy()
@@ -177,6 +191,48 @@ def _lighting_arrays(table: LightingErrorTable | None, needed: bool) -> tuple:
     table = load_lighting_error_table() if table is None else table
     return (np.ascontiguousarray(table.oct_map, np.float32), table.class_of,
             table.symmetry_of, np.ascontiguousarray(table.symmetries, np.float64))
+
+
+def colour_spread(octree: Octree, channel: str = "albedo") -> np.ndarray:
+    """Per inner node, the spread (weighted standard deviation) of its children's luminance,
+    each child's luminance and weight being those of its visible surface: voxels weighted by
+    their exposed faces (``svo.lod_colours.exposed_face_weights``), buried ones not at all."""
+    leaves = octree.level_slice(octree.depth)
+    weights = exposed_face_weights(octree)
+    lum = decode_channel(octree.channel(channel)[leaves]) @ np.array([0.2126, 0.7152, 0.0722])
+    spread = np.zeros(octree.inner_count)
+    first = octree.first_child
+    for level in range(octree.depth - 1, -1, -1):
+        parents = octree.level_slice(level)
+        starts = first[parents] - int(octree.level_offsets[level + 1])
+        w_sum = np.add.reduceat(weights, starts)
+        seen = w_sum > 0
+        safe = np.where(seen, w_sum, 1.0)
+        mean = np.add.reduceat(weights * lum, starts) / safe
+        second = np.add.reduceat(weights * lum * lum, starts) / safe
+        spread[parents] = np.where(seen, np.sqrt(np.maximum(second - mean * mean, 0.0)), 0.0)
+        # The parents become the next level's children: their visible luminance and weight.
+        lum = np.where(seen, mean, np.add.reduceat(lum, starts) / np.diff(np.append(
+            starts, len(lum))))
+        weights = w_sum
+    return spread
+
+
+def colour_error(octree: Octree, decay: float, channel: str = "albedo") -> np.ndarray:
+    """``s(N) + decay · mean_c s(c)`` per inner node (children that are voxels add 0)."""
+    spread = colour_spread(octree, channel)
+    if decay == 0.0:
+        return spread
+    inner = octree.inner_count
+    counts = np.unpackbits(octree.child_mask[:inner, None], axis=1).sum(axis=1)
+    padded = np.append(spread, np.zeros(octree.voxel_count))
+    out = spread.copy()
+    for level in range(octree.depth - 1):
+        parents = octree.level_slice(level)
+        starts = octree.first_child[parents]
+        sums = np.add.reduceat(padded[: int(starts[-1] + counts[parents][-1])], starts)
+        out[parents] += decay * sums[: len(starts)] / counts[parents]
+    return out
 
 
 def children_sh_means(octree: Octree, table: ErrorTable) -> np.ndarray:
