@@ -264,3 +264,23 @@ def test_the_colour_term_refines_a_colour_edge_and_is_off_at_zero(table):
     assert len(refined_columns) and refined_columns.min() >= 12 and refined_columns.max() <= 18
     reference = render_reference(octree, cam)
     assert _psnr(reference.image, on.image) > _psnr(reference.image, plain.image) + 3
+
+
+def test_colour_refinement_can_go_straight_to_the_voxels(table):
+    """A 32-wide stripe pattern of one-voxel stripes: from LOD 2, the colour term asks for
+    refinement everywhere; one LOD finer still averages the stripes, the voxels do not."""
+    coords = np.argwhere(np.ones((32, 1, 32), bool))
+    color = (coords[:, :1] % 2 * 0.8 + 0.1) * np.ones(3)
+    octree = build_octree(VoxelScene(coords, color))
+    cam = Camera.orthographic((16, 10, 16), (0, -1, 0), (0, 0, -1), view_height=32.0, width=16)
+    # Decay 1: the LOD-1 children's own stripes count in full, so colour alone decides.
+    options = {"threshold": 0.1, "decay": 1.0, "base_lod": 2, "colour_term": 1.0,
+               "max_refinements": 1}
+    stepwise = render_error_aware(octree, cam, table, **options)
+    straight = render_error_aware(octree, cam, table, colour_to_voxels=True, **options)
+    hit = straight.hit_count > 0
+    assert np.all(stepwise.finest_lod[hit] == 1)
+    assert np.all(straight.finest_lod[hit] == 0)
+    assert stepwise.total_rays == straight.total_rays  # same refinements, finer samples
+    reference = render_reference(octree, cam)
+    assert _psnr(reference.image, straight.image) > _psnr(reference.image, stepwise.image) + 3

@@ -201,6 +201,7 @@ class ErrorModel(NamedTuple):
     symmetries: np.ndarray
     colour_weight: float
     colour_error: np.ndarray
+    colour_to_voxels: bool
 
 
 class BeamBounds(NamedTuple):
@@ -248,7 +249,8 @@ def render_error_aware_row(
     inner_nodes, depth, colors, facing = view
     base_stop_level, cone_scale, max_refinements, reuse_parent = refinement
     (threshold, decay, encoding, oct_map, sh, children_sh, lighting_aware, bright_ratio,
-     light_map, class_of, symmetry_of, symmetries, colour_weight, colour_error) = model
+     light_map, class_of, symmetry_of, symmetries, colour_weight, colour_error,
+     colour_to_voxels) = model
     beam_bound, block = beam
     (out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod, out_refined,
      out_discarded) = out
@@ -335,9 +337,14 @@ def render_error_aware_row(
                     error += lighting_node_error(
                         node, level, depth, inner_nodes, decay, colors, bright_ratio,
                         light_map, class_of, symmetry_of, symmetries, dx, dy, dz)
+                colour_part = 0.0
                 if colour_weight > 0.0:
-                    error += colour_weight * colour_error[node]
+                    colour_part = colour_weight * colour_error[node]
+                    error += colour_part
                 if error > threshold:
+                    # Colour alone over the threshold: finer LODs average it again, so
+                    # the sub-rays may go straight to the voxels.
+                    finer = depth if colour_to_voxels and colour_part > threshold else level + 1
                     # Discard this sample; its cell is covered by four finer rays.
                     refined += 1
                     if not reuse_parent:
@@ -348,7 +355,7 @@ def render_error_aware_row(
                         q_x[n] = sx
                         q_y[n] = sy
                         q_k[n] = k + 1
-                        q_stop[n] = level + 1
+                        q_stop[n] = finer
                         q_tmin[n] = _FRESH
                         if reuse_parent:
                             span = fine >> (k + 1)

@@ -67,6 +67,9 @@ class ErrorAwareOptions:
         "help": "weight of the colour term: the spread (std) of the luminance of a node's "
         "children as rays see them, plus decay × its children's, added to the error "
         "(default 0: the thesis's geometric error alone)"})
+    colour_to_voxels: bool = field(default=False, metadata={
+        "help": "colour term: where colour alone exceeds the threshold, the 2×2 sub-rays "
+        "go straight to LOD 0 instead of one LOD finer"})
     colour_variance: float | None = field(default=None, metadata={
         "help": "hybrid: afterwards also refine, at LOD 0, the pixels whose 3×3 luminance "
         "variance divided by this asks for more rays (the adaptive renderer's cut-offs; "
@@ -87,6 +90,7 @@ def render_error_aware(
     lighting_aware: bool = ErrorAwareOptions.lighting_aware,
     bright_ratio: float = ErrorAwareOptions.bright_ratio,
     colour_term: float = ErrorAwareOptions.colour_term,
+    colour_to_voxels: bool = ErrorAwareOptions.colour_to_voxels,
     colour_variance: float | None = ErrorAwareOptions.colour_variance,
     lighting_table: LightingErrorTable | None = None,
     seed: int = 0, channel: str = "albedo", threads: int | None = None, progress: bool = False,
@@ -103,7 +107,9 @@ def render_error_aware(
     ``maps["refined"]`` counts refinements per pixel, ``maps["discarded"]`` the rays that hit
     but left no sample (all refined rays without reuse; with it, continued rays that missed).
     ``colour_term`` adds ``colour_term × (s(N) + decay · mean_c s(c))`` to the error, ``s``
-    the visibility-weighted luminance spread of a node's children (``colour_spread``).
+    the visibility-weighted luminance spread of a node's children (``colour_spread``);
+    with ``colour_to_voxels``, where that term alone exceeds the threshold, the sub-rays
+    descend to LOD 0 at once (with ``reuse_parent``, the continued ray too).
     ``colour_variance`` makes it a hybrid: the geometric error refines first, then pixels
     whose image variance asks for more rays are re-rendered as the adaptive renderer does
     (``adaptive.refine_by_variance``; their earlier rays count as spent).
@@ -143,6 +149,7 @@ def render_error_aware(
         children_sh_means(octree, table) if encoding == "sh" else np.zeros((0, 9)),
         bool(lighting_aware), float(bright_ratio), *light, float(colour_term),
         colour_error(octree, decay, channel) if colour_term > 0 else np.zeros(1),
+        bool(colour_to_voxels),
     )
     cam = camera.params
     with thread_count(threads):
@@ -167,6 +174,7 @@ def render_error_aware(
         result.params["bright_ratio"] = float(bright_ratio)
     if colour_term > 0:
         result.params["colour_term"] = float(colour_term)
+        result.params["colour_to_voxels"] = bool(colour_to_voxels)
     if colour_variance is not None:
         start = time.perf_counter()
         hits_before = result.hit_count.copy()

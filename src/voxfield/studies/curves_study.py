@@ -7,6 +7,8 @@ steps, rays, PSNR, SSIM) against the 4×4 reference:
 - error-aware (EA): the error threshold, one curve per decay;
 - EA+colour: EA at the thesis's decay with the colour term (the spread of the children's
   visible luminance) added to the geometric error, over the same thresholds;
+- EA+colour→LOD 0: the same, refining straight to the voxels where colour alone asks, with
+  parent-ray reuse;
 - hybrid: EA at the thesis's decay, then the pixels whose image variance asks for more rays
   refined as the adaptive renderer does (geometry from the error tables, colour from the
   image), over the same thresholds;
@@ -46,6 +48,9 @@ HYBRID = f"hybrid d={THESIS_DECAY:g}"
 #: weight 1, the thesis's decay.
 COLOUR_TERM = 1.0
 COLOUR = f"EA+colour d={THESIS_DECAY:g}"
+#: The same, but where colour alone asks, the sub-rays go straight to LOD 0, continuing the
+#: parent ray (EA §6.2's reuse).
+STRAIGHT = f"EA+colour→LOD 0 d={THESIS_DECAY:g}"
 #: A perspective and an orthographic view of the same ground (EA §5.1.1 and its flat-ground
 #: refinement, which only perspective shows).
 CURVE_CAMERAS = ("top", "ortho-top")
@@ -69,7 +74,7 @@ def run_curves_study(
     if min(len(thresholds), len(normalisations), len(lods)) < 2 or not decays:
         raise VoxfieldError("each curve needs at least two knob values (and one decay)")
     folder = StudyFolder(out_dir, fresh=fresh)
-    points = len(cameras) * (1 + (len(decays) + 2) * len(thresholds) + len(normalisations)
+    points = len(cameras) * (1 + (len(decays) + 3) * len(thresholds) + len(normalisations)
                              + len(lods))
     report = {"scene": scene_name, "base_lod": base_lod, "seed": seed, "channel": channel,
               "metrics_on": "linear RGB in [0, 1]", "cameras": {}}
@@ -99,6 +104,15 @@ def run_curves_study(
                                 octree, c, threshold=t, decay=THESIS_DECAY,
                                 colour_term=COLOUR_TERM, **settings))
                 for t in thresholds])
+            curves[STRAIGHT] = sweep.curve("threshold", [
+                sweep.point(f"straight-d{THESIS_DECAY:g}-t{t:g}",
+                            {"decay": THESIS_DECAY, "threshold": t, "colour_term": COLOUR_TERM,
+                             "colour_to_voxels": True, "reuse_parent": True},
+                            lambda c, t=t: render_error_aware(
+                                octree, c, threshold=t, decay=THESIS_DECAY,
+                                colour_term=COLOUR_TERM, colour_to_voxels=True,
+                                reuse_parent=True, **settings))
+                for t in thresholds])
             curves["A"] = sweep.curve("variance_normalisation", [
                 sweep.point(f"a-n{n:g}", {"variance_normalisation": n},
                             lambda c, n=n: render_adaptive(octree, c, variance_normalisation=n,
@@ -113,7 +127,7 @@ def run_curves_study(
                 "width": camera.width, "height": camera.height,
                 "reference": costs(sweep.reference), "curves": curves,
                 "deltas": curve_deltas(
-                    curves, [*(ea_curve_name(d) for d in decays), COLOUR, HYBRID]),
+                    curves, [*(ea_curve_name(d) for d in decays), COLOUR, STRAIGHT, HYBRID]),
             }
     folder.write_json("results.json", report)
     folder.write_text("results.md", results_markdown(report))
