@@ -51,6 +51,14 @@ COLOUR = f"EA+colour d={THESIS_DECAY:g}"
 #: The same, but where colour alone asks, the sub-rays go straight to LOD 0, continuing the
 #: parent ray (EA §6.2's reuse).
 STRAIGHT = f"EA+colour→LOD 0 d={THESIS_DECAY:g}"
+#: The EA-family curves beside the plain decays: name → (item prefix, renderer options),
+#: each at the thesis's decay over the same thresholds.
+EA_VARIANTS = {
+    COLOUR: ("colour", {"colour_term": COLOUR_TERM}),
+    STRAIGHT: ("straight", {"colour_term": COLOUR_TERM, "colour_to_voxels": True,
+                            "reuse_parent": True}),
+    HYBRID: ("hybrid", {"colour_variance": VARIANCE_NORMALISATION}),
+}
 #: A perspective and an orthographic view of the same ground (EA §5.1.1 and its flat-ground
 #: refinement, which only perspective shows).
 CURVE_CAMERAS = ("top", "ortho-top")
@@ -74,7 +82,8 @@ def run_curves_study(
     if min(len(thresholds), len(normalisations), len(lods)) < 2 or not decays:
         raise VoxfieldError("each curve needs at least two knob values (and one decay)")
     folder = StudyFolder(out_dir, fresh=fresh)
-    points = len(cameras) * (1 + (len(decays) + 3) * len(thresholds) + len(normalisations)
+    points = len(cameras) * (1 + (len(decays) + len(EA_VARIANTS)) * len(thresholds)
+                             + len(normalisations)
                              + len(lods))
     report = {"scene": scene_name, "base_lod": base_lod, "seed": seed, "channel": channel,
               "metrics_on": "linear RGB in [0, 1]", "cameras": {}}
@@ -89,30 +98,14 @@ def run_curves_study(
                                 lambda c, t=t, d=decay: render_error_aware(
                                     octree, c, threshold=t, decay=d, **settings))
                     for t in thresholds])
-            curves[HYBRID] = sweep.curve("threshold", [
-                sweep.point(f"hybrid-d{THESIS_DECAY:g}-t{t:g}",
-                            {"decay": THESIS_DECAY, "threshold": t,
-                             "colour_variance": VARIANCE_NORMALISATION},
-                            lambda c, t=t: render_error_aware(
-                                octree, c, threshold=t, decay=THESIS_DECAY,
-                                colour_variance=VARIANCE_NORMALISATION, **settings))
-                for t in thresholds])
-            curves[COLOUR] = sweep.curve("threshold", [
-                sweep.point(f"colour-d{THESIS_DECAY:g}-t{t:g}",
-                            {"decay": THESIS_DECAY, "threshold": t, "colour_term": COLOUR_TERM},
-                            lambda c, t=t: render_error_aware(
-                                octree, c, threshold=t, decay=THESIS_DECAY,
-                                colour_term=COLOUR_TERM, **settings))
-                for t in thresholds])
-            curves[STRAIGHT] = sweep.curve("threshold", [
-                sweep.point(f"straight-d{THESIS_DECAY:g}-t{t:g}",
-                            {"decay": THESIS_DECAY, "threshold": t, "colour_term": COLOUR_TERM,
-                             "colour_to_voxels": True, "reuse_parent": True},
-                            lambda c, t=t: render_error_aware(
-                                octree, c, threshold=t, decay=THESIS_DECAY,
-                                colour_term=COLOUR_TERM, colour_to_voxels=True,
-                                reuse_parent=True, **settings))
-                for t in thresholds])
+            for name, (prefix, extra) in EA_VARIANTS.items():
+                curves[name] = sweep.curve("threshold", [
+                    sweep.point(f"{prefix}-d{THESIS_DECAY:g}-t{t:g}",
+                                {"decay": THESIS_DECAY, "threshold": t, **extra},
+                                lambda c, t=t, extra=extra: render_error_aware(
+                                    octree, c, threshold=t, decay=THESIS_DECAY, **extra,
+                                    **settings))
+                    for t in thresholds])
             curves["A"] = sweep.curve("variance_normalisation", [
                 sweep.point(f"a-n{n:g}", {"variance_normalisation": n},
                             lambda c, n=n: render_adaptive(octree, c, variance_normalisation=n,
@@ -127,7 +120,7 @@ def run_curves_study(
                 "width": camera.width, "height": camera.height,
                 "reference": costs(sweep.reference), "curves": curves,
                 "deltas": curve_deltas(
-                    curves, [*(ea_curve_name(d) for d in decays), COLOUR, STRAIGHT, HYBRID]),
+                    curves, [*(ea_curve_name(d) for d in decays), *EA_VARIANTS]),
             }
     folder.write_json("results.json", report)
     folder.write_text("results.md", results_markdown(report))
