@@ -10,11 +10,18 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from tests.random_scenes import random_scene
 
 from voxfield.error_table import build_error_table
 from voxfield.errors import VoxfieldError
 from voxfield.render import Camera, render_lod, render_reference
-from voxfield.render.error_aware import colour_error, colour_spread, render_error_aware
+from voxfield.render.error_aware import (
+    REPEATING_AXES,
+    colour_error,
+    colour_spread,
+    neighbour_context,
+    render_error_aware,
+)
 from voxfield.scene.builtin import pillars
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
@@ -284,3 +291,41 @@ def test_colour_refinement_can_go_straight_to_the_voxels(table):
     assert stepwise.total_rays == straight.total_rays  # same refinements, finer samples
     reference = render_reference(octree, cam)
     assert _psnr(reference.image, straight.image) > _psnr(reference.image, stepwise.image) + 3
+
+
+def test_neighbour_context_marks_same_shaped_neighbours():
+    """A 4×1×4 slab of 1×1 voxels at depth 2: its four LOD-1 nodes all hold a half slab, so
+    each borders same-shaped neighbours across its inner x and z faces, none above or below."""
+    slab = np.argwhere(np.ones((4, 1, 4), bool))
+    octree = build_octree(VoxelScene(slab, np.full((16, 3), 0.5, np.float32)))
+    context = neighbour_context(octree)[octree.level_slice(1)]
+    coords = octree.node_coords(1)
+    for (x, _, z), bits in zip(coords.tolist(), context.tolist(), strict=True):
+        expected = ((x == 1) << 0) | ((x == 0) << 1) | ((z == 1) << 4) | ((z == 0) << 5)
+        assert bits == expected
+    assert neighbour_context(octree)[0] == 0  # the root has no neighbours
+
+
+def test_repeating_axes_of_child_masks():
+    assert REPEATING_AXES[0b00110011].tolist() == [True, False, True]  # lower half in y
+    assert REPEATING_AXES[0xFF].tolist() == [True, True, True]
+    assert REPEATING_AXES[0b00000001].tolist() == [False, False, False]
+
+
+def test_context_aware_error_stops_flat_ground_refining(table):
+    ground = np.argwhere(np.ones((64, 2, 64), bool))
+    octree = build_octree(VoxelScene(ground, np.full((len(ground), 3), 0.5, np.float32)))
+    cam = Camera.look_at((32, 30, 90), (32, 0, 20), fov_deg=50, width=32)
+    plain = render_error_aware(octree, cam, table, threshold=0.1, base_lod=2)
+    aware = render_error_aware(octree, cam, table, threshold=0.1, base_lod=2,
+                               context_aware=True)
+    assert plain.maps["refined"].sum() > 100
+    # What still refines is the ground's edge, where neighbours end.
+    assert aware.maps["refined"].sum() < plain.maps["refined"].sum() / 3
+    # It only ever drops errors: on a scattered scene no pixel refines more than before.
+    scattered = build_octree(random_scene(5, n=900, size=16))
+    cam = Camera.look_at((30, 25, 40), (8, 8, 8), fov_deg=50, width=24)
+    before = render_error_aware(scattered, cam, table, threshold=0.1, base_lod=1)
+    after = render_error_aware(scattered, cam, table, threshold=0.1, base_lod=1,
+                               context_aware=True)
+    assert np.all(after.maps["refined"] <= before.maps["refined"])

@@ -36,12 +36,16 @@ def test_curves_follow_their_knobs_and_resume(octree, tmp_path):
     assert report["cameras"]["ortho"]["kind"] == "orthographic"
     for cam in report["cameras"].values():
         curves = cam["curves"]
-        assert set(curves) == {"EA d=0", "EA d=0.2", "EA+colour d=0.2", "EA+colour→LOD 0 d=0.2",
-                               "hybrid d=0.2", "A", "LOD"}
+        assert set(curves) == {"EA d=0", "EA d=0.2", "EA context d=0.2", "EA+colour d=0.2",
+                               "EA+colour→LOD 0 d=0.2", "hybrid d=0.2", "A", "LOD"}
         # The hybrid refines at least where EA does: never fewer rays at any threshold.
         for ea_point, hybrid_point in zip(curves["EA d=0.2"]["points"],
                                           curves["hybrid d=0.2"]["points"], strict=True):
             assert hybrid_point["rays"] >= ea_point["rays"]
+        # The context-aware error only drops errors: never more rays.
+        for ea_point, context_point in zip(curves["EA d=0.2"]["points"],
+                                           curves["EA context d=0.2"]["points"], strict=True):
+            assert context_point["rays"] <= ea_point["rays"]
         # And the colour term only adds error: never fewer rays either.
         for ea_point, colour_point in zip(curves["EA d=0.2"]["points"],
                                           curves["EA+colour d=0.2"]["points"], strict=True):
@@ -53,7 +57,7 @@ def test_curves_follow_their_knobs_and_resume(octree, tmp_path):
         lod = sorted(curves["LOD"]["points"], key=lambda p: p["lod"])
         assert all(p["rays"] == 24 * 24 for p in lod)  # one ray a pixel at every level
         assert [p["steps"] for p in lod] == sorted((p["steps"] for p in lod), reverse=True)
-        assert len(cam["deltas"]) == 10  # the five EA-family curves against A and LOD
+        assert len(cam["deltas"]) == 12  # the six EA-family curves against A and LOD
         for d in cam["deltas"]:
             assert d["bd_psnr_steps"] is None or np.isfinite(d["bd_psnr_steps"])
             assert d["bd_psnr_steps"] is not None or d["note"]
@@ -61,7 +65,7 @@ def test_curves_follow_their_knobs_and_resume(octree, tmp_path):
         assert (tmp_path / name).is_file()
     assert "Bjøntegaard deltas" in (tmp_path / "results.md").read_text()
     items = sorted((tmp_path / "items").glob("*.json"))
-    assert len(items) == 2 * (1 + 5 * 3 + 3 + 3)
+    assert len(items) == 2 * (1 + 6 * 3 + 3 + 3)
     stamps = {p.name: p.stat().st_mtime_ns for p in items}
     again = run_curves_study(octree, cameras(), tmp_path, scene_name="pillars", **KNOBS)
     assert {p.name: p.stat().st_mtime_ns for p in items} == stamps

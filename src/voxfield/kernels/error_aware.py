@@ -202,6 +202,7 @@ class ErrorModel(NamedTuple):
     colour_weight: float
     colour_error: np.ndarray
     colour_to_voxels: bool
+    context: np.ndarray
 
 
 class BeamBounds(NamedTuple):
@@ -250,7 +251,7 @@ def render_error_aware_row(
     base_stop_level, cone_scale, max_refinements, reuse_parent = refinement
     (threshold, decay, encoding, oct_map, sh, children_sh, lighting_aware, bright_ratio,
      light_map, class_of, symmetry_of, symmetries, colour_weight, colour_error,
-     colour_to_voxels) = model
+     colour_to_voxels, context) = model
     beam_bound, block = beam
     (out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod, out_refined,
      out_discarded) = out
@@ -333,6 +334,8 @@ def render_error_aware_row(
                 else:
                     error = node_error(node, level, depth, inner_nodes, decay, encoding,
                                        oct_map, sh, dx, dy, dz)
+                if context.shape[0] > 0 and context[node]:
+                    error = 0.0  # inside a repeating surface: a shift, not a silhouette
                 if lighting_aware:
                     error += lighting_node_error(
                         node, level, depth, inner_nodes, decay, colors, bright_ratio,

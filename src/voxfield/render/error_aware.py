@@ -28,6 +28,7 @@ from voxfield.kernels.error_aware import (
     Refinement,
     render_error_aware_rows,
 )
+from voxfield.kernels.neighbour_context import same_shape_neighbours
 from voxfield.parallel import run_in_bands, thread_count
 from voxfield.render.adaptive import refine_by_variance
 from voxfield.render.beam import primary_beam
@@ -63,6 +64,9 @@ class ErrorAwareOptions:
     bright_ratio: float = field(default=0.25, metadata={
         "help": "lighting-aware: a child is bright above (1 + R) × its parent's luminance "
         "(default 0.25)"})
+    context_aware: bool = field(default=False, metadata={
+        "help": "no geometric error inside a surface of same-shaped same-level nodes "
+        "(flat ground and terrace interiors stop refining)"})
     colour_term: float = field(default=0.0, metadata={
         "help": "weight of the colour term: the spread (std) of the luminance of a node's "
         "children as rays see them, plus decay × its children's, added to the error "
@@ -89,6 +93,7 @@ def render_error_aware(
     reuse_parent: bool = ErrorAwareOptions.reuse_parent,
     lighting_aware: bool = ErrorAwareOptions.lighting_aware,
     bright_ratio: float = ErrorAwareOptions.bright_ratio,
+    context_aware: bool = ErrorAwareOptions.context_aware,
     colour_term: float = ErrorAwareOptions.colour_term,
     colour_to_voxels: bool = ErrorAwareOptions.colour_to_voxels,
     colour_variance: float | None = ErrorAwareOptions.colour_variance,
@@ -106,6 +111,8 @@ def render_error_aware(
     lighting table's error for that configuration joins ``E_N(r)``, decayed alike.
     ``maps["refined"]`` counts refinements per pixel, ``maps["discarded"]`` the rays that hit
     but left no sample (all refined rays without reuse; with it, continued rays that missed).
+    ``context_aware`` drops the geometric error of nodes inside a surface that repeats their
+    own shape (``inside_repeating_surface``): flat ground and terrace interiors.
     ``colour_term`` adds ``colour_term × (s(N) + decay · mean_c s(c))`` to the error, ``s``
     the visibility-weighted luminance spread of a node's children (``colour_spread``);
     with ``colour_to_voxels``, where that term alone exceeds the threshold, the sub-rays
@@ -150,6 +157,7 @@ def render_error_aware(
         bool(lighting_aware), float(bright_ratio), *light, float(colour_term),
         colour_error(octree, decay, channel) if colour_term > 0 else np.zeros(1),
         bool(colour_to_voxels),
+        inside_repeating_surface(octree) if context_aware else np.zeros(0, np.uint8),
     )
     cam = camera.params
     with thread_count(threads):
@@ -172,6 +180,8 @@ def render_error_aware(
     }
     if lighting_aware:
         result.params["bright_ratio"] = float(bright_ratio)
+    if context_aware:
+        result.params["context_aware"] = True
     if colour_term > 0:
         result.params["colour_term"] = float(colour_term)
         result.params["colour_to_voxels"] = bool(colour_to_voxels)
@@ -199,6 +209,44 @@ def _lighting_arrays(table: LightingErrorTable | None, needed: bool) -> tuple:
     table = load_lighting_error_table() if table is None else table
     return (np.ascontiguousarray(table.oct_map, np.float32), table.class_of,
             table.symmetry_of, np.ascontiguousarray(table.symmetries, np.float64))
+
+
+def neighbour_context(octree: Octree) -> np.ndarray:
+    """Per inner node, the faces bordering a same-level neighbour with the same child mask
+    (``kernels.neighbour_context``)."""
+    out = np.zeros(octree.inner_count, np.uint8)
+    for level in range(octree.depth):
+        same_shape_neighbours(octree.descriptors, octree.depth, level,
+                              int(octree.level_offsets[level]), octree.node_coords(level), out)
+    return out
+
+
+def _repeating_axes() -> np.ndarray:
+    """(256, 3) bool: along which axes a child mask is the same in both halves."""
+    masks = np.arange(256)
+    out = np.zeros((256, 3), bool)
+    for axis in range(3):
+        bit = 1 << axis
+        low = [o for o in range(8) if not o & bit]
+        out[:, axis] = np.all([((masks >> o) & 1) == ((masks >> (o | bit)) & 1) for o in low],
+                              axis=0)
+    return out
+
+
+REPEATING_AXES = _repeating_axes()
+
+
+def inside_repeating_surface(octree: Octree) -> np.ndarray:
+    """Per inner node (uint8 0/1): does the node repeat along some axis, with same-shaped
+    neighbours on both sides along every axis it repeats in? Then it lies inside flat ground
+    or a terrace of its own shape, and sampling it coarse only shifts a surface that looks
+    the same: its silhouette error is hidden (the context-aware error)."""
+    context = neighbour_context(octree)
+    masks = (octree.descriptors & 0xFF).astype(np.int64)
+    repeats = REPEATING_AXES[masks]
+    both = np.stack([(context >> (2 * a) & 3) == 3 for a in range(3)], axis=1)
+    hidden = repeats.any(axis=1) & np.all(both | ~repeats, axis=1)
+    return hidden.astype(np.uint8)
 
 
 def colour_spread(octree: Octree, channel: str = "albedo") -> np.ndarray:

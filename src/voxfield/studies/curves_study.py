@@ -5,6 +5,8 @@ when neither is both cheaper and sharper. Here each renderer traces a curve of (
 steps, rays, PSNR, SSIM) against the 4×4 reference:
 
 - error-aware (EA): the error threshold, one curve per decay;
+- EA context: EA at the thesis's decay with the context-aware geometric error (no error
+  inside a surface of same-shaped neighbours), over the same thresholds;
 - EA+colour: EA at the thesis's decay with the colour term (the spread of the children's
   visible luminance) added to the geometric error, over the same thresholds;
 - EA+colour→LOD 0: the same, refining straight to the voxels where colour alone asks, with
@@ -53,7 +55,9 @@ COLOUR = f"EA+colour d={THESIS_DECAY:g}"
 STRAIGHT = f"EA+colour→LOD 0 d={THESIS_DECAY:g}"
 #: The EA-family curves beside the plain decays: name → (item prefix, renderer options),
 #: each at the thesis's decay over the same thresholds.
+CONTEXT = f"EA context d={THESIS_DECAY:g}"
 EA_VARIANTS = {
+    CONTEXT: ("context", {"context_aware": True}),
     COLOUR: ("colour", {"colour_term": COLOUR_TERM}),
     STRAIGHT: ("straight", {"colour_term": COLOUR_TERM, "colour_to_voxels": True,
                             "reuse_parent": True}),
