@@ -156,3 +156,14 @@ def test_gltf_with_broken_json_says_so(tmp_path, capsys):
 def test_library_warnings_are_one_plain_note(capsys):
     _note_warning(UserWarning("model 3 is missing"), UserWarning, "x.py", 1)
     assert capsys.readouterr().err == "voxfield: note: model 3 is missing\n"
+
+
+def test_values_with_a_leading_minus_reach_their_own_check(tmp_path, capsys):
+    """Coordinates and specs may start with '-': argparse alone would call them options."""
+    assert main(["render", "builtin:sphere", "--eye", "-10,20,30", "--target", "8,8,8",
+                 "--size", "8", "--quiet", "--out", str(tmp_path / "eye.png")]) == 0
+    assert (tmp_path / "eye.png").is_file()
+    assert main(["bake", "builtin:cornell", "--grid", "-1x2x2", "--quiet",
+                 "--out", str(tmp_path / "pb")]) == 2
+    assert "-1x2x2" in _one_error_line(capsys)
+    assert not (tmp_path / "pb").exists()

@@ -8,6 +8,7 @@ from __future__ import annotations
 import argparse
 import errno
 import os
+import re
 import sys
 import warnings
 
@@ -55,10 +56,32 @@ def _note_warning(message, category, filename, lineno, file=None, line=None) -> 
     print(f"voxfield: note: {message}", file=sys.stderr)
 
 
+#: A value that starts like a negative number: ``-10,20,30``, ``-1x2x2``, ``-.5``.
+_NEGATIVE_VALUE = re.compile(r"^-\.?\d")
+
+
+def join_negative_values(argv: list[str]) -> list[str]:
+    """``--opt -1,2,3`` as ``--opt=-1,2,3``: argparse takes a token that starts with ``-``
+    and is not a plain number for an option, so coordinates and lists with a leading minus
+    would otherwise fail as "expected one argument" before their own check could speak."""
+    out: list[str] = []
+    i = 0
+    while i < len(argv):
+        token = argv[i]
+        if (token.startswith("--") and "=" not in token and i + 1 < len(argv)
+                and _NEGATIVE_VALUE.match(argv[i + 1])):
+            out.append(f"{token}={argv[i + 1]}")
+            i += 2
+            continue
+        out.append(token)
+        i += 1
+    return out
+
+
 def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _note_warning
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args = parser.parse_args(join_negative_values(sys.argv[1:] if argv is None else list(argv)))
     args.quiet = getattr(args, "quiet", False)
     try:
         code = args.func(args)
