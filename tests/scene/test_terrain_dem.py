@@ -9,6 +9,7 @@ import tifffile
 from matplotlib import cbook
 
 from voxfield.errors import DataNotFoundError, SceneFormatError
+from voxfield.scene.terrain.columns import terrain_columns
 from voxfield.scene.terrain.dem import Heightmap, load_heightmap
 
 
@@ -84,6 +85,21 @@ def test_geotiff_reader_nodata_and_position(tmp_path):
     assert hm.elevation[3, 4] == 19
     # Pixel-is-area tie point at the corner: the first sample centre is half a pixel inside.
     assert (hm.geo.x0, hm.geo.y0) == pytest.approx((10.25, 49.875))
+
+
+def test_a_damaged_pixel_scale_is_ignored_with_a_note(tmp_path):
+    """A zeroed byte can turn the pixel scale into 1e-309: the terrain's metres per voxel
+    then divided by zero. The georeference is dropped with a note instead."""
+    path = tmp_path / "dem.tif"
+    tifffile.imwrite(path, np.arange(64, dtype=np.int16).reshape(8, 8), extratags=[
+        (33550, 12, 3, (3.5e-309, 3.8e-309, 0.0)),
+        (33922, 12, 6, (0, 0, 0, 137.4, 36.9, 0)),
+    ])
+    with pytest.warns(UserWarning, match="implausible GeoTIFF pixel scale"):
+        hm = load_heightmap(path)
+    assert hm.geo is None
+    cols = terrain_columns(hm, 8)
+    assert cols.top.shape == (8, 8)
 
 
 def test_npz_reader_with_spacing(tmp_path):

@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import math
 import re
+import warnings
 from collections.abc import Mapping
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
@@ -178,6 +179,10 @@ def read_hgt(path) -> Heightmap:
     return Heightmap(elev, geo=geo, name=path.stem)
 
 
+#: Smallest believable pixel size, in degrees or metres (1e-9° is about 0.1 mm).
+MIN_PIXEL_SCALE = 1e-9
+
+
 def geotiff_grid(page) -> GeoGrid | None:
     """The GeoGrid of a GeoTIFF page from its pixel-scale, tie-point and geo-key tags."""
     tags = page.tags
@@ -198,6 +203,12 @@ def geotiff_grid(page) -> GeoGrid | None:
             elif loc == 0 and key == 1025:
                 raster_type = val
     if sx <= 0 or sy <= 0:
+        return None
+    if not all(math.isfinite(v) for v in (sx, sy, i, j, x, y)) or min(sx, sy) < MIN_PIXEL_SCALE:
+        # A damaged tag (a zeroed byte makes a scale of 1e-309): no georeference beats a
+        # terrain whose metres per voxel divide by zero.
+        warnings.warn(f"ignoring an implausible GeoTIFF pixel scale ({sx:.3g}, {sy:.3g}) or "
+                      "tie point; the DEM's own spacing is used", stacklevel=2)
         return None
     # The tie point names pixel (i, j)'s corner (area) or centre (point); we store centres.
     half = 0.5 if raster_type == 1 else 0.0
