@@ -53,7 +53,7 @@ def _run(args, queue) -> None:
         scene = load_scene(args.scene, SceneOptions(terrain_footprint=args.footprint))
     load_s = time.perf_counter() - t0
     rss_scene = _peak_rss_mib()
-    octree = build_octree(scene)
+    octree = build_octree(scene, lod_colour=args.lod_colour)
     queue.put({
         "scene": scene.name,
         "voxels": len(scene),
@@ -73,6 +73,9 @@ def main() -> None:
                         help="'synthetic' or any scene description (e.g. terrain:mountain)")
     parser.add_argument("--footprint", type=int, default=2048)
     parser.add_argument("--fill", type=int, default=5, help="synthetic: voxels per column")
+    parser.add_argument("--lod-colour", default="mean", choices=("mean", "surface", "facing"),
+                        help="coarse-colour rule (default mean: the structure alone; facing "
+                        "adds 24 bytes per inner node and its own pass)")
     args = parser.parse_args()
     queue = mp.get_context("spawn").Queue()
     proc = mp.get_context("spawn").Process(target=_run, args=(args, queue))
