@@ -11,24 +11,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from voxfield.kernels.node_descriptor import child_index
-
-
-@njit(cache=True, nogil=True)
-def voxel_present(descriptors, depth: int, x: int, y: int, z: int) -> bool:
-    """Is there a voxel at integer position ``(x, y, z)``? (Outside the root cube: no.)"""
-    root = 1 << depth
-    if x < 0 or y < 0 or z < 0 or x >= root or y >= root or z >= root:
-        return False
-    node = 0
-    for level in range(depth):
-        shift = depth - level - 1
-        octant = ((x >> shift) & 1) | (((y >> shift) & 1) << 1) | (((z >> shift) & 1) << 2)
-        descriptor = descriptors[node]
-        if not (descriptor >> octant) & 1:
-            return False
-        node = child_index(descriptor, octant)
-    return True
+from voxfield.kernels.node_descriptor import child_index, node_at
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -91,6 +74,6 @@ def leaf_exposure(descriptors, depth: int, start_level: int, start_first: int,
                     nx = x + (step if axis == 0 else 0)
                     ny = y + (step if axis == 1 else 0)
                     nz = z + (step if axis == 2 else 0)
-                    if not voxel_present(descriptors, depth, nx, ny, nz):
+                    if node_at(descriptors, depth, depth, nx, ny, nz) < 0:
                         bits |= 1 << outward_face
                 out[child_index(descriptor, octant) - inner] = bits

@@ -27,7 +27,7 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.colour import SRGB8_TO_LINEAR, node_rgb
-from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT
+from voxfield.kernels.node_descriptor import child_index
 
 #: Bytes per direction: sRGB red, green, blue codes, then coverage in 1/255.
 FACING_CHANNELS = 4
@@ -40,6 +40,12 @@ _ENCODE_EDGES = ((SRGB8_TO_LINEAR[1:].astype(np.float64) + SRGB8_TO_LINEAR[:-1])
 def encode_srgb8(linear: float) -> int:
     """Nearest 8-bit sRGB code of a linear value in [0, 1] (midpoint search)."""
     return int(np.searchsorted(_ENCODE_EDGES, linear))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _child_or_none(descriptor: int, octant: int) -> int:
+    """Flat index of child ``octant``, -1 where the mask has none."""
+    return child_index(descriptor, octant) if (descriptor >> octant) & 1 else -1
 
 
 @njit(cache=True, nogil=True)
@@ -62,15 +68,6 @@ def facing_level(descriptors, first: int, last: int, colors, exposure, facing) -
     inner = descriptors.shape[0]
     for node in prange(first, last):
         descriptor = descriptors[node]
-        mask = descriptor & 0xFF
-        base = descriptor >> FIRST_CHILD_SHIFT
-        # Flat index of each octant's child, -1 where absent.
-        child = np.full(8, -1, np.int64)
-        k = 0
-        for octant in range(8):
-            if (mask >> octant) & 1:
-                child[octant] = base + k
-                k += 1
         for axis in range(3):
             bit = 1 << axis
             for up in range(2):
@@ -83,8 +80,8 @@ def facing_level(descriptors, first: int, last: int, colors, exposure, facing) -
                 for octant in range(8):
                     if octant & bit:
                         continue  # each column once, from its low-half octant
-                    front = child[octant | front_bit]
-                    back = child[octant | (bit ^ front_bit)]
+                    front = _child_or_none(descriptor, octant | front_bit)
+                    back = _child_or_none(descriptor, octant | (bit ^ front_bit))
                     fr = fg = fb = fa = 0.0
                     br = bg = bb = ba = 0.0
                     if front >= 0:

@@ -11,25 +11,7 @@ from __future__ import annotations
 
 from numba import njit, prange
 
-from voxfield.kernels.node_descriptor import child_index
-
-
-@njit(cache=True, nogil=True)
-def node_at(descriptors, depth: int, level: int, x: int, y: int, z: int) -> int:
-    """Flat index of the inner node at ``level`` whose corner, in that level's node units,
-    is ``(x, y, z)``; -1 where there is none."""
-    side = 1 << level
-    if x < 0 or y < 0 or z < 0 or x >= side or y >= side or z >= side:
-        return -1
-    node = 0
-    for current in range(level):
-        shift = level - current - 1
-        octant = ((x >> shift) & 1) | (((y >> shift) & 1) << 1) | (((z >> shift) & 1) << 2)
-        descriptor = descriptors[node]
-        if not (descriptor >> octant) & 1:
-            return -1
-        node = child_index(descriptor, octant)
-    return node
+from voxfield.kernels.node_descriptor import node_at
 
 
 @njit(parallel=True, cache=True, nogil=True)

@@ -73,13 +73,20 @@ def normalisation_across(first_passes, quantile: float = 1.0) -> float:
     3×3 luminance SSD of any scene's first pass (``RenderResult``s at the base LOD) to 1, so
     ray counts compare between scenes. ``quantile`` < 1 takes that quantile of all scenes'
     SSDs instead of the maximum (robust to a few outlier windows)."""
+    return normalisation_of([first_pass_variance(result) for result in first_passes], quantile)
+
+
+def first_pass_variance(result: RenderResult) -> np.ndarray:
+    """The 3×3 luminance SSD of every pixel of a render that hit something."""
+    valid = result.hit_count > 0
+    return window_variance(luminance(result.image), valid)[valid]
+
+
+def normalisation_of(variances, quantile: float = 1.0) -> float:
+    """``normalisation_across`` from the scenes' ``first_pass_variance`` arrays."""
     if not 0.0 < quantile <= 1.0:
         raise VoxfieldError(f"quantile must be in (0, 1], got {quantile}")
-    pooled = []
-    for result in first_passes:
-        valid = result.hit_count > 0
-        pooled.append(window_variance(luminance(result.image), valid)[valid])
-    values = np.concatenate(pooled) if pooled else np.zeros(0)
+    values = np.concatenate(list(variances)) if len(variances) else np.zeros(0)
     if not len(values) or not np.max(values) > 0.0:
         raise VoxfieldError("the first passes show no variance to normalise (empty or flat "
                             "images)")

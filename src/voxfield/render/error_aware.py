@@ -30,7 +30,7 @@ from voxfield.kernels.error_aware import (
 )
 from voxfield.kernels.neighbour_context import same_shape_neighbours
 from voxfield.parallel import run_in_bands, thread_count
-from voxfield.render.adaptive import refine_by_variance
+from voxfield.render.adaptive import luminance, refine_by_variance
 from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
 from voxfield.render.result import RenderResult
@@ -255,7 +255,7 @@ def colour_spread(octree: Octree, channel: str = "albedo") -> np.ndarray:
     their exposed faces (``svo.lod_colours.exposed_face_weights``), buried ones not at all."""
     leaves = octree.level_slice(octree.depth)
     weights = exposed_face_weights(octree)
-    lum = decode_channel(octree.channel(channel)[leaves]) @ np.array([0.2126, 0.7152, 0.0722])
+    lum = luminance(decode_channel(octree.channel(channel)[leaves]).astype(np.float64))
     spread = np.zeros(octree.inner_count)
     first = octree.first_child
     for level in range(octree.depth - 1, -1, -1):

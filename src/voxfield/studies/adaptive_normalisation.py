@@ -16,9 +16,8 @@ import numpy as np
 
 from voxfield.render.adaptive import (
     VARIANCE_NORMALISATION,
-    luminance,
-    normalisation_across,
-    window_variance,
+    first_pass_variance,
+    normalisation_of,
 )
 from voxfield.render.camera import Camera
 from voxfield.render.primary import render_lod
@@ -34,11 +33,10 @@ def run_normalisation_study(
     results.json and results.md in ``out_dir``."""
     first_passes = {name: render_lod(octree, camera, lod=base_lod, seed=seed, channel=channel)
                     for name, (octree, camera) in scenes.items()}
-    constant = normalisation_across(first_passes.values(), quantile)
+    variances = {name: first_pass_variance(result) for name, result in first_passes.items()}
+    constant = normalisation_of(list(variances.values()), quantile)
     rows = []
-    for name, result in first_passes.items():
-        valid = result.hit_count > 0
-        ssd = window_variance(luminance(result.image), valid)[valid]
+    for name, ssd in variances.items():
         rows.append({"scene": name, "max_ssd": float(ssd.max()) if len(ssd) else 0.0,
                      "p99_ssd": float(np.quantile(ssd, 0.99)) if len(ssd) else 0.0,
                      "refined_share": float(np.mean(ssd / constant >= 0.25)) if len(ssd)

@@ -36,6 +36,7 @@ from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.studies.bjontegaard import bd_cost, bd_quality
 from voxfield.studies.report import StudyFolder, costs, costs_and_quality, fmt, markdown_table
+from voxfield.studies.threshold_study import plot_value
 from voxfield.svo.octree import Octree
 
 #: Knob values: from refining almost everything to almost nothing.
@@ -238,8 +239,8 @@ def curves_figure(report: dict):
             points = sorted(curve["points"], key=lambda p: p["steps"])
             for ax, (x, y) in zip(row, (("steps", "psnr"), ("rays", "psnr"),
                                         ("steps", "ssim")), strict=True):
-                ys = [math.nan if p[y] is None else p[y] for p in points]
-                ax.plot([p[x] for p in points], ys, marker="o", label=name)
+                ax.plot([p[x] for p in points], [plot_value(p[y]) for p in points],
+                        marker="o", label=name)
         for ax, (x, y) in zip(row, (("traversal steps", "PSNR (dB)"), ("rays", "PSNR (dB)"),
                                     ("traversal steps", "SSIM")), strict=True):
             ax.set_xscale("log")
