@@ -3,16 +3,24 @@
 from __future__ import annotations
 
 import io
+import json
 
 import numpy as np
 import pytest
 
+from voxfield.cli import main
 from voxfield.data import data_root
 from voxfield.errors import OctreeFormatError, SceneFormatError
+from voxfield.probes.folder_bake import bake_to_folder
+from voxfield.probes.grid import ProbeGrid
+from voxfield.probes.probe_folder import ProbeFileError, ProbeHeaderError, open_probe_set
+from voxfield.probes.probe_set import BakeOptions
+from voxfield.scene.builtin import cornell
 from voxfield.scene.mesh import load_mesh
+from voxfield.scene.npz_io import load_scene_npz
 from voxfield.scene.terrain.dem import load_heightmap
 from voxfield.scene.voxelize import voxelize_mesh
-from voxfield.svo import load_octree, save_octree
+from voxfield.svo import build_octree, load_octree, save_octree
 from voxfield.svo.open import open_octree
 
 
@@ -72,3 +80,74 @@ def test_an_octree_with_empty_level_offsets_is_refused(tmp_path):
         bad.write_bytes(buffer.getvalue())
         with pytest.raises(OctreeFormatError):
             load_octree(bad)
+
+
+@pytest.mark.parametrize("option", ["--seed", "--size", "--camera"])
+def test_an_option_given_the_end_of_options_marker_is_refused(tmp_path, option, capsys):
+    """``--seed=--`` once reached the command as an empty list (argparse drops "--")."""
+    with pytest.raises(SystemExit) as exc:
+        main(["render", "builtin:sphere", f"{option}=--", "--out", str(tmp_path / "x.png")])
+    assert exc.value.code == 2
+    assert f"argument {option}: expected a value" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", [None, [], 9.3e18, -1, 2.5, "3", True])
+def test_a_probe_record_with_a_bad_cost_is_a_header_error(tmp_path, value):
+    """A cost of null, a list or 2**63 in ``probes.json`` once raised TypeError/OverflowError."""
+    octree = build_octree(cornell(8))
+    lo, hi = octree.voxel_bounds
+    folder = tmp_path / "set"
+    bake_to_folder(octree, ProbeGrid.fit(lo, hi, (1, 1, 1)),
+                   BakeOptions(resolution=4, renderer="lod", lod=0), folder, scheduler="serial")
+    header = json.loads((folder / "probes.json").read_text())
+    header["probes"]["0"]["geometry_rays"] = value
+    (folder / "probes.json").write_text(json.dumps(header))
+    with pytest.raises(ProbeHeaderError, match="geometry_rays"):
+        open_probe_set(folder)
+
+
+def test_complex_colours_in_a_scene_file_are_refused(tmp_path):
+    path = tmp_path / "complex.npz"
+    np.savez(path, coords=np.zeros((1, 3), np.int32), color=np.ones((1, 3), np.complex64))
+    with pytest.raises(SceneFormatError, match="real numbers"):
+        load_scene_npz(path)
+
+
+def _one_probe_folder(tmp_path):
+    octree = build_octree(cornell(8))
+    lo, hi = octree.voxel_bounds
+    folder = tmp_path / "set"
+    bake_to_folder(octree, ProbeGrid.fit(lo, hi, (1, 1, 2)),
+                   BakeOptions(resolution=4, renderer="lod", lod=0), folder, scheduler="serial")
+    return folder
+
+
+@pytest.mark.parametrize("count", [None, float("nan"), 1.5, -1, True, "2"])
+def test_a_header_with_a_bad_probe_count_is_a_header_error(tmp_path, count):
+    """A probe_count of NaN, inf or null once raised ValueError/OverflowError/TypeError."""
+    folder = _one_probe_folder(tmp_path)
+    header = json.loads((folder / "probes.json").read_text())
+    header["probe_count"] = count
+    (folder / "probes.json").write_text(json.dumps(header))
+    with pytest.raises(ProbeHeaderError, match="probe_count"):
+        open_probe_set(folder)
+
+
+def test_a_probe_file_whose_compressed_data_is_damaged_is_a_file_error(tmp_path):
+    """One zeroed byte inside a deflate stream raised zlib.error, which is no OSError."""
+    folder = _one_probe_folder(tmp_path)
+    path = folder / "probe_00000.npz"
+    data = bytearray(path.read_bytes())
+    data[70] = 0
+    path.write_bytes(bytes(data))
+    with pytest.raises(ProbeFileError, match="probe_00000.npz"):
+        open_probe_set(folder)
+
+
+def test_a_probe_record_that_is_not_an_object_is_a_header_error(tmp_path):
+    folder = _one_probe_folder(tmp_path)
+    header = json.loads((folder / "probes.json").read_text())
+    header["probes"]["1"] = 5
+    (folder / "probes.json").write_text(json.dumps(header))
+    with pytest.raises(ProbeHeaderError, match="probe 1.s record"):
+        open_probe_set(folder)

@@ -81,7 +81,13 @@ def join_negative_values(argv: list[str]) -> list[str]:
 def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _note_warning
     parser = build_parser()
-    args = parser.parse_args(join_negative_values(sys.argv[1:] if argv is None else list(argv)))
+    argv = join_negative_values(sys.argv[1:] if argv is None else list(argv))
+    for token in argv:
+        # argparse drops a value of "--" (its end-of-options marker) and hands the option an
+        # empty list, which no option's type check sees.
+        if token.startswith("--") and token.endswith("=--"):
+            parser.error(f"argument {token[:-3]}: expected a value, got '--'")
+    args = parser.parse_args(argv)
     args.quiet = getattr(args, "quiet", False)
     try:
         code = args.func(args)

@@ -48,6 +48,7 @@ import json
 import math
 import os
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -185,6 +186,10 @@ def read_header(folder: str | os.PathLike) -> dict:
                            "encodings") if k not in header]
     if missing:
         raise ProbeHeaderError(f"{path}: header lacks {', '.join(missing)}; re-bake with --fresh")
+    count = header["probe_count"]
+    if not isinstance(count, int) or isinstance(count, bool) or count < 0:
+        raise ProbeHeaderError(f"{path}: probe_count {count!r} is not a whole number; re-bake "
+                               "with --fresh")
     r = header["resolution"]
     if not isinstance(r, int) or r < 1 or header["encodings"] != encodings(r):
         raise ProbeHeaderError(f"{path}: resolution {r!r} and encodings do not match this "
@@ -252,7 +257,7 @@ def reconcile_probes(folder: Path, header: dict) -> list[int]:
                 continue
             trial = {**header, "probes": {str(index): record}}
             read_probe(folder, index, trial)
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, ProbeFileError):
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error, ProbeFileError):
             continue
         header["probes"][str(index)] = record
         taken.append(index)
@@ -271,6 +276,9 @@ def read_probe(folder: Path, index: int, header: dict) -> tuple[np.ndarray, ...]
     if record is None:
         raise ProbeFileError(f"{folder}: probe {index} was never finished; resume the bake "
                              "(run the same voxfield bake again)")
+    if not isinstance(record, dict):
+        raise ProbeHeaderError(f"{Path(folder) / HEADER_NAME}: probe {index}'s record is "
+                               f"{record!r}, not an object; re-bake with --fresh")
     path = Path(folder) / str(record.get("file", probe_file_name(index)))
     if not path.is_file():
         raise ProbeFileError(f"{path}: probe {index}'s file is missing; resume the bake to "
@@ -278,7 +286,7 @@ def read_probe(folder: Path, index: int, header: dict) -> tuple[np.ndarray, ...]
     try:
         with np.load(path, allow_pickle=False) as data:
             arrays = tuple(np.array(data[name]) for name in MAP_NAMES)
-    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:
+    except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
         raise ProbeFileError(f"{path}: probe {index}'s file is corrupt ({exc}); resume the "
                              "bake to re-bake it") from exc
     for name, array in zip(MAP_NAMES, arrays, strict=True):
@@ -303,7 +311,7 @@ def verified_probes(folder: Path, header: dict) -> set[int]:
             if not 0 <= index < header["probe_count"]:
                 raise ValueError(index)
             read_probe(folder, index, header)
-        except (ValueError, ProbeFileError):
+        except (ValueError, ProbeStorageError):  # a bad record is re-baked
             continue
         done.add(index)
     return done
@@ -348,10 +356,10 @@ def _load_maps(folder: Path, index: int, header: dict):
     """Probe ``index`` as ``ProbeMaps``, its cost taken from the header's record."""
     record = header["probes"][str(index)]
     try:
-        cost = BakeCost(**{k: record[k] for k in COST_FIELDS})
-    except (KeyError, TypeError) as exc:
-        raise ProbeHeaderError(f"{Path(folder) / HEADER_NAME}: probe {index}'s record lacks "
-                               f"its cost ({exc}); re-bake with --fresh") from exc
+        cost = BakeCost.from_record(record)
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ProbeHeaderError(f"{Path(folder) / HEADER_NAME}: probe {index}'s record has no "
+                               f"valid cost ({exc}); re-bake with --fresh") from exc
     return ProbeMaps(*read_probe(folder, index, header), cost)
 
 

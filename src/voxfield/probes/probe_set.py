@@ -146,6 +146,22 @@ class BakeCost:
     geometry_steps: int = 0
     geometry_seconds: float = 0.0
 
+    @classmethod
+    def from_record(cls, record: dict) -> BakeCost:
+        """A cost read back from a probe record: counts are whole numbers and seconds finite,
+        both non-negative, so totals over a set never overflow or turn NaN."""
+        values = {}
+        for name in COST_FIELDS:
+            value = record[name]
+            if not _is_number(value) or not math.isfinite(value) or not 0 <= value < 2**53:
+                raise ValueError(f"{name} is {value!r}, not a non-negative number")
+            if not name.endswith("seconds"):
+                if value != int(value):
+                    raise ValueError(f"{name} is {value!r}, not a whole number")
+                value = int(value)
+            values[name] = value
+        return cls(**values)
+
     @property
     def rays(self) -> int:
         return self.radiance_rays + self.geometry_rays

@@ -34,7 +34,9 @@ def load_scene_npz(path: str | os.PathLike) -> VoxelScene:
             prefix = "channel_"
             channels = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
             return VoxelScene(data["coords"], data["color"], emission, channels, path.stem)
-    except VoxfieldError:
+    except SceneFormatError:
         raise
+    except VoxfieldError as exc:  # the arrays' own checks: say which file they came from
+        raise SceneFormatError(f"{path}: {exc}") from exc
     except Exception as exc:  # noqa: BLE001 - zip/zlib fail in many ways on a bad file
         raise SceneFormatError(f"{path}: unreadable voxel-scene file ({exc})") from exc

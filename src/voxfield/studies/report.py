@@ -13,6 +13,7 @@ import hashlib
 import json
 import math
 import zipfile
+import zlib
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
@@ -139,7 +140,7 @@ class StudyFolder:
                 with np.load(npz_path, allow_pickle=False) as npz:
                     arrays = {k: npz[k] for k in record["arrays"]}
             return record["data"], arrays
-        except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile):
+        except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile, zlib.error):
             return None
 
     # --- outputs ------------------------------------------------------------------------------
