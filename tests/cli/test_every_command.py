@@ -27,6 +27,16 @@ def _leaves(parser: argparse.ArgumentParser, prefix=()) -> list[tuple[str, ...]]
 LEAVES = _leaves(build_parser())
 
 
+def _report(folder) -> bool:
+    """The folder's HTML report, with the tables of its results and any figures embedded."""
+    page = folder / "report.html"
+    if not page.is_file():
+        return False
+    html = page.read_text(encoding="utf-8")
+    figures = list(folder.glob("*.png"))
+    return "<table>" in html and html.count("data:image/png;base64,") >= len(figures)
+
+
 def _png(path) -> tuple[int, int]:
     with Image.open(path) as image:
         return image.size
@@ -55,42 +65,40 @@ RUNS = {
                      lambda out: "threshold" in json.loads((out.parent / f"{out.name}.json")
                                                            .read_text())),
     ("sweep",): (["builtin:pillars", "--size", "16", "--decays", "0.2", "--thresholds", "0.1",
-                  "--out", "{out}"], lambda out: (out / "results.json").is_file()),
-    ("compare",): (["builtin:pillars", "--size", "16", "--out", "{out}"],
-                   lambda out: (out / "results.md").is_file()),
+                  "--out", "{out}"], lambda out: _report(out)),
+    ("compare",): (["builtin:pillars", "--size", "16", "--out", "{out}"], _report),
     ("study", "thresholds"): (["builtin:pillars", "--size", "16", "--thresholds", "0.1,0.2",
-                               "--out", "{out}"], lambda out: (out / "results.json").is_file()),
-    ("study", "resolution"): (["builtin:pillars", "--sizes", "16", "--out", "{out}"],
-                              lambda out: (out / "results.json").is_file()),
+                               "--out", "{out}"], _report),
+    ("study", "resolution"): (["builtin:pillars", "--sizes", "16", "--out", "{out}"], _report),
     ("study", "lighting"): (["builtin:pillars", "--size", "16", "--times", "noon",
-                             "--out", "{out}"], lambda out: (out / "results.json").is_file()),
+                             "--out", "{out}"], _report),
     ("study", "curves"): (["builtin:pillars", "--size", "16", "--thresholds", "0.1,0.4",
                            "--decays", "0.2", "--normalisations", "0.01,0.3", "--lods", "1,0",
                            "--cameras", "top", "--out", "{out}"],
-                          lambda out: (out / "curves.png").is_file()),
+                          lambda out: (out / "curves.png").is_file() and _report(out)),
     ("study", "normalisation"): (["builtin:pillars", "builtin:menger", "--size", "16",
                                   "--out", "{out}"],
-                                 lambda out: (out / "results.md").is_file()),
+                                 _report),
     ("study", "probe-resolution"): (["builtin:cornell", "--resolutions", "8", "--out", "{out}"],
-                                    lambda out: (out / "results.md").is_file()),
+                                    _report),
     ("study", "probes"): (["builtin:cornell", "--resolutions", "8,16", "--probe-counts", "1x1x1",
                            "--count-resolution", "8", "--marchers", "dda", "--orderings",
                            "fixed", "--repeats", "1", "--size", "12", "--out", "{out}"],
-                          lambda out: (out / "results.json").is_file()),
+                          _report),
     ("light",): (["builtin:pillars", "--times", "noon", "--sky-rays", "0", "--no-preview",
                   "--out", "{out}.npz"],
                  lambda out: (out.parent / f"{out.name}.json").is_file()),
     ("shadows",): (["--size", "12", "--light-samples", "2", "--reference-samples", "4",
-                    "--floor-samples", "2", "--out", "{out}"],
-                   lambda out: (out / "results.json").is_file()),
+                    "--floor-samples", "2", "--out", "{out}"], _report),
     ("bake",): (["builtin:cornell", "--grid", "1x1x1", "--resolution", "8", "--renderer", "lod",
                  "--out", "{out}"], lambda out: (out / "probes.json").is_file()),
     ("probes", "show"): (["{probes}", "--size", "32", "--out", "{out}.png"],
-                         lambda out: _png(f"{out}.png")[0] > 0),
+                         lambda out: _png(f"{out}.png")[0] > 0 and _report(out.parent)),
     ("probes", "export-cubes"): (["{probes}", "--size", "4", "--out", "{out}"],
                                  lambda out: len(list(out.glob("*.exr"))) == 6 * 4),
     ("probe-render",): (["{probes}", "--size", "16", "--camera", "room", "--out", "{out}.png"],
                         lambda out: _png(f"{out}.png") == (16, 16)),
+    ("report",): (["{probes}/../study"], None),  # rebuilding is checked in test_html_report
 }
 
 
@@ -99,6 +107,9 @@ def probes(tmp_path_factory):
     folder = tmp_path_factory.mktemp("probes") / "set"
     assert main(["--quiet", "bake", "builtin:cornell", "--grid", "2x1x2", "--resolution", "8",
                  "--renderer", "lod", "--out", str(folder)]) == 0
+    # A study folder beside it, for ``voxfield report``.
+    assert main(["--quiet", "compare", "builtin:pillars", "--size", "8",
+                 "--out", str(folder.parent / "study")]) == 0
     return folder
 
 

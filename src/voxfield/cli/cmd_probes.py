@@ -29,6 +29,8 @@ from voxfield.progress import progress_bar
 from voxfield.render.camera import CUBE_FACES
 from voxfield.render.image_io import save_exr
 from voxfield.scene.loaders import SceneOptions
+from voxfield.studies.html_report import REPORT_NAME, write_page
+from voxfield.studies.report import markdown_table
 from voxfield.svo.open import open_octree as open_octree_from_spec
 
 
@@ -91,7 +93,8 @@ def register(subparsers) -> None:
         "reopened as it was baked unless --scene names it.",
     )
     s.add_argument("folder", help="probe-set folder written by voxfield bake")
-    s.add_argument("--out", default=None, help="output PNG (default FOLDER/show.png)")
+    s.add_argument("--out", default=None,
+                   help="output PNG (default FOLDER/show.png); report.html goes beside it")
     s.add_argument("--scene", default=None,
                    help="scene for the overview render (default: the one the bake recorded)")
     s.add_argument("--no-scene", action="store_true",
@@ -202,9 +205,43 @@ def run_show(args) -> int:
     title = (f"{header['scene'].get('name', 'scene')}: {s['baked']} of {s['probes']} probes, "
              f"{s['resolution']}² texels, {s['renderer']}, {s['rays_per_texel']:.2f} rays/texel")
     write_show(probe_set, out, octree=octree, title=title, size=args.size)
+    page = write_page(out.with_name(REPORT_NAME), title=title,
+                      subtitle=f"probe set {folder}", figures=[out],
+                      markdown_text=probe_set_markdown(probe_set, header))
     if not args.quiet:
-        print(f"wrote {out}")
+        print(f"wrote {out} and {page}")
     return 0
+
+
+def probe_set_markdown(probe_set, header: dict) -> str:
+    """The bake's cost as tables for the probe set's report page."""
+    s = probe_set.cost_summary()
+    cost = probe_set.cost
+    texels = probe_set.resolution ** 2
+    lines = [
+        "## Bake", "",
+        markdown_table(["probes baked", "resolution", "renderer", "rays", "steps",
+                        "kernel seconds", "rays / texel", "steps / texel"],
+                       [[f"{s['baked']} of {s['probes']}", f"{s['resolution']}²", s["renderer"],
+                         f"{s['rays']:,}", f"{s['steps']:,}", f"{s['seconds']:.3f}",
+                         f"{s['rays_per_texel']:.3f}", f"{s['steps_per_texel']:.2f}"]]),
+        f"Scene `{header['scene'].get('name', 'scene')}`, grid "
+        f"{' × '.join(str(c) for c in probe_set.grid.counts)}.", "",
+    ]
+    enabled = np.flatnonzero(probe_set.enabled)
+    rows = []
+    for i in enabled[:256]:
+        x, y, z = probe_set.positions[i]
+        rays = cost["radiance_rays"][i] + cost["geometry_rays"][i]
+        steps = cost["radiance_steps"][i] + cost["geometry_steps"][i]
+        seconds = cost["radiance_seconds"][i] + cost["geometry_seconds"][i]
+        rows.append([i, f"({x:.1f}, {y:.1f}, {z:.1f})", f"{rays / texels:.3f}",
+                     f"{steps / texels:.2f}", f"{seconds * 1e3:.2f}"])
+    if rows:
+        lines += ["## Probes" + (" (first 256)" if len(enabled) > 256 else ""), "",
+                  markdown_table(["probe", "position", "rays / texel", "steps / texel", "ms"],
+                                 rows)]
+    return "\n".join(lines)
 
 
 def run_export_cubes(args) -> int:

@@ -39,6 +39,7 @@ from voxfield.studies.curves_study import (
     CURVE_THRESHOLDS,
     run_curves_study,
 )
+from voxfield.studies.html_report import write_html_report
 from voxfield.studies.lighting_study import lighting_channels, run_lighting_study
 from voxfield.studies.probe_resolution_study import (
     probe_resolution_markdown,
@@ -217,7 +218,7 @@ def run_normalisation(args) -> int:
                                      channel=args.channel)
     if not args.quiet:
         print(f"variance normalisation across {len(scenes)} scene(s): "
-              f"{report['normalisation']:.5g} (wrote {out}/results.md)")
+              f"{report['normalisation']:.5g} (wrote {out}/report.html and results.md)")
     return 0
 
 
@@ -243,7 +244,7 @@ def run_curves(args) -> int:
                 print(f"{cam_name}: {d['curve']} vs {d['against']}: BD-PSNR "
                       f"{fmt(d['bd_psnr_steps'], '+.2f')} dB at equal steps, "
                       f"{fmt(d['bd_steps_percent'], '+.1f')} % steps at equal PSNR")
-        print(f"wrote {out}/results.md, results.json, curves.png")
+        print(f"wrote {out}/report.html, results.md, results.json, curves.png")
     return 0
 
 
@@ -263,7 +264,7 @@ def run_thresholds(args) -> int:
             e = row["error_aware"]
             print(f"  t={row['threshold']:g}: {e['rays']:,} rays, {e['steps']:,} steps, "
                   f"PSNR {fmt(e['psnr'], '.2f')} dB")
-        print(f"wrote {out}/results.md, results.json, thresholds.png")
+        print(f"wrote {out}/report.html, results.md, results.json, thresholds.png")
     return 0
 
 
@@ -281,7 +282,7 @@ def run_resolution(args) -> int:
                   f"{a['rays_per_pixel']:.2f} rays/px, PSNR {fmt(a['psnr'], '.2f')} dB; "
                   f"error-aware {e['rays_per_pixel']:.2f} rays/px, "
                   f"PSNR {fmt(e['psnr'], '.2f')} dB")
-        print(f"wrote {out}/results.md, results.json, resolution.png")
+        print(f"wrote {out}/report.html, results.md, results.json, resolution.png")
     return 0
 
 
@@ -303,7 +304,7 @@ def run_lighting(args) -> int:
                      for key, label in (("adaptive", "A"), ("error_aware", "EA"),
                                         ("lighting_aware", "EA-L"))]
             print(f"{row['channel']:>10}: " + "; ".join(parts))
-        print(f"wrote {out}/results.md, results.json, lighting.png, contact_sheet.png")
+        print(f"wrote {out}/report.html, results.md, results.json, lighting.png, contact_sheet.png")
     return 0
 
 
@@ -317,9 +318,10 @@ def run_probe_resolution(args) -> int:
     folder = StudyFolder(args.out or default_output("probe_resolution", args.scene))
     folder.write_json("results.json", report)
     path = folder.write_text("results.md", probe_resolution_markdown(report))
+    write_html_report(folder.root)
     if not args.quiet:
         print(probe_resolution_markdown(report))
-        print(f"wrote {path} and results.json")
+        print(f"wrote {path}, results.json and report.html")
     return 0
 
 
@@ -406,6 +408,6 @@ def run_probes(args) -> int:
         timing_repeats=args.repeats, seed=args.seed, progress=not quiet, fresh=args.fresh)
     if not quiet:
         print(results_markdown(report))
-        print(f"wrote {out}/results.md, results.json, fetches_vs_resolution.png, "
+        print(f"wrote {out}/report.html, results.md, results.json, fetches_vs_resolution.png, "
               "probe_count.png, orderings.png, contact_sheet.png")
     return 0

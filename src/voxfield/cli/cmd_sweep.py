@@ -48,5 +48,5 @@ def run(args) -> int:
         for pick in report["closest_to_adaptive"]:
             print(f"  d={pick['decay']}: t={pick['threshold']} → {pick['rays']:,} rays, "
                   f"PSNR {pick['psnr']:.2f} dB")
-        print(f"wrote {out}/results.md, results.json, sweep.png")
+        print(f"wrote {out}/report.html, results.md, results.json, sweep.png")
     return 0

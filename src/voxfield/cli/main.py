@@ -20,6 +20,7 @@ from voxfield.cli import (
     cmd_probe_render,
     cmd_probes,
     cmd_render,
+    cmd_report,
     cmd_scenes,
     cmd_shadows,
     cmd_study,
@@ -34,7 +35,7 @@ EXIT_INTERRUPTED = 130
 #: Command groups in the order ``voxfield --help`` lists them.
 COMMAND_GROUPS = (
     cmd_render, cmd_scenes, cmd_errors, cmd_calibrate, cmd_sweep, cmd_compare, cmd_study,
-    cmd_light, cmd_shadows, cmd_probes, cmd_probe_render,
+    cmd_light, cmd_shadows, cmd_probes, cmd_probe_render, cmd_report,
 )
 
 

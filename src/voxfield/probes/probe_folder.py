@@ -257,7 +257,8 @@ def reconcile_probes(folder: Path, header: dict) -> list[int]:
                 continue
             trial = {**header, "probes": {str(index): record}}
             read_probe(folder, index, trial)
-        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error, ProbeFileError):
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error,
+                ProbeStorageError):
             continue
         header["probes"][str(index)] = record
         taken.append(index)

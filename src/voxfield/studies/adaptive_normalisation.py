@@ -21,6 +21,7 @@ from voxfield.render.adaptive import (
 )
 from voxfield.render.camera import Camera
 from voxfield.render.primary import render_lod
+from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import StudyFolder, fmt, markdown_table
 from voxfield.svo.octree import Octree
 
@@ -48,6 +49,7 @@ def run_normalisation_study(
     folder = StudyFolder(out_dir)
     folder.write_json("results.json", report)
     folder.write_text("results.md", _markdown(report))
+    write_html_report(folder.root)
     return report
 
 

@@ -17,6 +17,7 @@ from voxfield.fingerprint import array_fingerprint
 from voxfield.metrics import MISSED, compare_images, cost_summary, flip_available
 from voxfield.render.adaptive import AdaptiveOptions
 from voxfield.render.camera import Camera
+from voxfield.render.counter_maps import steps_heatmap
 from voxfield.render.error_aware import ErrorAwareOptions
 from voxfield.render.primary import ReferenceOptions
 from voxfield.render.registry import render
@@ -29,6 +30,7 @@ from voxfield.studies.figures import (
     refinement_map,
     variance_map,
 )
+from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import StudyFolder, fmt, markdown_table
 from voxfield.svo.octree import Octree
 
@@ -103,6 +105,7 @@ def run_compare(
         "notes": [METRIC_NOTE, RAY_NOTE],
         "rows": rows,
         "images": images,
+        "comparisons": comparisons(rows, images),
     }
     written = [folder.path(p) for p in images.values()]
     # About one screen pixel per image pixel up to 512², so the sheet shows the real detail.
@@ -111,6 +114,7 @@ def run_compare(
                                        dpi=dpi))
     written.append(folder.write_json("results.json", report))
     written.append(folder.write_text("results.md", results_markdown(report)))
+    written.append(write_html_report(folder.root))
     return {**report, "folder": str(folder.root), "written": [str(p) for p in written],
             "computed": folder.computed, "reused": folder.reused}
 
@@ -147,7 +151,37 @@ def _write_images(folder: StudyFolder, results: dict[str, RenderResult],
         except VoxfieldError:
             continue  # a renderer without that map: leave the picture out
         images[name] = folder.write_png(f"{name}.png", grey, encode_srgb=False).name
+    for name, result in results.items():
+        images[f"{_slug(name)}_steps"] = folder.write_png(
+            f"{_slug(name)}_steps.png", steps_heatmap(result), encode_srgb=False).name
     return images
+
+
+#: Cost maps shown beside each image in the HTML report: label → image key suffix.
+_REPORT_MAPS = {"traversal steps (magma, 99th percentile = white)": "steps",
+                "rays cast per pixel": "rays", "finest LOD (white = LOD 0)": "lod",
+                "normalised variance": "variance"}
+
+
+def comparisons(rows: list[dict], images: dict) -> list[dict]:
+    """Each renderer's image against the reference, with its cost maps and a one-line
+    summary, for ``studies.html_report``."""
+    out = []
+    for row in rows:
+        name = row["renderer"]
+        if name == "reference":
+            continue
+        slug = _slug(name)
+        cost, quality = row["cost"], row["quality"] or {}
+        summary = (f"{cost['rays_per_pixel']:.2f} rays/px, {cost['steps_per_ray']:.2f} "
+                   f"steps/ray, PSNR {fmt(quality.get('psnr'), '.2f')} dB, SSIM "
+                   f"{fmt(quality.get('ssim'), '.3f')}")
+        maps = {label: images[f"{slug}_{key}"] for label, key in _REPORT_MAPS.items()
+                if f"{slug}_{key}" in images}
+        out.append({"name": name, "image": images[name], "reference": images["reference"],
+                    "reference_name": "reference", "summary": summary,
+                    "maps": maps})
+    return out
 
 
 def _sheet(report: dict, results: dict[str, RenderResult], base_lod: int | None):

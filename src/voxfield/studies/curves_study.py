@@ -35,6 +35,7 @@ from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.studies.bjontegaard import bd_cost, bd_quality
+from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import StudyFolder, costs, costs_and_quality, fmt, markdown_table
 from voxfield.studies.threshold_study import plot_value
 from voxfield.svo.octree import Octree
@@ -130,6 +131,7 @@ def run_curves_study(
     folder.write_json("results.json", report)
     folder.write_text("results.md", results_markdown(report))
     folder.write_figure("curves.png", curves_figure(report))
+    write_html_report(folder.root)
     return report
 
 

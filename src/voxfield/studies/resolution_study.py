@@ -19,6 +19,7 @@ from voxfield.render.adaptive import render_adaptive
 from voxfield.render.camera import top_down_camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_reference
+from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import (
     StudyFolder,
     costs,
@@ -95,6 +96,7 @@ def run_resolution_study(
     folder.write_json("results.json", report)
     folder.write_text("results.md", _markdown(report))
     folder.write_figure("resolution.png", _figure(report))
+    write_html_report(folder.root)
     return report
 
 

@@ -23,6 +23,7 @@ from voxfield.render.camera import top_down_camera
 from voxfield.render.direct_light import light_on_surface, render_direct_light
 from voxfield.scene.shadow_box import shadow_box_layout
 from voxfield.scene.voxel_scene import linear_to_srgb
+from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import StudyFolder, fmt, markdown_table
 
 #: Bump when the shadow kernels' results change, so cached renders are not reused.
@@ -115,10 +116,17 @@ def run_shadow_study(
                      "reference_samples": reference_samples, "floor_samples": floor_samples,
                      "seed": seed},
         "rows": rows, "beam": beam, "note": METRIC_NOTE,
+        "comparisons": [
+            {"name": name, "image": f"{_slug(name)}.png", "reference": "reference.png",
+             "reference_name": "reference",
+             "maps": {"LOD used by shadow rays": f"lod_{_slug(name)}.png",
+                      "LOD used, top view of the whole scene": f"lod_top_{_slug(name)}.png"}}
+            for name in ("distance", "error-aware")],
     }
     written = _write_pictures(folder, results, top_maps, beam, octree.depth, report)
     written.append(folder.write_json("results.json", report))
     written.append(folder.write_text("results.md", results_markdown(report)))
+    written.append(write_html_report(folder.root))
     return {**report, "folder": str(folder.root), "written": [str(p) for p in written],
             "computed": folder.computed, "reused": folder.reused}
 
@@ -226,15 +234,19 @@ def _draw_profile(ax, beam: dict, lod_distance: float) -> None:
     ax.legend(fontsize=8)
 
 
+def _slug(name: str) -> str:
+    return name.replace("-", "_")
+
+
 def _write_pictures(folder, results: dict, top_maps: dict, beam: dict | None, depth: int,
                     report: dict) -> list[Path]:
     written = []
     for name, result in results.items():
-        written.append(folder.write_png(f"{name.replace('-', '_')}.png", result.image))
+        written.append(folder.write_png(f"{_slug(name)}.png", result.image))
     maps = [r.maps["shadow_lod"] for r in (*results.values(), *top_maps.values())]
     max_lod = min(depth, max(1, int(np.ceil(max(float(m.max()) for m in maps)))))
     for name in ("distance", "error-aware"):
-        slug = name.replace("-", "_")
+        slug = _slug(name)
         written.append(folder.write_figure(f"lod_{slug}.png", _lod_figure(
             f"{name}: LOD used by shadow rays", results[name].maps["shadow_lod"], max_lod)))
         written.append(folder.write_figure(f"lod_top_{slug}.png", _lod_figure(

@@ -12,6 +12,7 @@ from voxfield.render.adaptive import render_adaptive
 from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_reference
+from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import (
     StudyFolder,
     costs_and_quality,
@@ -63,6 +64,7 @@ def run_sweep(
     folder.write_json("results.json", report)
     folder.write_text("results.md", _markdown(report, decays, thresholds))
     folder.write_figure("sweep.png", _figure(report, decays, thresholds))
+    write_html_report(folder.root)
     return report
 
 

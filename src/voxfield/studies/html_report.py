@@ -1,0 +1,190 @@
+"""``report.html``: a study folder as one self-contained page people would rather look at.
+
+The page is rebuilt from what the folder already holds: ``results.json`` (title, scene and the
+``comparisons`` a study lists: each image with its reference and cost maps), ``results.md``
+(every table and note, converted by python-markdown) and the folder's PNG figures. Images are
+embedded as data URIs and the page carries its own style and script, so it opens offline,
+mailed or archived, with no file beside it. Difference maps are computed here from the PNGs,
+so an old folder gets them too (``voxfield report FOLDER``).
+"""
+
+from __future__ import annotations
+
+import base64
+import io
+import json
+from pathlib import Path
+
+import numpy as np
+from PIL import Image
+
+import voxfield
+from voxfield.atomic import atomic_path
+from voxfield.errors import VoxfieldError
+
+REPORT_NAME = "report.html"
+#: |Δ| of 8-bit sRGB images is small; this gain makes a 1/16 difference full scale.
+DIFFERENCE_GAIN = 16
+
+
+def write_html_report(folder: str | Path) -> Path:
+    """Write ``FOLDER/report.html`` from the folder's results; returns its path."""
+    folder = Path(folder)
+    html = render_report(folder)
+    path = folder / REPORT_NAME
+    with atomic_path(path) as tmp:
+        tmp.write_text(html, encoding="utf-8")
+    return path
+
+
+def render_report(folder: Path) -> str:
+    """The page's HTML text for a study folder."""
+    results = _read_results(folder)
+    comparisons = [_comparison(folder, entry) for entry in results.get("comparisons", [])]
+    used = {name for c in comparisons for name in c.pop("files")}
+    markdown_path = folder / "results.md"
+    text = markdown_path.read_text(encoding="utf-8") if markdown_path.is_file() else ""
+    return render_page(title=_title(results), subtitle=_subtitle(results), markdown_text=text,
+                       figures=[p for p in _figures(folder) if p.name not in used],
+                       comparisons=comparisons)
+
+
+def render_page(*, title: str, subtitle: str, markdown_text: str, figures: list[Path],
+                comparisons: list[dict] = ()) -> str:
+    """One page: comparisons, figures, then the Markdown's tables and notes. A leading
+    ``# heading`` in the Markdown becomes the page title."""
+    first, _, rest = markdown_text.partition("\n")
+    if first.startswith("# "):
+        title, markdown_text = first[2:].strip(), rest
+    return _template().render(
+        title=title, subtitle=subtitle, comparisons=list(comparisons),
+        figures=[{"label": _label(p.stem), "src": data_uri(p)} for p in figures],
+        body=markdown_to_html(markdown_text) if markdown_text.strip() else "",
+        difference_gain=DIFFERENCE_GAIN, version=voxfield.__version__,
+    )
+
+
+def write_page(path: Path, **page) -> Path:
+    """``render_page`` written atomically to ``path``."""
+    html = render_page(**page)
+    with atomic_path(path) as tmp:
+        tmp.write_text(html, encoding="utf-8")
+    return path
+
+
+def _read_results(folder: Path) -> dict:
+    path = folder / "results.json"
+    if not folder.is_dir():
+        raise VoxfieldError(f"{folder}: no such study folder")
+    if not path.is_file():
+        raise VoxfieldError(f"{folder}: no results.json; run the study (or compare, sweep) "
+                            "into this folder first")
+    try:
+        results = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise VoxfieldError(f"{path}: unreadable results ({exc})") from exc
+    if not isinstance(results, dict):
+        raise VoxfieldError(f"{path}: not a voxfield results file (expected an object)")
+    return results
+
+
+def markdown_to_html(text: str) -> str:
+    from markdown import markdown  # only the report needs it
+    from markupsafe import Markup
+
+    return Markup(markdown(text, extensions=["tables"], output_format="html"))
+
+
+def _template():
+    from jinja2 import Environment, PackageLoader, select_autoescape
+
+    env = Environment(loader=PackageLoader("voxfield.studies", "templates"),
+                      autoescape=select_autoescape(["html", "j2"]), trim_blocks=True,
+                      lstrip_blocks=True)
+    return env.get_template("report.html.j2")
+
+
+def _title(results: dict) -> str:
+    study = str(results.get("study", "study")).replace("_", " ")
+    scene = results.get("scene")
+    name = scene.get("name") if isinstance(scene, dict) else scene
+    return f"{study}: {name}" if name else study
+
+
+def _subtitle(results: dict) -> str:
+    parts = []
+    scene = results.get("scene")
+    if isinstance(scene, dict) and "voxels" in scene:
+        parts.append(f"{scene['voxels']:,} voxels")
+    camera = results.get("camera")
+    if isinstance(camera, dict) and "width" in camera:
+        parts.append(f"{camera['width']}×{camera['height']}, camera {camera.get('label', '')}")
+    parts.append(f"voxfield {voxfield.__version__}")
+    return " · ".join(parts)
+
+
+def _figures(folder: Path) -> list[Path]:
+    """The folder's PNGs, the contact sheet first (it summarises the rest)."""
+    pngs = sorted(folder.glob("*.png"))
+    return sorted(pngs, key=lambda p: (p.stem != "contact_sheet", p.name))
+
+
+def _label(stem: str) -> str:
+    return stem.replace("_", " ")
+
+
+def _comparison(folder: Path, entry: dict) -> dict:
+    """One image against its reference: both embedded, the difference map, the cost maps."""
+    try:
+        name = str(entry["name"])
+        image_path = folder / str(entry["image"])
+        reference_path = folder / str(entry["reference"])
+        maps = dict(entry.get("maps", {}))
+    except (KeyError, TypeError, ValueError) as exc:
+        raise VoxfieldError(f"{folder / 'results.json'}: a comparison entry lacks {exc}") from exc
+    for path in (image_path, reference_path):
+        if not path.is_file():
+            raise VoxfieldError(f"{path}: an image the results list is missing")
+    cards = [{"label": f"|Δ| against {entry.get('reference_name', 'reference')}",
+              "src": png_uri(difference_map(image_path, reference_path))}]
+    for label, file in maps.items():
+        path = folder / str(file)
+        if path.is_file():
+            cards.append({"label": label, "src": data_uri(path)})
+    return {
+        "name": name, "image": data_uri(image_path), "reference": data_uri(reference_path),
+        "reference_name": str(entry.get("reference_name", "reference")),
+        "summary": str(entry.get("summary", "")), "maps": cards,
+        "files": {image_path.name, reference_path.name, *(str(f) for f in maps.values())},
+    }
+
+
+def difference_map(image_path: Path, reference_path: Path) -> np.ndarray:
+    """|Δ| of two sRGB images (mean over channels, ×``DIFFERENCE_GAIN``) on the inferno scale."""
+    from matplotlib import colormaps
+
+    a = _rgb(image_path)
+    b = _rgb(reference_path)
+    if a.shape != b.shape:
+        raise VoxfieldError(f"{image_path.name} is {a.shape[1]}×{a.shape[0]} but its reference "
+                            f"{reference_path.name} is {b.shape[1]}×{b.shape[0]}")
+    delta = np.abs(a - b).mean(axis=2) * DIFFERENCE_GAIN
+    return colormaps["inferno"](np.clip(delta, 0.0, 1.0))[..., :3]
+
+
+def _rgb(path: Path) -> np.ndarray:
+    try:
+        with Image.open(path) as img:
+            return np.asarray(img.convert("RGB"), np.float32) / 255.0
+    except OSError as exc:
+        raise VoxfieldError(f"{path}: unreadable image ({exc})") from exc
+
+
+def data_uri(path: Path) -> str:
+    return "data:image/png;base64," + base64.b64encode(path.read_bytes()).decode("ascii")
+
+
+def png_uri(rgb: np.ndarray) -> str:
+    buffer = io.BytesIO()
+    Image.fromarray((np.clip(rgb, 0, 1) * 255 + 0.5).astype(np.uint8)).save(buffer, "PNG")
+    return "data:image/png;base64," + base64.b64encode(buffer.getvalue()).decode("ascii")
