@@ -19,9 +19,9 @@ $(STAMP): pyproject.toml
 
 demo: $(STAMP)
 	$(BIN)/voxfield info builtin:pillars
-	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer reference --size 384 --shade --counters --out out/pillars_reference.png
-	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer lod --lod 2 --size 384 --shade --out out/pillars_lod2.png
-	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer lod --lod cone --size 384 --shade --counters --out out/pillars_cone.png
+	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer reference --size 384 --counters --out out/pillars_reference.png
+	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer lod --lod 2 --size 384 --out out/pillars_lod2.png
+	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer lod --lod cone --size 384 --counters --out out/pillars_cone.png
 	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer reference --size 384 --out out/pillars_reference.exr
 	$(BIN)/voxfield errors show 0b00110011 --threshold 0.3 --out out/error_mask_51.png
 	@echo "demo images written to out/"

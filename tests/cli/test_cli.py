@@ -112,3 +112,34 @@ def test_corrupt_octree_file_is_a_clear_error(tmp_path, capsys):
     np.savez(bad, header=np.frombuffer(b"{}", np.uint8), child_mask=np.zeros(3, np.uint8))
     assert main(["info", str(bad)]) == 2
     assert "octree" in capsys.readouterr().err
+
+
+def test_png_is_shaded_by_default_and_metrics_images_are_not(tmp_path):
+    """People look at PNGs, so they get the key light; ``--albedo`` gives the flat channel,
+    and EXR (linear, what the metrics read) stays unshaded unless ``--shade`` asks."""
+    from voxfield.render.camera import orbit_camera
+    from voxfield.render.primary import render_reference
+    from voxfield.scene.voxel_scene import linear_to_srgb
+    from voxfield.svo.open import open_octree
+
+    common = ["render", "builtin:sphere", "--size", "24", "--camera", "orbit", "--quiet"]
+    paths = {name: tmp_path / name for name in ("shaded.png", "albedo.png", "plain.exr",
+                                                "shaded.exr")}
+    assert main([*common, "--out", str(paths["shaded.png"])]) == 0
+    assert main([*common, "--albedo", "--out", str(paths["albedo.png"])]) == 0
+    assert main([*common, "--out", str(paths["plain.exr"])]) == 0
+    assert main([*common, "--shade", "--out", str(paths["shaded.exr"])]) == 0
+
+    octree = open_octree("builtin:sphere")
+    lo, hi = octree.voxel_bounds
+    albedo = render_reference(octree, orbit_camera(lo, hi, size=24)).image
+    flat = np.asarray(Image.open(paths["albedo.png"]), np.float64) / 255
+    np.testing.assert_allclose(flat, linear_to_srgb(albedo), atol=1 / 255 + 1e-6)
+    np.testing.assert_array_equal(load_exr(paths["plain.exr"])["RGB"], albedo)
+    shaded = np.asarray(Image.open(paths["shaded.png"]), np.float64) / 255
+    hit = albedo.sum(axis=2) > 0
+    assert np.abs(shaded - flat)[hit].mean() > 0.02  # the light changes what we see
+    assert (load_exr(paths["shaded.exr"])["RGB"][hit] <= albedo[hit] + 1e-6).all()
+    with pytest.raises(SystemExit) as exc:  # the parser refuses both at once
+        main([*common, "--shade", "--albedo", "--out", str(tmp_path / "x.png")])
+    assert exc.value.code == 2

@@ -151,3 +151,13 @@ def test_a_probe_record_that_is_not_an_object_is_a_header_error(tmp_path):
     (folder / "probes.json").write_text(json.dumps(header))
     with pytest.raises(ProbeHeaderError, match="probe 1.s record"):
         open_probe_set(folder)
+
+
+@pytest.mark.parametrize("scene", [None, {}, {"fingerprint": 7}, "cornell"])
+def test_a_header_without_a_scene_fingerprint_is_a_header_error(tmp_path, scene):
+    folder = _one_probe_folder(tmp_path)
+    header = json.loads((folder / "probes.json").read_text())
+    header["scene"] = scene
+    (folder / "probes.json").write_text(json.dumps(header))
+    with pytest.raises(ProbeHeaderError, match="fingerprint"):
+        open_probe_set(folder)

@@ -12,11 +12,11 @@ from voxfield.cli.options import (
     add_renderer_options,
     add_scene_options,
     add_view_options,
-    camera,
     int_between,
     open_octree,
     positive_float,
     positive_int,
+    scene_camera,
 )
 from voxfield.studies.calibrate import calibrate_threshold
 
@@ -43,7 +43,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     octree = open_octree(args)
-    view = camera(args, octree.voxel_bounds)
+    view = scene_camera(args, octree)
     cal = calibrate_threshold(
         octree, view, target_rays=args.target_rays, target_psnr=args.target_psnr,
         decay=args.decay, base_lod=args.base_lod, iterations=args.iterations, seed=args.seed,

@@ -9,10 +9,10 @@ from voxfield.cli.options import (
     add_scene_options,
     add_study_folder,
     add_view_options,
-    camera,
     default_output,
     open_octree,
     positive_int,
+    scene_camera,
 )
 from voxfield.studies.compare import run_compare
 from voxfield.studies.report import fmt
@@ -44,7 +44,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     octree = open_octree(args)
-    view = camera(args, octree.voxel_bounds)
+    view = scene_camera(args, octree)
     label = "custom" if args.eye is not None else args.camera
     report = run_compare(
         octree, view, args.out or default_output("compare", args.scene),

@@ -9,10 +9,10 @@ from voxfield.cli.options import (
     add_renderer_options,
     add_scene_options,
     add_view_options,
-    camera,
     open_octree,
     positive_int,
     renderer_options_from,
+    scene_camera,
 )
 from voxfield.render.counter_maps import write_counter_maps
 from voxfield.render.image_io import save_result_image, shade_for_display
@@ -30,8 +30,13 @@ def register(subparsers) -> argparse.ArgumentParser:
     add_renderer_options(p, ("reference", "lod", "error-aware", "adaptive"))
     p.add_argument("--channel", default="albedo", help="colour channel to show (default albedo)")
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
-    p.add_argument("--shade", action="store_true",
-                   help="light the albedo with a fixed key light (display only, not for metrics)")
+    look = p.add_mutually_exclusive_group()
+    look.add_argument("--shade", action="store_true",
+                      help="light the colours with a fixed key light, EXR too (PNG default; "
+                      "display only, never used by metrics)")
+    look.add_argument("--albedo", action="store_true",
+                      help="write the flat colour channel the metrics compare, PNG too (EXR "
+                      "default)")
     p.add_argument("--counters", action="store_true",
                    help="also write traversal-step and LOD maps and a JSON summary")
     p.add_argument("--out", required=True, help="output .png (sRGB) or .exr (linear RGB + Z)")
@@ -41,12 +46,12 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     octree = open_octree(args)
-    view = camera(args, octree.voxel_bounds)
+    view = scene_camera(args, octree)
     result = render(octree, view, args.renderer, renderer_options_from(args, args.renderer),
                     seed=args.seed, channel=args.channel, threads=args.threads,
                     progress=not args.quiet)
     out = Path(args.out)
-    if args.shade:
+    if args.shade or (out.suffix.lower() == ".png" and not args.albedo):
         result.image = shade_for_display(result)
     save_result_image(result, out)
     written = [out]

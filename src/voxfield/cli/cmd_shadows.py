@@ -10,10 +10,10 @@ from voxfield.cli.options import (
     add_scene_options,
     add_study_folder,
     add_view_options,
-    camera,
     default_output,
     open_octree,
     positive_int,
+    scene_camera,
     set_option_help,
 )
 from voxfield.studies.shadow_study import run_shadow_study, summary_text
@@ -60,7 +60,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     octree = open_octree(args)
-    view = camera(args, octree.voxel_bounds)
+    view = scene_camera(args, octree)
     report = run_shadow_study(
         octree, view, args.out or default_output("shadows", args.scene),
         light_samples=args.light_samples, reference_samples=args.reference_samples,

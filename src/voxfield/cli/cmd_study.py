@@ -14,7 +14,6 @@ from voxfield.cli.options import (
     add_study_folder,
     add_threshold_options,
     add_view_options,
-    camera,
     default_output,
     finite_float,
     float_list,
@@ -23,6 +22,7 @@ from voxfield.cli.options import (
     name_list,
     open_octree,
     positive_int_list,
+    scene_camera,
 )
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import EPSILON_MODES, LightFieldOptions
@@ -211,7 +211,7 @@ def run_normalisation(args) -> int:
     scenes = {}
     for spec in (args.scene, *args.more_scenes):
         octree = open_octree(argparse.Namespace(**{**vars(args), "scene": spec}))
-        scenes[spec] = (octree, camera(args, octree.voxel_bounds))
+        scenes[spec] = (octree, scene_camera(args, octree))
     out = args.out or default_output("normalisation", next(iter(scenes)))
     report = run_normalisation_study(scenes, out, base_lod=args.base_lod,
                                      quantile=args.quantile, seed=args.seed,
@@ -250,7 +250,7 @@ def run_curves(args) -> int:
 
 def run_thresholds(args) -> int:
     octree = open_octree(args)
-    view = camera(args, octree.voxel_bounds)
+    view = scene_camera(args, octree)
     out = args.out or default_output("thresholds", args.scene)
     report = run_threshold_study(
         octree, view, out, thresholds=args.thresholds, decay=args.decay,
@@ -291,7 +291,7 @@ def run_lighting(args) -> int:
     if len(lighting_channels(octree)) < 2:
         suns = parse_suns(args.times or "all")
         octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet)
-    view = camera(args, octree.voxel_bounds)
+    view = scene_camera(args, octree)
     channels = args.channels.split(",") if args.channels else None
     out = args.out or default_output("lighting", args.scene)
     report = run_lighting_study(
@@ -393,7 +393,7 @@ def counts_list(text: str) -> tuple[tuple[int, int, int], ...]:
 def run_probes(args) -> int:
     quiet = getattr(args, "quiet", False)
     octree = open_octree(args)
-    view = camera(args, octree.voxel_bounds)
+    view = scene_camera(args, octree)
     check_camera_placement(octree, view)
     options = LightFieldOptions(epsilon=args.epsilon, epsilon_value=args.epsilon_value,
                                 epsilon_k=args.epsilon_k, backface=args.backface,

@@ -10,9 +10,9 @@ from voxfield.cli.options import (
     add_scene_options,
     add_study_folder,
     add_view_options,
-    camera,
     float_list,
     open_octree,
+    scene_camera,
 )
 from voxfield.studies.sweep import THESIS_DECAYS, THESIS_THRESHOLDS, run_sweep
 
@@ -37,7 +37,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     octree = open_octree(args)
-    view = camera(args, octree.voxel_bounds)
+    view = scene_camera(args, octree)
     out = args.out or f"out/sweep_{Path(args.scene).stem.replace(':', '_')}"
     report = run_sweep(octree, view, out, decays=args.decays, thresholds=args.thresholds,
                        base_lod=args.base_lod, seed=args.seed, channel=args.channel,

@@ -17,6 +17,7 @@ import numpy as np
 
 from voxfield.errors import VoxfieldError
 from voxfield.render.camera import CAMERA_PRESETS, Camera, preset_camera
+from voxfield.render.framing import content_box
 from voxfield.render.registry import RENDERERS
 from voxfield.scene.loaders import SceneOptions
 from voxfield.scene.terrain.columns import MAX_FOOTPRINT
@@ -304,6 +305,14 @@ def camera(args, bounds) -> Camera:
             raise VoxfieldError("--eye and --target must be given together")
         return Camera.look_at(args.eye, args.target, fov_deg=args.fov or 60.0, width=args.size)
     return preset_camera(args.camera, lo, hi, size=args.size, fov_deg=args.fov)
+
+
+def scene_camera(args, octree) -> Camera:
+    """``camera`` over an octree: the orbit view frames its content (``content_box``), not a
+    ground plane that dominates its voxel box; every other view keeps the voxel box."""
+    if args.camera == "orbit" and args.eye is None and args.target is None:
+        return camera(args, content_box(octree))
+    return camera(args, octree.voxel_bounds)
 
 
 def default_output(prefix: str, scene: str, suffix: str = "") -> Path:

@@ -196,6 +196,10 @@ def read_header(folder: str | os.PathLike) -> dict:
                                "format's; re-bake with --fresh")
     if not isinstance(header["probes"], dict):
         raise ProbeHeaderError(f"{path}: 'probes' must be an object")
+    scene = header["scene"]
+    if not isinstance(scene, dict) or not isinstance(scene.get("fingerprint"), str):
+        raise ProbeHeaderError(f"{path}: 'scene' must be an object with the scene's "
+                               "fingerprint; re-bake with --fresh")
     return header
 
 

@@ -320,6 +320,27 @@ class ProbeSet:
         """The conservative min-distance chain of every probe: ``min_distance_mips``."""
         return min_distance_mips(self.distance)
 
+    def _repr_html_(self) -> str:
+        """Jupyter shows a probe set as its cost summary beside its radiance atlas."""
+        import base64
+        import html
+
+        from voxfield.probes.show import display_atlases
+        from voxfield.render.image_io import png_bytes
+
+        s = self.cost_summary()
+        atlas = base64.b64encode(png_bytes(display_atlases(self)["radiance"])).decode("ascii")
+        counts = " × ".join(str(int(c)) for c in np.asarray(self.grid.counts).reshape(-1))
+        rows = [("probes", f"{s['baked']} of {s['probes']} baked, grid {counts}"),
+                ("resolution", f"{s['resolution']}² texels"), ("renderer", s["renderer"]),
+                ("rays / texel", f"{s['rays_per_texel']:.3f}"),
+                ("steps / texel", f"{s['steps_per_texel']:.2f}")]
+        table = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
+                        f"<td>{html.escape(str(v))}</td></tr>" for k, v in rows)
+        return (f"<div style='display:flex;gap:1em;align-items:flex-start'><table>{table}"
+                f"</table><img alt='radiance atlas' style='image-rendering:pixelated;"
+                f"min-width:256px' src='data:image/png;base64,{atlas}'></div>")
+
 
 def _stack(arrays: list[np.ndarray], empty_shape: tuple, dtype) -> np.ndarray:
     return np.stack(arrays).astype(dtype, copy=False) if arrays else np.empty(empty_shape, dtype)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io
 import os
 from pathlib import Path
 
@@ -16,15 +17,27 @@ from voxfield.scene.voxel_scene import linear_to_srgb
 def save_png(image: np.ndarray, path: str | os.PathLike, *, encode_srgb: bool = True) -> Path:
     """Write a linear [0, 1] image (H×W×3 or H×W) as 8-bit PNG, sRGB-encoded by default."""
     path = Path(path)
+    pixels = png_pixels(image, encode_srgb=encode_srgb)
+    with atomic_path(path) as tmp:
+        Image.fromarray(pixels).save(tmp, format="PNG")
+    return path
+
+
+def png_pixels(image: np.ndarray, *, encode_srgb: bool = True) -> np.ndarray:
+    """The 8-bit pixels ``save_png`` writes for a linear [0, 1] image."""
     data = np.asarray(image, dtype=np.float32)
     if data.ndim not in (2, 3) or (data.ndim == 3 and data.shape[2] not in (3, 4)):
         raise VoxfieldError(f"cannot write an image of shape {data.shape} as PNG")
     data = np.nan_to_num(data, nan=0.0, posinf=1.0, neginf=0.0)
     data = linear_to_srgb(data) if encode_srgb else np.clip(data, 0.0, 1.0)
-    pixels = np.round(data * 255.0).astype(np.uint8)
-    with atomic_path(path) as tmp:
-        Image.fromarray(pixels).save(tmp, format="PNG")
-    return path
+    return np.round(data * 255.0).astype(np.uint8)
+
+
+def png_bytes(image: np.ndarray, *, encode_srgb: bool = True) -> bytes:
+    """``save_png``'s file as bytes (for notebooks and embedded pages)."""
+    buffer = io.BytesIO()
+    Image.fromarray(png_pixels(image, encode_srgb=encode_srgb)).save(buffer, format="PNG")
+    return buffer.getvalue()
 
 
 def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike) -> Path:

@@ -67,6 +67,13 @@ class RenderResult:
     def mrays_per_second(self) -> float:
         return self.total_rays / self.seconds / 1e6 if self.seconds > 0 else float("nan")
 
+    def _repr_png_(self) -> bytes:
+        """Jupyter shows a result as ``voxfield render`` writes its PNG: lit by the display
+        key light (``image`` itself stays the flat linear colour the metrics read)."""
+        from voxfield.render.image_io import png_bytes, shade_for_display
+
+        return png_bytes(shade_for_display(self))
+
     def summary(self) -> dict:
         """Totals for reports (JSON-friendly)."""
         rays = self.total_rays
