@@ -37,7 +37,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    "refinement, EA §6.2)")
     p.add_argument("--channel", default="albedo", help="colour channel (default albedo)")
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
-    add_study_folder(p, "compare", "renders and metrics")
+    add_study_folder(p, "compare", "renders and metrics", scheduled=True)
     p.set_defaults(func=run)
     return p
 
@@ -51,6 +51,7 @@ def run(args) -> int:
         threshold=args.threshold, decay=args.decay, base_lod=args.base_lod, seed=args.seed,
         channel=args.channel, reuse_parent=args.reuse_parent,
         camera_label=label, threads=args.threads, fresh=args.fresh, progress=not args.quiet,
+        scheduler=args.scheduler,
     )
     if not args.quiet:
         print(summary_text(report))

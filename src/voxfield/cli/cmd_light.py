@@ -20,6 +20,7 @@ from voxfield.lighting.sun_bake import bake_sun_lighting
 from voxfield.render.camera import top_down_camera
 from voxfield.render.image_io import save_png
 from voxfield.render.primary import render_reference
+from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
 from voxfield.svo.io import save_octree
 
 
@@ -47,6 +48,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="shadow rays per sun-facing voxel face, stratified over the face "
                    "(default 4; 1 = one from the face centre)")
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
+    p.add_argument("--scheduler", default=None, metavar="WHERE",
+                   help=SCHEDULER_HELP + "; voxel chunks become tasks, the result is "
+                   "bit-identical (default: no Dask, each chunk on every core here)")
     p.add_argument("--out", default=None,
                    help="output octree file (default out/lit_NAME.npz, NAME from the scene)")
     p.add_argument("--preview-size", type=positive_int, default=256, metavar="N",
@@ -59,11 +63,12 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     suns = parse_suns(args.times)  # before the (slow) scene load: bad input fails fast
+    check_scheduler(args.scheduler)
     args.quiet = quiet = getattr(args, "quiet", False)  # as ``voxfield.cli.main`` sets it
     octree = open_octree(args)
     lit, report = bake_sun_lighting(
         octree, suns, sky_rays=args.sky_rays, shadow_rays=args.shadow_rays, seed=args.seed,
-        threads=args.threads, progress=not quiet,
+        threads=args.threads, progress=not quiet, scheduler=args.scheduler,
     )
     out = Path(args.out) if args.out else default_output("lit", args.scene, ".npz")
     written = [save_octree(lit, out)]

@@ -76,7 +76,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     t.add_argument("--thresholds", type=float_list, default=THESIS_THRESHOLDS,
                    help="comma-separated thresholds (default 0.05..0.3)")
     add_renderer_options(t, ("error-aware", "adaptive"), only=("decay", "base_lod"))
-    add_study_folder(t, "thresholds", "cells")
+    add_study_folder(t, "thresholds", "cells", scheduled=True)
     add_channel_option(t)
     add_view_options(t)
     t.set_defaults(func=run_thresholds)
@@ -176,7 +176,7 @@ def _register_curves(actions) -> None:
                    help="LOD levels (default " + ",".join(map(str, CURVE_LODS)) + ")")
     c.add_argument("--base-lod", type=lod_arg, default=2,
                    help="EA and adaptive first-ray LOD, or 'cone' (default 2)")
-    add_study_folder(c, "curves", "renders")
+    add_study_folder(c, "curves", "renders", scheduled=True)
     add_channel_option(c)
     add_quiet(c)
     c.set_defaults(func=run_curves)
@@ -237,7 +237,7 @@ def run_curves(args) -> int:
         octree, cameras, out, thresholds=args.thresholds, decays=args.decays,
         normalisations=args.normalisations, lods=args.lods, base_lod=args.base_lod,
         seed=args.seed, channel=args.channel, scene_name=args.scene,
-        progress=not args.quiet, fresh=args.fresh)
+        progress=not args.quiet, fresh=args.fresh, scheduler=args.scheduler)
     if not args.quiet:
         for cam_name, cam in report["cameras"].items():
             for d in cam["deltas"]:
@@ -255,7 +255,7 @@ def run_thresholds(args) -> int:
     report = run_threshold_study(
         octree, view, out, thresholds=args.thresholds, decay=args.decay,
         base_lod=args.base_lod, seed=args.seed, channel=args.channel, scene_name=args.scene,
-        progress=not args.quiet, fresh=args.fresh)
+        progress=not args.quiet, fresh=args.fresh, scheduler=args.scheduler)
     if not args.quiet:
         a = report["adaptive"]
         print(f"adaptive: {a['rays']:,} rays, {a['steps']:,} steps, "

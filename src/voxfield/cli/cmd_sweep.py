@@ -29,7 +29,7 @@ def register(subparsers) -> None:
     p.add_argument("--thresholds", type=float_list, default=THESIS_THRESHOLDS,
                    help="comma-separated thresholds (default the thesis's 0.175..0.05)")
     add_renderer_options(p, ("error-aware",), only=("base_lod",), prefix=False)
-    add_study_folder(p, "sweep", "cells")
+    add_study_folder(p, "sweep", "cells", scheduled=True)
     add_channel_option(p)
     add_view_options(p)
     p.set_defaults(func=run)
@@ -41,7 +41,8 @@ def run(args) -> int:
     out = args.out or f"out/sweep_{Path(args.scene).stem.replace(':', '_')}"
     report = run_sweep(octree, view, out, decays=args.decays, thresholds=args.thresholds,
                        base_lod=args.base_lod, seed=args.seed, channel=args.channel,
-                       scene_name=args.scene, progress=not args.quiet, fresh=args.fresh)
+                       scene_name=args.scene, progress=not args.quiet, fresh=args.fresh,
+                       scheduler=args.scheduler)
     if not args.quiet:
         print(f"adaptive: {report['adaptive']['rays']:,} rays; per decay, the threshold "
               "closest to it:")

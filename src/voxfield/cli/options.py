@@ -19,6 +19,7 @@ from voxfield.errors import VoxfieldError
 from voxfield.render.camera import CAMERA_PRESETS, Camera, preset_camera
 from voxfield.render.framing import content_box
 from voxfield.render.registry import RENDERERS
+from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
 from voxfield.scene.loaders import SceneOptions
 from voxfield.scene.terrain.columns import MAX_FOOTPRINT
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
@@ -214,12 +215,27 @@ def _preset_names() -> list[str]:
     return [*names, "cube+x..cube-z"]
 
 
-def add_study_folder(p: argparse.ArgumentParser, prefix: str, cached: str = "items") -> None:
+def add_study_folder(p: argparse.ArgumentParser, prefix: str, cached: str = "items", *,
+                     scheduled: bool = False) -> None:
     """``--out`` (the study folder, ``out/PREFIX_SCENE`` by default) and ``--fresh``: every
-    resumable study reuses what its folder holds unless told to start over."""
+    resumable study reuses what its folder holds unless told to start over. ``scheduled``
+    studies also take ``--scheduler``: their independent items run as Dask tasks."""
     p.add_argument("--out", default=None,
                    help=f"output folder (default out/{prefix}_SCENE, SCENE from the scene)")
     p.add_argument("--fresh", action="store_true", help=f"ignore cached {cached} in --out")
+    if scheduled:
+        p.add_argument("--scheduler", type=scheduler_name, default=None, metavar="WHERE",
+                       help=f"{SCHEDULER_HELP}; the {cached} run as tasks, each cached as it "
+                       "lands (default: one after another here, each on every core)")
+
+
+def scheduler_name(text: str) -> str:
+    """A ``--scheduler`` value, checked before any work starts."""
+    try:
+        check_scheduler(text)
+    except VoxfieldError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from exc
+    return text
 
 
 def set_option_help(p: argparse.ArgumentParser, dest: str, help: str) -> None:

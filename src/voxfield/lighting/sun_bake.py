@@ -21,6 +21,7 @@ from voxfield.kernels.sun_bake import bake_sun_visibility
 from voxfield.lighting.sun import SunLight
 from voxfield.parallel import thread_count
 from voxfield.progress import progress_bar
+from voxfield.scaleout import check_scheduler, run_tasks
 from voxfield.scene.surface import face_mask
 from voxfield.svo.channels import with_channels
 from voxfield.svo.octree import Octree
@@ -116,10 +117,15 @@ def exposed_face_bits(octree: Octree) -> np.ndarray:
 
 def sun_visibility(
     octree: Octree, sun_dirs: np.ndarray, *, sky_rays: int = 16, shadow_rays: int = 4,
-    seed: int = 0, threads: int | None = None, progress: bool = False,
+    seed: int = 0, threads: int | None = None, progress: bool = False, scheduler=None,
 ) -> tuple[SunVisibility, dict]:
     """Trace the visibility terms of every surface voxel for unit directions ``sun_dirs``
-    (suns×3, towards the sun); returns them and the cost counters."""
+    (suns×3, towards the sun); returns them and the cost counters.
+
+    Chunks of ``CHUNK_VOXELS`` surface voxels are independent (each voxel's rays are hashed
+    from its index and ``seed``): without a ``scheduler`` they run one after another here,
+    each on every core; with one (``voxfield.scaleout``) they run as tasks, the octree's
+    descriptors shared, and merge by voxel index, so the result is bit-identical."""
     sky_rays = _check_count(sky_rays, "sky rays per voxel", 0)
     shadow_rays = _check_count(shadow_rays, "shadow rays per face", 1)
     if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
@@ -158,34 +164,78 @@ def sun_visibility(
         counters["shadow_rays"] += int(shadow_cast.sum())
         counters["traversal_steps"] += int(steps.sum())
 
+    chunks = [surface[first:first + CHUNK_VOXELS]
+              for first in range(0, len(surface), CHUNK_VOXELS)]
+    options = {"total": len(surface), "desc": "sun bake", "unit": "voxel", "enabled": progress}
+    if scheduler is not None and scheduler != "serial":
+        check_scheduler(scheduler)
+        shared = {"inner": inner, "depth": depth, "y_top": y_top, "dirs": dirs,
+                  "sky_rays": sky_rays, "shadow_rays": shadow_rays, "seed": int(seed)}
+        start = time.perf_counter()
+        with progress_bar(**options) as bar:
+            def merge(index: int, result) -> None:
+                ids = chunks[index]
+                direct, sky, weight, sky_cast, shadow_cast, steps = result
+                vis.direct[:, ids] = direct
+                vis.sky[ids] = sky
+                vis.weight[ids] = weight
+                counters["sky_rays"] += sky_cast
+                counters["shadow_rays"] += shadow_cast
+                counters["traversal_steps"] += steps
+                bar.update(len(ids))
+
+            run_tasks(visibility_task, shared,
+                      [(leaves[ids], ids, faces[ids]) for ids in chunks], merge,
+                      scheduler=scheduler, name="sun-chunk")
+        counters["seconds"] = time.perf_counter() - start
+        return vis, counters
     run(surface[:0])  # loads (or compiles) the kernel outside the timed region
     start = time.perf_counter()
-    options = {"total": len(surface), "desc": "sun bake", "unit": "voxel", "enabled": progress}
     with thread_count(threads), progress_bar(**options) as bar:
-        for first in range(0, len(surface), CHUNK_VOXELS):
-            ids = surface[first : first + CHUNK_VOXELS]
+        for ids in chunks:
             run(ids)
             bar.update(len(ids))
     counters["seconds"] = time.perf_counter() - start
     return vis, counters
 
 
+def visibility_task(shared: dict, chunk, kernel_threads: int | None = None):
+    """One chunk of ``sun_visibility`` as a scheduler runs it: the chunk's (leaf corners,
+    voxel indices, exposed-face bits) against the shared descriptors and bake settings;
+    returns its visibility terms and summed counters."""
+    corners, ids, faces = chunk
+    m = len(ids)
+    dirs = shared["dirs"]
+    direct = np.zeros((len(dirs), m))
+    sky, weight = np.zeros(m), np.zeros(m)
+    sky_cast, shadow_cast, steps = (np.zeros(m, np.int64) for _ in range(3))
+    with thread_count(kernel_threads):
+        bake_sun_visibility(
+            np.ascontiguousarray(corners, np.int64), ids, faces, dirs, shared["sky_rays"],
+            shared["shadow_rays"], shared["seed"], shared["inner"], shared["depth"],
+            shared["y_top"], direct, sky, weight, sky_cast, shadow_cast, steps,
+        )
+    return (direct, sky, weight, int(sky_cast.sum()), int(shadow_cast.sum()),
+            int(steps.sum()))
+
+
 def bake_sun_lighting(
     octree: Octree, suns: Sequence[SunLight], *, sky_rays: int = 16, shadow_rays: int = 4,
-    seed: int = 0, threads: int | None = None, progress: bool = False,
+    seed: int = 0, threads: int | None = None, progress: bool = False, scheduler=None,
 ) -> tuple[Octree, BakeReport]:
     """A new octree with one lit channel per sun, named after the sun, and the bake's cost.
 
     ``sky_rays`` cosine-weighted rays per surface voxel estimate sky visibility (0: no sky
     light, black shadows as in the EA thesis's data); ``shadow_rays`` stratified rays per
     sun-facing face estimate sun visibility (1: one ray from the face centre). Results are
-    bit-identical for any ``threads`` and depend only on the inputs and ``seed``.
+    bit-identical for any ``threads`` or ``scheduler`` (``sun_visibility``) and depend only
+    on the inputs and ``seed``.
     """
     suns = _check_suns(suns)
     dirs = np.array([s.direction() for s in suns])
     vis, cost = sun_visibility(
         octree, dirs, sky_rays=sky_rays, shadow_rays=shadow_rays, seed=seed,
-        threads=threads, progress=progress,
+        threads=threads, progress=progress, scheduler=scheduler,
     )
     albedo = octree.color[octree.level_slice(octree.depth)].astype(np.float64)
     channels = {}

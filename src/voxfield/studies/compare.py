@@ -15,6 +15,7 @@ from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
 from voxfield.errors import VoxfieldError
 from voxfield.fingerprint import array_fingerprint
 from voxfield.metrics import MISSED, compare_images, cost_summary, flip_available
+from voxfield.progress import progress_bar
 from voxfield.render.adaptive import AdaptiveOptions
 from voxfield.render.camera import Camera
 from voxfield.render.counter_maps import steps_heatmap
@@ -48,17 +49,18 @@ def run_compare(
     octree: Octree, camera: Camera, out_dir: str | Path, *, threshold: float = THESIS_THRESHOLD,
     decay: float = THESIS_DECAY, base_lod: int | None = 2, seed: int = 0, channel: str = "albedo",
     reuse_parent: bool = False, camera_label: str = "", threads: int | None = None,
-    fresh: bool = False, progress: bool = False,
+    fresh: bool = False, progress: bool = False, scheduler=None,
 ) -> dict:
     """Render, measure and write the comparison into ``out_dir``; returns the results as in
     ``results.json`` plus ``written`` (paths) and ``computed`` / ``reused`` (item names).
 
     ``base_lod=None`` lets both cheap renderers pick the first ray's LOD from the pixel cone.
-    ``reuse_parent`` adds a row for the error-aware renderer with parent-ray reuse.
+    ``reuse_parent`` adds a row for the error-aware renderer with parent-ray reuse. With a
+    ``scheduler`` (``voxfield.scaleout``) the renders run as tasks, with the same results.
     """
     if base_lod is not None and not 0 <= base_lod <= octree.depth:
         raise VoxfieldError(f"base LOD must be between 0 and {octree.depth}, got {base_lod}")
-    folder = StudyFolder(out_dir, fresh=fresh)
+    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
     scene = {"name": octree.name, "depth": octree.depth, "voxels": octree.voxel_count,
              "fingerprint": octree.fingerprint(channel)}
     common = {"scene": scene["fingerprint"], "camera": array_fingerprint(camera.params),
@@ -76,15 +78,18 @@ def run_compare(
     if reuse_parent:
         settings[REUSE_ROW] = {**settings["error-aware"], "reuse_parent": True}
         names.append(REUSE_ROW)
-    results: dict[str, RenderResult] = {}
-    keys: dict[str, dict] = {}
-    for name in names:
-        keys[name] = {**common, "renderer": name, **settings[name]}
-        results[name] = folder.render_item(
-            _slug(name), keys[name],
-            lambda name=name: render(octree, camera, _renderer_of(name), **settings[name],
-                                     **options),
-        )
+    keys = {name: {**common, "renderer": name, **settings[name]} for name in names}
+    if scheduler not in (None, "serial"):
+        options["progress"] = False  # tasks finish in any order: one bar for the batch
+    # Each render reads the octree from ``shared`` (scattered to a cluster once).
+    specs = [(_slug(name), keys[name],
+              lambda shared, name=name: render(shared, camera, _renderer_of(name),
+                                               **settings[name], **options))
+             for name in names]
+    with progress_bar(total=len(specs), desc="compare", unit="render",
+                      enabled=progress and not options["progress"]) as bar:
+        rendered = folder.render_batch(specs, shared=octree, bar=bar)
+    results: dict[str, RenderResult] = dict(zip(names, rendered, strict=True))
     reference = results["reference"]
     rows = []
     for name, result in results.items():

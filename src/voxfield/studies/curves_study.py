@@ -78,7 +78,7 @@ def run_curves_study(
     octree: Octree, cameras: dict[str, Camera], out_dir: str | Path, *,
     thresholds=CURVE_THRESHOLDS, decays=CURVE_DECAYS, normalisations=CURVE_NORMALISATIONS,
     lods=CURVE_LODS, base_lod: int | None = 2, seed: int = 0, channel: str = "albedo",
-    scene_name: str = "scene", progress: bool = False, fresh: bool = False,
+    scene_name: str = "scene", progress: bool = False, fresh: bool = False, scheduler=None,
 ) -> dict:
     """Sweep every curve under every camera (each point cached and resumable) and write
     results.json, results.md and curves.png into ``out_dir``."""
@@ -87,7 +87,7 @@ def run_curves_study(
     lods = [lod for lod in lods if 0 <= lod <= octree.depth]
     if min(len(thresholds), len(normalisations), len(lods)) < 2 or not decays:
         raise VoxfieldError("each curve needs at least two knob values (and one decay)")
-    folder = StudyFolder(out_dir, fresh=fresh)
+    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
     points = len(cameras) * (1 + (len(decays) + len(EA_VARIANTS)) * len(thresholds)
                              + len(normalisations)
                              + len(lods))
@@ -101,26 +101,27 @@ def run_curves_study(
             for decay in decays:
                 curves[ea_curve_name(decay)] = sweep.curve("threshold", [
                     sweep.point(f"ea-d{decay:g}-t{t:g}", {"decay": decay, "threshold": t},
-                                lambda c, t=t, d=decay: render_error_aware(
-                                    octree, c, threshold=t, decay=d, **settings))
+                                lambda o, c, t=t, d=decay: render_error_aware(
+                                    o, c, threshold=t, decay=d, **settings))
                     for t in thresholds])
             for name, (prefix, extra) in EA_VARIANTS.items():
                 curves[name] = sweep.curve("threshold", [
                     sweep.point(f"{prefix}-d{THESIS_DECAY:g}-t{t:g}",
                                 {"decay": THESIS_DECAY, "threshold": t, **extra},
-                                lambda c, t=t, extra=extra: render_error_aware(
-                                    octree, c, threshold=t, decay=THESIS_DECAY, **extra,
+                                lambda o, c, t=t, extra=extra: render_error_aware(
+                                    o, c, threshold=t, decay=THESIS_DECAY, **extra,
                                     **settings))
                     for t in thresholds])
             curves["A"] = sweep.curve("variance_normalisation", [
                 sweep.point(f"a-n{n:g}", {"variance_normalisation": n},
-                            lambda c, n=n: render_adaptive(octree, c, variance_normalisation=n,
-                                                           **settings))
+                            lambda o, c, n=n: render_adaptive(o, c, variance_normalisation=n,
+                                                              **settings))
                 for n in normalisations])
             curves["LOD"] = sweep.curve("lod", [
-                sweep.point(f"lod{lod}", {"lod": lod}, lambda c, lod=lod: render_lod(
-                    octree, c, lod=lod, seed=seed, channel=channel))
+                sweep.point(f"lod{lod}", {"lod": lod}, lambda o, c, lod=lod: render_lod(
+                    o, c, lod=lod, seed=seed, channel=channel))
                 for lod in lods])
+            sweep.run()
             report["cameras"][cam_name] = {
                 "kind": "orthographic" if camera.kind == ORTHOGRAPHIC else "perspective",
                 "width": camera.width, "height": camera.height,
@@ -141,6 +142,8 @@ class CameraSweep:
     def __init__(self, folder: StudyFolder, octree: Octree, name: str, camera: Camera,
                  scene_name: str, settings: dict, bar):
         self.folder, self.name, self.camera, self.bar = folder, name, camera, bar
+        self.octree = octree
+        self.pending: list = []
         self.view = {"scene": scene_name, "fingerprint": octree.fingerprint(settings["channel"]),
                      "camera": camera.params.tolist(), "size": camera.width,
                      "height": camera.height, **settings}
@@ -150,12 +153,23 @@ class CameraSweep:
         bar.update(1)
 
     def point(self, name: str, params: dict, render) -> dict:
-        """Costs and quality of ``render(camera)``, cached under the camera's name."""
-        value = self.folder.value_item(
+        """Costs and quality of ``render(octree, camera)``, cached under the camera's name:
+        the returned point is filled in by ``run``, which computes every point at once."""
+        point = dict(params)
+        camera = self.camera
+        self.pending.append((point, (
             f"{self.name}-{name}", {**self.view, **params},
-            lambda: costs_and_quality(self.reference, render(self.camera)))
-        self.bar.update(1)
-        return {**params, **value}
+            lambda shared: costs_and_quality(shared[1], render(shared[0], camera)))))
+        return point
+
+    def run(self) -> None:
+        """Compute the pending points (independent items: a batch on the folder's
+        scheduler) and fill them in."""
+        values = self.folder.value_batch([spec for _, spec in self.pending],
+                                         shared=(self.octree, self.reference), bar=self.bar)
+        for (point, _), value in zip(self.pending, values, strict=True):
+            point.update(value)
+        self.pending.clear()
 
     @staticmethod
     def curve(knob: str, points: list[dict]) -> dict:

@@ -23,8 +23,10 @@ import voxfield
 from voxfield.atomic import atomic_path
 from voxfield.errors import VoxfieldError
 from voxfield.metrics import compare_images
+from voxfield.parallel import thread_count
 from voxfield.render.image_io import save_png
 from voxfield.render.result import RenderResult
+from voxfield.scaleout import check_scheduler, run_tasks
 
 #: Bump when the cached item layout changes, so old caches are recomputed, not misread.
 CACHE_VERSION = 1
@@ -80,17 +82,47 @@ def result_from_arrays(meta: dict, arrays: dict[str, np.ndarray]) -> RenderResul
     )
 
 
+def compute_item_task(shared, compute, kernel_threads: int | None = None):
+    """One study item as a scheduler runs it (module level, so workers can import it)."""
+    with thread_count(kernel_threads):
+        return compute(shared)
+
+
+class _as_arrays:
+    """``render(shared)`` as an item's (data, arrays); a class, not a closure, so it pickles
+    by reference to this module."""
+
+    def __init__(self, render: Callable) -> None:
+        self.render = render
+
+    def __call__(self, shared):
+        return result_to_arrays(self.render(shared))
+
+
+class _as_value:
+    def __init__(self, compute: Callable) -> None:
+        self.compute = compute
+
+    def __call__(self, shared):
+        return self.compute(shared), {}
+
+
 class StudyFolder:
     """The folder a study writes; ``computed`` and ``reused`` name the items of this run."""
 
-    def __init__(self, root: str | Path, *, fresh: bool = False):
+    def __init__(self, root: str | Path, *, fresh: bool = False, scheduler=None):
         self.root = Path(root)
         if self.root.exists() and not self.root.is_dir():
             raise VoxfieldError(f"study output {self.root} exists and is not a folder")
+        check_scheduler(scheduler)
         self.items_dir = self.root / "items"
         self.fresh = fresh
+        #: Where ``batch`` runs independent items (``voxfield.scaleout``; None: one after
+        #: another here, each on every core).
+        self.scheduler = scheduler
         self.computed: list[str] = []
         self.reused: list[str] = []
+        self._written: set[Path] = set()  # items this run wrote (trusted even when fresh)
 
     def path(self, name: str) -> Path:
         return self.root / name
@@ -103,22 +135,74 @@ class StudyFolder:
     ) -> tuple[dict, dict[str, np.ndarray]]:
         """``compute()``'s (JSON data, arrays), or the cached copy from an earlier run with the
         same ``params``; a cache file that cannot be read is recomputed, not trusted."""
+        cached = self._cached(name, params)
+        if cached is not None:
+            self.reused.append(name)
+            return cached
+        return self._store(name, params, *compute())
+
+    def _paths(self, name: str, params: dict) -> tuple[Path, Path]:
         stem = self.items_dir / f"{name}-{params_key({'item': name, **params})}"
         # Not with_suffix: item names may hold dots (thresholds like 0.154).
-        json_path, npz_path = Path(f"{stem}.json"), Path(f"{stem}.npz")
-        if not self.fresh and json_path.is_file():
-            cached = self._load(json_path, npz_path)
-            if cached is not None:
-                self.reused.append(name)
-                return cached
-        data, arrays = compute()
+        return Path(f"{stem}.json"), Path(f"{stem}.npz")
+
+    def _cached(self, name: str, params: dict):
+        json_path, npz_path = self._paths(name, params)
+        if (not self.fresh or json_path in self._written) and json_path.is_file():
+            return self._load(json_path, npz_path)
+        return None
+
+    def _store(self, name: str, params: dict, data, arrays) -> tuple[dict, dict]:
+        json_path, npz_path = self._paths(name, params)
         if arrays:
             with atomic_path(npz_path) as tmp:
                 np.savez_compressed(tmp, **arrays)
         self._write_json_file(json_path, {"item": name, "params": params, "data": data,
                                           "arrays": sorted(arrays)})
+        self._written.add(json_path)
         self.computed.append(name)
         return to_json(data), dict(arrays)
+
+    def batch(self, specs: Sequence[tuple[str, dict, Callable]], *, shared=None,
+              bar=None) -> list[tuple[dict, dict[str, np.ndarray]]]:
+        """``item`` for independent items at once: each spec is (name, params,
+        ``compute(shared)`` → (JSON data, arrays)). Cached items are read back; the missing
+        ones run as tasks on ``self.scheduler`` (``shared`` is scattered to a cluster once,
+        ``compute`` must be picklable by cloudpickle there) and each is cached the moment it
+        lands, so an interrupted batch resumes. Results come back in spec order; ``bar``
+        (a progress bar) advances once per item."""
+        results: list = [None] * len(specs)
+        missing = []
+        for k, (name, params, _) in enumerate(specs):
+            cached = self._cached(name, params)
+            if cached is None:
+                missing.append(k)
+                continue
+            self.reused.append(name)
+            results[k] = cached
+            if bar is not None:
+                bar.update(1)
+
+        def land(j: int, value) -> None:
+            name, params, _ = specs[missing[j]]
+            results[missing[j]] = self._store(name, params, *value)
+            if bar is not None:
+                bar.update(1)
+
+        run_tasks(compute_item_task, shared, [specs[k][2] for k in missing], land,
+                  scheduler=self.scheduler or "serial", name="item")
+        return results
+
+    def render_batch(self, specs, *, shared=None, bar=None) -> list[RenderResult]:
+        """``batch`` of renders: ``render(shared)`` → RenderResult per spec."""
+        wrapped = [(name, params, _as_arrays(render)) for name, params, render in specs]
+        return [result_from_arrays(meta, arrays)
+                for meta, arrays in self.batch(wrapped, shared=shared, bar=bar)]
+
+    def value_batch(self, specs, *, shared=None, bar=None) -> list[dict]:
+        """``batch`` of JSON-only results: ``compute(shared)`` → dict per spec."""
+        wrapped = [(name, params, _as_value(compute)) for name, params, compute in specs]
+        return [data for data, _ in self.batch(wrapped, shared=shared, bar=bar)]
 
     def render_item(self, name: str, params: dict, render: Callable[[], RenderResult]
                     ) -> RenderResult:

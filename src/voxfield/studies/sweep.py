@@ -30,33 +30,36 @@ def run_sweep(
     octree: Octree, camera: Camera, out_dir: str | Path, *,
     decays=THESIS_DECAYS, thresholds=THESIS_THRESHOLDS, base_lod: int | None = 2,
     seed: int = 0, channel: str = "albedo", scene_name: str = "scene", progress: bool = False,
-    fresh: bool = False,
+    fresh: bool = False, scheduler=None,
 ) -> dict:
     """Render the grid (resumable: finished cells are reused) and write results.json,
-    results.md and sweep.png into ``out_dir``."""
-    folder = StudyFolder(out_dir, fresh=fresh)
+    results.md and sweep.png into ``out_dir``. The cells are independent items: with a
+    ``scheduler`` (``voxfield.scaleout``) they run as tasks, with the same results."""
+    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
     view = {"scene": scene_name, "fingerprint": octree.fingerprint(channel),
             "camera": camera.params.tolist(), "size": camera.width, "seed": seed,
             "channel": channel,
             "base_lod": base_lod}
     reference = folder.render_item("reference", view, lambda: render_reference(
         octree, camera, side=4, seed=seed, channel=channel))
-    adaptive = folder.value_item("adaptive", view, lambda: costs_and_quality(
-        reference, render_adaptive(octree, camera, base_lod=base_lod, seed=seed, channel=channel)))
-    cells = []
-    with progress_bar(total=len(decays) * len(thresholds), desc="sweep", unit="render",
-                      enabled=progress) as bar:
-        for decay in decays:
-            for threshold in thresholds:
-                params = {**view, "decay": decay, "threshold": threshold}
-                cell = folder.value_item(
-                    f"ea-d{decay:g}-t{threshold:g}", params,
-                    lambda d=decay, t=threshold: costs_and_quality(reference, render_error_aware(
-                        octree, camera, threshold=t, decay=d, base_lod=base_lod, seed=seed,
-                        channel=channel)),
-                )
-                cells.append({"decay": decay, "threshold": threshold, **cell})
-                bar.update(1)
+    # Each item reads the octree and the reference from ``shared`` (scattered to a cluster
+    # once), never from this closure.
+    specs = [("adaptive", view, lambda shared: costs_and_quality(shared[1], render_adaptive(
+        shared[0], camera, base_lod=base_lod, seed=seed, channel=channel)))]
+    for decay in decays:
+        for threshold in thresholds:
+            specs.append((
+                f"ea-d{decay:g}-t{threshold:g}", {**view, "decay": decay, "threshold": threshold},
+                lambda shared, d=decay, t=threshold: costs_and_quality(
+                    shared[1], render_error_aware(shared[0], camera, threshold=t, decay=d,
+                                                  base_lod=base_lod, seed=seed,
+                                                  channel=channel)),
+            ))
+    with progress_bar(total=len(specs), desc="sweep", unit="render", enabled=progress) as bar:
+        adaptive, *values = folder.value_batch(specs, shared=(octree, reference), bar=bar)
+    grid = [(d, t) for d in decays for t in thresholds]
+    cells = [{"decay": d, "threshold": t, **cell} for (d, t), cell in zip(grid, values,
+                                                                          strict=True)]
     picks = _closest_to_adaptive(cells, adaptive["rays"], decays)
     report = {"scene": scene_name, "width": camera.width, "height": camera.height,
               "base_lod": base_lod, "adaptive": adaptive, "cells": cells,

@@ -34,11 +34,12 @@ def run_threshold_study(
     octree: Octree, camera: Camera, out_dir: str | Path, *,
     thresholds=THESIS_THRESHOLDS, decay: float = THESIS_DECAY, base_lod: int | None = 2,
     seed: int = 0, channel: str = "albedo", scene_name: str = "scene", progress: bool = False,
-    fresh: bool = False,
+    fresh: bool = False, scheduler=None,
 ) -> dict:
     """Render the error-aware renderer per threshold (resumable) and write results.json,
-    results.md and thresholds.png into ``out_dir``."""
-    folder = StudyFolder(out_dir, fresh=fresh)
+    results.md and thresholds.png into ``out_dir``. The thresholds are independent items:
+    with a ``scheduler`` (``voxfield.scaleout``) they run as tasks, with the same results."""
+    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
     view = {"scene": scene_name, "fingerprint": octree.fingerprint(channel),
             "camera": camera.params.tolist(), "size": camera.width, "height": camera.height,
             "seed": seed, "channel": channel, "base_lod": base_lod}
@@ -47,20 +48,19 @@ def run_threshold_study(
         reference = folder.render_item("reference", view, lambda: render_reference(
             octree, camera, side=4, seed=seed, channel=channel))
         bar.update(1)
-        adaptive = folder.value_item("adaptive", view, lambda: costs_and_quality(
-            reference, render_adaptive(octree, camera, base_lod=base_lod, seed=seed,
-                                       channel=channel)))
-        bar.update(1)
-        rows = []
-        for threshold in thresholds:
-            cell = folder.value_item(
-                f"ea-d{decay:g}-t{threshold:g}", {**view, "decay": decay, "threshold": threshold},
-                lambda t=threshold: costs_and_quality(reference, render_error_aware(
-                    octree, camera, threshold=t, decay=decay, base_lod=base_lod, seed=seed,
-                    channel=channel)),
-            )
-            rows.append({"threshold": threshold, "error_aware": cell, "adaptive": adaptive})
-            bar.update(1)
+        # Each item reads the octree and the reference from ``shared`` (scattered once).
+        specs = [("adaptive", view, lambda shared: costs_and_quality(
+            shared[1], render_adaptive(shared[0], camera, base_lod=base_lod, seed=seed,
+                                       channel=channel)))]
+        specs += [(f"ea-d{decay:g}-t{threshold:g}",
+                   {**view, "decay": decay, "threshold": threshold},
+                   lambda shared, t=threshold: costs_and_quality(shared[1], render_error_aware(
+                       shared[0], camera, threshold=t, decay=decay, base_lod=base_lod,
+                       seed=seed, channel=channel)))
+                  for threshold in thresholds]
+        adaptive, *cells = folder.value_batch(specs, shared=(octree, reference), bar=bar)
+    rows = [{"threshold": t, "error_aware": cell, "adaptive": adaptive}
+            for t, cell in zip(thresholds, cells, strict=True)]
     report = {"scene": scene_name, "width": camera.width, "height": camera.height,
               "decay": decay, "base_lod": base_lod, "seed": seed,
               "reference": costs(reference), "adaptive": adaptive, "rows": rows,

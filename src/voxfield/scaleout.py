@@ -1,0 +1,163 @@
+"""Independent tasks on a Dask scheduler, results handed back as they finish.
+
+Every long job whose work splits into independent pieces (probes of a bake, voxel chunks of
+the sun bake, items of a study) runs through ``run_tasks``. A task is a pure function of a
+large shared argument and a small per-task one, so where it runs does not change what it
+returns, and callers merge results by task index: every scheduler gives the same output as
+the plain loop. Schedulers (``--scheduler`` on the command line):
+
+- ``"serial"``: no Dask; one task after another in this process, each task's kernels on every
+  core.
+- ``None`` or ``"threads"``: Dask's threaded scheduler in this process. The shared argument is
+  not copied; the Numba kernels release the GIL, so tasks overlap on all cores.
+- ``"processes"``: a ``distributed.LocalCluster`` of one single-threaded worker process per
+  core, started for the job and closed after it.
+- any other string with a colon: the address of a running Dask scheduler
+  (``tcp://host:8786``), reached with ``distributed.Client``; its workers need voxfield
+  installed (the same version) and must see any file the job names.
+- a ``distributed.Client``: used as it is (and left open).
+
+With a ``distributed`` client the shared argument is scattered to the workers once and each
+task receives only its own small argument. When several tasks run at once their kernels run
+single-threaded (``kernel_threads`` is 1), so tasks, not pixels, are the parallel axis and the
+cores are not oversubscribed.
+"""
+
+from __future__ import annotations
+
+import os
+import uuid
+from collections.abc import Callable, Sequence
+
+from voxfield.errors import VoxfieldError
+
+LOCAL_SCHEDULERS = ("threads", "processes", "serial")
+SCHEDULER_HELP = ("where independent pieces run: threads (Dask's threaded scheduler), "
+                  "processes (a local Dask cluster), serial (no Dask), or a Dask scheduler "
+                  "address like tcp://host:8786")
+
+
+class SchedulerError(VoxfieldError):
+    """The Dask scheduler could not be reached or started."""
+
+
+def check_scheduler(scheduler) -> None:
+    """Refuse a scheduler that names nothing (before any file is written): threads, serial,
+    processes, a ``host:port`` address or a ``distributed.Client`` are accepted."""
+    if scheduler is None or not isinstance(scheduler, str):
+        return
+    if scheduler in LOCAL_SCHEDULERS or ":" in scheduler:
+        return
+    raise SchedulerError(f"scheduler must be threads, processes, serial or a Dask scheduler "
+                         f"address like tcp://host:8786, got {scheduler!r}")
+
+
+def run_tasks(
+    task: Callable, shared, arguments: Sequence, emit: Callable[[int, object], None], *,
+    scheduler=None, name: str = "task",
+) -> None:
+    """Call ``task(shared, argument, kernel_threads)`` for every argument and
+    ``emit(index, result)`` for each, in this thread, as soon as it finishes (completion order,
+    not index order). ``task`` must be importable by workers (a module-level function) for
+    process and cluster schedulers."""
+    check_scheduler(scheduler)
+    if not arguments:
+        return
+    if scheduler == "serial":
+        for index, argument in enumerate(arguments):
+            emit(index, task(shared, argument, None))
+    elif scheduler is None or scheduler == "threads":
+        _run_threads(task, shared, arguments, emit, name)
+    else:
+        with scheduler_client(scheduler) as client:
+            _run_client(client, task, shared, arguments, emit, name)
+
+
+def _run_threads(task, shared, arguments, emit, name: str) -> None:
+    """Dask's threaded scheduler; a post-task callback hands each result over as it lands
+    (the local scheduler runs callbacks in the calling thread)."""
+    # heavy: Dask loads only when a job runs on a scheduler
+    import dask
+    from dask.callbacks import Callback
+
+    workers = max(1, min(len(arguments), os.cpu_count() or 1))
+    kernel_threads = 1 if workers > 1 else None
+    # A named, untraversed delayed: Dask neither hashes the shared arrays nor walks its
+    # fields; every task reads the same object.
+    shared_node = dask.delayed(shared, name=f"voxfield-{name}-shared", traverse=False)
+    run = dask.delayed(task, pure=True)
+    keys = {f"voxfield-{name}-{i}": i for i in range(len(arguments))}
+    tasks = [run(shared_node, argument, kernel_threads, dask_key_name=key)
+             for key, argument in zip(keys, arguments, strict=True)]
+
+    class Deliver(Callback):
+        def _posttask(self, key, result, dsk, state, worker_id):
+            if key in keys:
+                emit(keys[key], result)
+
+    with Deliver():
+        dask.compute(*tasks, scheduler="threads", num_workers=workers)
+
+
+def _run_client(client, task, shared, arguments, emit, name: str) -> None:
+    """Scatter the shared argument once, submit one task per argument, deliver results as
+    they finish."""
+    # heavy: Dask loads only when a job runs on a scheduler
+    from distributed import as_completed
+
+    # In a list, the shared argument is one object even when it is a tuple or a dict.
+    [scattered] = client.scatter([shared], broadcast=True, hash=False)
+    run = uuid.uuid4().hex[:12]  # keys unique per job on a shared cluster
+    futures = [client.submit(task, scattered, argument, 1, key=f"voxfield-{name}-{run}-{i}",
+                             pure=False) for i, argument in enumerate(arguments)]
+    index_of = {f.key: i for i, f in enumerate(futures)}
+    try:
+        for future, result in as_completed(futures, with_results=True):
+            emit(index_of[future.key], result)
+            future.release()
+    finally:
+        for future in futures:
+            future.release()
+        scattered.release()
+
+
+class scheduler_client:
+    """A context manager yielding a ``distributed.Client`` for ``scheduler``: a local
+    process cluster for ``"processes"``, a connection for an address, or the given client."""
+
+    def __init__(self, scheduler) -> None:
+        self.scheduler = scheduler
+        self.owned: list = []
+
+    def __enter__(self):
+        # heavy: Dask loads only when a job runs on a scheduler
+        from distributed import Client, LocalCluster
+
+        s = self.scheduler
+        if isinstance(s, Client):
+            return s
+        if not isinstance(s, str) or not (s == "processes" or ":" in s):
+            raise SchedulerError(f"scheduler must be threads, processes, serial or a Dask "
+                                 f"scheduler address like tcp://host:8786, got {s!r}")
+        try:
+            if s == "processes":
+                cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1,
+                                       processes=True, dashboard_address=None)
+                self.owned.append(cluster)
+                client = Client(cluster)
+            else:
+                client = Client(s, timeout="10s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            self.__exit__(None, None, None)
+            raise SchedulerError(
+                f"cannot reach the Dask scheduler {s!r} ({exc}); start one with "
+                "`dask scheduler` and workers with `dask worker ADDRESS`, or use "
+                "--scheduler threads|processes"
+            ) from exc
+        self.owned.insert(0, client)
+        return client
+
+    def __exit__(self, *exc) -> None:
+        for thing in self.owned:
+            thing.close()
+        self.owned.clear()
