@@ -91,7 +91,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--sizes", type=positive_int_list, default=THESIS_SIZES,
                    help="comma-separated image sides (default 128,256,512,1024)")
     add_threshold_options(r)
-    add_study_folder(r, "resolution", "cells")
+    add_study_folder(r, "resolution", "cells", scheduled=True)
     add_channel_option(r)
     add_quiet(r)
     r.set_defaults(func=run_resolution)
@@ -111,7 +111,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="times of day to bake when the scene has none (default all four)")
     add_renderer_options(g, ("error-aware", "adaptive"),
                          only=("threshold", "decay", "base_lod", "bright_ratio"))
-    add_study_folder(g, "lighting", "renders")
+    add_study_folder(g, "lighting", "renders", scheduled=True)
     add_view_options(g)
     g.set_defaults(func=run_lighting)
 
@@ -274,7 +274,7 @@ def run_resolution(args) -> int:
     report = run_resolution_study(
         octree, out, sizes=args.sizes, threshold=args.threshold, decay=args.decay,
         seed=args.seed, channel=args.channel, scene_name=args.scene, progress=not args.quiet,
-        fresh=args.fresh)
+        fresh=args.fresh, scheduler=args.scheduler)
     if not args.quiet:
         for row in report["rows"]:
             a, e = row["adaptive"], row["error_aware"]
@@ -297,7 +297,8 @@ def run_lighting(args) -> int:
     report = run_lighting_study(
         octree, view, out, channels=channels, threshold=args.threshold, decay=args.decay,
         base_lod=args.base_lod, bright_ratio=args.bright_ratio, seed=args.seed,
-        scene_name=args.scene, progress=not args.quiet, fresh=args.fresh)
+        scene_name=args.scene, progress=not args.quiet, fresh=args.fresh,
+        scheduler=args.scheduler)
     if not args.quiet:
         for row in report["rows"]:
             parts = [f"{label} {row[key]['steps']:,} steps {fmt(row[key]['psnr'], '.2f')} dB"

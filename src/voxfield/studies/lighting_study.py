@@ -49,17 +49,18 @@ def run_lighting_study(
     octree: Octree, camera: Camera, out_dir: str | Path, *, channels: list[str] | None = None,
     threshold: float = THESIS_THRESHOLD, decay: float = THESIS_DECAY, base_lod: int | None = 2,
     bright_ratio: float = DEFAULT_BRIGHT_RATIO, seed: int = 0, scene_name: str = "scene",
-    progress: bool = False, fresh: bool = False,
+    progress: bool = False, fresh: bool = False, scheduler=None,
 ) -> dict:
     """Render and measure every channel (resumable); write results.json, results.md,
-    lighting.png (the tables as bars) and contact_sheet.png into ``out_dir``."""
+    lighting.png (the tables as bars) and contact_sheet.png into ``out_dir``. The renders are
+    independent items: with a ``scheduler`` (``voxfield.scaleout``) they run as tasks."""
     channels = list(channels or lighting_channels(octree))
     for name in channels:
         octree.channel(name)  # unknown channels fail before any work
     if len(channels) < 2:
         raise VoxfieldError("the octree has no baked lighting channels; bake some with "
                             "`voxfield light SCENE` and study the octree file it writes")
-    folder = StudyFolder(out_dir, fresh=fresh)
+    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
     settings = {"threshold": threshold, "decay": decay, "base_lod": base_lod}
     # Row → (registered renderer, its options); the thesis's 4×4 reference is the default.
     rows_drawn = {
@@ -69,35 +70,39 @@ def run_lighting_study(
         "lighting_aware": ("error-aware", renderer_options(
             "error-aware", lighting_aware=True, bright_ratio=bright_ratio, **settings)),
     }
-    renders = {row: (lambda c, name=name, options=options: render(
-        octree, camera, name, options, seed=seed, channel=c))
+    renders = {row: (lambda o, c, name=name, options=options: render(
+        o, camera, name, options, seed=seed, channel=c))
         for row, (name, options) in rows_drawn.items()}
-    rows, sheet = [], []
-    with progress_bar(total=len(channels) * len(renders), desc="lighting", unit="render",
+    views = {channel: {"scene": scene_name, "fingerprint": octree.fingerprint(channel),
+                       "camera": camera.params.tolist(), "size": camera.width, "seed": seed,
+                       "channel": channel} for channel in channels}
+    specs = []
+    for channel in channels:
+        for name, draw in renders.items():
+            params = ({**views[channel]} if name in ("reference", "adaptive")
+                      else {**views[channel], **settings})
+            if name == "lighting_aware":
+                params["bright_ratio"] = bright_ratio
+            if name == "adaptive":
+                params["base_lod"] = base_lod
+            # The octree comes from ``shared`` (scattered to a cluster once).
+            specs.append((f"{name}-{channel}", params,
+                          lambda shared, r=draw, c=channel: r(shared, c)))
+    with progress_bar(total=len(specs), desc="lighting", unit="render",
                       enabled=progress) as bar:
-        for channel in channels:
-            view = {"scene": scene_name, "fingerprint": octree.fingerprint(channel),
-                    "camera": camera.params.tolist(), "size": camera.width, "seed": seed,
-                    "channel": channel}
-            results = {}
-            for name, draw in renders.items():
-                params = {**view} if name in ("reference", "adaptive") else {**view, **settings}
-                if name == "lighting_aware":
-                    params["bright_ratio"] = bright_ratio
-                if name == "adaptive":
-                    params["base_lod"] = base_lod
-                results[name] = folder.render_item(f"{name}-{channel}", params,
-                                                   lambda r=draw, c=channel: r(c))
-                bar.update(1)
-            reference = results["reference"]
-            row = {"channel": channel, "luminance": image_luminance(reference.image)}
-            for name, _ in CONTENDERS:
-                row[name] = folder.value_item(
-                    f"quality_{name}-{channel}", {**view, **settings, "renderer": name,
-                                                  "bright_ratio": bright_ratio},
-                    lambda r=results[name], ref=reference: costs_and_quality(ref, r))
-            rows.append(row)
-            sheet.append((channel, results))
+        rendered = iter(folder.render_batch(specs, shared=octree, bar=bar))
+    rows, sheet = [], []
+    for channel in channels:
+        results = {name: next(rendered) for name in renders}
+        reference = results["reference"]
+        row = {"channel": channel, "luminance": image_luminance(reference.image)}
+        for name, _ in CONTENDERS:
+            row[name] = folder.value_item(
+                f"quality_{name}-{channel}", {**views[channel], **settings, "renderer": name,
+                                              "bright_ratio": bright_ratio},
+                lambda r=results[name], ref=reference: costs_and_quality(ref, r))
+        rows.append(row)
+        sheet.append((channel, results))
     report = {
         "study": "lighting", "scene": scene_name, "width": camera.width,
         "height": camera.height, "settings": {**settings, "bright_ratio": bright_ratio,

@@ -54,40 +54,45 @@ def run_resolution_study(
     octree: Octree, out_dir: str | Path, *, sizes=THESIS_SIZES, threshold: float = THESIS_THRESHOLD,
     decay: float = THESIS_DECAY, seed: int = 0, channel: str = "albedo", scene_name: str = "scene",
     progress: bool = False,
-    fresh: bool = False,
+    fresh: bool = False, scheduler=None,
 ) -> dict:
     """Render the three renderers at each size (resumable) and write results.json,
-    results.md and resolution.png into ``out_dir``."""
-    folder = StudyFolder(out_dir, fresh=fresh)
+    results.md and resolution.png into ``out_dir``. The references, then the cheap renders,
+    are independent items: with a ``scheduler`` (``voxfield.scaleout``) they run as tasks,
+    with the same results."""
+    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
     lo, hi = octree.voxel_bounds
     footprint = map_footprint(octree)
     fingerprint = octree.fingerprint(channel)
-    rows = []
+    cameras = [top_down_camera(lo, hi, size=size, fov_deg=90) for size in sizes]
+    base_lods = [base_lod_for(footprint, size, octree.depth) for size in sizes]
+    views = [{"scene": scene_name, "fingerprint": fingerprint, "camera": c.params.tolist(),
+              "size": size, "seed": seed} for size, c in zip(sizes, cameras, strict=True)]
     with progress_bar(total=3 * len(sizes), desc="resolution", unit="render",
                       enabled=progress) as bar:
-        for size in sizes:
-            camera = top_down_camera(lo, hi, size=size, fov_deg=90)
-            base_lod = base_lod_for(footprint, size, octree.depth)
-            view = {"scene": scene_name, "fingerprint": fingerprint,
-                    "camera": camera.params.tolist(), "size": size, "seed": seed}
-            reference = folder.render_item(f"reference-s{size}", view, lambda c=camera: (
-                render_reference(octree, c, side=4, seed=seed, channel=channel)))
-            bar.update(1)
-            adaptive = folder.value_item(
-                f"adaptive-s{size}", {**view, "base_lod": base_lod},
-                lambda c=camera, b=base_lod, r=reference: costs_and_quality(
-                    r, render_adaptive(octree, c, base_lod=b, seed=seed, channel=channel)))
-            bar.update(1)
-            error_aware = folder.value_item(
-                f"ea-s{size}-d{decay:g}-t{threshold:g}",
-                {**view, "base_lod": base_lod, "decay": decay, "threshold": threshold},
-                lambda c=camera, b=base_lod, r=reference: costs_and_quality(
-                    r, render_error_aware(octree, c, threshold=threshold, decay=decay,
-                                          base_lod=b, seed=seed, channel=channel)))
-            bar.update(1)
-            rows.append({"size": size, "pixels": size * size, "base_lod": base_lod,
-                         "reference": costs(reference), "adaptive": adaptive,
-                         "error_aware": error_aware})
+        references = folder.render_batch(
+            [(f"reference-s{size}", view, lambda shared, c=c: render_reference(
+                shared, c, side=4, seed=seed, channel=channel))
+             for size, view, c in zip(sizes, views, cameras, strict=True)],
+            shared=octree, bar=bar)
+        # Each item reads the octree and its size's reference from ``shared``.
+        specs = []
+        for k, (size, view, c, b) in enumerate(zip(sizes, views, cameras, base_lods,
+                                                   strict=True)):
+            specs.append((f"adaptive-s{size}", {**view, "base_lod": b},
+                          lambda shared, c=c, b=b, k=k: costs_and_quality(
+                              shared[1][k], render_adaptive(shared[0], c, base_lod=b, seed=seed,
+                                                            channel=channel))))
+            specs.append((f"ea-s{size}-d{decay:g}-t{threshold:g}",
+                          {**view, "base_lod": b, "decay": decay, "threshold": threshold},
+                          lambda shared, c=c, b=b, k=k: costs_and_quality(
+                              shared[1][k], render_error_aware(
+                                  shared[0], c, threshold=threshold, decay=decay, base_lod=b,
+                                  seed=seed, channel=channel))))
+        values = folder.value_batch(specs, shared=(octree, references), bar=bar)
+    rows = [{"size": size, "pixels": size * size, "base_lod": b, "reference": costs(ref),
+             "adaptive": values[2 * k], "error_aware": values[2 * k + 1]}
+            for k, (size, b, ref) in enumerate(zip(sizes, base_lods, references, strict=True))]
     report = {"scene": scene_name, "footprint": footprint, "depth": octree.depth,
               "threshold": threshold, "decay": decay, "seed": seed, "channel": channel,
               "camera": "top, 90°",
