@@ -149,3 +149,17 @@ def test_crop_fit_uses_the_centred_square_window():
     assert np.array_equal(cols.elevation[0], np.arange(5, 15))
     wide = terrain_columns(Heightmap(elev, spacing=(1, 1)), 10, fill_depth=0)
     assert wide.metres_per_voxel == (1.0, 2.0)  # stretched: 2 m of ground per voxel in x
+
+
+def test_ground_laid_out_in_bands_equals_one_go(monkeypatch):
+    """``TerrainLayout.scene`` lays the ground out in bands of rows (so Ctrl-C is heard);
+    the voxels, their order and colours are those of a single pass."""
+    from voxfield.scene.terrain import layout
+
+    monkeypatch.setattr(layout, "GROUND_BAND_ROWS", 10**6)
+    whole = recipe_scene("mountain", footprint=48, seed=2)
+    monkeypatch.setattr(layout, "GROUND_BAND_ROWS", 5)  # uneven: 48 = 9 × 5 + 3
+    banded = recipe_scene("mountain", footprint=48, seed=2)
+    np.testing.assert_array_equal(banded.coords, whole.coords)
+    np.testing.assert_array_equal(banded.color, whole.color)
+    assert len(whole) > 48 * 48

@@ -113,3 +113,15 @@ def test_cli_studies_take_a_scheduler(tmp_path, capsys):
         main(["sweep", "builtin:pillars", "--scheduler", "nowhere", "--out", str(tmp_path)])
     assert exc.value.code == 2
     assert "scheduler must be" in capsys.readouterr().err
+
+
+def test_normalisation_study_is_identical_on_threads(tmp_path, octree, camera):
+    from voxfield.studies.adaptive_normalisation import run_normalisation_study
+
+    menger = build_octree(BUILTIN_SCENES["menger"]())
+    scenes = {"pillars": (octree, camera),
+              "menger": (menger, orbit_camera(*menger.voxel_bounds, size=20))}
+    loop = run_normalisation_study(scenes, tmp_path / "loop")
+    threads = run_normalisation_study(scenes, tmp_path / "threads", scheduler="threads")
+    assert threads == loop
+    assert [row["scene"] for row in loop["scenes"]] == ["pillars", "menger"]

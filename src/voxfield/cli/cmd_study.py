@@ -23,6 +23,7 @@ from voxfield.cli.options import (
     open_octree,
     positive_int_list,
     scene_camera,
+    scheduler_name,
 )
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import EPSILON_MODES, LightFieldOptions
@@ -30,6 +31,7 @@ from voxfield.lighting import bake_sun_lighting, parse_suns
 from voxfield.probes.grid import parse_grid
 from voxfield.render.camera import preset_camera
 from voxfield.render.placement import check_camera_placement
+from voxfield.scaleout import SCHEDULER_HELP
 from voxfield.studies.adaptive_normalisation import run_normalisation_study
 from voxfield.studies.curves_study import (
     CURVE_CAMERAS,
@@ -200,6 +202,9 @@ def _register_normalisation(actions) -> None:
                    help="first-pass LOD, or 'cone' (default 2)")
     n.add_argument("--out", default=None,
                    help="output folder (default out/normalisation_SCENE)")
+    n.add_argument("--scheduler", type=scheduler_name, default=None, metavar="WHERE",
+                   help=SCHEDULER_HELP + "; each scene's first pass is a task (default: one "
+                   "after another here)")
     add_channel_option(n)
     add_view_options(n, size=256)
     n.set_defaults(func=run_normalisation)
@@ -215,7 +220,7 @@ def run_normalisation(args) -> int:
     out = args.out or default_output("normalisation", next(iter(scenes)))
     report = run_normalisation_study(scenes, out, base_lod=args.base_lod,
                                      quantile=args.quantile, seed=args.seed,
-                                     channel=args.channel)
+                                     channel=args.channel, scheduler=args.scheduler)
     if not args.quiet:
         print(f"variance normalisation across {len(scenes)} scene(s): "
               f"{report['normalisation']:.5g} (wrote {out}/report.html and results.md)")
@@ -373,7 +378,7 @@ def _register_probes(actions) -> argparse.ArgumentParser:
                    help="keep probes on their lattice points even inside geometry")
     p.add_argument("--repeats", type=int, default=3,
                    help="timed runs per renderer in the wall-time section (default 3)")
-    add_study_folder(p, "probe_study")
+    add_study_folder(p, "probe_study", scheduled=True)
     add_channel_option(p)
     add_view_options(p, size=256)
     p.set_defaults(func=run_probes, camera="room")
@@ -406,7 +411,8 @@ def run_probes(args) -> int:
         orderings=args.orderings, marchers=args.marchers,
         count_resolution=args.count_resolution, options=options,
         relocate_probes=not args.no_relocate, channel=args.channel,
-        timing_repeats=args.repeats, seed=args.seed, progress=not quiet, fresh=args.fresh)
+        timing_repeats=args.repeats, seed=args.seed, progress=not quiet, fresh=args.fresh,
+        scheduler=args.scheduler)
     if not quiet:
         print(results_markdown(report))
         print(f"wrote {out}/report.html, results.md, results.json, fetches_vs_resolution.png, "

@@ -17,6 +17,8 @@ made the radiance, so a probe's depth is the octree's own ray-cast distance.
 
 from __future__ import annotations
 
+import base64
+import html
 import math
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, fields
@@ -26,6 +28,7 @@ import numpy as np
 from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.octahedral import decode_normals_snorm16, encode_normals_snorm16
+from voxfield.render.image_io import png_bytes
 from voxfield.render.primary import LodOptions, ReferenceOptions
 from voxfield.render.registry import RENDERERS
 
@@ -321,15 +324,14 @@ class ProbeSet:
         return min_distance_mips(self.distance)
 
     def _repr_html_(self) -> str:
-        """Jupyter shows a probe set as its cost summary beside its radiance atlas."""
-        import base64
-        import html
-
-        from voxfield.probes.show import display_atlases
-        from voxfield.render.image_io import png_bytes
-
+        """Jupyter shows a probe set as its cost summary beside its radiance maps (one tile
+        per probe, in probe order, a texel apart)."""
         s = self.cost_summary()
-        atlas = base64.b64encode(png_bytes(display_atlases(self)["radiance"])).decode("ascii")
+        r = self.resolution
+        strip = np.ones((r, max(1, self.count) * (r + 1) - 1, 3), np.float32)
+        for i in range(self.count):
+            strip[:, i * (r + 1):i * (r + 1) + r] = self.radiance[i]
+        atlas = base64.b64encode(png_bytes(strip)).decode("ascii")
         counts = " × ".join(str(int(c)) for c in np.asarray(self.grid.counts).reshape(-1))
         rows = [("probes", f"{s['baked']} of {s['probes']} baked, grid {counts}"),
                 ("resolution", f"{s['resolution']}² texels"), ("renderer", s["renderer"]),
@@ -338,8 +340,8 @@ class ProbeSet:
         table = "".join(f"<tr><th style='text-align:left'>{html.escape(k)}</th>"
                         f"<td>{html.escape(str(v))}</td></tr>" for k, v in rows)
         return (f"<div style='display:flex;gap:1em;align-items:flex-start'><table>{table}"
-                f"</table><img alt='radiance atlas' style='image-rendering:pixelated;"
-                f"min-width:256px' src='data:image/png;base64,{atlas}'></div>")
+                f"</table><img alt='radiance maps' style='image-rendering:pixelated;"
+                f"min-height:64px' src='data:image/png;base64,{atlas}'></div>")
 
 
 def _stack(arrays: list[np.ndarray], empty_shape: tuple, dtype) -> np.ndarray:

@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from voxfield.render.image_io import png_bytes, shade_for_display
+
 
 @dataclass
 class RenderResult:
@@ -70,8 +72,6 @@ class RenderResult:
     def _repr_png_(self) -> bytes:
         """Jupyter shows a result as ``voxfield render`` writes its PNG: lit by the display
         key light (``image`` itself stays the flat linear colour the metrics read)."""
-        from voxfield.render.image_io import png_bytes, shade_for_display
-
         return png_bytes(shade_for_display(self))
 
     def summary(self) -> dict:

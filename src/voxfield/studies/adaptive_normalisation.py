@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.parallel import thread_count
 from voxfield.render.adaptive import (
     VARIANCE_NORMALISATION,
     first_pass_variance,
@@ -21,20 +22,38 @@ from voxfield.render.adaptive import (
 )
 from voxfield.render.camera import Camera
 from voxfield.render.primary import render_lod
+from voxfield.scaleout import run_tasks
 from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import StudyFolder, fmt, markdown_table
 from voxfield.svo.octree import Octree
 
 
+def first_pass_task(settings, scene, kernel_threads: int | None = None):
+    """One scene's first-pass variance (``scene`` is its octree and camera)."""
+    base_lod, seed, channel = settings
+    octree, camera = scene
+    with thread_count(kernel_threads):
+        result = render_lod(octree, camera, lod=base_lod, seed=seed, channel=channel)
+    return first_pass_variance(result)
+
+
 def run_normalisation_study(
     scenes: dict[str, tuple[Octree, Camera]], out_dir: str | Path, *,
     base_lod: int | None = 2, quantile: float = 1.0, seed: int = 0, channel: str = "albedo",
+    scheduler=None,
 ) -> dict:
     """First passes of every scene, their variance statistics and the shared constant;
-    results.json and results.md in ``out_dir``."""
-    first_passes = {name: render_lod(octree, camera, lod=base_lod, seed=seed, channel=channel)
-                    for name, (octree, camera) in scenes.items()}
-    variances = {name: first_pass_variance(result) for name, result in first_passes.items()}
+    results.json and results.md in ``out_dir``. Each scene's first pass is an independent
+    task on ``scheduler`` (``voxfield.scaleout``; None: one after another here)."""
+    variances: dict = {}
+    names = list(scenes)
+
+    def land(index: int, ssd) -> None:
+        variances[names[index]] = ssd
+
+    run_tasks(first_pass_task, (base_lod, seed, channel), [scenes[n] for n in names], land,
+              scheduler=scheduler or "serial", name="first-pass")
+    variances = {name: variances[name] for name in names}  # scene order, not finish order
     constant = normalisation_of(list(variances.values()), quantile)
     rows = []
     for name, ssd in variances.items():
@@ -46,7 +65,7 @@ def run_normalisation_study(
                      if len(ssd) else 0.0})
     report = {"normalisation": constant, "quantile": quantile, "base_lod": base_lod,
               "default": VARIANCE_NORMALISATION, "scenes": rows}
-    folder = StudyFolder(out_dir)
+    folder = StudyFolder(out_dir, scheduler=scheduler)
     folder.write_json("results.json", report)
     folder.write_text("results.md", _markdown(report))
     write_html_report(folder.root)

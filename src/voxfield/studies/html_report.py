@@ -89,13 +89,15 @@ def _read_results(folder: Path) -> dict:
 
 
 def markdown_to_html(text: str) -> str:
-    from markdown import markdown  # only the report needs it
+    # deferred: the Markdown and template libraries load only when a report is written
+    from markdown import markdown
     from markupsafe import Markup
 
     return Markup(markdown(text, extensions=["tables"], output_format="html"))
 
 
 def _template():
+    # deferred: the Markdown and template libraries load only when a report is written
     from jinja2 import Environment, PackageLoader, select_autoescape
 
     env = Environment(loader=PackageLoader("voxfield.studies", "templates"),
@@ -161,7 +163,7 @@ def _comparison(folder: Path, entry: dict) -> dict:
 
 def difference_map(image_path: Path, reference_path: Path) -> np.ndarray:
     """|Δ| of two sRGB images (mean over channels, ×``DIFFERENCE_GAIN``) on the inferno scale."""
-    from matplotlib import colormaps
+    from matplotlib import colormaps  # heavy: loaded only when a report is written
 
     a = _rgb(image_path)
     b = _rgb(reference_path)

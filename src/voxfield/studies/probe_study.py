@@ -43,6 +43,7 @@ from voxfield.lightfield.trace import ORDERINGS as KNOWN_ORDERINGS
 from voxfield.lightfield.trace import LightFieldOptions
 from voxfield.metrics import compare_images
 from voxfield.probes.bake import bake_probes
+from voxfield.probes.distributed import bake_probes_dask
 from voxfield.probes.grid import DEFAULT_CLEARANCE_FRACTION, ProbeGrid, relocate
 from voxfield.probes.probe_set import MAX_RESOLUTION, MIN_RESOLUTION, BakeOptions
 from voxfield.progress import progress_bar
@@ -87,7 +88,7 @@ def run_probe_study(
     orderings: Sequence[str] = ORDERINGS, marchers: Sequence[str] = MARCHERS,
     count_resolution: int | None = None, options=None, relocate_probes: bool = True,
     channel: str = "albedo", timing_repeats: int = 3, seed: int = 0, progress: bool = False,
-    fresh: bool = False,
+    fresh: bool = False, scheduler=None,
 ) -> dict:
     """Run the five sections on one scene and view (resumable); write results.json,
     results.md, the plots and contact_sheet.png into ``out_dir``; return the report.
@@ -103,7 +104,7 @@ def run_probe_study(
     options = LightFieldOptions() if options is None else options
     plan = _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, marchers,
                          count_resolution, options, timing_repeats)
-    folder = StudyFolder(out_dir, fresh=fresh)
+    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
     study = _Study(octree, camera, folder, options, channel=channel, seed=seed,
                    relocate_probes=relocate_probes, scene_name=scene_name)
     main = plan["grid"]
@@ -315,7 +316,11 @@ class _Study:
             bake = BakeOptions(resolution=int(resolution), renderer="lod", lod=0,
                                channel=self.channel, seed=self.seed)
             start = time.perf_counter()
-            probe_set = bake_probes(self.octree, grid, bake)
+            if self.folder.scheduler in (None, "serial"):
+                probe_set = bake_probes(self.octree, grid, bake)
+            else:  # the probes as tasks: the same maps (``probes.distributed``)
+                probe_set = bake_probes_dask(self.octree, grid, bake,
+                                             scheduler=self.folder.scheduler)
             seconds = time.perf_counter() - start
             self._bake = (probe_set, PackedProbes.from_probe_set(probe_set), seconds)
             self._bake_key = key

@@ -28,6 +28,8 @@ from voxfield.scene.voxel_scene import VoxelScene
 MAX_TERRAIN_VOXELS = 250_000_000
 #: Asset bucket side (columns) for ``TerrainLayout.column_block``.
 _BUCKET = 64
+#: Rows of columns laid out per step of ``TerrainLayout.scene``.
+GROUND_BAND_ROWS = 256
 
 
 def terrain_layout(
@@ -177,9 +179,20 @@ class TerrainLayout:
                 "vertical_scale or fill_depth, or build the octree streamed "
                 "(voxfield.svo.streamed_build, which the terrain: scenes use)"
             )
-        ground, color = self._ground(slice(None), slice(None))
-        coords = np.concatenate([ground, self._extra_coords(slice(None))])
-        color = np.concatenate([color, self.extra.color])
+        coords = np.empty((n + m, 3), dtype=np.int64)
+        color = np.empty((n + m, 3), dtype=np.float32)
+        # Bands of rows, so no single array operation runs long enough to hold off Ctrl-C
+        # (and no full-size temporaries): rows in order give the same voxel order as one go.
+        first = 0
+        rows = self.cols.top.shape[0]
+        for row0 in range(0, rows, GROUND_BAND_ROWS):
+            band, band_color = self._ground(slice(row0, min(rows, row0 + GROUND_BAND_ROWS)),
+                                            slice(None))
+            coords[first:first + len(band)] = band
+            color[first:first + len(band)] = band_color
+            first += len(band)
+        coords[n:] = self._extra_coords(slice(None))
+        color[n:] = self.extra.color
         emission = None
         if self.extra.emission is not None:
             emission = np.zeros((n + m, 3), dtype=np.float32)
