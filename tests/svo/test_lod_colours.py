@@ -213,3 +213,15 @@ def test_a_streamed_terrain_gets_the_same_facing_colours_as_a_monolithic_build(t
     whole = build_octree(load_scene(spec, options))
     assert DEFAULT_LOD_COLOUR == "facing"
     assert np.array_equal(streamed.facing, whole.facing)
+
+
+def test_directional_colours_in_bands_equal_one_call(monkeypatch):
+    """``facing_colours`` calls its kernel on bands of nodes (so Ctrl-C is heard); the
+    colours are those of one call per level."""
+    from voxfield.svo import lod_colours
+
+    octree = build_octree(random_scene(11, n=700, size=20))
+    whole = lod_colours.facing_colours(octree)
+    monkeypatch.setattr(lod_colours, "KERNEL_BAND_NODES", 3)
+    np.testing.assert_array_equal(lod_colours.facing_colours(octree), whole)
+    assert whole.any()

@@ -7,11 +7,10 @@ import json
 import time
 from pathlib import Path
 
-from voxfield.cli.options import add_quiet, add_scene_options, open_octree, scene_options
+from voxfield.cli.options import add_quiet, add_scene_options, open_octree
 from voxfield.scene.builtin import BUILTIN_SCENES
-from voxfield.scene.loaders import load_scene, npz_kind
+from voxfield.scene.loaders import npz_kind
 from voxfield.scene.terrain import RECIPES
-from voxfield.svo.build import build_octree
 from voxfield.svo.io import load_octree, save_octree
 
 
@@ -42,11 +41,11 @@ def run_info(args) -> int:
         octree = load_octree(path)
         load_note = "loaded"
     else:
+        # As every command opens a scene: terrains stream block by block (bounded memory,
+        # Ctrl-C heard between blocks), --lod-colour and --colour-storage apply.
         start = time.perf_counter()
-        scene = load_scene(args.scene, scene_options(args))
-        load_seconds = time.perf_counter() - start
-        octree = build_octree(scene, progress=not args.quiet)
-        load_note = f"scene read in {load_seconds:.2f} s"
+        octree = open_octree(args)
+        load_note = f"scene opened in {time.perf_counter() - start:.2f} s"
     lo, hi = octree.voxel_bounds
     info = {
         "name": octree.name,

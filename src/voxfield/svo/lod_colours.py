@@ -35,6 +35,9 @@ DEFAULT_LOD_COLOUR = "facing"
 _DOWN_FACE = 2
 
 
+#: Inner nodes per call of the directional-colour kernel (about a second at most).
+KERNEL_BAND_NODES = 1 << 20
+
 def check_lod_colour(rule: str) -> str:
     if rule not in LOD_COLOURS:
         raise VoxfieldError(f"unknown LOD colour rule {rule!r}; choose one of "
@@ -78,7 +81,10 @@ def facing_colours(octree: Octree) -> np.ndarray:
     colors = octree.attributes["color"]
     for level in range(octree.depth - 1, -1, -1):
         sl = octree.level_slice(level)
-        facing_level(octree.descriptors, sl.start, sl.stop, colors, exposure, facing)
+        # Nodes of a level are independent: in bands, so Ctrl-C is heard between kernel calls.
+        for first in range(sl.start, sl.stop, KERNEL_BAND_NODES):
+            facing_level(octree.descriptors, first, min(sl.stop, first + KERNEL_BAND_NODES),
+                         colors, exposure, facing)
     return facing
 
 
@@ -86,6 +92,11 @@ def exposed_faces(octree: Octree) -> np.ndarray:
     """Per voxel (leaf order), the bits of its faces no voxel covers (``kernels.exposure``)."""
     start_level = min(octree.depth - 1, 4)
     out = np.zeros(octree.voxel_count, np.uint8)
-    leaf_exposure(octree.descriptors, octree.depth, start_level,
-                  int(octree.level_offsets[start_level]), octree.node_coords(start_level), out)
+    first = int(octree.level_offsets[start_level])
+    coords = octree.node_coords(start_level)
+    # Subtrees are independent: a few per kernel call, so Ctrl-C is heard between calls.
+    band = max(1, len(coords) // 64)
+    for k in range(0, len(coords), band):
+        leaf_exposure(octree.descriptors, octree.depth, start_level, first + k,
+                      coords[k:k + band], out)
     return out
