@@ -18,9 +18,10 @@ the plain loop. Schedulers (``--scheduler`` on the command line):
 - a ``distributed.Client``: used as it is (and left open).
 
 With a ``distributed`` client the shared argument is scattered to the workers once and each
-task receives only its own small argument. When several tasks run at once their kernels run
-single-threaded (``kernel_threads`` is 1), so tasks, not pixels, are the parallel axis and the
-cores are not oversubscribed.
+task receives only its own small argument. When several tasks run at once the cores are shared
+out among them (``kernel_threads``; one each on a cluster worker), so tasks, not pixels, are
+the parallel axis and the cores are not oversubscribed. Callers decide what ``None`` means:
+``run_tasks`` takes it as ``"threads"``; the studies and the sun bake keep their plain loop.
 """
 
 from __future__ import annotations
@@ -80,8 +81,10 @@ def _run_threads(task, shared, arguments, emit, name: str) -> None:
     import dask
     from dask.callbacks import Callback
 
-    workers = max(1, min(len(arguments), os.cpu_count() or 1))
-    kernel_threads = 1 if workers > 1 else None
+    cores = os.cpu_count() or 1
+    workers = max(1, min(len(arguments), cores))
+    # The cores shared out: a few big tasks still use them all.
+    kernel_threads = None if workers == 1 else max(1, cores // workers)
     # A named, untraversed delayed: Dask neither hashes the shared arrays nor walks its
     # fields; every task reads the same object.
     shared_node = dask.delayed(shared, name=f"voxfield-{name}-shared", traverse=False)

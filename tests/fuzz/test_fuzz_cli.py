@@ -99,8 +99,8 @@ def test_bake_with_any_option_values(out_dir, settings):
             return
         if name == "--grid" and value.count("x") == 2 and value.replace("x", "").isdigit():
             return  # a well-formed grid may be large; its bounds have their own tests
-        if name == "--scheduler" and value not in ("serial", "threads"):
-            value = value if not value.startswith(("tcp:", "tls:")) else "nowhere"
+        if name == "--scheduler" and ":" in value:
+            value = "nowhere"  # an address would wait for its connection timeout
         argv.append(f"{name}={value}")
     assert_clean(*run_cli(argv))
 

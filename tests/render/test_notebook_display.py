@@ -26,6 +26,10 @@ def test_a_render_displays_as_its_shaded_png():
     shown = np.asarray(Image.open(io.BytesIO(result._repr_png_())))
     np.testing.assert_array_equal(shown, png_pixels(shade_for_display(result)))
     assert shown.shape == (20, 20, 3)
+    # Without face normals (a probe render) or for a baked light channel: shown as it is.
+    result.normal[:] = 0.0
+    plain = np.asarray(Image.open(io.BytesIO(result._repr_png_())))
+    np.testing.assert_array_equal(plain, png_pixels(result.image))
 
 
 def test_a_probe_set_displays_its_summary_and_atlas():

@@ -4,6 +4,7 @@ real headless browser (the slider moves the split) where Playwright and Chromium
 from __future__ import annotations
 
 import base64
+import json
 import os
 import re
 import shutil
@@ -13,7 +14,8 @@ import pytest
 from PIL import Image
 
 from voxfield.cli import main
-from voxfield.studies.html_report import DIFFERENCE_GAIN, difference_map
+from voxfield.errors import VoxfieldError
+from voxfield.studies.html_report import DIFFERENCE_GAIN, difference_map, write_html_report
 
 
 @pytest.fixture(scope="module")
@@ -112,3 +114,19 @@ def test_report_in_a_headless_browser(compare_folder, tmp_path):
             browser.close()
     pixels = np.asarray(Image.open(shot).convert("L"))
     assert pixels.shape[0] > 900 and pixels.std() > 10  # a long page with content, not blank
+
+
+def test_markup_in_results_is_text_and_paths_stay_in_the_folder(compare_folder, tmp_path):
+    folder = tmp_path / "hostile"
+    shutil.copytree(compare_folder, folder)
+    (folder / "results.md").write_text(
+        "# <b>x</b>\n\n| scene |\n|---|\n| <script>alert(1)</script> |\n")
+    write_html_report(folder)
+    html = (folder / "report.html").read_text(encoding="utf-8")
+    assert "<script>alert" not in html and "&lt;script&gt;alert(1)" in html
+    assert "<b>x</b>" not in html
+    results = json.loads((folder / "results.json").read_text())
+    results["comparisons"][0]["maps"] = {"secret": "../../etc/passwd"}
+    (folder / "results.json").write_text(json.dumps(results))
+    with pytest.raises(VoxfieldError, match="not a file in the study folder"):
+        write_html_report(folder)

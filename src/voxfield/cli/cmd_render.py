@@ -32,8 +32,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
     look = p.add_mutually_exclusive_group()
     look.add_argument("--shade", action="store_true",
-                      help="light the colours with a fixed key light, EXR too (PNG default; "
-                      "display only, never used by metrics)")
+                      help="light the colours with a fixed key light, EXR too (default for "
+                      "albedo PNGs; display only, never used by metrics)")
     look.add_argument("--albedo", action="store_true",
                       help="write the flat colour channel the metrics compare, PNG too (EXR "
                       "default)")
@@ -51,7 +51,9 @@ def run(args) -> int:
                     seed=args.seed, channel=args.channel, threads=args.threads,
                     progress=not args.quiet)
     out = Path(args.out)
-    if args.shade or (out.suffix.lower() == ".png" and not args.albedo):
+    # Baked light channels are lit already: only the albedo gets the display light unasked.
+    if args.shade or (out.suffix.lower() == ".png" and not args.albedo
+                      and args.channel == "albedo"):
         result.image = shade_for_display(result)
     save_result_image(result, out)
     written = [out]

@@ -295,7 +295,8 @@ def run_lighting(args) -> int:
     octree = open_octree(args)
     if len(lighting_channels(octree)) < 2:
         suns = parse_suns(args.times or "all")
-        octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet)
+        octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet,
+                                      scheduler=args.scheduler)
     view = scene_camera(args, octree)
     channels = args.channels.split(",") if args.channels else None
     out = args.out or default_output("lighting", args.scene)

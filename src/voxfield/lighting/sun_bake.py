@@ -169,8 +169,11 @@ def sun_visibility(
     options = {"total": len(surface), "desc": "sun bake", "unit": "voxel", "enabled": progress}
     if scheduler is not None and scheduler != "serial":
         check_scheduler(scheduler)
+        # Everything large is shared (scattered to a cluster once); a task is a chunk's range.
         shared = {"inner": inner, "depth": depth, "y_top": y_top, "dirs": dirs,
-                  "sky_rays": sky_rays, "shadow_rays": shadow_rays, "seed": int(seed)}
+                  "sky_rays": sky_rays, "shadow_rays": shadow_rays, "seed": int(seed),
+                  "leaves": leaves, "faces": faces, "surface": surface}
+        run(surface[:0])  # loads (or compiles) the kernel here outside the timed region
         start = time.perf_counter()
         with progress_bar(**options) as bar:
             def merge(index: int, result) -> None:
@@ -184,9 +187,11 @@ def sun_visibility(
                 counters["traversal_steps"] += steps
                 bar.update(len(ids))
 
-            run_tasks(visibility_task, shared,
-                      [(leaves[ids], ids, faces[ids]) for ids in chunks], merge,
-                      scheduler=scheduler, name="sun-chunk")
+            ranges = [(first, first + len(ids))
+                      for first, ids in zip(range(0, len(surface), CHUNK_VOXELS), chunks,
+                                            strict=True)]
+            run_tasks(visibility_task, shared, ranges, merge, scheduler=scheduler,
+                      name="sun-chunk")
         counters["seconds"] = time.perf_counter() - start
         return vis, counters
     run(surface[:0])  # loads (or compiles) the kernel outside the timed region
@@ -199,11 +204,12 @@ def sun_visibility(
     return vis, counters
 
 
-def visibility_task(shared: dict, chunk, kernel_threads: int | None = None):
-    """One chunk of ``sun_visibility`` as a scheduler runs it: the chunk's (leaf corners,
-    voxel indices, exposed-face bits) against the shared descriptors and bake settings;
-    returns its visibility terms and summed counters."""
-    corners, ids, faces = chunk
+def visibility_task(shared: dict, chunk: tuple[int, int], kernel_threads: int | None = None):
+    """One chunk of ``sun_visibility`` as a scheduler runs it: surface voxels
+    ``chunk[0]..chunk[1]-1`` against the shared descriptors, voxels and bake settings;
+    returns their visibility terms and summed counters."""
+    ids = shared["surface"][chunk[0]:chunk[1]]
+    corners, faces = shared["leaves"][ids], shared["faces"][ids]
     m = len(ids)
     dirs = shared["dirs"]
     direct = np.zeros((len(dirs), m))

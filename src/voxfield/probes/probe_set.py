@@ -325,11 +325,12 @@ class ProbeSet:
 
     def _repr_html_(self) -> str:
         """Jupyter shows a probe set as its cost summary beside its radiance maps (one tile
-        per probe, in probe order, a texel apart)."""
+        per probe, in probe order, a texel apart; the first 64)."""
         s = self.cost_summary()
         r = self.resolution
-        strip = np.ones((r, max(1, self.count) * (r + 1) - 1, 3), np.float32)
-        for i in range(self.count):
+        shown = min(self.count, 64)  # a notebook cell, not an atlas of thousands
+        strip = np.ones((r, max(1, shown) * (r + 1) - 1, 3), np.float32)
+        for i in range(shown):
             strip[:, i * (r + 1):i * (r + 1) + r] = self.radiance[i]
         atlas = base64.b64encode(png_bytes(strip)).decode("ascii")
         counts = " × ".join(str(int(c)) for c in np.asarray(self.grid.counts).reshape(-1))

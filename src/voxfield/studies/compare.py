@@ -81,6 +81,7 @@ def run_compare(
     keys = {name: {**common, "renderer": name, **settings[name]} for name in names}
     if scheduler not in (None, "serial"):
         options["progress"] = False  # tasks finish in any order: one bar for the batch
+        options["threads"] = None  # the scheduler shares the cores out among its tasks
     # Each render reads the octree from ``shared`` (scattered to a cluster once).
     specs = [(_slug(name), keys[name],
               lambda shared, name=name: render(shared, camera, _renderer_of(name),

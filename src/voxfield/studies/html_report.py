@@ -89,11 +89,16 @@ def _read_results(folder: Path) -> dict:
 
 
 def markdown_to_html(text: str) -> str:
+    """Markdown as HTML with raw HTML switched off: a scene or file name holding markup
+    shows as text, it never runs in the page."""
     # deferred: the Markdown and template libraries load only when a report is written
-    from markdown import markdown
+    from markdown import Markdown
     from markupsafe import Markup
 
-    return Markup(markdown(text, extensions=["tables"], output_format="html"))
+    converter = Markdown(extensions=["tables"], output_format="html")
+    converter.preprocessors.deregister("html_block")
+    converter.inlinePatterns.deregister("html")
+    return Markup(converter.convert(text))
 
 
 def _template():
@@ -139,9 +144,10 @@ def _comparison(folder: Path, entry: dict) -> dict:
     """One image against its reference: both embedded, the difference map, the cost maps."""
     try:
         name = str(entry["name"])
-        image_path = folder / str(entry["image"])
-        reference_path = folder / str(entry["reference"])
-        maps = dict(entry.get("maps", {}))
+        image_path = _inside(folder, entry["image"])
+        reference_path = _inside(folder, entry["reference"])
+        maps = {str(label): _inside(folder, file) for label, file in
+                dict(entry.get("maps", {})).items()}
     except (KeyError, TypeError, ValueError) as exc:
         raise VoxfieldError(f"{folder / 'results.json'}: a comparison entry lacks {exc}") from exc
     for path in (image_path, reference_path):
@@ -149,16 +155,25 @@ def _comparison(folder: Path, entry: dict) -> dict:
             raise VoxfieldError(f"{path}: an image the results list is missing")
     cards = [{"label": f"|Δ| against {entry.get('reference_name', 'reference')}",
               "src": png_uri(difference_map(image_path, reference_path))}]
-    for label, file in maps.items():
-        path = folder / str(file)
+    for label, path in maps.items():
         if path.is_file():
             cards.append({"label": label, "src": data_uri(path)})
     return {
         "name": name, "image": data_uri(image_path), "reference": data_uri(reference_path),
         "reference_name": str(entry.get("reference_name", "reference")),
         "summary": str(entry.get("summary", "")), "maps": cards,
-        "files": {image_path.name, reference_path.name, *(str(f) for f in maps.values())},
+        "files": {image_path.name, reference_path.name, *(p.name for p in maps.values())},
     }
+
+
+def _inside(folder: Path, name) -> Path:
+    """A file the results name, which must lie in the folder itself: a report embeds only
+    the study's own images."""
+    path = folder / str(name)
+    if path.resolve().parent != folder.resolve():
+        raise VoxfieldError(f"{folder / 'results.json'} names {name!r}, which is not a file "
+                            "in the study folder")
+    return path
 
 
 def difference_map(image_path: Path, reference_path: Path) -> np.ndarray:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
@@ -94,8 +95,9 @@ def exposed_faces(octree: Octree) -> np.ndarray:
     out = np.zeros(octree.voxel_count, np.uint8)
     first = int(octree.level_offsets[start_level])
     coords = octree.node_coords(start_level)
-    # Subtrees are independent: a few per kernel call, so Ctrl-C is heard between calls.
-    band = max(1, len(coords) // 64)
+    # Subtrees are independent: a band per kernel call, so Ctrl-C is heard between calls,
+    # each band wide enough to keep every thread busy.
+    band = max(8 * numba.get_num_threads(), len(coords) // 64)
     for k in range(0, len(coords), band):
         leaf_exposure(octree.descriptors, octree.depth, start_level, first + k,
                       coords[k:k + band], out)
