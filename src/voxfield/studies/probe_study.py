@@ -343,7 +343,11 @@ class _Study:
                     "texels_per_probe": int(resolution) ** 2, "seconds": seconds,
                     "rays": cost.get("rays"), "steps": cost.get("steps")}
 
-        return self.folder.value_item("bake", self._params(counts, resolution), compute)
+        # The bake's seconds depend on where it ran: a scheduled bake is its own item.
+        scheduler = self.folder.scheduler
+        where = {} if scheduler in (None, "serial") else {"scheduler": str(scheduler)}
+        return self.folder.value_item("bake", self._params(counts, resolution, **where),
+                                      compute)
 
     # --- renders --------------------------------------------------------------------------
 
