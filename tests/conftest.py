@@ -37,3 +37,14 @@ def shared_data() -> Path:
         pytest.skip(f"real scenes not found at {root} (set VOXFIELD_DATA to the data folder)")
     return root
 
+
+@pytest.fixture(scope="session")
+def dask_client():
+    """A two-worker ``distributed`` cluster in this process: the scheduler tests run their
+    tasks through a real client, scatter and all, without the cost of worker processes."""
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                                  dashboard_address=None) as cluster, \
+            distributed.Client(cluster) as client:
+        yield client
+

@@ -94,14 +94,8 @@ def test_an_option_given_the_end_of_options_marker_is_refused(tmp_path, option, 
 @pytest.mark.parametrize("value", [None, [], 9.3e18, -1, 2.5, "3", True])
 def test_a_probe_record_with_a_bad_cost_is_a_header_error(tmp_path, value):
     """A cost of null, a list or 2**63 in ``probes.json`` once raised TypeError/OverflowError."""
-    octree = build_octree(cornell(8))
-    lo, hi = octree.voxel_bounds
-    folder = tmp_path / "set"
-    bake_to_folder(octree, ProbeGrid.fit(lo, hi, (1, 1, 1)),
-                   BakeOptions(resolution=4, renderer="lod", lod=0), folder, scheduler="serial")
-    header = json.loads((folder / "probes.json").read_text())
-    header["probes"]["0"]["geometry_rays"] = value
-    (folder / "probes.json").write_text(json.dumps(header))
+    folder = _one_probe_folder(tmp_path)
+    _edit_header(folder, lambda header: header["probes"]["0"].update(geometry_rays=value))
     with pytest.raises(ProbeHeaderError, match="geometry_rays"):
         open_probe_set(folder)
 
@@ -122,13 +116,18 @@ def _one_probe_folder(tmp_path):
     return folder
 
 
+def _edit_header(folder, change) -> None:
+    """Apply ``change`` to the folder's ``probes.json`` (as a dict)."""
+    header = json.loads((folder / "probes.json").read_text())
+    change(header)
+    (folder / "probes.json").write_text(json.dumps(header))
+
+
 @pytest.mark.parametrize("count", [None, float("nan"), 1.5, -1, True, "2"])
 def test_a_header_with_a_bad_probe_count_is_a_header_error(tmp_path, count):
     """A probe_count of NaN, inf or null once raised ValueError/OverflowError/TypeError."""
     folder = _one_probe_folder(tmp_path)
-    header = json.loads((folder / "probes.json").read_text())
-    header["probe_count"] = count
-    (folder / "probes.json").write_text(json.dumps(header))
+    _edit_header(folder, lambda header: header.update(probe_count=count))
     with pytest.raises(ProbeHeaderError, match="probe_count"):
         open_probe_set(folder)
 
@@ -146,9 +145,7 @@ def test_a_probe_file_whose_compressed_data_is_damaged_is_a_file_error(tmp_path)
 
 def test_a_probe_record_that_is_not_an_object_is_a_header_error(tmp_path):
     folder = _one_probe_folder(tmp_path)
-    header = json.loads((folder / "probes.json").read_text())
-    header["probes"]["1"] = 5
-    (folder / "probes.json").write_text(json.dumps(header))
+    _edit_header(folder, lambda header: header["probes"].update({"1": 5}))
     with pytest.raises(ProbeHeaderError, match="probe 1.s record"):
         open_probe_set(folder)
 
@@ -156,8 +153,6 @@ def test_a_probe_record_that_is_not_an_object_is_a_header_error(tmp_path):
 @pytest.mark.parametrize("scene", [None, {}, {"fingerprint": 7}, "cornell"])
 def test_a_header_without_a_scene_fingerprint_is_a_header_error(tmp_path, scene):
     folder = _one_probe_folder(tmp_path)
-    header = json.loads((folder / "probes.json").read_text())
-    header["scene"] = scene
-    (folder / "probes.json").write_text(json.dumps(header))
+    _edit_header(folder, lambda header: header.update(scene=scene))
     with pytest.raises(ProbeHeaderError, match="fingerprint"):
         open_probe_set(folder)

@@ -268,16 +268,7 @@ def test_the_light_command_writes_the_octree_report_and_previews(tmp_path, capsy
         run_light_command(["builtin:sphere", "--times", "dusk", "--out", str(out)])
 
 
-@pytest.fixture(scope="module")
-def local_cluster_client():
-    distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as client:
-        yield client
-
-
-def test_scheduled_bake_is_bit_identical_to_the_local_loop(monkeypatch, local_cluster_client):
+def test_scheduled_bake_is_bit_identical_to_the_local_loop(monkeypatch, dask_client):
     """Voxel chunks as Dask tasks (threads, a LocalCluster) merge into exactly the arrays
     and counters of the plain loop, whatever order the chunks finish in."""
     monkeypatch.setattr(bake_module, "CHUNK_VOXELS", 37)  # many uneven chunks
@@ -286,7 +277,7 @@ def test_scheduled_bake_is_bit_identical_to_the_local_loop(monkeypatch, local_cl
             SunLight("b", 200.0, 20.0, (1.0, 1.0, 1.0), (0.1, 0.1, 0.1))]
     dirs = np.array([s.direction() for s in suns])
     runs = {}
-    for scheduler in (None, "threads", local_cluster_client):
+    for scheduler in (None, "threads", dask_client):
         vis, cost = bake_module.sun_visibility(octree, dirs, sky_rays=6, shadow_rays=2,
                                                seed=4, scheduler=scheduler)
         runs[str(type(scheduler).__name__ if scheduler is not None else None)] = (vis, cost)

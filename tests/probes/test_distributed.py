@@ -30,15 +30,6 @@ def local(octree, grid):
     return bake_probes(octree, grid, OPTIONS)
 
 
-@pytest.fixture(scope="module")
-def client():
-    distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as c:
-        yield c
-
-
 def assert_same(a, b) -> None:
     for name in ("radiance", "distance", "normal", "enabled", "positions"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name), err_msg=name)
@@ -53,12 +44,12 @@ def test_local_schedulers_equal_the_loop(octree, grid, local, scheduler):
     assert_same(bake_probes_dask(octree, grid, OPTIONS, scheduler=scheduler), local)
 
 
-def test_distributed_cluster_equals_the_loop(octree, grid, local, client):
-    assert_same(bake_probes_dask(octree, grid, OPTIONS, scheduler=client), local)
+def test_distributed_cluster_equals_the_loop(octree, grid, local, dask_client):
+    assert_same(bake_probes_dask(octree, grid, OPTIONS, scheduler=dask_client), local)
 
 
-def test_cluster_bake_to_folder_resumes_to_the_same_set(tmp_path, octree, grid, local, client):
-    bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler=client)
+def test_cluster_bake_to_folder_resumes_to_the_same_set(tmp_path, octree, grid, local, dask_client):
+    bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler=dask_client)
     (tmp_path / "probe_00003.npz").unlink()
     assert_same(bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="threads"), local)
     assert_same(open_probe_set(tmp_path), local)

@@ -27,15 +27,6 @@ def camera(octree):
     return orbit_camera(*octree.voxel_bounds, size=20)
 
 
-@pytest.fixture(scope="module")
-def client():
-    distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                                  dashboard_address=None) as cluster, \
-            distributed.Client(cluster) as c:
-        yield c
-
-
 def _without_timing(value):
     """A report with wall-clock fields removed (they differ run to run by nature)."""
     if isinstance(value, dict):
@@ -47,9 +38,9 @@ def _without_timing(value):
     return value
 
 
-def test_sweep_is_identical_on_every_scheduler(tmp_path, octree, camera, client):
+def test_sweep_is_identical_on_every_scheduler(tmp_path, octree, camera, dask_client):
     reports = {}
-    for label, scheduler in (("loop", None), ("threads", "threads"), ("cluster", client)):
+    for label, scheduler in (("loop", None), ("threads", "threads"), ("cluster", dask_client)):
         reports[label] = run_sweep(octree, camera, tmp_path / label, decays=(0.1, 0.3),
                                    thresholds=(0.05, 0.2), scheduler=scheduler)
     assert _without_timing(reports["threads"]) == _without_timing(reports["loop"])
@@ -57,9 +48,9 @@ def test_sweep_is_identical_on_every_scheduler(tmp_path, octree, camera, client)
     assert len(reports["loop"]["cells"]) == 4
 
 
-def test_compare_is_identical_on_a_cluster(tmp_path, octree, camera, client):
+def test_compare_is_identical_on_a_cluster(tmp_path, octree, camera, dask_client):
     loop = run_compare(octree, camera, tmp_path / "loop")
-    cluster = run_compare(octree, camera, tmp_path / "cluster", scheduler=client)
+    cluster = run_compare(octree, camera, tmp_path / "cluster", scheduler=dask_client)
     assert _without_timing(cluster["rows"]) == _without_timing(loop["rows"])
     for name in ("reference", "adaptive", "error_aware"):
         a = (tmp_path / "loop" / f"{name}.png").read_bytes()
