@@ -11,12 +11,13 @@ from voxfield.cli.options import (
     add_quiet,
     add_scene_options,
     default_output,
-    int_at_least,
+    int_between,
     open_octree,
     positive_int,
+    scheduler_name,
 )
 from voxfield.lighting.sun import parse_suns
-from voxfield.lighting.sun_bake import bake_sun_lighting
+from voxfield.lighting.sun_bake import MAX_RAYS, bake_sun_lighting
 from voxfield.render.camera import top_down_camera
 from voxfield.render.image_io import save_png
 from voxfield.render.primary import render_reference
@@ -41,20 +42,21 @@ def register(subparsers) -> argparse.ArgumentParser:
         "comma-separated; or suns as AZ,EL / NAME=AZ,EL in degrees (azimuth clockwise from "
         "north = -z, east = +x), ';'-separated (default all four times)",
     )
-    p.add_argument("--sky-rays", type=int_at_least(0), default=16, metavar="K",
-                   help="cosine-weighted sky rays per surface voxel; 0 turns sky light off "
-                   "(black shadows, as the thesis's data) (default 16)")
-    p.add_argument("--shadow-rays", type=positive_int, default=4, metavar="R",
-                   help="shadow rays per sun-facing voxel face, stratified over the face "
-                   "(default 4; 1 = one from the face centre)")
+    p.add_argument("--sky-rays", type=int_between(0, MAX_RAYS, "rays per voxel"), default=16,
+                   metavar="K", help=f"cosine-weighted sky rays per surface voxel, 0..{MAX_RAYS};"
+                   " 0 turns sky light off (black shadows, as the thesis's data) (default 16)")
+    p.add_argument("--shadow-rays", type=int_between(1, MAX_RAYS, "rays per face"), default=4,
+                   metavar="R", help=f"shadow rays per sun-facing voxel face, stratified over "
+                   f"the face, 1..{MAX_RAYS} (default 4; 1 = one from the face centre)")
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
-    p.add_argument("--scheduler", default=None, metavar="WHERE",
+    p.add_argument("--scheduler", type=scheduler_name, default=None, metavar="WHERE",
                    help=SCHEDULER_HELP + "; voxel chunks become tasks, the result is "
                    "bit-identical (default: no Dask, each chunk on every core here)")
     p.add_argument("--out", default=None,
                    help="output octree file (default out/lit_NAME.npz, NAME from the scene)")
-    p.add_argument("--preview-size", type=positive_int, default=256, metavar="N",
-                   help="side of the top-down preview PNG per sun (default 256)")
+    p.add_argument("--preview-size", type=int_between(1, 4096, "pixels per side"),
+                   default=256, metavar="N",
+                   help="side of the top-down preview PNG per sun, 1..4096 (default 256)")
     p.add_argument("--no-preview", action="store_true", help="write no preview images")
     add_quiet(p)
     p.set_defaults(func=run)

@@ -23,6 +23,7 @@ from voxfield.cli.options import (
     add_view_options,
     camera,
     default_output,
+    int_between,
     positive_int,
     vector_arg,
 )
@@ -119,9 +120,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--compare", action="store_true",
                    help="with --scene: also render the view from the octree, print PSNR and "
                    "SSIM, and write a side-by-side PNG")
-    p.add_argument("--spp-side", type=positive_int, default=1,
-                   help="--compare: octree reference samples per pixel side (default 1: one "
-                   "LOD-0 ray per pixel centre, the probe render's own rays)")
+    p.add_argument("--spp-side", type=int_between(1, 16, "samples per pixel side"), default=1,
+                   help="--compare: octree reference samples per pixel side, 1..16 (default "
+                   "1: one LOD-0 ray per pixel centre, the probe render's own rays)")
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
     p.add_argument("--counters", action="store_true",
                    help="also write probes-tried, texel-fetch and result maps and a JSON summary")

@@ -14,6 +14,7 @@ from voxfield.cli.options import (
     add_quiet,
     add_scene_options,
     default_output,
+    int_between,
     lod_arg,
     open_octree,
     positive_int,
@@ -23,7 +24,7 @@ from voxfield.probes.bake import export_cube_faces
 from voxfield.probes.folder_bake import bake_to_folder
 from voxfield.probes.grid import parse_grid, relocate
 from voxfield.probes.probe_folder import open_probe_set, read_header
-from voxfield.probes.probe_set import BAKE_RENDERERS, BakeOptions
+from voxfield.probes.probe_set import BAKE_RENDERERS, MAX_RESOLUTION, MIN_RESOLUTION, BakeOptions
 from voxfield.probes.show import write_show
 from voxfield.progress import progress_bar
 from voxfield.render.camera import CUBE_FACES
@@ -51,14 +52,17 @@ def register(subparsers) -> None:
                    help='probe grid: "NXxNYxNZ" fitted to the scene (e.g. 4x2x4), '
                    '"surface:NXxNZ@H" (one layer H voxels above the ground, for terrains) or '
                    '"origin=x,y,z;spacing=s or sx,sy,sz;counts=nx,ny,nz" in voxels')
-    p.add_argument("--resolution", type=positive_int, default=defaults.resolution,
-                   metavar="R", help=f"octahedral map side in texels, even "
-                   f"(default {defaults.resolution})")
+    p.add_argument("--resolution", type=int_between(1, MAX_RESOLUTION, "texels per map side"),
+                   default=defaults.resolution, metavar="R",
+                   help=f"octahedral map side in texels, even, {MIN_RESOLUTION}.."
+                   f"{MAX_RESOLUTION} (default {defaults.resolution})")
     p.add_argument("--renderer", choices=BAKE_RENDERERS, default=defaults.renderer,
                    help=f"radiance renderer (default {defaults.renderer}); distance and "
                    "normals always come from one exact LOD-0 ray per texel")
-    p.add_argument("--samples", type=positive_int, default=defaults.samples,
-                   help=f"reference: CMJ rays per texel side (default {defaults.samples})")
+    p.add_argument("--samples", type=int_between(1, 16, "rays per texel side"),
+                   default=defaults.samples,
+                   help=f"reference: CMJ rays per texel side, 1..16 (default "
+                   f"{defaults.samples})")
     p.add_argument("--lod", type=lod_arg, default=defaults.lod,
                    help="lod renderer: fixed LOD; adaptive/error-aware: base LOD; 'cone' "
                    "(default) picks it from the texel footprint")
