@@ -116,3 +116,17 @@ def test_normalisation_study_is_identical_on_threads(tmp_path, octree, camera):
     threads = run_normalisation_study(scenes, tmp_path / "threads", scheduler="threads")
     assert threads == loop
     assert [row["scene"] for row in loop["scenes"]] == ["pillars", "menger"]
+
+
+def test_shadow_study_is_identical_on_threads(tmp_path):
+    """``voxfield shadows --scheduler threads`` gives the plain run's report and images."""
+    args = ["--quiet", "shadows", "--size", "12", "--light-samples", "2",
+            "--reference-samples", "4", "--floor-samples", "2"]
+    assert main([*args, "--out", str(tmp_path / "loop")]) == 0
+    assert main([*args, "--scheduler", "threads", "--out", str(tmp_path / "threads")]) == 0
+    loop = json.loads((tmp_path / "loop" / "results.json").read_text())
+    threads = json.loads((tmp_path / "threads" / "results.json").read_text())
+    assert _without_timing(threads) == _without_timing(loop)
+    for name in ("reference", "distance", "error_aware"):
+        assert ((tmp_path / "threads" / f"{name}.png").read_bytes()
+                == (tmp_path / "loop" / f"{name}.png").read_bytes()), name

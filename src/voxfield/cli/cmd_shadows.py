@@ -53,7 +53,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--encoding", choices=("oct", "sh"), default=None,
                    help="error-table encoding (default: the table's)")
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
-    add_study_folder(p, "shadows", "renders")
+    add_study_folder(p, "shadows", "renders", scheduled=True)
     p.set_defaults(func=run)
     return p
 
@@ -68,7 +68,7 @@ def run(args) -> int:
         threshold=args.threshold, decay=args.decay, max_refinements=args.refinements,
         encoding=args.encoding, seed=args.seed, threads=args.threads, fresh=args.fresh,
         camera_label="custom" if args.eye is not None else args.camera,
-        progress=not args.quiet,
+        progress=not args.quiet, scheduler=args.scheduler,
     )
     if not args.quiet:
         print(summary_text(report))

@@ -19,6 +19,7 @@ from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD, load_erro
 from voxfield.errors import VoxfieldError
 from voxfield.fingerprint import array_fingerprint
 from voxfield.metrics import psnr
+from voxfield.progress import progress_bar
 from voxfield.render.camera import top_down_camera
 from voxfield.render.direct_light import light_on_surface, render_direct_light
 from voxfield.scene.shadow_box import shadow_box_layout
@@ -48,12 +49,14 @@ def run_shadow_study(
     threshold: float = THESIS_THRESHOLD, decay: float = THESIS_DECAY,
     max_refinements: int | None = None,
     encoding: str | None = None, seed: int = 0, camera_label: str = "",
-    threads: int | None = None, fresh: bool = False, progress: bool = False,
+    threads: int | None = None, fresh: bool = False, progress: bool = False, scheduler=None,
 ) -> dict:
     """Render, measure and write the study into ``out_dir``; returns ``results.json``'s
-    content plus ``folder``, ``written``, ``computed`` and ``reused``."""
+    content plus ``folder``, ``written``, ``computed`` and ``reused``. The five renders are
+    independent items: with a ``scheduler`` (``voxfield.scaleout``) they run as tasks."""
     table = load_error_table()
-    folder = StudyFolder(out_dir, fresh=fresh)
+    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
+    scheduled = scheduler not in (None, "serial")
     shadow = {"lod_distance": float(lod_distance), "threshold": float(threshold),
               "decay": float(decay), "max_refinements": max_refinements,
               "encoding": encoding or table.default_encoding}
@@ -67,21 +70,27 @@ def run_shadow_study(
                 **{k: shadow[k] for k in used[mode]}}
 
     def render(name: str, mode: str, cam, samples: int):
+        """One render as a batch item; the octree and error table come from ``shared``."""
         params = {**key(mode), "samples": samples,
                   "camera": array_fingerprint(cam.params), "size": [cam.width, cam.height]}
-        return folder.render_item(name, params, lambda: render_direct_light(
-            octree, cam, shadow_lod=mode, light_samples=samples, lod_distance=lod_distance,
-            threshold=threshold, decay=decay, max_refinements=max_refinements, table=table,
-            encoding=encoding, seed=seed, threads=threads, progress=progress))
+        return name, params, lambda shared: render_direct_light(
+            shared[0], cam, shadow_lod=mode, light_samples=samples, lod_distance=lod_distance,
+            threshold=threshold, decay=decay, max_refinements=max_refinements, table=shared[1],
+            encoding=encoding, seed=seed, threads=None if scheduled else threads,
+            progress=progress and not scheduled)
 
-    results = {}
-    for name, mode in ROWS.items():
-        samples = reference_samples if name == "reference" else light_samples
-        results[name] = render(name, mode, camera, samples)
     lo, hi = octree.voxel_bounds
     top = top_down_camera(lo, hi, size=camera.width)
-    top_maps = {mode: render(f"top-{mode}", mode, top, TOP_VIEW_SAMPLES)
-                for mode in ("distance", "error-aware")}
+    specs = [render(name, mode, camera,
+                    reference_samples if name == "reference" else light_samples)
+             for name, mode in ROWS.items()]
+    specs += [render(f"top-{mode}", mode, top, TOP_VIEW_SAMPLES)
+              for mode in ("distance", "error-aware")]
+    with progress_bar(total=len(specs), desc="shadows", unit="render",
+                      enabled=progress and scheduled) as bar:
+        rendered = folder.render_batch(specs, shared=(octree, table), bar=bar)
+    results = dict(zip(ROWS, rendered[:len(ROWS)], strict=True))
+    top_maps = dict(zip(("distance", "error-aware"), rendered[len(ROWS):], strict=True))
     beam = _measure_beam(folder, octree, key, floor_samples=floor_samples,
                          lod_distance=lod_distance, threshold=threshold, decay=decay,
                          max_refinements=max_refinements, table=table, encoding=encoding,
