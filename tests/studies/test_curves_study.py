@@ -96,3 +96,15 @@ def test_a_lod_list_that_is_not_numbers_is_an_argument_error(tmp_path):
     with pytest.raises(SystemExit) as exit_info:
         main(["--quiet", "study", "curves", "builtin:pillars", "--lods", "2,x"])
     assert exit_info.value.code == 2
+
+
+def test_curves_on_a_cluster_equal_the_loop(octree, tmp_path, dask_client):
+    """Every point as a Dask task (scattered octree and reference): the same curves and
+    deltas as the plain loop, point for point."""
+    knobs = {"thresholds": (0.4, 0.1), "decays": (0.2,), "normalisations": (0.01, 0.5),
+             "lods": (1, 0)}
+    view = {"persp": cameras()["persp"]}
+    loop = run_curves_study(octree, view, tmp_path / "loop", **knobs)
+    cluster = run_curves_study(octree, view, tmp_path / "cluster", scheduler=dask_client,
+                               **knobs)
+    assert cluster["cameras"] == loop["cameras"]
