@@ -21,7 +21,7 @@ from voxfield.kernels.sun_bake import bake_sun_visibility
 from voxfield.lighting.sun import SunLight
 from voxfield.parallel import thread_count
 from voxfield.progress import progress_bar
-from voxfield.scaleout import check_scheduler, run_tasks
+from voxfield.scaleout import run_tasks
 from voxfield.scene.surface import face_mask
 from voxfield.svo.channels import with_channels
 from voxfield.svo.octree import Octree
@@ -147,59 +147,33 @@ def sun_visibility(
     inner, depth = octree.inner_nodes, octree.depth
     y_top = float(octree.voxel_bounds[1][1])
 
-    def run(ids: np.ndarray) -> None:
-        m = len(ids)
-        direct = np.zeros((len(dirs), m))
-        sky, weight = np.zeros(m), np.zeros(m)
-        sky_cast, shadow_cast, steps = (np.zeros(m, np.int64) for _ in range(3))
-        bake_sun_visibility(
-            np.ascontiguousarray(leaves[ids], np.int64), ids, faces[ids], dirs,
-            sky_rays, shadow_rays, int(seed), inner, depth, y_top,
-            direct, sky, weight, sky_cast, shadow_cast, steps,
-        )
-        vis.direct[:, ids] = direct
-        vis.sky[ids] = sky
-        vis.weight[ids] = weight
-        counters["sky_rays"] += int(sky_cast.sum())
-        counters["shadow_rays"] += int(shadow_cast.sum())
-        counters["traversal_steps"] += int(steps.sum())
-
-    chunks = [surface[first:first + CHUNK_VOXELS]
+    # Everything large is shared (scattered to a cluster once); a chunk is a range of it.
+    shared = {"inner": inner, "depth": depth, "y_top": y_top, "dirs": dirs,
+              "sky_rays": sky_rays, "shadow_rays": shadow_rays, "seed": int(seed),
+              "leaves": leaves, "faces": faces, "surface": surface}
+    ranges = [(first, min(len(surface), first + CHUNK_VOXELS))
               for first in range(0, len(surface), CHUNK_VOXELS)]
     options = {"total": len(surface), "desc": "sun bake", "unit": "voxel", "enabled": progress}
-    if scheduler is not None and scheduler != "serial":
-        check_scheduler(scheduler)
-        # Everything large is shared (scattered to a cluster once); a task is a chunk's range.
-        shared = {"inner": inner, "depth": depth, "y_top": y_top, "dirs": dirs,
-                  "sky_rays": sky_rays, "shadow_rays": shadow_rays, "seed": int(seed),
-                  "leaves": leaves, "faces": faces, "surface": surface}
-        run(surface[:0])  # loads (or compiles) the kernel here outside the timed region
-        start = time.perf_counter()
-        with progress_bar(**options) as bar:
-            def merge(index: int, result) -> None:
-                ids = chunks[index]
-                direct, sky, weight, sky_cast, shadow_cast, steps = result
-                vis.direct[:, ids] = direct
-                vis.sky[ids] = sky
-                vis.weight[ids] = weight
-                counters["sky_rays"] += sky_cast
-                counters["shadow_rays"] += shadow_cast
-                counters["traversal_steps"] += steps
-                bar.update(len(ids))
+    visibility_task(shared, (0, 0))  # loads (or compiles) the kernel outside the timed region
+    start = time.perf_counter()
+    with progress_bar(**options) as bar:
+        def merge(index: int, result) -> None:
+            ids = surface[ranges[index][0]:ranges[index][1]]
+            direct, sky, weight, sky_cast, shadow_cast, steps = result
+            vis.direct[:, ids] = direct
+            vis.sky[ids] = sky
+            vis.weight[ids] = weight
+            counters["sky_rays"] += sky_cast
+            counters["shadow_rays"] += shadow_cast
+            counters["traversal_steps"] += steps
+            bar.update(len(ids))
 
-            ranges = [(first, first + len(ids))
-                      for first, ids in zip(range(0, len(surface), CHUNK_VOXELS), chunks,
-                                            strict=True)]
+        if scheduler is not None and scheduler != "serial":
             run_tasks(visibility_task, shared, ranges, merge, scheduler=scheduler,
                       name="sun-chunk")
-        counters["seconds"] = time.perf_counter() - start
-        return vis, counters
-    run(surface[:0])  # loads (or compiles) the kernel outside the timed region
-    start = time.perf_counter()
-    with thread_count(threads), progress_bar(**options) as bar:
-        for ids in chunks:
-            run(ids)
-            bar.update(len(ids))
+        else:  # one chunk after another, each on every core (or ``threads``)
+            for index, chunk in enumerate(ranges):
+                merge(index, visibility_task(shared, chunk, threads))
     counters["seconds"] = time.perf_counter() - start
     return vis, counters
 
