@@ -22,8 +22,8 @@ from voxfield.lighting.sun import SunLight
 from voxfield.parallel import thread_count
 from voxfield.progress import progress_bar
 from voxfield.scaleout import run_tasks
-from voxfield.scene.surface import face_mask
 from voxfield.svo.channels import with_channels
+from voxfield.svo.lod_colours import exposed_faces
 from voxfield.svo.octree import Octree
 
 __all__ = ["BakeReport", "SunVisibility", "bake_sun_lighting", "sun_visibility"]
@@ -107,14 +107,6 @@ def _check_suns(suns: Sequence[SunLight]) -> list[SunLight]:
     return suns
 
 
-def exposed_face_bits(octree: Octree) -> np.ndarray:
-    """``(voxels,)`` uint8 in leaf order: bit ``f`` set when face ``f`` (−x, +x, −y, +y, −z,
-    +z) of the voxel has no neighbour voxel."""
-    leaves = octree.node_coords(octree.depth)
-    exposed = face_mask(leaves)
-    return (exposed.astype(np.uint8) << np.arange(6, dtype=np.uint8)).sum(axis=1, dtype=np.uint8)
-
-
 def sun_visibility(
     octree: Octree, sun_dirs: np.ndarray, *, sky_rays: int = 16, shadow_rays: int = 4,
     seed: int = 0, threads: int | None = None, progress: bool = False, scheduler=None,
@@ -135,7 +127,7 @@ def sun_visibility(
         raise VoxfieldError(f"sun directions must be finite suns×3 vectors, got {dirs.shape}")
     if not np.allclose(np.linalg.norm(dirs, axis=1), 1.0):
         raise VoxfieldError("sun directions must be unit vectors")
-    faces = exposed_face_bits(octree)
+    faces = exposed_faces(octree)
     surface = np.flatnonzero(faces)
     leaves = octree.node_coords(octree.depth)
     n = octree.voxel_count

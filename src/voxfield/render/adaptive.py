@@ -148,8 +148,7 @@ def render_adaptive(
             todo = np.flatnonzero((wanted == cls) & (current < cls))
             if len(todo):
                 refine_pixels(octree, camera, todo, CLASS_SIDE[cls], seed, (colors, facing),
-                              result,
-                        threads)
+                              result, threads)
                 current.reshape(-1)[todo] = cls
     result.seconds = first.seconds + time.perf_counter() - start
     result.maps["variance"] = variance

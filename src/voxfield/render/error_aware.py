@@ -155,9 +155,13 @@ def render_error_aware(
         np.ascontiguousarray(table.oct_map, np.float64), np.ascontiguousarray(table.sh, np.float64),
         children_sh_means(octree, table) if encoding == "sh" else np.zeros((0, 9)),
         bool(lighting_aware), float(bright_ratio), *light, float(colour_term),
-        colour_error(octree, decay, channel) if colour_term > 0 else np.zeros(1),
+        (octree.derived(("colour_error", channel, float(decay)),
+                        lambda: colour_error(octree, decay, channel))
+         if colour_term > 0 else np.zeros(1)),
         bool(colour_to_voxels),
-        inside_repeating_surface(octree) if context_aware else np.zeros(0, np.uint8),
+        (octree.derived(("inside_repeating_surface",),
+                        lambda: inside_repeating_surface(octree))
+         if context_aware else np.zeros(0, np.uint8)),
     )
     cam = camera.params
     with thread_count(threads):

@@ -82,6 +82,14 @@ class Octree:
         first[: self.inner_count] = self.descriptors >> FIRST_CHILD_SHIFT
         return first
 
+    def derived(self, key: tuple, compute):
+        """``compute()``, worked out once per octree and ``key`` and kept with it (as the
+        cached properties are): per-node tables several renders of one octree read."""
+        cache = self.__dict__.setdefault("_derived", {})
+        if key not in cache:
+            cache[key] = compute()
+        return cache[key]
+
     def solid_nodes(self) -> np.ndarray:
         """``(nodes,)`` bool: is every voxel of the node's cube present? (Voxels are.)"""
         solid = np.ones(self.node_count, bool)
