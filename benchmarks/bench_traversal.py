@@ -15,7 +15,8 @@ normals. Compile time is excluded (a tiny warm-up render), each figure is the be
 ``--repeats`` runs, and the two tracers alternate run by run, so a busy machine slows both.
 
 Rows:
-- primary rays, beam on (the default) and off (every ray starts at the camera);
+- primary rays, beam on (the default) and off (every ray starts at the camera); with 16
+  rays/pixel and the beam off, the renderer traces in packets (``kernels.packet_traversal``);
 - incoherent secondary rays: cosine-weighted directions from random points on voxel tops,
   voxfield's any-hit ``ray_query.occluded`` against Embree's ``test_occlusions`` and
   closest-hit ``ray_query.trace`` against ``cast_rays``.
@@ -429,7 +430,8 @@ def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args
     rows = []
     for s in all_stats:
         for r in s.rows:
-            cells = [s.name, r["view"], str(r["spp"]), "on" if r["beam"] else "off",
+            beam = "on" if r["beam"] else ("off, packets" if r["spp"] > 1 else "off")
+            cells = [s.name, r["view"], str(r["spp"]), beam,
                      f"{r['rays']:,}", num(r["vox_mrays"], ".2f"),
                      num(r["steps_per_ray"], ".1f"), num(100 * r["hit_frac"], ".1f")]
             if peer:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.traversal import new_scratch, occluded, trace_ray
 
 
@@ -44,6 +45,29 @@ def trace_ray_chunk(
         out_t[k] = t
         out_normal[k] = normal
         out_steps[k] = steps
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def trace_rays_in_packets(
+    origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
+    inner_nodes: np.ndarray, depth: int, stop_level: int,
+    out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray,
+) -> None:
+    """``trace_rays`` through ``kernels.packet_traversal``: every 64 consecutive rays form
+    one packet (the same results; faster where neighbours in the list are coherent)."""
+    n = origins.shape[0]
+    chunk = 16 * PACKET_RAYS
+    for c in prange((n + chunk - 1) // chunk):
+        scratch = new_packet_scratch(depth)
+        tmins = np.full(PACKET_RAYS, tmin)
+        tmaxs = np.full(PACKET_RAYS, tmax)
+        for first in range(c * chunk, min(n, (c + 1) * chunk), PACKET_RAYS):
+            last = min(n, first + PACKET_RAYS)
+            rays = slice(first, last)
+            trace_packet(last - first, origins[rays], directions[rays], tmins, tmaxs,
+                         inner_nodes, depth, stop_level, scratch, out_node[rays],
+                         out_level[rays], out_t[rays], out_normal[rays], out_steps[rays])
 
 
 @njit(parallel=True, cache=True, nogil=True)
