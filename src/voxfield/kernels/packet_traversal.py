@@ -26,7 +26,14 @@ import numpy as np
 from numba import njit
 
 from voxfield.kernels.node_descriptor import child_index
-from voxfield.kernels.traversal import MISS, NO_NORMAL, entry_normal, flush_uninvertible
+from voxfield.kernels.traversal import (
+    MISS,
+    NO_NORMAL,
+    entry_normal,
+    flush_uninvertible,
+    fmax,
+    fmin,
+)
 
 #: Most rays one packet holds (one bit each in an int64 mask).
 PACKET_RAYS = 64
@@ -38,8 +45,8 @@ _OX, _OY, _OZ, _IX, _IY, _IZ, _TMIN, _TMAX = range(8)
 @njit(cache=True, nogil=True)
 def new_packet_scratch(depth: int):
     """Per-thread packet scratch: the walk's stack (node, level, corner, ray mask), the
-    packet's ray table, its nine plane times per ray, child masks, and the rays of one sign
-    group with their results."""
+    packet's ray table, its nine plane times per ray, child masks, the rays of one sign
+    group with their results, and each ray's sign group."""
     cap = 8 * (depth + 1) + 1
     return (
         np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 3), np.int64),
@@ -50,17 +57,8 @@ def new_packet_scratch(depth: int):
         np.empty(PACKET_RAYS, np.int64),
         np.empty(PACKET_RAYS, np.int64), np.empty(PACKET_RAYS, np.int64),
         np.empty(PACKET_RAYS), np.empty(PACKET_RAYS, np.int64), np.empty(PACKET_RAYS, np.int64),
+        np.empty(PACKET_RAYS, np.int64),
     )
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _fmax(a: float, b: float) -> float:
-    return a if a > b else b
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _fmin(a: float, b: float) -> float:
-    return a if a < b else b
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -98,6 +96,9 @@ def trace_packet(
     table = scratch[4]
     members = scratch[7]
     g_node, g_level, g_t, g_normal, g_steps = scratch[8:13]
+    group = scratch[13]
+    # Each ray's sign group once (-1: not traceable, a miss in 0 steps), then one walk per
+    # group present.
     signs = 0
     for k in range(count):
         out_node[k] = MISS
@@ -105,23 +106,25 @@ def trace_packet(
         out_t[k] = math.inf
         out_normal[k] = NO_NORMAL
         out_steps[k] = 0
+        group[k] = -1
         if _traceable(origins, directions, tmins, tmaxs, k):
-            signs |= 1 << _ray_signs(directions[k, 0], directions[k, 1], directions[k, 2])
+            group[k] = _ray_signs(flush_uninvertible(directions[k, 0]),
+                                  flush_uninvertible(directions[k, 1]),
+                                  flush_uninvertible(directions[k, 2]))
+            signs |= 1 << group[k]
     for flip in range(8):
         if not (signs >> flip) & 1:
             continue
         n = 0
         for k in range(count):
-            if not _traceable(origins, directions, tmins, tmaxs, k):
+            if group[k] != flip:
                 continue
-            dx = flush_uninvertible(directions[k, 0])
-            dy = flush_uninvertible(directions[k, 1])
-            dz = flush_uninvertible(directions[k, 2])
-            if _ray_signs(dx, dy, dz) != flip:
-                continue
-            table[_OX, n], table[_IX, n] = _axis_setup(origins[k, 0], dx)
-            table[_OY, n], table[_IY, n] = _axis_setup(origins[k, 1], dy)
-            table[_OZ, n], table[_IZ, n] = _axis_setup(origins[k, 2], dz)
+            table[_OX, n], table[_IX, n] = _axis_setup(origins[k, 0],
+                                                       flush_uninvertible(directions[k, 0]))
+            table[_OY, n], table[_IY, n] = _axis_setup(origins[k, 1],
+                                                       flush_uninvertible(directions[k, 1]))
+            table[_OZ, n], table[_IZ, n] = _axis_setup(origins[k, 2],
+                                                       flush_uninvertible(directions[k, 2]))
             table[_TMIN, n] = tmins[k]
             table[_TMAX, n] = tmaxs[k]
             members[n] = k
@@ -140,17 +143,47 @@ def trace_packet(
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _interval_mask(n: int, times: np.ndarray, ex: int, ey: int, ez: int,
+def _plane_times(n: int, times: np.ndarray, x0: int, y0: int, z0: int, size: int,
+                 exit_x: int, exit_y: int, exit_z: int, ox: np.ndarray, oy: np.ndarray,
+                 oz: np.ndarray, ix: np.ndarray, iy: np.ndarray, iz: np.ndarray) -> None:
+    """Crossing times of a node's nine planes per ray: entry, middle and exit of each axis in
+    rows ``3a, 3a + 1, 3a + 2`` (``face_time``'s formula), so a child's entry planes are rows
+    ``3a + bit`` and its exit planes the next rows."""
+    half = size >> 1
+    near_x = float(x0 + (size & ~exit_x))
+    mid_x = float(x0 + half)
+    far_x = float(x0 + (size & exit_x))
+    near_y = float(y0 + (size & ~exit_y))
+    mid_y = float(y0 + half)
+    far_y = float(y0 + (size & exit_y))
+    near_z = float(z0 + (size & ~exit_z))
+    mid_z = float(z0 + half)
+    far_z = float(z0 + (size & exit_z))
+    for k in range(n):
+        times[0, k] = (near_x - ox[k]) * ix[k]
+        times[1, k] = (mid_x - ox[k]) * ix[k]
+        times[2, k] = (far_x - ox[k]) * ix[k]
+        times[3, k] = (near_y - oy[k]) * iy[k]
+        times[4, k] = (mid_y - oy[k]) * iy[k]
+        times[5, k] = (far_y - oy[k]) * iy[k]
+        times[6, k] = (near_z - oz[k]) * iz[k]
+        times[7, k] = (mid_z - oz[k]) * iz[k]
+        times[8, k] = (far_z - oz[k]) * iz[k]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _interval_mask(n: int, times: np.ndarray, ex: int, ey: int, ez: int, span: int,
                    tmn: np.ndarray, tmx: np.ndarray) -> int:
     """Bit ``k`` set where ray ``k``'s interval between the entry planes (rows ``ex, ey,
-    ez`` of ``times``) and the exit planes (the next rows), clipped to its own range, is
-    non-empty. The loop runs over the whole packet, active or not: a fixed trip count from 0
-    is what the compiler vectorises (skipping inactive rays measured slower)."""
+    ez`` of ``times``) and the exit planes (``span`` rows further: 1 for a child, 2 for the
+    node itself), clipped to its own range, is non-empty. The loop runs over the whole
+    packet, active or not: a fixed trip count from 0 is what the compiler vectorises
+    (skipping inactive rays measured slower)."""
     mask = 0
     for k in range(n):
-        enter = _fmax(_fmax(_fmax(times[ex, k], times[ey, k]), times[ez, k]), tmn[k])
-        leave = _fmin(_fmin(_fmin(times[ex + 1, k], times[ey + 1, k]), times[ez + 1, k]),
-                      tmx[k])
+        enter = fmax(fmax(fmax(times[ex, k], times[ey, k]), times[ez, k]), tmn[k])
+        leave = fmin(fmin(fmin(times[ex + span, k], times[ey + span, k]),
+                          times[ez + span, k]), tmx[k])
         mask |= np.int64(enter < leave) << k
     return mask
 
@@ -187,21 +220,8 @@ def walk_sign_group(
         out_t[k] = math.inf
         out_normal[k] = NO_NORMAL
         out_steps[k] = 0
-    # Rows 0-2 of ``times``: x entry, x exit; the root has no middle plane yet.
-    near_x = float(root & ~exit_x)
-    far_x = float(root & exit_x)
-    near_y = float(root & ~exit_y)
-    far_y = float(root & exit_y)
-    near_z = float(root & ~exit_z)
-    far_z = float(root & exit_z)
-    for k in range(n):
-        times[0, k] = (near_x - ox[k]) * ix[k]
-        times[1, k] = (far_x - ox[k]) * ix[k]
-        times[3, k] = (near_y - oy[k]) * iy[k]
-        times[4, k] = (far_y - oy[k]) * iy[k]
-        times[6, k] = (near_z - oz[k]) * iz[k]
-        times[7, k] = (far_z - oz[k]) * iz[k]
-    full = _interval_mask(n, times, 0, 3, 6, tmn, tmx)
+    _plane_times(n, times, 0, 0, 0, root, exit_x, exit_y, exit_z, ox, oy, oz, ix, iy, iz)
+    full = _interval_mask(n, times, 0, 3, 6, 2, tmn, tmx)
     if full == 0:
         return
     if stop_level <= 0:
@@ -209,7 +229,7 @@ def walk_sign_group(
             if (full >> k) & 1:
                 out_steps[k] = 1
                 out_node[k] = 0
-                out_t[k] = _fmax(_fmax(_fmax(times[0, k], times[3, k]), times[6, k]), tmn[k])
+                out_t[k] = fmax(fmax(fmax(times[0, k], times[3, k]), times[6, k]), tmn[k])
                 out_normal[k] = entry_normal(times[0, k], times[3, k], times[6, k], tmn[k],
                                              sx, sy, sz)
         return
@@ -236,32 +256,13 @@ def walk_sign_group(
         size = root >> level
         half = size >> 1
         descriptor = inner_nodes[node]
-        # Nine planes per ray: entry, middle and exit of each axis (rows 3a, 3a+1, 3a+2), so
-        # a child's entry planes are rows ``3a + bit`` and its exit planes the next rows.
-        near_x = float(x0 + (size & ~exit_x))
-        mid_x = float(x0 + half)
-        far_x = float(x0 + (size & exit_x))
-        near_y = float(y0 + (size & ~exit_y))
-        mid_y = float(y0 + half)
-        far_y = float(y0 + (size & exit_y))
-        near_z = float(z0 + (size & ~exit_z))
-        mid_z = float(z0 + half)
-        far_z = float(z0 + (size & exit_z))
-        for k in range(n):
-            times[0, k] = (near_x - ox[k]) * ix[k]
-            times[1, k] = (mid_x - ox[k]) * ix[k]
-            times[2, k] = (far_x - ox[k]) * ix[k]
-            times[3, k] = (near_y - oy[k]) * iy[k]
-            times[4, k] = (mid_y - oy[k]) * iy[k]
-            times[5, k] = (far_y - oy[k]) * iy[k]
-            times[6, k] = (near_z - oz[k]) * iz[k]
-            times[7, k] = (mid_z - oz[k]) * iz[k]
-            times[8, k] = (far_z - oz[k]) * iz[k]
+        _plane_times(n, times, x0, y0, z0, size, exit_x, exit_y, exit_z, ox, oy, oz, ix, iy,
+                     iz)
         for i in range(8):
             masks[i] = 0
             if (descriptor >> (i ^ flip)) & 1:
                 masks[i] = active & _interval_mask(
-                    n, times, i & 1, 3 + ((i >> 1) & 1), 6 + (i >> 2), tmn, tmx)
+                    n, times, i & 1, 3 + ((i >> 1) & 1), 6 + (i >> 2), 1, tmn, tmx)
         if level + 1 >= stop_level:
             # The children are leaves for this query: each ray stops at the first it meets.
             for i in range(8):
@@ -277,7 +278,7 @@ def walk_sign_group(
                         out_steps[k] += 1
                         out_node[k] = child
                         out_level[k] = level + 1
-                        out_t[k] = _fmax(_fmax(_fmax(times[ex, k], times[ey, k]),
+                        out_t[k] = fmax(fmax(fmax(times[ex, k], times[ey, k]),
                                                times[ez, k]), tmn[k])
                         out_normal[k] = entry_normal(times[ex, k], times[ey, k], times[ez, k],
                                                      tmn[k], sx, sy, sz)

@@ -170,8 +170,8 @@ def beam_start(beam_bound: np.ndarray, block: int, pixel: int, width: int) -> fl
 def add_sample(sums: np.ndarray, tallies: np.ndarray, j: int, colors: np.ndarray,
                facing: np.ndarray, depth: int, node: int, level: int, t: float, normal: int,
                steps: int, dx: float, dy: float, dz: float) -> None:
-    """Add one traced sample to pixel ``j``'s sums (the packet path, whose samples arrive
-    64 at a time): colour and normal of a hit, its depth, its steps, the finest LOD."""
+    """Add one traced sample to pixel ``j``'s sums: colour and normal of a hit, its depth,
+    its steps, and the finest LOD sampled."""
     tallies[j, 1] += steps
     if node == MISS:
         return
@@ -196,53 +196,20 @@ def trace_chunk_per_ray(
     radius: float, spread: float, colors: np.ndarray, facing: np.ndarray,
     beam_bound: np.ndarray, block: int, sums: np.ndarray, tallies: np.ndarray,
 ) -> None:
-    """Every sample through the scalar traversal, with the cone ``radius + spread·t``; each
-    pixel's sums stay in registers until its last sample."""
+    """Every sample through the scalar traversal, with the cone ``radius + spread·t``."""
     scratch = new_scratch(depth)
     for j in range(last - first):
         pixel = pixels[first + j]
         pattern = pixel_pattern(pixel, seed) if side > 1 else 0
         t_start = beam_start(beam_bound, block, pixel, width)
-        r = 0.0
-        g = 0.0
-        b = 0.0
-        nx = 0.0
-        ny = 0.0
-        nz = 0.0
-        t_sum = 0.0
-        hits = 0
-        steps_sum = 0
-        finest = 127
         for s in range(side * side):
             ox, oy, oz, dx, dy, dz = sample_ray(cam, width, height, pixel, s, side, pattern)
             node, level, t, normal, steps = trace_ray(
                 ox, oy, oz, dx, dy, dz, t_start, math.inf,
                 inner_nodes, depth, stop_level, radius, spread, scratch,
             )
-            steps_sum += steps
-            if node == MISS:
-                continue
-            hits += 1
-            cr, cg, cb = seen_rgb(colors, facing, node, dx, dy, dz)
-            r += cr
-            g += cg
-            b += cb
-            t_sum += t
-            ax, ay, az = normal_from_code(normal)
-            nx += ax
-            ny += ay
-            nz += az
-            finest = min(finest, depth - level)
-        sums[j, 0] = r
-        sums[j, 1] = g
-        sums[j, 2] = b
-        sums[j, 3] = nx
-        sums[j, 4] = ny
-        sums[j, 5] = nz
-        sums[j, 6] = t_sum
-        tallies[j, 0] = hits
-        tallies[j, 1] = steps_sum
-        tallies[j, 2] = finest
+            add_sample(sums, tallies, j, colors, facing, depth, node, level, t, normal, steps,
+                       dx, dy, dz)
 
 
 @njit(cache=True, nogil=True)

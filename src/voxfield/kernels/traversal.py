@@ -49,13 +49,14 @@ MISS = -1
 NO_NORMAL = -1
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def fmax(a: float, b: float) -> float:
-    """max for non-NaN floats without the NaN handling of the builtin."""
+    """max for non-NaN floats without the NaN handling of the builtin (a plain select, which
+    loops over many rays vectorise)."""
     return a if a > b else b
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def fmin(a: float, b: float) -> float:
     return a if a < b else b
 
