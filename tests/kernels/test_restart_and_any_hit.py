@@ -10,6 +10,7 @@ from numba import njit
 from kernels.test_traversal import adversarial_rays
 from random_scenes import random_scene
 from voxfield.kernels.traversal import new_scratch, trace_ray
+from voxfield.kernels.traversal import occluded as occluded_ray
 from voxfield.render import orbit_camera
 from voxfield.render.ray_query import occluded, trace
 from voxfield.scene.builtin import pillars
@@ -29,6 +30,58 @@ def _one_by_one(o, d, inner, depth, stop, out, out_t):
         out[k, 2] = normal
         out[k, 3] = steps
         out_t[k] = t
+
+
+@njit
+def _interleaved(o, d, tmins, inner, depth, stop, fresh, out, out_t):
+    """Closest-hit and any-hit queries taking turns, with per-ray start times, on one shared
+    scratch (``fresh``: a new scratch per query, so nothing restarts)."""
+    scratch = new_scratch(depth)
+    for k in range(o.shape[0]):
+        if fresh:
+            scratch = new_scratch(depth)
+        if k % 3 == 2:
+            blocked, steps = occluded_ray(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2],
+                                          tmins[k], math.inf, inner, depth, scratch)
+            out[k, 0] = 1 if blocked else 0
+            out[k, 1] = 0
+            out[k, 2] = 0
+            out[k, 3] = steps
+            out_t[k] = 0.0
+            continue
+        node, level, t, normal, steps = trace_ray(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1],
+                                                  d[k, 2], tmins[k], math.inf, inner, depth,
+                                                  stop, 0.0, 0.0, scratch)
+        out[k, 0] = node
+        out[k, 1] = level
+        out[k, 2] = normal
+        out[k, 3] = steps
+        out_t[k] = t
+
+
+def test_restarts_from_start_paths_match_fresh_rays_when_queries_interleave():
+    """Coherent rays that start inside the scene (as beam-started primary rays do) restart
+    from the last ray's start node; any-hit and closest-hit start paths stay apart."""
+    for octree in _scenes():
+        lo, hi = octree.voxel_bounds
+        cam = orbit_camera(lo, hi, size=40)
+        origins, directions = cam.rays(side=2, seed=3)
+        centre = (np.asarray(lo) + np.asarray(hi)) / 2
+        reach = np.linalg.norm(centre - origins, axis=1)
+        rng = np.random.default_rng(4)
+        tmins = reach * rng.choice([0.0, 0.6, 0.8, 0.9], size=len(reach))
+        for lod in (0, 1):
+            stop = octree.depth - lod
+            got = np.empty((len(origins), 4), np.int64)
+            got_t = np.empty(len(origins))
+            want = np.empty_like(got)
+            want_t = np.empty_like(got_t)
+            _interleaved(origins, directions, tmins, octree.inner_nodes, octree.depth, stop,
+                         False, got, got_t)
+            _interleaved(origins, directions, tmins, octree.inner_nodes, octree.depth, stop,
+                         True, want, want_t)
+            assert np.array_equal(got, want)
+            assert np.array_equal(got_t, want_t)
 
 
 def _scenes():

@@ -70,3 +70,14 @@ def test_no_bound_for_octahedral_maps_and_steps_shared_out_exactly(octree):
     part = plan_beam(octree, cam, stop_level=octree.depth, blocks=(8, 4), pixels=some)
     assert part.pixel_steps(some, cam.width).sum() == part.total_steps
     assert no_beam(cam).total_steps == 0
+
+
+def test_image_steps_equal_the_listed_share_on_ragged_blocks(octree):
+    """The sort-free whole-image share gives every pixel what ``pixel_steps`` gives it, on an
+    image whose sides are not multiples of the blocks."""
+    cam = Camera.look_at((24, 90, -30), (24, 0, 24), fov_deg=70, width=37, height=29)
+    beam = plan_beam(octree, cam, stop_level=octree.depth, blocks=(8, 4))
+    listed = beam.pixel_steps(np.arange(cam.width * cam.height), cam.width)
+    image = beam.image_steps(cam.height, cam.width)
+    assert image.sum() == beam.total_steps > 0
+    assert np.array_equal(image, listed.reshape(cam.height, cam.width))

@@ -28,9 +28,12 @@ up to and including the node it stops at. Empty octants it skips are not counted
 equals that of the textbook stack traversal that visits children front to back.
 
 **Restart.** Consecutive rays of one thread are usually close. Each hit leaves its path (the
-ancestors' descriptors on the stack, the hit node's position) in the per-thread scratch; the
-next ray starts at the deepest of those ancestors whose interval holds its start time, which
+ancestors' descriptors on the stack, the hit node's position) in the per-thread scratch, and
+each ray the path of the node it starts in (recorded at its first advance); the next ray
+starts at the deepest ancestor on either path whose interval holds its start time, which
 is exactly where a traversal from the root would arrive after entering every ancestor above.
+Primary rays that a beam bound starts near the surface share their start nodes with their
+neighbours far deeper than the last hit's path reaches.
 Results and step counts are therefore identical to a traversal from the root whatever the ray
 order or thread count; only the dependent loads of the descent are saved.
 """
@@ -175,25 +178,74 @@ def entry_normal(tex: float, tey: float, tez: float, tmin: float, dx: float, dy:
     return 2 * axis + (0 if d_axis > 0.0 else 1)
 
 
-#: Scratch ``path`` slots: the level of the last hit's parent (-1: none) and the hit node's
-#: position; then the same for the last any-hit ray's start node.
+#: Scratch ``path`` slots, four per restart path: the level of the recorded node's parent
+#: (-1: none) and the node's position. The last hit's path, the last any-hit ray's start node
+#: and the last closest-hit ray's start node.
 _PATH_LEVEL = 0
 _START_LEVEL = 4
+_CLOSEST_START_LEVEL = 8
+#: Rows of the start-path descriptors: any-hit rays (whose start paths hold no solid node)
+#: and closest-hit rays keep separate ones.
+_ANY_HIT_ROW = 0
+_CLOSEST_ROW = 1
 
 
 @njit(cache=True, nogil=True)
 def new_scratch(depth: int):
     """Per-thread traversal scratch: one descriptor per level (the stack), the restart paths
-    (``path``) and the descriptors of the last any-hit start path.
+    (``path``) and the descriptors of the last start paths (one row per query kind).
 
-    Closest-hit rays restart from the last hit: the next primary ray usually hits near it.
+    Closest-hit rays restart from the last hit or the last one's start node: the next primary
+    ray usually hits near the last hit, and starts (at its beam bound) near the last start.
     Any-hit rays (shadow and sky rays) restart from the last one's start node: they leave
     from neighbouring surface points and mostly hit nothing.
     """
-    path = np.empty(8, np.int64)
+    path = np.empty(12, np.int64)
     path[_PATH_LEVEL] = -1
     path[_START_LEVEL] = -1
-    return np.empty(depth + 1, np.int64), path, np.empty(depth + 1, np.int64)
+    path[_CLOSEST_START_LEVEL] = -1
+    return np.empty(depth + 1, np.int64), path, np.empty((2, depth + 1), np.int64)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def restart_level(
+    path: np.ndarray, base: int, qx: int, qy: int, qz: int, t_min: float,
+    ox: float, oy: float, oz: float, ix: float, iy: float, iz: float,
+    exit_x: int, exit_y: int, exit_z: int, depth: int, stop_level: int,
+    use_cone: bool, cone: float,
+) -> int:
+    """Deepest level (0: none below the root) of the ancestor on the recorded path at
+    ``base`` that a ray may restart at: above the stop level and the cone's stopping size,
+    holding the voxel ``q`` of the ray's start point, and with an interval that holds
+    ``t_min``."""
+    last = path[base]
+    if last <= 0:
+        return 0
+    hx = path[base + 1]
+    hy = path[base + 2]
+    hz = path[base + 3]
+    root = 1 << depth
+    diff = (qx ^ hx) | (qy ^ hy) | (qz ^ hz)
+    a = min(last, stop_level - 1)
+    while a > 0 and diff >> (depth - a) != 0:
+        a -= 1
+    while a > 0 and use_cone and float(root >> a) <= cone:
+        a -= 1
+    while a > 0:
+        s = root >> a
+        ax0 = hx & -s
+        ay0 = hy & -s
+        az0 = hz & -s
+        enter = max(max(face_time(ax0 + (s & ~exit_x), ox, ix),
+                        face_time(ay0 + (s & ~exit_y), oy, iy)),
+                    face_time(az0 + (s & ~exit_z), oz, iz))
+        leave = min(min(face_time(ax0 + (s & exit_x), ox, ix),
+                        face_time(ay0 + (s & exit_y), oy, iy)),
+                    face_time(az0 + (s & exit_z), oz, iz))
+        if enter <= t_min and t_min < leave:
+            break
+        a -= 1
+    return a
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -251,7 +303,7 @@ def traverse(
         and tmin == tmin and tmax == tmax
     ):
         return MISS, 0, math.inf, NO_NORMAL, 0
-    stack, path, start_stack = scratch
+    stack, path, start_stacks = scratch
     if any_hit:
         path[_PATH_LEVEL] = -1  # any-hit rays do not keep the stack a closest hit left
     dx = flush_uninvertible(dx)
@@ -300,55 +352,38 @@ def traverse(
             or (any_hit and (parent & SOLID_BIT) != 0)):
         path[_PATH_LEVEL] = -1
         return 0, 0, t_min, entry_normal(tex, tey, tez, tmin, dx, dy, dz), 1
-    # Restart below the root where the last hit's path allows (see the module docstring).
+    # Restart below the root where a recorded path allows (see the module docstring).
     level = 0
     x0 = 0
     y0 = 0
     z0 = 0
     size = root
-    last = path[_START_LEVEL if any_hit else _PATH_LEVEL]
-    if last > 0:
-        # Deepest level to try: above the stop level and the cone's stopping size, and no
-        # deeper than the smallest node holding this ray's start point and the path's end.
-        base = _START_LEVEL if any_hit else _PATH_LEVEL
-        hx = path[base + 1]
-        hy = path[base + 2]
-        hz = path[base + 3]
+    start_base = _START_LEVEL if any_hit else _CLOSEST_START_LEVEL
+    start_row = _ANY_HIT_ROW if any_hit else _CLOSEST_ROW
+    if path[start_base] > 0 or path[_PATH_LEVEL] > 0:
         qx = min(max(int(np.floor(ox + t_min * dx)), 0), root - 1)
         qy = min(max(int(np.floor(oy + t_min * dy)), 0), root - 1)
         qz = min(max(int(np.floor(oz + t_min * dz)), 0), root - 1)
-        diff = (qx ^ hx) | (qy ^ hy) | (qz ^ hz)
-        a = min(last, stop_level - 1)
-        while a > 0 and diff >> (depth - a) != 0:
-            a -= 1
-        while a > 0 and use_cone and float(root >> a) <= cone:
-            a -= 1
-        while a > 0:
-            s = root >> a
-            ax0 = hx & -s
-            ay0 = hy & -s
-            az0 = hz & -s
-            enter = max(max(face_time(ax0 + (s & ~exit_x), ox, ix),
-                            face_time(ay0 + (s & ~exit_y), oy, iy)),
-                        face_time(az0 + (s & ~exit_z), oz, iz))
-            leave = min(min(face_time(ax0 + (s & exit_x), ox, ix),
-                            face_time(ay0 + (s & exit_y), oy, iy)),
-                        face_time(az0 + (s & exit_z), oz, iz))
-            if enter <= t_min and t_min < leave:
-                break
-            a -= 1
+        # Any-hit rays skip the last hit's path: it may hold solid nodes they must stop at.
+        a = 0 if any_hit else restart_level(
+            path, _PATH_LEVEL, qx, qy, qz, t_min, ox, oy, oz, ix, iy, iz, exit_x, exit_y,
+            exit_z, depth, stop_level, use_cone, cone)
+        b = restart_level(path, start_base, qx, qy, qz, t_min, ox, oy, oz, ix, iy, iz,
+                          exit_x, exit_y, exit_z, depth, stop_level, use_cone, cone)
+        base = _PATH_LEVEL
+        if b > a:
+            a = b
+            base = start_base
+            for j in range(a + 1):
+                stack[j] = start_stacks[start_row, j]
         if a > 0:
-            if any_hit:
-                # Nodes on an any-hit start path were entered without stopping: not solid.
-                for j in range(a + 1):
-                    stack[j] = start_stack[j]
             level = a
             size = root >> a
-            x0 = hx & -size
-            y0 = hy & -size
-            z0 = hz & -size
+            x0 = path[base + 1] & -size
+            y0 = path[base + 2] & -size
+            z0 = path[base + 3] & -size
             parent = stack[a]
-    started = not any_hit  # any-hit rays record their start path at their first advance
+    started = False  # every ray records its start path at its first advance
     steps = level + 1
     # The current node is child ``idx`` (octant bits) at ``(x0, y0, z0)`` of side ``size`` of
     # the inner node ``parent`` at ``level``; the ray enters it at ``t_min``.
@@ -390,12 +425,12 @@ def traverse(
         if not started:
             started = True
             for j in range(level):
-                start_stack[j] = stack[j]
-            start_stack[level] = parent
-            path[_START_LEVEL] = level
-            path[_START_LEVEL + 1] = x0
-            path[_START_LEVEL + 2] = y0
-            path[_START_LEVEL + 3] = z0
+                start_stacks[start_row, j] = stack[j]
+            start_stacks[start_row, level] = parent
+            path[start_base] = level
+            path[start_base + 1] = x0
+            path[start_base + 2] = y0
+            path[start_base + 3] = z0
         step = ((1 if tx <= t_exit else 0) | (2 if ty <= t_exit else 0)
                 | (4 if tz <= t_exit else 0))
         t_min = t_exit

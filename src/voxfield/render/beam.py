@@ -55,6 +55,21 @@ class Beam:
             total += share[blocks] + (rank < remainder[blocks])
         return total
 
+    def image_steps(self, height: int, width: int) -> np.ndarray:
+        """``pixel_steps`` of every pixel of the image in row-major order, as an (H, W) map:
+        a pixel's rank in its block is its row-major position there, so no sort is needed."""
+        rows = np.arange(height, dtype=np.int64)[:, None]
+        cols = np.arange(width, dtype=np.int64)[None, :]
+        total = np.zeros((height, width), np.int64)
+        for block, steps in self.steps:
+            by, bx = rows // block, cols // block
+            block_height = np.minimum(block, height - by * block)
+            block_width = np.minimum(block, width - bx * block)
+            share, remainder = np.divmod(steps[by, bx], block_height * block_width)
+            rank = (rows - by * block) * block_width + (cols - bx * block)
+            total += share + (rank < remainder)
+        return total
+
 
 def blocks_of(camera: Camera, block: int) -> tuple[int, int]:
     return -(-camera.height // block), -(-camera.width // block)

@@ -175,7 +175,7 @@ def render_error_aware(
 
     result.seconds = beam.seconds + run_in_bands(h, band, label="error-aware", threads=threads,
                                                  progress=progress)
-    result.steps += beam.pixel_steps(np.arange(h * w), w).reshape(h, w)
+    result.steps += beam.image_steps(h, w)
     result.params = {
         "threshold": float(threshold), "decay": float(decay),
         "base_lod": "cone" if base_lod is None else base_lod, "max_refinements": max_refinements,

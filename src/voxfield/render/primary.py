@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -69,7 +70,7 @@ def trace_image(
     seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress,
                            granule=TILE)
     result.seconds = seconds + bounds.seconds
-    result.steps += bounds.pixel_steps(np.arange(h * w), w).reshape(h, w)
+    result.steps += bounds.image_steps(h, w)
     return result
 
 
@@ -81,6 +82,12 @@ def tile_order(height: int, width: int) -> np.ndarray:
     """Flat pixel indices in ``TILE``×``TILE`` tiles (tiles and the pixels inside each in
     row-major order): neighbouring rays run one after another and share cached nodes and
     restarts. Bands of whole tile rows are contiguous runs of it."""
+    return _tile_order(height, width).copy()
+
+
+@functools.lru_cache(maxsize=8)
+def _tile_order(height: int, width: int) -> np.ndarray:
+    """The sort behind ``tile_order``, once per image size (it costs more than a copy)."""
     rows, cols = np.divmod(np.arange(height * width, dtype=np.int64), width)
     key = (rows // TILE * (-(-width // TILE)) + cols // TILE) * TILE * TILE + (
         rows % TILE) * TILE + cols % TILE
