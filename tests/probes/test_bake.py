@@ -333,3 +333,29 @@ def test_vox_scene_bakes_on_a_small_grid(shared_data):
                                                    samples=2))
     _check_real_bake(octree, probes, 16, 0.05)
     assert probes.fingerprint and probes.options.renderer == "reference"
+
+
+def test_probes_baked_side_by_side_wait_for_one_untimed_warm_up(box_octree, monkeypatch):
+    """Kernels compile in one warm-up per configuration, on a 2×2 map, before any probe's
+    timed passes start: threads that would otherwise compile beside a timed pass wait."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    from voxfield.probes import bake as bake_module
+
+    monkeypatch.setattr(bake_module, "_WARMED", set())
+    calls = []
+    real_passes = bake_module._passes
+
+    def recording_passes(octree, camera, options, threads):
+        calls.append(camera.width)
+        return real_passes(octree, camera, options, threads)
+
+    monkeypatch.setattr(bake_module, "_passes", recording_passes)
+    options = BakeOptions(resolution=8, renderer="reference", samples=2)
+    with ThreadPoolExecutor(3) as pool:
+        maps = list(pool.map(lambda p: bake_probe(box_octree, p, options, threads=1),
+                             [(4.5, 4.5, 4.5), (3.5, 4.5, 5.5), (5.5, 3.5, 4.5)]))
+    assert calls[0] == 2 and calls.count(2) == 1 and calls[1:] == [8, 8, 8]
+    bake_probe(box_octree, (4.5, 4.5, 4.5), BakeOptions(resolution=8, renderer="lod", lod=1))
+    assert calls[4:] == [2, 8]  # a new configuration warms up once more
+    assert all(m.cost.radiance_rays == 8 * 8 * 4 for m in maps)

@@ -13,6 +13,8 @@ it is reused and the geometry pass costs nothing. Both passes are counted in ``B
 
 from __future__ import annotations
 
+import threading
+
 import numpy as np
 
 from voxfield.errors import VoxfieldError
@@ -31,6 +33,7 @@ def bake_probe(octree: Octree, position, options: BakeOptions, *,
     and options — the same inputs give bit-identical maps and counts on any thread count, so
     it may run in any process (arguments and result pickle) and be retried or resumed."""
     _check(octree, options)
+    _warm_up(octree, position, options, threads)
     camera = Camera.octahedral(position, options.resolution)
     radiance, geometry = _passes(octree, camera, options, threads)
     cost = BakeCost(
@@ -46,6 +49,26 @@ def bake_probe(octree: Octree, position, options: BakeOptions, *,
         normal=encode_normals(geometry.normal),
         cost=cost,
     )
+
+
+#: Bake configurations (options and the colour arrays' types, which pick the kernels'
+#: compiled signatures) this process has compiled or loaded kernels for, and the lock
+#: that makes every other probe wait, untimed, while the first compiles them.
+_WARMED: set = set()
+_WARM_LOCK = threading.Lock()
+
+
+def _warm_up(octree: Octree, position, options: BakeOptions, threads: int | None) -> None:
+    """Run both passes once on a 2×2 map before a process times its first probe. Compiling
+    holds the GIL, so a kernel compiling in one thread stalls the timed passes of probes
+    baking beside it, and their ``BakeCost`` seconds would include compilation."""
+    stored, facing = octree.kernel_colours(options.channel)
+    key = (options, stored.dtype.str, stored.ndim, facing.dtype.str, facing.ndim)
+    with _WARM_LOCK:
+        if key in _WARMED:
+            return
+        _passes(octree, Camera.octahedral(position, 2), options, threads)
+        _WARMED.add(key)
 
 
 def bake_probes(octree: Octree, grid, options: BakeOptions, *, progress: bool = False,
