@@ -9,9 +9,10 @@ import numpy as np
 import pytest
 
 from voxfield.cli.main import main
+from voxfield.metrics import flip_available
 from voxfield.render import Camera
 from voxfield.scene.builtin import pillars
-from voxfield.studies.curves_study import run_curves_study
+from voxfield.studies.curves_study import curves_figure, run_curves_study
 from voxfield.svo import build_octree
 
 KNOBS = {"thresholds": (0.4, 0.05, 0.15), "decays": (0.0, 0.2),
@@ -64,6 +65,13 @@ def test_curves_follow_their_knobs_and_resume(octree, tmp_path):
     for name in ("results.json", "results.md", "curves.png"):
         assert (tmp_path / name).is_file()
     assert "Bjøntegaard deltas" in (tmp_path / "results.md").read_text()
+    if flip_available():  # a dev install has FLIP: every point has it, plotted and tabled
+        points = [p for cam in report["cameras"].values() for curve in cam["curves"].values()
+                  for p in curve["points"]]
+        assert all(0.0 <= p["flip"] < 1.0 for p in points)
+        assert any(p["flip"] > 0.0 for p in points)
+        assert len(curves_figure(report).axes) == 2 * 4  # per camera: a FLIP-per-step panel
+        assert "| FLIP |" in (tmp_path / "results.md").read_text()
     items = sorted((tmp_path / "items").glob("*.json"))
     assert len(items) == 2 * (1 + 6 * 3 + 3 + 3)
     stamps = {p.name: p.stat().st_mtime_ns for p in items}

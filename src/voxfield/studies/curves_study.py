@@ -233,8 +233,9 @@ def results_markdown(report: dict) -> str:
             for p in curve["points"]:
                 rows.append([name, f"{curve['knob']} {fmt(p[curve['knob']], 'g')}",
                              fmt(p["rays"]), fmt(p["steps"]), fmt(p["psnr"], ".2f"),
-                             fmt(p["ssim"], ".4f")])
-        lines.append(markdown_table(["curve", "knob", "rays", "steps", "PSNR", "SSIM"], rows))
+                             fmt(p["ssim"], ".4f"), fmt(p.get("flip"), ".4f")])
+        lines.append(markdown_table(["curve", "knob", "rays", "steps", "PSNR", "SSIM", "FLIP"],
+                                    rows))
         lines.append("")
     return "\n".join(lines)
 
@@ -249,20 +250,26 @@ def curves_figure(report: dict):
     from matplotlib.ticker import NullFormatter
 
     cams = list(report["cameras"].items())
-    fig, axes = plt.subplots(len(cams), 3, figsize=(15, 4.0 * len(cams)), squeeze=False)
+    # (x key, y key, x label, y label) per panel; FLIP (lower is better) where it was measured.
+    panels = [("steps", "psnr", "traversal steps", "PSNR (dB)"),
+              ("rays", "psnr", "rays", "PSNR (dB)"),
+              ("steps", "ssim", "traversal steps", "SSIM")]
+    if any(p.get("flip") is not None for _, cam in cams for curve in cam["curves"].values()
+           for p in curve["points"]):
+        panels.append(("steps", "flip", "traversal steps", "FLIP (lower is better)"))
+    fig, axes = plt.subplots(len(cams), len(panels), figsize=(5 * len(panels), 4.0 * len(cams)),
+                             squeeze=False)
     for row, (cam_name, cam) in zip(axes, cams, strict=True):
         for name, curve in cam["curves"].items():
             points = sorted(curve["points"], key=lambda p: p["steps"])
-            for ax, (x, y) in zip(row, (("steps", "psnr"), ("rays", "psnr"),
-                                        ("steps", "ssim")), strict=True):
-                ax.plot([p[x] for p in points], [plot_value(p[y]) for p in points],
+            for ax, (x, y, _, _) in zip(row, panels, strict=True):
+                ax.plot([p[x] for p in points], [plot_value(p.get(y)) for p in points],
                         marker="o", label=name)
-        for ax, (x, y) in zip(row, (("traversal steps", "PSNR (dB)"), ("rays", "PSNR (dB)"),
-                                    ("traversal steps", "SSIM")), strict=True):
+        for ax, (_, _, x_label, y_label) in zip(row, panels, strict=True):
             ax.set_xscale("log")
             ax.xaxis.set_minor_formatter(NullFormatter())
-            ax.set_xlabel(x)
-            ax.set_ylabel(y)
+            ax.set_xlabel(x_label)
+            ax.set_ylabel(y_label)
             ax.set_title(f"{cam_name} ({cam['kind']})")
             ax.grid(alpha=0.3)
         row[0].legend(fontsize=8)
