@@ -26,7 +26,11 @@ demo: $(STAMP)
 	$(BIN)/voxfield errors show 0b00110011 --threshold 0.3 --out out/error_mask_51.png
 	@echo "demo images written to out/"
 
+# The CUDA kernels run under Numba's simulator (no GPU needed; JIT off so the shared @njit
+# code runs as Python inside simulated threads), then the suite proper.
 test: $(STAMP)
+	NUMBA_ENABLE_CUDASIM=1 NUMBA_DISABLE_JIT=1 timeout 60 $(BIN)/python -m pytest -q -m cuda \
+		-p no:cacheprovider tests/cuda
 	$(BIN)/python -m pytest -q
 
 # Long fuzzing run (tests/fuzz with many more examples); `make test` runs a short seeded one.

@@ -167,3 +167,18 @@ def test_values_with_a_leading_minus_reach_their_own_check(tmp_path, capsys):
                  "--out", str(tmp_path / "pb")]) == 2
     assert "-1x2x2" in _one_error_line(capsys)
     assert not (tmp_path / "pb").exists()
+
+
+def test_cuda_without_a_gpu_or_for_a_cpu_only_renderer_is_one_line(tmp_path, capsys,
+                                                                   monkeypatch):
+    from voxfield.render import device
+
+    monkeypatch.setattr(device, "cuda_available", lambda: False)  # even on a GPU machine
+    out = tmp_path / "x.png"
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--device", "cuda",
+                 "--out", str(out)]) == 2
+    assert "no CUDA GPU" in _one_error_line(capsys)
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--device", "cuda",
+                 "--renderer", "error-aware", "--out", str(out)]) == 2
+    assert "CPU only" in _one_error_line(capsys)
+    assert not out.exists()

@@ -15,6 +15,7 @@ from voxfield.cli.options import (
     scene_camera,
 )
 from voxfield.render.counter_maps import write_counter_maps
+from voxfield.render.device import CUDA_RENDERERS, DEVICES, check_device
 from voxfield.render.image_io import save_result_image, shade_for_display
 from voxfield.render.registry import RENDERERS, render
 
@@ -30,6 +31,10 @@ def register(subparsers) -> argparse.ArgumentParser:
     add_renderer_options(p, ("reference", "lod", "error-aware", "adaptive"))
     p.add_argument("--channel", default="albedo", help="colour channel to show (default albedo)")
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
+    p.add_argument("--device", choices=DEVICES, default="cpu",
+                   help="where the rays are traced: cpu (default) or cuda (an NVIDIA GPU, "
+                   f"`pip install voxfield[cuda]`; renderers {', '.join(CUDA_RENDERERS)}); "
+                   "the same image either way")
     look = p.add_mutually_exclusive_group()
     look.add_argument("--shade", action="store_true",
                       help="light the colours with a fixed key light, EXR too (default for "
@@ -45,11 +50,13 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
+    check_device(args.device, args.renderer)  # before the scene loads: fail fast
     octree = open_octree(args)
     view = scene_camera(args, octree)
+    on_gpu = {"device": "cuda"} if args.device == "cuda" else {}
     result = render(octree, view, args.renderer, renderer_options_from(args, args.renderer),
                     seed=args.seed, channel=args.channel, threads=args.threads,
-                    progress=not args.quiet)
+                    progress=not args.quiet, **on_gpu)
     out = Path(args.out)
     # Baked light channels are lit already: only the albedo gets the display light unasked.
     if args.shade or (out.suffix.lower() == ".png" and not args.albedo

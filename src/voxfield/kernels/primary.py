@@ -130,11 +130,21 @@ def render_pixel_chunk(
                             block, sums, tallies)
     for j in range(count):
         i = first + j
-        store_pixel(out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
-                    i if out_base < 0 else pixels[i] - out_base, sums[j, 0] / spp,
-                    sums[j, 1] / spp, sums[j, 2] / spp, sums[j, 6], tallies[j, 0],
-                    sums[j, 3], sums[j, 4], sums[j, 5], spp, tallies[j, 0], tallies[j, 1],
-                    tallies[j, 2])
+        store_sums(out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
+                   i if out_base < 0 else pixels[i] - out_base, sums, tallies, j, spp)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def store_sums(
+    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
+    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
+    i: int, sums: np.ndarray, tallies: np.ndarray, j: int, spp: int,
+) -> None:
+    """``store_pixel`` of the sums row ``j`` (``add_sample``'s layout) at index ``i``."""
+    store_pixel(out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
+                i, sums[j, 0] / spp, sums[j, 1] / spp, sums[j, 2] / spp, sums[j, 6],
+                tallies[j, 0], sums[j, 3], sums[j, 4], sums[j, 5], spp, tallies[j, 0],
+                tallies[j, 1], tallies[j, 2])
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -199,17 +209,31 @@ def trace_chunk_per_ray(
     """Every sample through the scalar traversal, with the cone ``radius + spread·t``."""
     scratch = new_scratch(depth)
     for j in range(last - first):
-        pixel = pixels[first + j]
-        pattern = pixel_pattern(pixel, seed) if side > 1 else 0
-        t_start = beam_start(beam_bound, block, pixel, width)
-        for s in range(side * side):
-            ox, oy, oz, dx, dy, dz = sample_ray(cam, width, height, pixel, s, side, pattern)
-            node, level, t, normal, steps = trace_ray(
-                ox, oy, oz, dx, dy, dz, t_start, math.inf,
-                inner_nodes, depth, stop_level, radius, spread, scratch,
-            )
-            add_sample(sums, tallies, j, colors, facing, depth, node, level, t, normal, steps,
-                       dx, dy, dz)
+        trace_pixel(cam, width, height, pixels[first + j], side, seed, inner_nodes, depth,
+                    stop_level, radius, spread, colors, facing, beam_bound, block, scratch,
+                    sums, tallies, j)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def trace_pixel(
+    cam: np.ndarray, width: int, height: int, pixel: int, side: int, seed: int,
+    inner_nodes: np.ndarray, depth: int, stop_level: int, radius: float, spread: float,
+    colors: np.ndarray, facing: np.ndarray, beam_bound: np.ndarray, block: int, scratch,
+    sums: np.ndarray, tallies: np.ndarray, j: int,
+) -> None:
+    """All ``side²`` samples of one pixel through ``trace_ray``, added to row ``j`` of the
+    sums: the one per-pixel loop of the CPU scalar path and the CUDA kernel
+    (``kernels.cuda_primary``), so both targets trace and shade alike."""
+    pattern = pixel_pattern(pixel, seed) if side > 1 else 0
+    t_start = beam_start(beam_bound, block, pixel, width)
+    for s in range(side * side):
+        ox, oy, oz, dx, dy, dz = sample_ray(cam, width, height, pixel, s, side, pattern)
+        node, level, t, normal, steps = trace_ray(
+            ox, oy, oz, dx, dy, dz, t_start, math.inf,
+            inner_nodes, depth, stop_level, radius, spread, scratch,
+        )
+        add_sample(sums, tallies, j, colors, facing, depth, node, level, t, normal, steps,
+                   dx, dy, dz)
 
 
 @njit(cache=True, nogil=True)

@@ -64,6 +64,16 @@ def fmin(a: float, b: float) -> float:
     return a if a < b else b
 
 
+@njit(cache=True, nogil=True, inline="always")
+def floor_float(x: float) -> float:
+    """``floor`` of a finite float as a float, exact for any magnitude (no integer overflow):
+    ``math.floor``, which the CUDA target compiles as well (it has no ``np.floor``), below
+    2⁵², where every float is an integer already."""
+    if abs(x) >= 4503599627370496.0:
+        return x
+    return float(math.floor(x))
+
+
 @njit(cache=True, nogil=True)
 def axis_interval(o: float, d: float, inv: float, lo: float, hi: float) -> tuple[float, float]:
     """Times at which the ray is inside the slab ``[lo, hi)`` of one axis."""
@@ -313,17 +323,17 @@ def traverse(
     # cell (the same side of every integer plane as before, on none), so its crossing times
     # are +-inf, never NaN, and the half-open slab test holds.
     if dx == 0.0:
-        ox = np.floor(ox) + 0.5
+        ox = floor_float(ox) + 0.5
         ix = math.inf
     else:
         ix = 1.0 / dx
     if dy == 0.0:
-        oy = np.floor(oy) + 0.5
+        oy = floor_float(oy) + 0.5
         iy = math.inf
     else:
         iy = 1.0 / dy
     if dz == 0.0:
-        oz = np.floor(oz) + 0.5
+        oz = floor_float(oz) + 0.5
         iz = math.inf
     else:
         iz = 1.0 / dz
@@ -361,9 +371,9 @@ def traverse(
     start_base = _START_LEVEL if any_hit else _CLOSEST_START_LEVEL
     start_row = _ANY_HIT_ROW if any_hit else _CLOSEST_ROW
     if path[start_base] > 0 or path[_PATH_LEVEL] > 0:
-        qx = min(max(int(np.floor(ox + t_min * dx)), 0), root - 1)
-        qy = min(max(int(np.floor(oy + t_min * dy)), 0), root - 1)
-        qz = min(max(int(np.floor(oz + t_min * dz)), 0), root - 1)
+        qx = int(min(max(floor_float(ox + t_min * dx), 0.0), root - 1.0))
+        qy = int(min(max(floor_float(oy + t_min * dy), 0.0), root - 1.0))
+        qz = int(min(max(floor_float(oz + t_min * dz), 0.0), root - 1.0))
         # Any-hit rays skip the last hit's path: it may hold solid nodes they must stop at.
         a = 0 if any_hit else restart_level(
             path, _PATH_LEVEL, qx, qy, qz, t_min, ox, oy, oz, ix, iy, iz, exit_x, exit_y,

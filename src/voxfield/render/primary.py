@@ -12,6 +12,7 @@ from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import run_in_bands, thread_count
 from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
+from voxfield.render.device import check_device, trace_image_cuda
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
 
@@ -41,25 +42,41 @@ class LodOptions:
 def trace_image(
     octree: Octree, camera: Camera, *, side: int, stop_level: int, cone_scale: float,
     seed: int, channel: str = "albedo", threads: int | None = None,
-    progress: bool = False, label: str = "render", beam: bool = True,
+    progress: bool = False, label: str = "render", beam: bool = True, device: str = "cpu",
 ) -> RenderResult:
     """Trace ``side²`` rays per pixel; the shared engine of the reference and LOD renderers.
 
     ``beam`` starts the rays of each pixel block at its beam bound (``render.beam``): the
-    same image, fewer steps.
+    same image, fewer steps. ``device="cuda"`` traces the pixels on a GPU
+    (``render.device``), with the same results.
     """
     if side < 1 or side > 16:
         raise VoxfieldError(f"samples per pixel side must be in 1..16, got {side}")
-    colors, facing = octree.kernel_colours(channel)
-    h, w = camera.height, camera.width
-    result = RenderResult.allocate(h, w)
-    cam = camera.params
+    check_device(device)
     with thread_count(threads):
         bounds = primary_beam(octree, camera, stop_level=stop_level, cone_scale=cone_scale,
                               side=side, enabled=beam)
-    args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors, facing,
-            bounds.bound, bounds.block)
+    trace = trace_image_cuda if device == "cuda" else trace_image_cpu
+    result = trace(octree, camera, side=side, stop_level=stop_level, cone_scale=cone_scale,
+                   seed=seed, channel=channel, beam_bound=bounds.bound, block=bounds.block,
+                   threads=threads, progress=progress, label=label)
+    result.seconds += bounds.seconds
+    result.steps += bounds.image_steps(camera.height, camera.width)
+    return result
 
+
+def trace_image_cpu(
+    octree: Octree, camera: Camera, *, side: int, stop_level: int, cone_scale: float,
+    seed: int, channel: str, beam_bound: np.ndarray, block: int, threads: int | None,
+    progress: bool, label: str,
+) -> RenderResult:
+    """``trace_image``'s pixels on the CPU cores, in bands of tile rows (progress, Ctrl-C)."""
+    colors, facing = octree.kernel_colours(channel)
+    h, w = camera.height, camera.width
+    cam = camera.params
+    result = RenderResult.allocate(h, w)
+    args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors, facing,
+            beam_bound, block)
     order = tile_order(h, w)
 
     def band(rows: slice) -> None:
@@ -67,10 +84,8 @@ def trace_image(
         flat = (b.reshape(len(pixels), *b.shape[2:]) for b in result.buffers(rows))
         render_pixels(cam, w, h, pixels, rows.start * w, side, seed, *args, *flat)
 
-    seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress,
-                           granule=TILE)
-    result.seconds = seconds + bounds.seconds
-    result.steps += bounds.image_steps(h, w)
+    result.seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress,
+                                  granule=TILE)
     return result
 
 
@@ -98,12 +113,15 @@ def render_reference(
     octree: Octree, camera: Camera, *, side: int = ReferenceOptions.side, seed: int = 0,
     channel: str = "albedo",
     threads: int | None = None, progress: bool = False, beam: bool = True,
+    device: str = "cpu",
 ) -> RenderResult:
     """Ground truth: ``side``×``side`` CMJ rays per pixel, all sampling LOD 0 (thesis: 4×4).
-    ``beam=False`` starts every ray at the camera (same image, more steps)."""
+    ``beam=False`` starts every ray at the camera (same image, more steps); ``device`` is
+    ``"cpu"`` or ``"cuda"`` (same image)."""
     result = trace_image(
         octree, camera, side=side, stop_level=octree.depth, cone_scale=0.0, seed=seed,
         channel=channel, threads=threads, progress=progress, label="reference", beam=beam,
+        device=device,
     )
     result.renderer = "reference"
     result.params = {"samples_per_pixel": side * side, "seed": seed, "channel": channel}
@@ -115,10 +133,12 @@ def render_lod(
     cone_scale: float = LodOptions.cone_scale, side: int = LodOptions.side, seed: int = 0,
     channel: str = "albedo",
     threads: int | None = None, progress: bool = False, beam: bool = True,
+    device: str = "cpu",
 ) -> RenderResult:
     """One ray per pixel sampling a fixed LOD, or (``lod=None``) the LOD whose nodes match the
     pixel cone: a node is sampled once it is no larger than ``cone_scale`` pixel footprints.
-    ``beam=False`` starts every ray at the camera (same image, more steps)."""
+    ``beam=False`` starts every ray at the camera (same image, more steps); ``device`` is
+    ``"cpu"`` or ``"cuda"`` (same image)."""
     if lod is not None and not 0 <= lod <= octree.depth:
         raise VoxfieldError(f"LOD must be between 0 and {octree.depth} for this octree, got {lod}")
     if lod is None and not cone_scale > 0.0:
@@ -128,6 +148,7 @@ def render_lod(
         octree, camera, side=side, stop_level=stop_level,
         cone_scale=cone_scale if lod is None else 0.0, seed=seed,
         channel=channel, threads=threads, progress=progress, label="lod", beam=beam,
+        device=device,
     )
     result.renderer = "lod"
     result.params = {
