@@ -100,12 +100,8 @@ def trace_packet(
     # Each ray's sign group once (-1: not traceable, a miss in 0 steps), then one walk per
     # group present.
     signs = 0
+    _clear_results(count, out_node, out_level, out_t, out_normal, out_steps)
     for k in range(count):
-        out_node[k] = MISS
-        out_level[k] = 0
-        out_t[k] = math.inf
-        out_normal[k] = NO_NORMAL
-        out_steps[k] = 0
         group[k] = -1
         if _traceable(origins, directions, tmins, tmaxs, k):
             group[k] = _ray_signs(flush_uninvertible(directions[k, 0]),
@@ -140,6 +136,18 @@ def trace_packet(
             out_t[k] = g_t[j]
             out_normal[k] = g_normal[j]
             out_steps[k] = g_steps[j]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _clear_results(n: int, out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
+                   out_normal: np.ndarray, out_steps: np.ndarray) -> None:
+    """The first ``n`` results as misses in 0 steps, as ``traverse`` answers them."""
+    for k in range(n):
+        out_node[k] = MISS
+        out_level[k] = 0
+        out_t[k] = math.inf
+        out_normal[k] = NO_NORMAL
+        out_steps[k] = 0
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -214,12 +222,7 @@ def walk_sign_group(
     sx = -1.0 if flip & 1 else 1.0
     sy = -1.0 if flip & 2 else 1.0
     sz = -1.0 if flip & 4 else 1.0
-    for k in range(n):
-        out_node[k] = MISS
-        out_level[k] = 0
-        out_t[k] = math.inf
-        out_normal[k] = NO_NORMAL
-        out_steps[k] = 0
+    _clear_results(n, out_node, out_level, out_t, out_normal, out_steps)
     _plane_times(n, times, 0, 0, 0, root, exit_x, exit_y, exit_z, ox, oy, oz, ix, iy, iz)
     full = _interval_mask(n, times, 0, 3, 6, 2, tmn, tmx)
     if full == 0:
