@@ -5,11 +5,15 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from voxfield.errors import VoxfieldError
-from voxfield.render.camera import room_camera
-from voxfield.studies.probe_study import parse_counts, run_probe_study
+from voxfield.render.camera import Camera, room_camera
+from voxfield.render.ray_query import trace
+from voxfield.scene.voxel_scene import VoxelScene
+from voxfield.studies.probe_study import grid_spec, parse_counts, run_probe_study
+from voxfield.svo import build_octree
 from voxfield.svo.open import open_octree
 
 TINY = {"resolutions": (16, 32), "probe_counts": ((1, 1, 1), (2, 2, 2)), "timing_repeats": 1}
@@ -100,6 +104,36 @@ def test_parse_counts():
     assert parse_counts("3") == (3, 3, 3)
     with pytest.raises(VoxfieldError):
         parse_counts("4x4")
+
+
+def test_grid_spec_names_each_grid_one_way():
+    assert grid_spec((2, 2, 2)) == grid_spec("2x2x2") == grid_spec("2") == grid_spec(2) == "2x2x2"
+    assert grid_spec("Surface: 4X3 @ 6.0") == "surface:4x3@6"
+    for bad in ("surface:0x3@6", "surface:3x3@0", "surface:3x3@-2", "4x4", "cube"):
+        with pytest.raises(VoxfieldError):
+            grid_spec(bad)
+
+
+def test_surface_layers_follow_a_terrain(tmp_path):
+    """The probe-count section on layers over rolling ground: each probe stands its height
+    above the ground below it, and both layers are measured."""
+    x, z = np.meshgrid(np.arange(48), np.arange(48), indexing="ij")
+    y = (14 + 5 * np.sin(x / 8.0) * np.cos(z / 6.0)).astype(np.int64)
+    coords = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    octree = build_octree(VoxelScene(coords, np.full((len(coords), 3), 0.5, np.float32)))
+    camera = Camera.look_at((24.0, 40.0, 60.0), (24.0, 14.0, 24.0), fov_deg=60.0, width=16)
+    report = run_probe_study(
+        octree, tmp_path / "layers", camera=camera, grid_counts="surface:2x2@6",
+        resolutions=(8, 16), probe_counts=("surface:2x2@6", "surface:3x3@8"),
+        marchers=("hierarchical",), orderings=("nearest",), timing_repeats=1,
+        relocate_probes=False)
+    assert [row["grid"] for row in report["probe_count"]] == ["surface:2x2@6", "surface:3x3@8"]
+    assert [row["probes"] for row in report["probe_count"]] == [4, 9]
+    for spec, height in (("surface:2x2@6", 6.0), ("surface:3x3@8", 8.0)):
+        positions = np.asarray(report["grids"][spec]["positions"])
+        down = trace(octree, positions, np.tile([0.0, -1.0, 0.0], (len(positions), 1)), lod=0)
+        assert down.hit.all()
+        np.testing.assert_allclose(down.t, height, atol=1e-9)
 
 
 def test_command_line_runs_the_study(tmp_path, capsys):

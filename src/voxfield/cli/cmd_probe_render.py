@@ -39,6 +39,7 @@ from voxfield.lightfield.probe_render_figures import (
 )
 from voxfield.lightfield.trace import (
     COLOUR_FILTERS,
+    COLOUR_PROBES,
     EPSILON_MODES,
     MARCHERS,
     ORDERINGS,
@@ -99,6 +100,12 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--colour-filter", choices=COLOUR_FILTERS, default=defaults.colour_filter,
                    help=f"light-field: how a hit's radiance is read (default "
                    f"{defaults.colour_filter})")
+    p.add_argument("--colour-probe", choices=tuple(COLOUR_PROBES),
+                   default=defaults.colour_probe,
+                   help="light-field: which probe that sees a hit answers its colour: "
+                   "footprint (its texel is smallest there; for the view-independent "
+                   "radiance bakes store) or parallel (it sees the hit most nearly along the "
+                   f"ray) (default {defaults.colour_probe})")
     p.add_argument("--filter", choices=FILTERS, default="bilinear",
                    help="baselines: bilinear (bordered map, default) or nearest texel")
     p.add_argument("--box-min", type=vector_arg, default=None, metavar="X,Y,Z",
@@ -196,7 +203,7 @@ def _trace_options(args):
         marcher=args.marcher, step=args.step, epsilon=args.epsilon,
         epsilon_value=args.epsilon_value, epsilon_k=args.epsilon_k, backface=args.backface,
         ordering=args.ordering, fallback=not args.no_fallback, consensus=args.consensus,
-        colour_filter=args.colour_filter)
+        colour_filter=args.colour_filter, colour_probe=args.colour_probe)
 
 
 def _open_scene(args, probe_set):
@@ -231,7 +238,10 @@ def _compare(args, octree, view, probe_set, packed, result) -> tuple[dict, objec
     metrics = compare_images(np.clip(reference.image, 0.0, 1.0), np.clip(result.image, 0.0, 1.0))
     metrics["reference"] = name
     truth = np.clip(reference.image, 0.0, 1.0)
-    bound = perfect_trace_image(packed, view, reference.depth, threads=args.threads)
+    options = _trace_options(args)
+    bound = perfect_trace_image(packed, view, reference.depth, threads=args.threads,
+                                colour_filter=options.colour_filter,
+                                colour_probe=options.colour_probe)
     metrics["bound_psnr"] = compare_images(truth, np.clip(bound, 0.0, 1.0))["psnr"]
     metrics["bound_gap_db"] = metrics["bound_psnr"] - metrics["psnr"]
     metrics["depth"] = depth_agreement(result.depth, reference.depth)

@@ -26,7 +26,7 @@ from voxfield.cli.options import (
     scheduler_name,
 )
 from voxfield.errors import VoxfieldError
-from voxfield.lightfield.trace import EPSILON_MODES, LightFieldOptions
+from voxfield.lightfield.trace import COLOUR_PROBES, EPSILON_MODES, LightFieldOptions
 from voxfield.lighting import bake_sun_lighting, parse_suns
 from voxfield.probes.grid import parse_grid
 from voxfield.render.camera import preset_camera
@@ -52,7 +52,7 @@ from voxfield.studies.probe_study import (
     MARCHERS,
     ORDERINGS,
     THESIS_RESOLUTIONS,
-    parse_counts,
+    grid_spec,
     results_markdown,
     run_probe_study,
 )
@@ -349,15 +349,16 @@ def _register_probes(actions) -> argparse.ArgumentParser:
         "oblique, ... or --eye/--target choose another.",
     )
     add_scene_options(p)
-    p.add_argument("--grid", default="1x1x1", metavar="NXxNYxNZ",
-                   help="main probe grid fitted to the scene (default 1x1x1: one probe at the "
-                   "centre, the thesis's Holodeck test)")
+    p.add_argument("--grid", default="1x1x1", metavar="GRID",
+                   help="main probe grid: NXxNYxNZ fitted to the scene (default 1x1x1: one "
+                   "probe at the centre, the thesis's Holodeck test) or surface:NXxNZ@H, one "
+                   "layer H voxels above a terrain's surface")
     p.add_argument("--resolutions", type=positive_int_list, default=THESIS_RESOLUTIONS,
                    help="comma-separated probe map sides (default 64,128,256,512,1024)")
-    p.add_argument("--probe-counts", type=counts_list,
+    p.add_argument("--probe-counts", type=grid_list,
                    default=DEFAULT_PROBE_COUNTS, metavar="GRIDS",
-                   help="comma-separated grids for the probe-count section (default "
-                   "1x1x1,2x2x2,3x3x3,4x4x4)")
+                   help="comma-separated grids for the probe-count section, each NXxNYxNZ "
+                   "or surface:NXxNZ@H (default 1x1x1,2x2x2,3x3x3,4x4x4)")
     p.add_argument("--count-resolution", type=int, default=None, metavar="R",
                    help="probe map side of the probe-count and ordering sections (default "
                    "the largest resolution up to 256)")
@@ -375,6 +376,10 @@ def _register_probes(actions) -> argparse.ArgumentParser:
     p.add_argument("--backface", action="store_true", help="reject backface hits")
     p.add_argument("--no-fallback", action="store_true",
                    help="leave rays every probe loses unknown instead of falling back")
+    p.add_argument("--colour-probe", choices=tuple(COLOUR_PROBES), default=defaults.colour_probe,
+                   help="which probe that sees a hit answers its colour: footprint (smallest "
+                   "texel there) or parallel (most nearly along the ray) (default "
+                   f"{defaults.colour_probe})")
     p.add_argument("--no-relocate", action="store_true",
                    help="keep probes on their lattice points even inside geometry")
     p.add_argument("--repeats", type=int, default=3,
@@ -388,9 +393,9 @@ def _register_probes(actions) -> argparse.ArgumentParser:
 
 
 
-def counts_list(text: str) -> tuple[tuple[int, int, int], ...]:
+def grid_list(text: str) -> tuple[str, ...]:
     try:
-        return tuple(parse_counts(part) for part in text.split(","))
+        return tuple(grid_spec(part) for part in text.split(","))
     except VoxfieldError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
@@ -404,10 +409,10 @@ def run_probes(args) -> int:
     check_camera_placement(octree, view)
     options = LightFieldOptions(epsilon=args.epsilon, epsilon_value=args.epsilon_value,
                                 epsilon_k=args.epsilon_k, backface=args.backface,
-                                fallback=not args.no_fallback)
+                                fallback=not args.no_fallback, colour_probe=args.colour_probe)
     out = args.out or default_output("probe_study", args.scene)
     report = run_probe_study(
-        octree, out, scene_name=args.scene, camera=view, grid_counts=parse_counts(args.grid),
+        octree, out, scene_name=args.scene, camera=view, grid_counts=args.grid,
         resolutions=args.resolutions, probe_counts=args.probe_counts,
         orderings=args.orderings, marchers=args.marchers,
         count_resolution=args.count_resolution, options=options,

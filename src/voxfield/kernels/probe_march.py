@@ -89,7 +89,8 @@ P_MAX_STEPS = 4  # MARCH3D step limit
 P_BACKFACE = 5  # 1.0: reject hits on surfaces facing away from the ray
 P_CONSENSUS = 6  # 1.0: a hit another probe sees through is not taken (``probe_multi``)
 P_BILINEAR = 7  # 1.0: a hit's radiance is read bilinearly (``probe_multi``), else nearest
-N_PARAMS = 8
+P_COLOUR_PROBE = 8  # which probe answers a hit's colour (``probe_multi.COLOUR_*``)
+N_PARAMS = 9
 
 #: Events of one texel (or one march step): nothing yet, a hit, a loss of visibility.
 _GO = 0

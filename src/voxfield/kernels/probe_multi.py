@@ -11,8 +11,10 @@ near where the ray now is carry it on (the thesis keeps the origin's cage, whose
 all sit on one side of the ray). When no probe can carry the ray further, the nearest probe
 answers as an environment map (§5.4): its radiance in direction ω.
 
-A hit's colour is read at the hit point from the probe that sees that point most nearly
-along the ray (its stored distance agrees), bilinearly over its bordered map.
+A hit's colour is read at the hit point, bilinearly over the bordered map of a probe that
+sees that point (its stored distance agrees): by default the one whose texels are smallest
+there (``COLOUR_FOOTPRINT``), or the one that sees it most nearly along the ray
+(``COLOUR_PARALLEL``).
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ from voxfield.kernels.probe_march import (
     HIT,
     MISS,
     P_BILINEAR,
+    P_COLOUR_PROBE,
     P_CONSENSUS,
     P_EPSILON,
     UNKNOWN,
@@ -39,6 +42,18 @@ from voxfield.kernels.probe_march import (
 ORDER_SIGNED_DOT = 0  # max ω · S²(X - P) (thesis §4.3, §5.7)
 ORDER_NEAREST = 1  # min |X - P| (McGuire et al. 2017)
 ORDER_FIXED = 2  # corner 0 first, whatever the ray
+
+#: Which of the probes that see a hit point answers its colour.
+#: The smallest texel on the surface: distance over |cos| between the stored normal and the
+#: probe's direction. Baked radiance is view-independent (albedo, diffuse light), so the
+#: sharpest view of the point is the best one, and more probes can only make it sharper.
+COLOUR_FOOTPRINT = 0
+#: The probe most parallel to the ray (the view most like the camera's: for radiance that
+#: varies with direction).
+COLOUR_PARALLEL = 1
+#: Grazing views count as this |cos| at most, so a probe exactly in the surface's plane
+#: still has a finite footprint.
+FOOTPRINT_MIN_COSINE = 0.05
 
 #: Successive corners differ by this, mod 8 (Algorithm 6).
 CORNER_STRIDE = 3
@@ -269,19 +284,38 @@ def seen_through(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray
     return False
 
 
+@njit(cache=True, nogil=True, inline="always")
+def colour_score(rule: int, length: float, cx: float, cy: float, cz: float, dx: float,
+                 dy: float, dz: float, nx: float, ny: float, nz: float) -> float:
+    """How well a probe that sees a point from ``length`` away in direction ``c`` (stored
+    normal ``n`` there) answers the colour of a ray ``d`` hitting it: larger is better."""
+    if rule == COLOUR_PARALLEL:
+        return cx * dx + cy * dy + cz * dz
+    cosine = max(abs(nx * cx + ny * cy + nz * cz), FOOTPRINT_MIN_COSINE)
+    return -length / cosine
+
+
+@njit(cache=True, nogil=True, inline="always")
+def sees_front(length: float, stored: float, slack: float, nx: float, ny: float, nz: float,
+               dx: float, dy: float, dz: float) -> bool:
+    """Whether a probe ``length`` from a point sees it on a surface a ray ``d`` hits from the
+    front: its stored distance agrees (within ``slack``) and its stored normal faces the ray
+    (not the back of a thin wall, whose other side the ray hit)."""
+    return (length > 0.0 and abs(stored - length) <= slack
+            and nx * dx + ny * dy + nz * dz < 0.0)
+
+
 @njit(cache=True, nogil=True)
 def hit_colour_probe(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray,
                      mips: np.ndarray, resolution: int, grid_origin: np.ndarray,
                      grid_spacing: np.ndarray, grid_counts: np.ndarray, hit_probe: int,
-                     hit_row: int, hit_col: int, yx: float, yy: float, yz: float, dx: float,
-                     dy: float, dz: float, tolerance: float, corners: np.ndarray) -> int:
+                     yx: float, yy: float, yz: float, dx: float, dy: float, dz: float,
+                     tolerance: float, corners: np.ndarray, rule: int) -> int:
     """The probe whose radiance answers a hit at ``Y``: of the cage around ``Y`` (and the
-    probe that found the hit), the one most parallel to the ray that sees ``Y`` itself — its
-    stored distance there within ``tolerance`` (plus the texel's slope) of ``|Y - P|`` and its
-    stored surface facing the same way as the hit's (not a wall's back face)."""
-    hx = np.float64(normals[hit_probe, hit_row, hit_col, 0])
-    hy = np.float64(normals[hit_probe, hit_row, hit_col, 1])
-    hz = np.float64(normals[hit_probe, hit_row, hit_col, 2])
+    probe that found the hit), the best by ``rule`` (``colour_score``) of those that see ``Y``
+    itself (``sees_front``). The probe that found the hit may have seen it through a texel
+    that spans an edge; each candidate is judged by its own texel, so near a corner the
+    sharpest view decides which wall the point is on."""
     cage(grid_origin, grid_spacing, grid_counts, yx, yy, yz, corners)
     best = hit_probe
     best_score = -math.inf
@@ -291,12 +325,12 @@ def hit_colour_probe(positions: np.ndarray, enabled: np.ndarray, normals: np.nda
             continue
         length, cx, cy, cz, row, col, stored, slack = point_from_probe(
             positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
-        if length == 0.0 or not abs(stored - length) <= slack:
+        nx = np.float64(normals[q, row, col, 0])
+        ny = np.float64(normals[q, row, col, 1])
+        nz = np.float64(normals[q, row, col, 2])
+        if not sees_front(length, stored, slack, nx, ny, nz, dx, dy, dz):
             continue
-        if (normals[q, row, col, 0] * hx + normals[q, row, col, 1] * hy
-                + normals[q, row, col, 2] * hz < 0.5):
-            continue
-        score = cx * dx + cy * dy + cz * dz
+        score = colour_score(rule, length, cx, cy, cz, dx, dy, dz, nx, ny, nz)
         if score > best_score:
             best_score = score
             best = q
@@ -405,8 +439,8 @@ def trace_block(marcher, eps_mode, ordering, fallback, params, positions, enable
             yy = oy + t * dy
             yz = oz + t * dz
             q = hit_colour_probe(positions, enabled, normals, mips, resolution, grid_origin,
-                                 grid_spacing, grid_counts, p, row, col, yx, yy, yz, dx, dy,
-                                 dz, tolerance, corners)
+                                 grid_spacing, grid_counts, p, yx, yy, yz, dx, dy, dz,
+                                 tolerance, corners, int(params[P_COLOUR_PROBE]))
             length, cx, cy, cz, qr, qc, _, slack = point_from_probe(
                 positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
             if length > 0.0:
@@ -469,12 +503,12 @@ def perfect_trace_rays(positions: np.ndarray, enabled: np.ndarray, normals: np.n
                        mips: np.ndarray, radiance_bordered: np.ndarray,
                        distance_bordered: np.ndarray,
                        resolution: int, points: np.ndarray, dirs: np.ndarray,
-                       tolerance: float, bilinear: bool, out_radiance: np.ndarray,
-                       out_probe: np.ndarray) -> None:
+                       tolerance: float, bilinear: bool, rule: int,
+                       out_radiance: np.ndarray, out_probe: np.ndarray) -> None:
     """The perfect-trace bound's colours: each ray is given its true hit point and reads the
-    enabled probe most parallel to it among those that see the point (stored distance within
-    ``tolerance`` plus the texel's slope; the most parallel of all when none does), bilinear
-    (as ``radiance_at``) or at the nearest texel."""
+    enabled probe best by ``rule`` (``colour_score``) among those that see the point from the
+    ray's side (``sees_front``, ``tolerance`` plus the texel's slope; the best of all when none
+    does), bilinear (as ``radiance_at``) or at the nearest texel."""
     for i in prange(len(points)):
         yx = points[i, 0]
         yy = points[i, 1]
@@ -486,15 +520,21 @@ def perfect_trace_rays(positions: np.ndarray, enabled: np.ndarray, normals: np.n
         for q in range(len(positions)):
             if not enabled[q]:
                 continue
-            length, cx, cy, cz, _, _, stored, slack = point_from_probe(
+            length, cx, cy, cz, row, col, stored, slack = point_from_probe(
                 positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
             if length == 0.0:
                 continue
-            score = cx * dirs[i, 0] + cy * dirs[i, 1] + cz * dirs[i, 2]
+            nx = np.float64(normals[q, row, col, 0])
+            ny = np.float64(normals[q, row, col, 1])
+            nz = np.float64(normals[q, row, col, 2])
+            dx = dirs[i, 0]
+            dy = dirs[i, 1]
+            dz = dirs[i, 2]
+            score = colour_score(rule, length, cx, cy, cz, dx, dy, dz, nx, ny, nz)
             if score > any_score:
                 any_score = score
                 any_best = q
-            if abs(stored - length) <= slack and score > best_score:
+            if sees_front(length, stored, slack, nx, ny, nz, dx, dy, dz) and score > best_score:
                 best_score = score
                 best = q
         q = best if best >= 0 else any_best

@@ -1,10 +1,10 @@
 """How close a probe render comes to what its probes allow, and where it goes wrong.
 
 - ``perfect_trace_image``: the bound. Each pixel is given its true hit point (from the octree's
-  own render of the same rays) and reads the probe that sees that point most nearly along the
-  ray, as the trace reads a hit (bilinear, or the nearest texel). A trace that finds every
-  hit exactly gets this image, so the gap between a method's PSNR and the bound's is what
-  the trace loses.
+  own render of the same rays) and reads a probe that sees that point, chosen and read as the
+  trace reads a hit (``LightFieldOptions.colour_probe`` and ``colour_filter``). A trace that
+  finds every hit exactly gets this image, so the gap between a method's PSNR and the
+  bound's is what the trace loses.
 - ``depth_agreement``: |depth - octree depth| over the pixels where the octree sees a surface.
 - ``pixel_classes``: correct hits, hits on a neighbouring voxel, false hits, wrong misses and
   fallbacks, with each class's share of the squared error.
@@ -17,7 +17,14 @@ import numpy as np
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.probe_multi import perfect_trace_rays
 from voxfield.lightfield.packed import PackedProbes
-from voxfield.lightfield.trace import FALLBACK, HIT, MISS, UNKNOWN
+from voxfield.lightfield.trace import (
+    COLOUR_FILTERS,
+    COLOUR_PROBES,
+    FALLBACK,
+    HIT,
+    MISS,
+    UNKNOWN,
+)
 from voxfield.parallel import thread_count
 from voxfield.render.camera import Camera
 
@@ -33,19 +40,21 @@ CLASSES = ("correct", "neighbour", "false hit", "wrong miss", "fallback", "unkno
 
 
 def perfect_trace_image(packed: PackedProbes, camera: Camera, depth: np.ndarray, *,
-                       colour_filter: str = "bilinear", threads: int | None = None
-                       ) -> np.ndarray:
+                       colour_filter: str = "bilinear", colour_probe: str = "footprint",
+                       threads: int | None = None) -> np.ndarray:
     """The bound: (H, W, 3) float32 radiance read at every pixel's true hit point (``depth``
     = t along the pixel-centre ray, inf where nothing is hit; black there) from the enabled
-    probe most parallel to the ray among those whose stored distance agrees with the point's
-    (the most parallel of all when none agrees), read as the trace reads a hit
-    (``colour_filter`` ``"bilinear"``, or ``"nearest"`` texel)."""
+    probe best by ``colour_probe`` among those whose stored distance agrees with the point's
+    (the best of all when none agrees), read as the trace reads a hit (``colour_filter``
+    ``"bilinear"``, or ``"nearest"`` texel)."""
     h, w = camera.height, camera.width
     depth = np.asarray(depth, np.float64)
     if depth.shape != (h, w):
         raise VoxfieldError(f"depth must be {h}×{w} for this camera, got {depth.shape}")
-    if colour_filter not in ("bilinear", "nearest"):
+    if colour_filter not in COLOUR_FILTERS:
         raise VoxfieldError(f"unknown colour filter {colour_filter!r}")
+    if colour_probe not in COLOUR_PROBES:
+        raise VoxfieldError(f"unknown colour probe rule {colour_probe!r}")
     origins, dirs = camera.rays(side=1)
     hit = np.isfinite(depth.reshape(-1))
     points = np.ascontiguousarray(origins[hit] + depth.reshape(-1)[hit, None] * dirs[hit])
@@ -55,7 +64,8 @@ def perfect_trace_image(packed: PackedProbes, camera: Camera, depth: np.ndarray,
         perfect_trace_rays(packed.positions, packed.enabled, packed.normals, packed.mips,
                            packed.radiance_bordered, packed.distance_bordered,
                            packed.resolution, points, np.ascontiguousarray(dirs[hit]),
-                           SEEN_TOLERANCE, colour_filter == "bilinear", colour, probe)
+                           SEEN_TOLERANCE, colour_filter == "bilinear",
+                           COLOUR_PROBES[colour_probe], colour, probe)
     image = np.zeros((h * w, 3), np.float32)
     image[hit] = colour
     return image.reshape(h, w, 3)

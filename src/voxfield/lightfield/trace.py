@@ -31,6 +31,8 @@ EPSILON_MODES = {"footprint": pm.EPS_FOOTPRINT, "constant": pm.EPS_CONSTANT,
                  "adaptive": pm.EPS_ADAPTIVE, "adaptive-text": pm.EPS_ADAPTIVE_TEXT,
                  "angular": pm.EPS_ANGULAR, "slope": pm.EPS_SLOPE}
 COLOUR_FILTERS = ("bilinear", "nearest")
+#: Which probe answers a hit's colour (``kernels.probe_multi.COLOUR_*``).
+COLOUR_PROBES = {"footprint": mk.COLOUR_FOOTPRINT, "parallel": mk.COLOUR_PARALLEL}
 ORDERINGS = {"signed-dot": mk.ORDER_SIGNED_DOT, "nearest": mk.ORDER_NEAREST,
              "fixed": mk.ORDER_FIXED}
 
@@ -60,9 +62,12 @@ class LightFieldOptions:
     probe's radiance in direction ω (kind ``FALLBACK``) rather than ``UNKNOWN``.
     ``consensus``: before a hit is taken, the other probes of the cage around the hit point
     are asked whether they see empty space there; if one does, the ray marches on.
-    ``colour_filter``: a hit's radiance is read at the hit point from the cage probe that
-    sees it most nearly along the ray, ``"bilinear"`` over its bordered map (texels showing
-    another surface left out) or at the ``"nearest"`` texel.
+    ``colour_probe``: which cage probe that sees a hit point answers its radiance:
+    ``"footprint"`` (the default: the one whose texel is smallest on the surface there,
+    right for view-independent radiance, which is what bakes store) or ``"parallel"`` (the
+    one that sees it most nearly along the ray). ``colour_filter``: that probe is read
+    ``"bilinear"`` over its bordered map (texels showing another surface left out) or at the
+    ``"nearest"`` texel.
     """
 
     marcher: str = "hierarchical"
@@ -76,6 +81,7 @@ class LightFieldOptions:
     fallback: bool = True
     consensus: bool = False
     colour_filter: str = "bilinear"
+    colour_probe: str = "footprint"
 
     def __post_init__(self) -> None:
         for name, table in (("marcher", MARCHERS), ("epsilon", EPSILON_MODES),
@@ -83,6 +89,9 @@ class LightFieldOptions:
             if getattr(self, name) not in table:
                 raise VoxfieldError(f"unknown {name} {getattr(self, name)!r}; choose one of "
                                     f"{', '.join(table)}")
+        if self.colour_probe not in COLOUR_PROBES:
+            raise VoxfieldError(f"unknown colour probe rule {self.colour_probe!r}; choose one "
+                                f"of {', '.join(COLOUR_PROBES)}")
         if self.colour_filter not in COLOUR_FILTERS:
             raise VoxfieldError(f"unknown colour filter {self.colour_filter!r}; choose one of "
                                 f"{', '.join(COLOUR_FILTERS)}")
@@ -107,6 +116,7 @@ class LightFieldOptions:
         out[pm.P_BACKFACE] = 1.0 if self.backface else 0.0
         out[pm.P_CONSENSUS] = 1.0 if self.consensus else 0.0
         out[pm.P_BILINEAR] = 1.0 if self.colour_filter == "bilinear" else 0.0
+        out[pm.P_COLOUR_PROBE] = COLOUR_PROBES[self.colour_probe]
         return out
 
 

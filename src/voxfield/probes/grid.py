@@ -274,6 +274,24 @@ def surface_layer(octree, counts_xz, height: float) -> ProbeGrid:
     return ProbeGrid(origin, spacing, (nx, 1, nz), offsets)
 
 
+def surface_spec(text: str) -> tuple[tuple[int, int], float] | None:
+    """``"surface:8x8@12"`` → ``((8, 8), 12.0)``, the arguments of ``surface_layer``; None
+    for any text of another form. A surface form with bad values raises."""
+    surface = _SURFACE.match(text)
+    if not surface:
+        return None
+    try:
+        height = float(surface.group(3))
+    except ValueError:
+        raise VoxfieldError(f"the layer height in {text!r} must be a number") from None
+    if not (math.isfinite(height) and height > 0):
+        raise VoxfieldError(f"the layer height must be a distance above 0, got {text!r}")
+    counts = (int(surface.group(1)), int(surface.group(2)))
+    if min(counts) < 1:
+        raise VoxfieldError(f"probe counts must be 1 or more, got {text!r}")
+    return counts, height
+
+
 def parse_grid(text: str, bounds=None, octree=None) -> ProbeGrid:
     """The CLI's ``--grid``: ``"8x4x8"`` fits that many probes to ``bounds`` (lo, hi), e.g. an
     octree's ``voxel_bounds``; ``"surface:8x8@12"`` lays one layer 12 voxels above the
@@ -281,18 +299,11 @@ def parse_grid(text: str, bounds=None, octree=None) -> ProbeGrid:
     counts=nx,ny,nz"`` gives the lattice explicitly (keys in any order)."""
     if not isinstance(text, str) or not text.strip():
         raise VoxfieldError(f"empty probe grid; {_GRID_HELP}")
-    surface = _SURFACE.match(text)
-    if surface:
+    surface = surface_spec(text)
+    if surface is not None:
         if octree is None:
             raise VoxfieldError(f"grid {text!r} follows a scene's surface; there is no scene")
-        try:
-            height = float(surface.group(3))
-        except ValueError:
-            raise VoxfieldError(f"the layer height in {text!r} must be a number") from None
-        counts = (int(surface.group(1)), int(surface.group(2)))
-        if min(counts) < 1:
-            raise VoxfieldError(f"probe counts must be 1 or more, got {text!r}")
-        return surface_layer(octree, counts, height)
+        return surface_layer(octree, *surface)
     dims = _DIMS.match(text)
     if dims:
         if bounds is None:

@@ -25,7 +25,6 @@ only what a missing item needs, and a finished study re-runs without baking at a
 
 from __future__ import annotations
 
-import math
 import re
 import time
 from collections.abc import Sequence
@@ -44,7 +43,13 @@ from voxfield.lightfield.trace import LightFieldOptions
 from voxfield.metrics import compare_images
 from voxfield.probes.bake import bake_probes
 from voxfield.probes.distributed import bake_probes_dask
-from voxfield.probes.grid import DEFAULT_CLEARANCE_FRACTION, ProbeGrid, relocate
+from voxfield.probes.grid import (
+    DEFAULT_CLEARANCE_FRACTION,
+    ProbeGrid,
+    relocate,
+    surface_layer,
+    surface_spec,
+)
 from voxfield.probes.probe_set import MAX_RESOLUTION, MIN_RESOLUTION, BakeOptions
 from voxfield.progress import progress_bar
 from voxfield.render.camera import Camera
@@ -65,13 +70,16 @@ from voxfield.studies.report import (
 #: Map sides of the resolution section (the issue's 64² … 1024²).
 THESIS_RESOLUTIONS = (64, 128, 256, 512, 1024)
 #: Probe grids of the probe-count section, sparse to dense.
-DEFAULT_PROBE_COUNTS = ((1, 1, 1), (2, 2, 2), (3, 3, 3), (4, 4, 4))
+DEFAULT_PROBE_COUNTS = ("1x1x1", "2x2x2", "3x3x3", "4x4x4")
 ORDERINGS = ("signed-dot", "nearest", "fixed")
 MARCHERS = ("march3d", "dda", "hierarchical")
 QUALITY_METHODS = ("light-field", "environment", "box-proxy")
 #: Largest map side the probe-count and ordering sections bake by default: they bake up to
 #: dozens of probes, and cost trends need no 1024² maps.
 COUNT_RESOLUTION_CAP = 256
+#: Section 3 says when a grid's perfect-trace bound stays below this: its maps are too coarse
+#: for the view, so its failures and PSNR say little about the trace.
+BOUND_FLOOR_DB = 30.0
 #: Relocation keeps probes at least this far (voxels) from surfaces, or the grid default (a
 #: fifth of the spacing) when that is smaller: a lone probe's default would be a fifth of the
 #: scene, which no probe in a cluttered scene can reach.
@@ -83,8 +91,9 @@ THESIS_CLAIMS = {"march3d": "no bound (fixed world step)", "dda": "O(√r): expo
 
 def run_probe_study(
     octree, out_dir: str | Path, *, scene_name: str = "scene", camera: Camera,
-    grid_counts: Sequence[int] = (1, 1, 1), resolutions: Sequence[int] = THESIS_RESOLUTIONS,
-    probe_counts: Sequence[Sequence[int]] = DEFAULT_PROBE_COUNTS,
+    grid_counts: Sequence[int] | str = (1, 1, 1),
+    resolutions: Sequence[int] = THESIS_RESOLUTIONS,
+    probe_counts: Sequence[Sequence[int] | str] = DEFAULT_PROBE_COUNTS,
     orderings: Sequence[str] = ORDERINGS, marchers: Sequence[str] = MARCHERS,
     count_resolution: int | None = None, options=None, relocate_probes: bool = True,
     channel: str = "albedo", timing_repeats: int = 3, seed: int = 0, progress: bool = False,
@@ -93,9 +102,11 @@ def run_probe_study(
     """Run the five sections on one scene and view (resumable); write results.json,
     results.md, the plots and contact_sheet.png into ``out_dir``; return the report.
 
-    ``grid_counts`` is the main grid (sections 1, 2 and 5), fitted to the scene's voxel box;
-    ``probe_counts`` the grids of sections 3 and 4, baked at ``count_resolution`` (default:
-    the largest of ``resolutions`` up to 256). Section 1 uses the largest resolution.
+    ``grid_counts`` is the main grid (sections 1, 2 and 5) and ``probe_counts`` the grids of
+    sections 3 and 4, baked at ``count_resolution`` (default: the largest of ``resolutions``
+    up to 256). A grid is probes per axis fitted to the scene's voxel box (``(2, 2, 2)`` or
+    ``"2x2x2"``), or ``"surface:NXxNZ@H"``: one layer H voxels above a terrain's surface
+    (``probes.grid.surface_layer``). Section 1 uses the largest resolution.
     ``options`` (``LightFieldOptions``) sets epsilon, backface and fallback; the marcher and
     ordering are varied by the study (the options' own are the defaults elsewhere). With
     ``relocate_probes`` probes are moved out of geometry (``probes.grid.relocate``) first.
@@ -114,8 +125,8 @@ def run_probe_study(
              + len(plan["probe_counts"]) * (len(plan["marchers"]) + len(plan["orderings"])))
     with progress_bar(total=total, desc="probe study", unit="item", enabled=progress) as bar:
         reference = study.reference()
-        for counts in dict.fromkeys((main, *plan["probe_counts"])):
-            study.describe_grid(counts)
+        for spec in dict.fromkeys((main, *plan["probe_counts"])):
+            study.describe_grid(spec)
         resolution_rows = []
         quality_rows = []
         timing = None
@@ -133,15 +144,15 @@ def run_probe_study(
                     bar.update(1)
                 timing = study.timing(main, r, plan["marchers"], timing_repeats)
         count_rows = []
-        for counts in plan["probe_counts"]:
-            row = {"counts": list(counts), "probes": math.prod(counts),
-                   "bake": study.bake_cost(counts, count_r), "marchers": {}, "orderings": {}}
+        for spec in plan["probe_counts"]:
+            row = {"grid": spec, "probes": study.describe_grid(spec)["probes"],
+                   "bake": study.bake_cost(spec, count_r), "marchers": {}, "orderings": {}}
             for marcher in plan["marchers"]:
-                row["marchers"][marcher] = study.measure(counts, count_r, "light-field",
+                row["marchers"][marcher] = study.measure(spec, count_r, "light-field",
                                                          marcher=marcher)
                 bar.update(1)
             for ordering in plan["orderings"]:
-                row["orderings"][ordering] = study.measure(counts, count_r, "light-field",
+                row["orderings"][ordering] = study.measure(spec, count_r, "light-field",
                                                            ordering=ordering)
                 bar.update(1)
             count_rows.append(row)
@@ -149,7 +160,7 @@ def run_probe_study(
 
     report = {
         "study": "probes", "scene": scene_name, "width": camera.width, "height": camera.height,
-        "camera": camera.params.tolist(), "grid": list(main), "seed": seed, "channel": channel,
+        "camera": camera.params.tolist(), "grid": main, "seed": seed, "channel": channel,
         "options": _options_dict(options), "relocated": relocate_probes,
         "quality_resolution": quality_r, "count_resolution": count_r,
         "reference": {"renderer": "render_lod(lod=0): one LOD-0 ray per pixel centre",
@@ -197,8 +208,10 @@ def _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, mar
               and MIN_RESOLUTION <= count_resolution <= MAX_RESOLUTION):
         raise VoxfieldError(f"count resolution must be a map side in {MIN_RESOLUTION}.."
                             f"{MAX_RESOLUTION}, got {count_resolution!r}")
-    counts = [_grid_counts(c) for c in probe_counts]
-    if not counts:
+    if isinstance(probe_counts, str):
+        raise VoxfieldError("give the probe-count section a list of grids")
+    specs = [grid_spec(c) for c in probe_counts]
+    if not specs:
         raise VoxfieldError("give at least one probe grid for the probe-count section")
     for name, values, known in (("ordering", orderings, KNOWN_ORDERINGS),
                                 ("marcher", marchers, KNOWN_MARCHERS)):
@@ -209,8 +222,8 @@ def _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, mar
                 raise VoxfieldError(f"unknown {name} {v!r}; choose from {', '.join(known)}")
     if not isinstance(timing_repeats, (int, np.integer)) or timing_repeats < 1:
         raise VoxfieldError(f"timing repeats must be an integer >= 1, got {timing_repeats!r}")
-    return {"grid": _grid_counts(grid_counts), "resolutions": resolutions,
-            "probe_counts": tuple(dict.fromkeys(counts)), "orderings": tuple(orderings),
+    return {"grid": grid_spec(grid_counts), "resolutions": resolutions,
+            "probe_counts": tuple(dict.fromkeys(specs)), "orderings": tuple(orderings),
             "marchers": tuple(marchers), "count_resolution": int(count_resolution)}
 
 
@@ -223,6 +236,17 @@ def _positive_ints(values, what: str) -> list[int]:
     if not out or not exact or any(v < 1 for v in out):
         raise VoxfieldError(f"{what} must be whole numbers >= 1, got {values!r}")
     return out
+
+
+def grid_spec(value) -> str:
+    """A study grid's canonical name: ``"NXxNYxNZ"`` (probes per axis, fitted to the scene's
+    box) from that text, ``(nx, ny, nz)`` or ``n``; or ``"surface:NXxNZ@H"``."""
+    if isinstance(value, str):
+        surface = surface_spec(value)
+        if surface is not None:
+            (nx, nz), height = surface
+            return f"surface:{nx}x{nz}@{height:g}"
+    return "x".join(map(str, _grid_counts(value)))
 
 
 def _grid_counts(value) -> tuple[int, int, int]:
@@ -279,10 +303,15 @@ class _Study:
 
     # --- probes -------------------------------------------------------------------------
 
-    def grid(self, counts):
-        """The grid fitted to the scene's voxel box, relocated out of geometry if asked."""
-        lo, hi = self.octree.voxel_bounds
-        grid = ProbeGrid.fit(lo, hi, counts)
+    def grid(self, spec: str):
+        """The grid ``spec`` names (``grid_spec``) on this scene, relocated out of geometry if
+        asked."""
+        surface = surface_spec(spec)
+        if surface is not None:
+            grid = surface_layer(self.octree, *surface)
+        else:
+            lo, hi = self.octree.voxel_bounds
+            grid = ProbeGrid.fit(lo, hi, parse_counts(spec))
         summary = None
         if self.relocate_probes:
             clearance = min(RELOCATION_CLEARANCE,
@@ -290,29 +319,29 @@ class _Study:
             grid, moved = relocate(grid, self.octree, clearance=clearance, seed=self.seed)
             summary = moved.summary()
         if not np.asarray(grid.enabled).any():
-            raise VoxfieldError(f"every probe of the {'x'.join(map(str, counts))} grid sits in "
+            raise VoxfieldError(f"every probe of the {spec} grid sits in "
                                 "geometry; use another grid or --no-relocate")
         return grid, summary
 
-    def describe_grid(self, counts) -> dict:
+    def describe_grid(self, spec: str) -> dict:
         """Probes, enabled probes and what relocation did, for the report (cached)."""
         def compute() -> dict:
-            grid, summary = self.grid(counts)
+            grid, summary = self.grid(spec)
             return {"probes": grid.count, "enabled": int(np.count_nonzero(grid.enabled)),
                     "positions": np.asarray(grid.positions)[np.asarray(grid.enabled)].tolist(),
                     "relocation": summary}
 
-        note = self.folder.value_item("grid", {**self.view, "counts": list(counts),
+        note = self.folder.value_item("grid", {**self.view, "grid": spec,
                                                "relocate": self._relocation}, compute)
-        self.grid_notes["x".join(map(str, counts))] = note
+        self.grid_notes[spec] = note
         return note
 
-    def probe_set(self, counts, resolution: int):
+    def probe_set(self, spec: str, resolution: int):
         """The baked probe set and its packed maps; the last bake is kept for reuse."""
-        key = (tuple(counts), int(resolution))
+        key = (spec, int(resolution))
         if self._bake_key != key:
             self.drop_bake()
-            grid, _ = self.grid(counts)
+            grid, _ = self.grid(spec)
             bake = BakeOptions(resolution=int(resolution), renderer="lod", lod=0,
                                channel=self.channel, seed=self.seed)
             start = time.perf_counter()
@@ -330,14 +359,14 @@ class _Study:
         self._bake_key = None
         self._bake = None
 
-    def _params(self, counts, resolution: int, **extra) -> dict:
-        return {**self.view, "counts": list(counts), "resolution": int(resolution),
+    def _params(self, spec: str, resolution: int, **extra) -> dict:
+        return {**self.view, "grid": spec, "resolution": int(resolution),
                 "relocate": self._relocation, "bake": "lod0", **extra}
 
-    def bake_cost(self, counts, resolution: int) -> dict:
+    def bake_cost(self, spec, resolution: int) -> dict:
         """Probes baked, texels, rays and seconds of one bake (renderer ``lod`` at LOD 0)."""
         def compute() -> dict:
-            probe_set, _, seconds = self.probe_set(counts, resolution)
+            probe_set, _, seconds = self.probe_set(spec, resolution)
             cost = probe_set.cost_summary()
             return {"probes": int(np.count_nonzero(probe_set.enabled)),
                     "texels_per_probe": int(resolution) ** 2, "seconds": seconds,
@@ -346,7 +375,7 @@ class _Study:
         # The bake's seconds depend on where it ran: a scheduled bake is its own item.
         scheduler = self.folder.scheduler
         where = {} if scheduler in (None, "serial") else {"scheduler": str(scheduler)}
-        return self.folder.value_item("bake", self._params(counts, resolution, **where),
+        return self.folder.value_item("bake", self._params(spec, resolution, **where),
                                       compute)
 
     # --- renders --------------------------------------------------------------------------
@@ -358,15 +387,15 @@ class _Study:
                 self.octree, self.camera, lod=0, seed=self.seed, channel=self.channel))
         return self._reference
 
-    def _render(self, counts, resolution, method, options):
+    def _render(self, spec, resolution, method, options):
 
-        probe_set, packed, _ = self.probe_set(counts, resolution)
+        probe_set, packed, _ = self.probe_set(spec, resolution)
         if method == "light-field":
             return render_from_probes(probe_set, self.camera, method=method, options=options,
                                       packed=packed, seed=self.seed)
         return render_from_probes(probe_set, self.camera, method=method, seed=self.seed)
 
-    def measure(self, counts, resolution: int, method: str, *, marcher: str | None = None,
+    def measure(self, spec, resolution: int, method: str, *, marcher: str | None = None,
                 ordering: str | None = None, keep_render: bool = False) -> dict:
         """Quality and cost of one probe render; ``keep_render`` also caches its image and
         maps for the contact sheet."""
@@ -376,12 +405,12 @@ class _Study:
             options = replace(self.options, marcher=marcher or self.options.marcher,
                               ordering=ordering or self.options.ordering)
             extra["options"] = _options_dict(options)
-        params = self._params(counts, resolution, **extra)
-        name = f"{method}-{'x'.join(map(str, counts))}-r{resolution}"
+        params = self._params(spec, resolution, **extra)
+        name = f"{method}-{_item_name(spec)}-r{resolution}"
         if keep_render:
             result = self.folder.render_item(
                 f"render-{name}", params,
-                lambda: self._render(counts, resolution, method, options))
+                lambda: self._render(spec, resolution, method, options))
             self.kept[method] = result
             measured = self.folder.value_item(f"measure-{name}", params,
                                               lambda: measurements(self.reference(), result))
@@ -389,24 +418,29 @@ class _Study:
             measured = self.folder.value_item(
                 f"measure-{name}", params,
                 lambda: measurements(self.reference(),
-                                     self._render(counts, resolution, method, options)))
-        return {**measured, "bound_psnr": self.bound(counts, resolution)}
+                                     self._render(spec, resolution, method, options)))
+        return {**measured, "bound_psnr": self.bound(spec, resolution)}
 
-    def bound(self, counts, resolution: int) -> float:
+    def bound(self, spec, resolution: int) -> float:
         """PSNR of the perfect-trace bound of these probes (``lightfield.accuracy``)."""
         def compute() -> float:
-            _, packed, _ = self.probe_set(counts, resolution)
+            _, packed, _ = self.probe_set(spec, resolution)
             reference = self.reference()
-            image = perfect_trace_image(packed, self.camera, reference.depth)
+            image = perfect_trace_image(packed, self.camera, reference.depth,
+                                        colour_filter=self.options.colour_filter,
+                                        colour_probe=self.options.colour_probe)
             return compare_images(np.clip(reference.image, 0, 1), np.clip(image, 0, 1))["psnr"]
 
-        return self.folder.value_item(f"bound-{'x'.join(map(str, counts))}-r{resolution}",
-                                      self._params(counts, resolution), compute)
+        return self.folder.value_item(f"bound-{_item_name(spec)}-r{resolution}",
+                                      self._params(spec, resolution,
+                                                   colour_probe=self.options.colour_probe,
+                                                   colour_filter=self.options.colour_filter),
+                                      compute)
 
-    def timing(self, counts, resolution: int, marchers, repeats: int) -> dict:
+    def timing(self, spec, resolution: int, marchers, repeats: int) -> dict:
         """Warm wall times (the best of ``repeats``) of the direct octree render and of each
         probe render of the same view; compilation is excluded by a first untimed run."""
-        params = self._params(counts, resolution, marchers=list(marchers), repeats=repeats,
+        params = self._params(spec, resolution, marchers=list(marchers), repeats=repeats,
                               options=_options_dict(self.options))
 
         def best(render) -> float:
@@ -420,13 +454,18 @@ class _Study:
             for marcher in marchers:
                 options = replace(self.options, marcher=marcher)
                 probe[f"light-field ({marcher})"] = best(
-                    lambda o=options: self._render(counts, resolution, "light-field", o))
+                    lambda o=options: self._render(spec, resolution, "light-field", o))
             for method in QUALITY_METHODS[1:]:
-                probe[method] = best(lambda m=method: self._render(counts, resolution, m, None))
+                probe[method] = best(lambda m=method: self._render(spec, resolution, m, None))
             return {"direct": direct, "probe": probe, "repeats": repeats,
                     "pixels": self.camera.width * self.camera.height}
 
         return self.folder.value_item(f"timing-r{resolution}", params, compute)
+
+
+def _item_name(spec: str) -> str:
+    """A grid's name as part of an item's file name."""
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", spec)
 
 
 def measurements(reference, result) -> dict:
@@ -488,12 +527,13 @@ def _kinds_cells(m: dict) -> list[str]:
 def results_markdown(report: dict) -> str:
     """The study's tables as Markdown."""
     o = report["options"]
-    grid = "x".join(map(str, report["grid"]))
+    grid = report["grid"]
     lines = [
         f"# Probe analysis (probe thesis ch. 9) — {report['scene']}, "
         f"{report['width']}×{report['height']}",
         "",
-        f"Main grid {grid} fitted to the scene's voxel box"
+        f"Main grid {grid} "
+        f"{'over the surface' if grid.startswith('surface:') else 'fitted to the voxel box'}"
         f"{', probes relocated out of geometry' if report['relocated'] else ''}. Probes baked "
         "with `BakeOptions(renderer='lod', lod=0)` (one LOD-0 ray per texel centre). Light-field "
         f"options: epsilon {o['epsilon']} (value {o['epsilon_value']}, k {o['epsilon_k']}), "
@@ -512,9 +552,9 @@ def results_markdown(report: dict) -> str:
         "lone probes can still move.",
         "",
     ]
-    for counts, note in report["grids"].items():
+    for spec, note in report["grids"].items():
         reloc = f"; {note['relocation']}" if note.get("relocation") else ""
-        lines.append(f"- grid {counts}: {note['enabled']} of {note['probes']} probes "
+        lines.append(f"- grid {spec}: {note['enabled']} of {note['probes']} probes "
                      f"enabled{reloc}")
     lines.append("")
 
@@ -531,8 +571,11 @@ def results_markdown(report: dict) -> str:
     lines.append(markdown_table(["method", "PSNR (dB)", "bound (dB)", "gap (dB)", "SSIM",
                                  "RMSE", "depth p99", "depth ≤ 1 %", "hit %", "miss %",
                                  "unknown %", "fallback %", "fetches/px"], rows))
-    lines.append("The bound gives every pixel its true hit point and reads the probe that "
-                 "sees it most nearly along the ray, as the trace reads a hit; depth columns "
+    rule = {"footprint": "whose texel is smallest there",
+            "parallel": "that sees it most nearly along the ray"}[o.get("colour_probe",
+                                                                       "parallel")]
+    lines.append("The bound gives every pixel its true hit point and reads the probe "
+                 f"{rule} among those that see it, as the trace reads a hit; depth columns "
                  "compare t with the octree's over the pixels it sees (voxels).\n")
     lines.append("The environment and box-proxy baselines answer every ray from the probe "
                  "nearest the ray origin (4 bilinear fetches); their kind is hit where the "
@@ -564,7 +607,7 @@ def results_markdown(report: dict) -> str:
               " probes)", ""]
     rows = []
     for row in report["probe_count"]:
-        cells = ["x".join(map(str, row["counts"])), str(row["bake"]["probes"])]
+        cells = [row["grid"], str(row["bake"]["probes"])]
         for m in marchers:
             c = row["marchers"][m]
             cells += [fmt(100 * c["failures"], ".1f"), fmt(c["fetches_per_pixel"], ".1f"),
@@ -577,6 +620,14 @@ def results_markdown(report: dict) -> str:
         headers += [f"fail % ({m})", f"fetches ({m})", f"probes tried ({m})"]
     headers += [f"PSNR ({marchers[-1]})", "bound (dB)"]
     lines.append(markdown_table(headers, rows))
+    bounds = {row["grid"]: row["marchers"][marchers[-1]].get("bound_psnr")
+              for row in report["probe_count"]}
+    low = [spec for spec, bound in bounds.items() if bound is not None and bound < BOUND_FLOOR_DB]
+    if low:
+        lines.append(f"The bound is below {BOUND_FLOOR_DB:g} dB for {', '.join(low)}: at "
+                     f"{report['count_resolution']}² the maps themselves cannot show this view "
+                     "well, whatever the trace does; a larger --count-resolution raises "
+                     "it.\n")
 
     orderings = list(report["probe_count"][0]["orderings"])
     lines += [f"## 4. First-probe success per ordering ({report['count_resolution']}² probes, "
@@ -585,7 +636,7 @@ def results_markdown(report: dict) -> str:
               "tried); failures and fetches per pixel beside it.", ""]
     rows = []
     for row in report["probe_count"]:
-        cells = ["x".join(map(str, row["counts"]))]
+        cells = [row["grid"]]
         cells += [fmt(100 * row["orderings"][k]["first_probe_success"], ".1f")
                   for k in orderings]
         cells += [fmt(100 * row["orderings"][k]["failures"], ".1f") for k in orderings]

@@ -64,7 +64,7 @@ def resolution_figure(report: dict):
     ax.set_title("fetches per pixel (probe thesis §9.1)")
     bx.set_ylabel("PSNR (dB) against the octree")
     bx.set_title("light-field quality")
-    fig.suptitle(f"{report['scene']}: grid {'x'.join(map(str, report['grid']))}")
+    fig.suptitle(f"{report['scene']}: grid {report['grid']}")
     fig.tight_layout()
     return fig
 
@@ -74,7 +74,7 @@ def count_figure(report: dict):
     plt = _plt()
     rows = report["probe_count"]
     probes = [row["probes"] for row in rows]
-    labels = ["x".join(map(str, row["counts"])) for row in rows]
+    labels = [row["grid"] for row in rows]
     marchers = list(rows[0]["marchers"])
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.2))
     panels = (("failures", "failures (% of pixels)", 100.0),
@@ -106,7 +106,7 @@ def ordering_figure(report: dict):
     for i, k in enumerate(orderings):
         values = [100 * row["orderings"][k]["first_probe_success"] for row in rows]
         ax.bar(x + (i - (len(orderings) - 1) / 2) * width, values, width, label=k)
-    ax.set_xticks(x, [f"{'x'.join(map(str, row['counts']))} ({row['probes']})"
+    ax.set_xticks(x, [f"{row['grid']} ({row['probes']})"
                       for row in rows])
     ax.set_xlabel("probe grid (probes)")
     ax.set_ylabel("first probe answers (% of pixels)")
@@ -154,6 +154,6 @@ def contact_sheet_figure(report: dict, reference, renders: dict):
         lines.append(f"{q['method']:<12} {_value(q['psnr']):7.2f} {_value(q['ssim']):7.4f} "
                      f"{100 * q['failures']:6.1f}")
     cells.append("\n".join(lines))
-    grid = "x".join(map(str, report["grid"]))
+    grid = report["grid"]
     return contact_sheet(cells, columns=4, title=f"{report['scene']}: probes {grid} at "
                          f"{report['quality_resolution']}² vs the octree")
