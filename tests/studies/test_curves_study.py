@@ -4,6 +4,7 @@ deltas compare them, files are written, and a second run recomputes nothing."""
 from __future__ import annotations
 
 import json
+import math
 
 import numpy as np
 import pytest
@@ -12,7 +13,12 @@ from voxfield.cli.main import main
 from voxfield.metrics import flip_available
 from voxfield.render import Camera
 from voxfield.scene.builtin import pillars
-from voxfield.studies.curves_study import curves_figure, run_curves_study
+from voxfield.studies.curves_study import (
+    ORACLE_FRACTIONS,
+    ORACLE_SIDES,
+    curves_figure,
+    run_curves_study,
+)
 from voxfield.svo import build_octree
 
 KNOBS = {"thresholds": (0.4, 0.05, 0.15), "decays": (0.0, 0.2),
@@ -38,7 +44,14 @@ def test_curves_follow_their_knobs_and_resume(octree, tmp_path):
     for cam in report["cameras"].values():
         curves = cam["curves"]
         assert set(curves) == {"EA d=0", "EA d=0.2", "EA context d=0.2", "EA+colour d=0.2",
-                               "EA+colour→LOD 0 d=0.2", "hybrid d=0.2", "A", "LOD"}
+                               "EA+colour→LOD 0 d=0.2", "hybrid d=0.2", "A", "LOD", "oracle"}
+        # The oracle's 4×4 refinements are the reference's own pixels: refining more of the
+        # worst pixels only lowers the error, and refining all of them leaves none.
+        exact = [p for p in curves["oracle"]["points"] if p["side"] == 4]
+        assert [p["fraction"] for p in exact] == sorted(p["fraction"] for p in exact)
+        psnr = [math.inf if p["psnr"] is None else p["psnr"] for p in exact]
+        assert psnr == sorted(psnr)
+        assert exact[-1]["fraction"] == 1.0 and exact[-1]["psnr"] is None
         # The hybrid refines at least where EA does: never fewer rays at any threshold.
         for ea_point, hybrid_point in zip(curves["EA d=0.2"]["points"],
                                           curves["hybrid d=0.2"]["points"], strict=True):
@@ -58,7 +71,7 @@ def test_curves_follow_their_knobs_and_resume(octree, tmp_path):
         lod = sorted(curves["LOD"]["points"], key=lambda p: p["lod"])
         assert all(p["rays"] == 24 * 24 for p in lod)  # one ray a pixel at every level
         assert [p["steps"] for p in lod] == sorted((p["steps"] for p in lod), reverse=True)
-        assert len(cam["deltas"]) == 12  # the six EA-family curves against A and LOD
+        assert len(cam["deltas"]) == 14  # six EA-family curves and the oracle, against A, LOD
         for d in cam["deltas"]:
             assert d["bd_psnr_steps"] is None or np.isfinite(d["bd_psnr_steps"])
             assert d["bd_psnr_steps"] is not None or d["note"]
@@ -73,7 +86,7 @@ def test_curves_follow_their_knobs_and_resume(octree, tmp_path):
         assert len(curves_figure(report).axes) == 2 * 4  # per camera: a FLIP-per-step panel
         assert "| FLIP |" in (tmp_path / "results.md").read_text()
     items = sorted((tmp_path / "items").glob("*.json"))
-    assert len(items) == 2 * (1 + 6 * 3 + 3 + 3)
+    assert len(items) == 2 * (1 + 6 * 3 + 3 + 3 + len(ORACLE_FRACTIONS) * len(ORACLE_SIDES))
     stamps = {p.name: p.stat().st_mtime_ns for p in items}
     again = run_curves_study(octree, cameras(), tmp_path, scene_name="pillars", **KNOBS)
     assert {p.name: p.stat().st_mtime_ns for p in items} == stamps

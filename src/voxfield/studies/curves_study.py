@@ -15,7 +15,10 @@ steps, rays, PSNR, SSIM) against the 4×4 reference:
   refined as the adaptive renderer does (geometry from the error tables, colour from the
   image), over the same thresholds;
 - adaptive (A): its variance normalisation (how much image variance asks for 4 or 16 rays);
-- LOD: the level sampled (one ray a pixel).
+- LOD: the level sampled (one ray a pixel);
+- oracle: the share of pixels refined as A refines them (2×2 or 4×4 rays at LOD 0), chosen
+  by their true error against the reference: what a selection rule that knew the answer
+  would refine. Its delta over A is the headroom any pixel-selection rule has.
 
 The Bjøntegaard deltas (``studies.bjontegaard``) then give EA's mean PSNR gain over A at
 equal steps and its step saving at equal PSNR, per camera (perspective and orthographic).
@@ -26,11 +29,13 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
+
 from voxfield.error_table.table import THESIS_DECAY
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.camera_rays import ORTHOGRAPHIC
 from voxfield.progress import progress_bar
-from voxfield.render.adaptive import VARIANCE_NORMALISATION, render_adaptive
+from voxfield.render.adaptive import VARIANCE_NORMALISATION, refine_pixels, render_adaptive
 from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_lod, render_reference
@@ -40,10 +45,16 @@ from voxfield.studies.report import StudyFolder, costs, costs_and_quality, fmt, 
 from voxfield.studies.threshold_study import plot_value
 from voxfield.svo.octree import Octree
 
-#: Knob values: from refining almost everything to almost nothing.
-CURVE_THRESHOLDS = (0.02, 0.05, 0.1, 0.2, 0.4, 0.8, 1.6)
+#: Knob values: from refining almost everything to almost nothing, about four a doubling of
+#: the knob. A renderer's cost can jump by an order of magnitude between neighbouring knob
+#: values (forest's EA threshold 0.4 → 0.8: 16M → 2M steps), and a Bjøntegaard mean
+#: interpolates across such a jump as if the curve were smooth there: with twice as many
+#: points the forest hybrid's +0.37 dB over A became −0.01 dB.
+CURVE_THRESHOLDS = (0.02, 0.027, 0.037, 0.051, 0.07, 0.096, 0.13, 0.18, 0.24, 0.33, 0.46,
+                    0.63, 0.86, 1.2, 1.6)
 CURVE_DECAYS = (0.0, THESIS_DECAY)
-CURVE_NORMALISATIONS = (0.001, 0.003, 0.01, 0.03, 0.08, 0.25, 0.8)
+CURVE_NORMALISATIONS = (0.001, 0.0017, 0.003, 0.0053, 0.0093, 0.016, 0.028, 0.049, 0.086,
+                        0.15, 0.26, 0.46, 0.8)
 CURVE_LODS = (4, 3, 2, 1, 0)
 #: EA's geometric error plus the image variance for colour (``colour_variance``), at the
 #: thesis's decay and the adaptive renderer's default normalisation.
@@ -65,6 +76,10 @@ EA_VARIANTS = {
                             "reuse_parent": True}),
     HYBRID: ("hybrid", {"colour_variance": VARIANCE_NORMALISATION}),
 }
+#: The oracle's shares of pixels refined and the rays a side it gives them.
+ORACLE_FRACTIONS = (0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0)
+ORACLE_SIDES = (2, 4)
+ORACLE = "oracle"
 #: A perspective and an orthographic view of the same ground (EA §5.1.1 and its flat-ground
 #: refinement, which only perspective shows).
 CURVE_CAMERAS = ("top", "ortho-top")
@@ -89,8 +104,8 @@ def run_curves_study(
         raise VoxfieldError("each curve needs at least two knob values (and one decay)")
     folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
     points = len(cameras) * (1 + (len(decays) + len(EA_VARIANTS)) * len(thresholds)
-                             + len(normalisations)
-                             + len(lods))
+                             + len(normalisations) + len(lods)
+                             + len(ORACLE_FRACTIONS) * len(ORACLE_SIDES))
     report = {"scene": scene_name, "base_lod": base_lod, "seed": seed, "channel": channel,
               "metrics_on": "linear RGB in [0, 1]", "cameras": {}}
     settings = {"base_lod": base_lod, "seed": seed, "channel": channel}
@@ -121,13 +136,19 @@ def run_curves_study(
                 sweep.point(f"lod{lod}", {"lod": lod}, lambda o, c, lod=lod: render_lod(
                     o, c, lod=lod, seed=seed, channel=channel))
                 for lod in lods])
+            curves[ORACLE] = sweep.curve("fraction", [
+                sweep.point(f"oracle-s{side}-f{f:g}", {"fraction": f, "side": side},
+                            lambda o, c, ref, f=f, side=side: render_oracle(
+                                o, c, ref, fraction=f, side=side, **settings),
+                            needs_reference=True)
+                for side in ORACLE_SIDES for f in ORACLE_FRACTIONS])
             sweep.run()
             report["cameras"][cam_name] = {
                 "kind": "orthographic" if camera.kind == ORTHOGRAPHIC else "perspective",
                 "width": camera.width, "height": camera.height,
                 "reference": costs(sweep.reference), "curves": curves,
                 "deltas": curve_deltas(
-                    curves, [*(ea_curve_name(d) for d in decays), *EA_VARIANTS]),
+                    curves, [*(ea_curve_name(d) for d in decays), *EA_VARIANTS, ORACLE]),
             }
     folder.write_json("results.json", report)
     folder.write_text("results.md", results_markdown(report))
@@ -152,14 +173,20 @@ class CameraSweep:
                              channel=settings["channel"])))
         bar.update(1)
 
-    def point(self, name: str, params: dict, render) -> dict:
-        """Costs and quality of ``render(octree, camera)``, cached under the camera's name:
-        the returned point is filled in by ``run``, which computes every point at once."""
+    def point(self, name: str, params: dict, render, needs_reference: bool = False) -> dict:
+        """Costs and quality of ``render(octree, camera)`` (with ``needs_reference``,
+        ``render(octree, camera, reference)``), cached under the camera's name: the returned
+        point is filled in by ``run``, which computes every point at once."""
         point = dict(params)
         camera = self.camera
-        self.pending.append((point, (
-            f"{self.name}-{name}", {**self.view, **params},
-            lambda shared: costs_and_quality(shared[1], render(shared[0], camera)))))
+
+        def measure(shared):
+            octree, reference = shared
+            result = (render(octree, camera, reference) if needs_reference
+                      else render(octree, camera))
+            return costs_and_quality(reference, result)
+
+        self.pending.append((point, (f"{self.name}-{name}", {**self.view, **params}, measure)))
         return point
 
     def run(self) -> None:
@@ -174,6 +201,26 @@ class CameraSweep:
     @staticmethod
     def curve(knob: str, points: list[dict]) -> dict:
         return {"knob": knob, "points": points}
+
+
+def render_oracle(octree: Octree, camera: Camera, reference, *, fraction: float, side: int,
+                  base_lod: int | None, seed: int, channel: str):
+    """The first pass at ``base_lod``, then the ``fraction`` of its pixels with the largest
+    true error against ``reference`` re-rendered with ``side``×``side`` rays at LOD 0: A's
+    refinement with a perfect choice of pixels. No rule that refines as A does can choose
+    better at the same cost, so the gap between this curve and A's (or the hybrid's) is
+    what a better error predictor could still win."""
+    result = render_lod(octree, camera, lod=base_lod, seed=seed, channel=channel)
+    truth = np.clip(reference.image, 0.0, 1.0)
+    error = np.sum((np.clip(result.image, 0.0, 1.0) - truth) ** 2, axis=-1).reshape(-1)
+    count = int(round(fraction * error.size))
+    worst = np.argsort(-error, kind="stable")[:count]
+    worst = np.sort(worst[error[worst] > 0.0])
+    if len(worst):
+        refine_pixels(octree, camera, worst, side, seed, octree.kernel_colours(channel),
+                      result, None)
+    result.renderer = "oracle"
+    return result
 
 
 def _series(curve: dict, cost: str) -> tuple[list[float], list[float]]:
@@ -231,13 +278,26 @@ def results_markdown(report: dict) -> str:
         rows = []
         for name, curve in cam["curves"].items():
             for p in curve["points"]:
-                rows.append([name, f"{curve['knob']} {fmt(p[curve['knob']], 'g')}",
+                side = f" ({p['side']}×{p['side']})" if "side" in p else ""
+                rows.append([name, f"{curve['knob']} {fmt(p[curve['knob']], 'g')}{side}",
                              fmt(p["rays"]), fmt(p["steps"]), fmt(p["psnr"], ".2f"),
                              fmt(p["ssim"], ".4f"), fmt(p.get("flip"), ".4f")])
         lines.append(markdown_table(["curve", "knob", "rays", "steps", "PSNR", "SSIM", "FLIP"],
                                     rows))
         lines.append("")
     return "\n".join(lines)
+
+
+def _sharpest_for_cost(points: list[dict]) -> list[dict]:
+    """The points (sorted by steps) no cheaper point beats in PSNR."""
+    best = -math.inf
+    front = []
+    for p in points:
+        psnr = math.inf if p.get("psnr") is None else p["psnr"]
+        if psnr > best:
+            front.append(p)
+            best = psnr
+    return front
 
 
 def curves_figure(report: dict):
@@ -262,9 +322,13 @@ def curves_figure(report: dict):
     for row, (cam_name, cam) in zip(axes, cams, strict=True):
         for name, curve in cam["curves"].items():
             points = sorted(curve["points"], key=lambda p: p["steps"])
+            style = {"marker": "o"}
+            if name == ORACLE:  # a bound to look up to: its best points, drawn apart
+                points = _sharpest_for_cost(points)
+                style = {"linestyle": "--", "color": "0.3", "marker": "."}
             for ax, (x, y, _, _) in zip(row, panels, strict=True):
                 ax.plot([p[x] for p in points], [plot_value(p.get(y)) for p in points],
-                        marker="o", label=name)
+                        label=name, **style)
         for ax, (_, _, x_label, y_label) in zip(row, panels, strict=True):
             ax.set_xscale("log")
             ax.xaxis.set_minor_formatter(NullFormatter())
