@@ -1,4 +1,4 @@
-"""Primary-ray throughput on a CUDA GPU beside the CPU, same rays, same run.
+"""Primary-ray and light-field throughput on a CUDA GPU beside the CPU, same rays, same run.
 
     pip install -e ".[cuda]"                          # numba-cuda with CUDA 12 wheels
     python benchmarks/bench_gpu.py                    # mountain 2048², 1920×1080, 1 and 16 rays/px
@@ -6,15 +6,16 @@
     python benchmarks/bench_gpu.py --check-ptx        # no GPU: compile the kernel to sm_90 PTX
 
 Rows: the reference (16 rays/px) and LOD-0 (1 ray/px) renderers, top-down and 45° views,
+and the light-field trace from a probe layer over the terrain (``--probe-grid``),
 ``device="cuda"`` against ``device="cpu"``, beam off on both (the beam pass runs on the CPU
 and would time the CPU). GPU figures are kernel time (the first launch, which compiles, and
 the one-off octree upload are excluded); every GPU image, depth map and
-step map is compared with the CPU's, and any difference is printed. The error-aware renderer
-and the probe trace have no CUDA kernel yet: the script says so rather than guess.
+step map is compared with the CPU's, and any difference is printed. The error-aware and
+adaptive renderers have no CUDA kernel yet: the script says so rather than guess.
 
 ``--check-ptx`` needs only ``numba-cuda``: numba-cuda asks the (absent) device for its compute
 capability when compiling device functions, so the check answers that query with 9.0 (an
-H200) and compiles the kernel for both colour storages.
+H200) and compiles the primary kernel for both colour storages and the light-field kernel.
 """
 
 from __future__ import annotations
@@ -92,8 +93,42 @@ def run(args) -> int:
                       f"{gpu_mrays:,.0f} | {gpu_gsteps:.2f} | {rays / cpu.seconds / 1e6:.2f} | "
                       f"{cpu.seconds / gpu.seconds:,.0f}× | "
                       f"{'yes' if not diff else '; '.join(diff)} |", flush=True)
-    print("\nThe error-aware renderer and the light-field probe trace have no CUDA kernel yet.")
+        probe_rows(octree, f"{args.recipe} {footprint}²", args)
+    print("\nThe error-aware and adaptive renderers have no CUDA kernel yet.")
     return 0
+
+
+def probe_rows(octree, scene: str, args) -> None:
+    """The light-field trace of each view from a probe layer over the terrain (``--probe-grid``
+    at ``--probe-resolution``²), on the GPU and the CPU: one ray per pixel."""
+    from voxfield.lightfield import PackedProbes
+    from voxfield.lightfield.probe_render import render_from_probes
+    from voxfield.probes.bake import bake_probes
+    from voxfield.probes.grid import parse_grid
+    from voxfield.probes.probe_set import BakeOptions
+
+    grid = parse_grid(args.probe_grid, octree.voxel_bounds, octree)
+    probe_set = bake_probes(octree, grid, BakeOptions(resolution=args.probe_resolution,
+                                                      renderer="lod", lod=0))
+    packed = PackedProbes.from_probe_set(probe_set)
+    print("\n| scene | probes | view | GPU Mrays/s | CPU Mrays/s | GPU/CPU | fetches/ray "
+          "| same pixels |\n|---|---|---|---:|---:|---:|---:|---|")
+    for view in args.views:
+        cam = camera(octree, view, args.width, args.height)
+
+        def on(device, cam=cam):
+            return render_from_probes(packed, cam, packed=packed, device=device,
+                                      threads=args.threads)
+        on("cuda")  # compile and upload
+        _, gpu = best_seconds(lambda: on("cuda"), args.repeats)
+        _, cpu = best_seconds(lambda: on("cpu"), args.cpu_repeats)
+        rays = cam.width * cam.height
+        same = all(np.array_equal(getattr(cpu, n), getattr(gpu, n))
+                   for n in ("image", "depth", "steps"))
+        print(f"| {scene} | {args.probe_grid} at {args.probe_resolution}² | {view} | "
+              f"{rays / gpu.seconds / 1e6:,.0f} | {rays / cpu.seconds / 1e6:.2f} | "
+              f"{cpu.seconds / gpu.seconds:,.0f}× | {gpu.maps['texel_fetches'].mean():.1f} | "
+              f"{'yes' if same else 'no'} |", flush=True)
 
 
 def check_ptx() -> int:
@@ -120,7 +155,49 @@ def check_ptx() -> int:
                       if "__local_depot" in line and ".local" in line), "none")
         print(f"colours {colours.dtype}: sm_90 PTX {len(ptx):,} characters, "
               f"per-thread local memory {local}")
+    check_probe_ptx(cuda)
     return 0
+
+
+def tiny_probe_set():
+    """Two baked 8² probes over a small built-in scene: argument types for the probe kernel."""
+    from voxfield.lightfield import PackedProbes
+    from voxfield.probes.bake import bake_probes
+    from voxfield.probes.grid import ProbeGrid
+    from voxfield.probes.probe_set import BakeOptions
+    from voxfield.scene.builtin import pillars
+    from voxfield.svo import build_octree
+
+    grid = ProbeGrid([4.5, 9.5, 4.5], [7.0, 1.0, 7.0], [2, 1, 1])
+    return PackedProbes.from_probe_set(bake_probes(
+        build_octree(pillars(16)), grid, BakeOptions(resolution=8, renderer="lod", lod=0)))
+
+
+def check_probe_ptx(cuda) -> None:
+    """Compile the light-field trace kernel for sm_90, with the argument types a trace
+    passes (``lightfield.cuda_trace.kernel_arguments``)."""
+    import numba
+
+    from voxfield.kernels import cuda_probe
+    from voxfield.lightfield.cuda_trace import kernel_arguments
+    from voxfield.lightfield.trace import LightFieldHits, LightFieldOptions
+
+    cuda_probe.cuda = cuda
+    packed = tiny_probe_set()
+    n = 4
+    out = LightFieldHits(
+        kind=np.empty(n, np.int8), t=np.empty(n), radiance=np.empty((n, 3), np.float32),
+        normal=np.empty((n, 3), np.float32), distance=np.empty(n, np.float32),
+        probe=np.empty(n, np.int32), probes_tried=np.empty(n, np.int32),
+        fetches=np.empty(n, np.int64), steps=np.empty(n, np.int64))
+    rays = (np.zeros((n, 3)), np.ones((n, 3)), np.zeros(n), np.full(n, np.inf))
+    modes = (0, 0, 0, True, LightFieldOptions().params(0.0))
+    signature = tuple(numba.typeof(a) for a in kernel_arguments(packed, modes, rays, out))
+    ptx, _ = cuda.compile_ptx(cuda_probe._trace_light_field_cuda, signature, cc=(9, 0))
+    local = next((line.split()[-1] for line in ptx.splitlines()
+                  if "__local_depot" in line and ".local" in line), "none")
+    print(f"light-field trace: sm_90 PTX {len(ptx):,} characters, per-thread local memory "
+          f"{local}")
 
 
 def main(argv=None) -> int:
@@ -135,6 +212,9 @@ def main(argv=None) -> int:
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--cpu-repeats", type=int, default=1)
     parser.add_argument("--threads", type=int, default=None, help="CPU threads (default all)")
+    parser.add_argument("--probe-grid", default="surface:8x8@24",
+                        help="probe layer of the light-field rows (default surface:8x8@24)")
+    parser.add_argument("--probe-resolution", type=int, default=256)
     parser.add_argument("--check-ptx", action="store_true")
     args = parser.parse_args(argv)
     return check_ptx() if args.check_ptx else run(args)

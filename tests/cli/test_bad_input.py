@@ -182,3 +182,12 @@ def test_cuda_without_a_gpu_or_for_a_cpu_only_renderer_is_one_line(tmp_path, cap
                  "--renderer", "error-aware", "--out", str(out)]) == 2
     assert "CPU only" in _one_error_line(capsys)
     assert not out.exists()
+    # probe-render: the light field needs the GPU; the baselines run on the CPU only.
+    probes = tmp_path / "probes"
+    assert main(["probe-render", str(probes), "--quiet", "--device", "cuda",
+                 "--out", str(out)]) == 2
+    assert "no CUDA GPU" in _one_error_line(capsys)
+    assert main(["probe-render", str(probes), "--quiet", "--device", "cuda", "--method",
+                 "environment", "--out", str(out)]) == 2
+    assert "CPU only" in _one_error_line(capsys)
+    assert not out.exists()

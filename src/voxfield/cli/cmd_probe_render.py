@@ -47,6 +47,7 @@ from voxfield.lightfield.trace import (
 )
 from voxfield.metrics import compare_images
 from voxfield.probes.probe_folder import open_probe_set
+from voxfield.render.device import DEVICES, check_device
 from voxfield.render.image_io import save_result_image
 from voxfield.render.placement import camera_placement_problem
 from voxfield.render.primary import render_lod, render_reference
@@ -131,6 +132,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="--compare: octree reference samples per pixel side, 1..16 (default "
                    "1: one LOD-0 ray per pixel centre, the probe render's own rays)")
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
+    p.add_argument("--device", choices=DEVICES, default="cpu",
+                   help="where the light field is traced: cpu (default) or cuda (an NVIDIA "
+                   "GPU, `pip install voxfield[cuda]`); the same image either way")
     p.add_argument("--counters", action="store_true",
                    help="also write probes-tried, texel-fetch and result maps and a JSON summary")
     p.add_argument("--out", default=None,
@@ -141,6 +145,10 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
+    if args.device == "cuda" and args.method != "light-field":
+        raise VoxfieldError(f"the {args.method} baseline runs on the CPU only; --device cuda "
+                            "serves the light-field trace")
+    check_device(args.device)  # before anything loads: fail fast
     out = Path(args.out) if args.out else default_output(
         "probe_render", Path(args.probes).name or "probes", f"_{args.method}.png")
     if out.suffix.lower() not in (".png", ".exr"):
@@ -167,7 +175,7 @@ def run(args) -> int:
     packed = PackedProbes.from_probe_set(probe_set)
     result = render_from_probes(probe_set, view, method=args.method, options=options,
                                 box=box, filter=args.filter, threads=args.threads,
-                                progress=not args.quiet, packed=packed)
+                                progress=not args.quiet, packed=packed, device=args.device)
     save_result_image(result, out)
     written = [out]
     summary = {**result.summary(), **map_summary(result)}

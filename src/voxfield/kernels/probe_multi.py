@@ -213,11 +213,11 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
                 fetches += 8
                 if seen_through(positions, enabled, normals, mips, resolution, grid_origin,
                                 grid_spacing, grid_counts, p, ox + t_out * dx,
-                                oy + t_out * dy, oz + t_out * dz, params[P_EPSILON] + 0.5,
+                                oy + t_out * dy, oz + t_out * dz, hit_tolerance(params),
                                 corners2):
                     # Another probe sees empty space at the hit point: march on past it.
                     kind = UNKNOWN
-                    t_out = t_out + params[P_EPSILON] + 0.5
+                    t_out = t_out + hit_tolerance(params)
             if kind == HIT or kind == MISS:
                 return kind, t_out, p, row, col, tried, fetches, steps
             if t_out > t:
@@ -393,7 +393,7 @@ def trace_light_field_rays(marcher: int, eps_mode: int, ordering: int, fallback:
     colour comes from ``hit_colour_probe``, read bilinearly at the hit point."""
     n = len(origins)
     block = 256
-    tolerance = params[P_EPSILON] + 0.5
+    tolerance = hit_tolerance(params)
     for b in prange((n + block - 1) // block):
         trace_block(marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
                     mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
@@ -401,6 +401,21 @@ def trace_light_field_rays(marcher: int, eps_mode: int, ordering: int, fallback:
                     origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
                     out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
                     b * block, min(n, (b + 1) * block))
+
+
+@njit(cache=True, nogil=True)
+def hit_tolerance(params: np.ndarray) -> float:
+    """How far a probe's stored distance may differ from a hit point's for the probe to see
+    it (plus the texel's slope): ε and half a voxel."""
+    return params[P_EPSILON] + 0.5
+
+
+@njit(cache=True, nogil=True)
+def new_ray_scratch():
+    """One thread's scratch for ``answer_ray``: two cage buffers and the log of the probe
+    traces of one ray. (The CUDA kernel builds the same tuple from local arrays.)"""
+    return (np.empty(8, np.int64), np.empty(8, np.int64),
+            np.empty(MAX_PROBE_TRACES, np.int64), np.empty(MAX_PROBE_TRACES, np.float64))
 
 
 @njit(cache=True, nogil=True)
@@ -412,67 +427,82 @@ def trace_block(marcher, eps_mode, ordering, fallback, params, positions, enable
                 i0, i1) -> None:
     """Rays ``[i0, i1)`` of ``trace_light_field_rays`` (a function of its own, so the
     parallel loop only calls it)."""
-    corners = np.empty(8, np.int64)
-    corners2 = np.empty(8, np.int64)
-    tried_probe = np.empty(MAX_PROBE_TRACES, np.int64)
-    tried_t = np.empty(MAX_PROBE_TRACES, np.float64)
+    scratch = new_ray_scratch()
     for i in range(i0, i1):
-        ox = origins[i, 0]
-        oy = origins[i, 1]
-        oz = origins[i, 2]
-        dx = dirs[i, 0]
-        dy = dirs[i, 1]
-        dz = dirs[i, 2]
-        kind, t, p, row, col, tried, fetches, steps = trace_light_field_ray(
-            marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
-            mip_offsets, mip_sizes, normals, resolution, grid_origin, grid_spacing,
-            grid_counts, ox, oy, oz, dx, dy, dz, tmin[i], tmax[i], corners, tried_probe,
-            tried_t, corners2)
-        out_kind[i] = kind
-        out_t[i] = t
-        out_probe[i] = p
-        out_tried[i] = tried
-        out_fetches[i] = fetches
-        out_steps[i] = steps
-        if kind == HIT and row >= 0:
-            yx = ox + t * dx
-            yy = oy + t * dy
-            yz = oz + t * dz
-            q = hit_colour_probe(positions, enabled, normals, mips, resolution, grid_origin,
-                                 grid_spacing, grid_counts, p, yx, yy, yz, dx, dy, dz,
-                                 tolerance, corners, int(params[P_COLOUR_PROBE]))
-            length, cx, cy, cz, qr, qc, _, slack = point_from_probe(
-                positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
-            if length > 0.0:
-                if params[P_BILINEAR] != 0.0:
-                    cr, cg, cb = radiance_at(radiance_bordered, distance_bordered, q, cx, cy,
-                                             cz, length, slack, resolution)
-                else:
-                    cr = np.float64(radiance[q, qr, qc, 0])
-                    cg = np.float64(radiance[q, qr, qc, 1])
-                    cb = np.float64(radiance[q, qr, qc, 2])
-                p, row, col = q, qr, qc
+        answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
+                   mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
+                   distance_bordered, resolution, grid_origin, grid_spacing, grid_counts,
+                   origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
+                   out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
+                   scratch)
+
+
+@njit(cache=True, nogil=True)
+def answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
+               mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
+               distance_bordered, resolution, grid_origin, grid_spacing, grid_counts,
+               origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
+               out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
+               scratch) -> None:
+    """Ray ``i``: its trace, then its hit's colour from ``hit_colour_probe``, into the
+    ``out_*`` arrays. The body both the CPU loop and the CUDA kernel run."""
+    corners, corners2, tried_probe, tried_t = scratch
+    ox = origins[i, 0]
+    oy = origins[i, 1]
+    oz = origins[i, 2]
+    dx = dirs[i, 0]
+    dy = dirs[i, 1]
+    dz = dirs[i, 2]
+    kind, t, p, row, col, tried, fetches, steps = trace_light_field_ray(
+        marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
+        mip_offsets, mip_sizes, normals, resolution, grid_origin, grid_spacing,
+        grid_counts, ox, oy, oz, dx, dy, dz, tmin[i], tmax[i], corners, tried_probe,
+        tried_t, corners2)
+    out_kind[i] = kind
+    out_t[i] = t
+    out_probe[i] = p
+    out_tried[i] = tried
+    out_fetches[i] = fetches
+    out_steps[i] = steps
+    if kind == HIT and row >= 0:
+        yx = ox + t * dx
+        yy = oy + t * dy
+        yz = oz + t * dz
+        q = hit_colour_probe(positions, enabled, normals, mips, resolution, grid_origin,
+                             grid_spacing, grid_counts, p, yx, yy, yz, dx, dy, dz,
+                             tolerance, corners, int(params[P_COLOUR_PROBE]))
+        length, cx, cy, cz, qr, qc, _, slack = point_from_probe(
+            positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
+        if length > 0.0:
+            if params[P_BILINEAR] != 0.0:
+                cr, cg, cb = radiance_at(radiance_bordered, distance_bordered, q, cx, cy,
+                                         cz, length, slack, resolution)
             else:
-                cr = np.float64(radiance[p, row, col, 0])
-                cg = np.float64(radiance[p, row, col, 1])
-                cb = np.float64(radiance[p, row, col, 2])
-            out_probe[i] = p
-            out_radiance[i, 0] = cr
-            out_radiance[i, 1] = cg
-            out_radiance[i, 2] = cb
-            for c in range(3):
-                out_normal[i, c] = normals[p, row, col, c]
-            out_distance[i] = mips[p, row * resolution + col]
-        elif kind == FALLBACK and row >= 0:
-            for c in range(3):
-                out_radiance[i, c] = radiance[p, row, col, c]
-                out_normal[i, c] = normals[p, row, col, c]
-            out_distance[i] = mips[p, row * resolution + col]
+                cr = np.float64(radiance[q, qr, qc, 0])
+                cg = np.float64(radiance[q, qr, qc, 1])
+                cb = np.float64(radiance[q, qr, qc, 2])
+            p, row, col = q, qr, qc
         else:
-            for c in range(3):
-                out_radiance[i, c] = 0.0
-                out_normal[i, c] = 0.0
-            out_distance[i] = math.inf
+            cr = np.float64(radiance[p, row, col, 0])
+            cg = np.float64(radiance[p, row, col, 1])
+            cb = np.float64(radiance[p, row, col, 2])
+        out_probe[i] = p
+        out_radiance[i, 0] = cr
+        out_radiance[i, 1] = cg
+        out_radiance[i, 2] = cb
+        for c in range(3):
+            out_normal[i, c] = normals[p, row, col, c]
+        out_distance[i] = mips[p, row * resolution + col]
+    elif kind == FALLBACK and row >= 0:
+        for c in range(3):
+            out_radiance[i, c] = radiance[p, row, col, c]
+            out_normal[i, c] = normals[p, row, col, c]
+        out_distance[i] = mips[p, row * resolution + col]
+    else:
+        for c in range(3):
+            out_radiance[i, c] = 0.0
+            out_normal[i, c] = 0.0
+        out_distance[i] = math.inf
 
 
 @njit(cache=True, nogil=True, parallel=True)

@@ -53,6 +53,14 @@ class PackedProbes:
     def count(self) -> int:
         return len(self.positions)
 
+    def derived(self, key, compute):
+        """``compute()``, worked out once per probe set and ``key`` and kept with it: the
+        maps' copies on a GPU, uploaded once however many frames are traced."""
+        cache = self.__dict__.setdefault("_derived", {})
+        if key not in cache:
+            cache[key] = compute()
+        return cache[key]
+
     @property
     def resolution(self) -> int:
         return int(self.distance.shape[-1])

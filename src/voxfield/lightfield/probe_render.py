@@ -21,6 +21,7 @@ found.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import asdict, is_dataclass
 
 import numpy as np
@@ -39,6 +40,7 @@ from voxfield.lightfield.packed import PackedProbes
 from voxfield.lightfield.trace import KIND_NAMES, LightFieldOptions, trace_light_field
 from voxfield.parallel import run_in_bands
 from voxfield.render.camera import Camera
+from voxfield.render.device import check_device
 from voxfield.render.result import RenderResult
 
 METHODS = ("light-field", "environment", "box-proxy")
@@ -48,7 +50,7 @@ MAP_NAMES = ("probes_tried", "texel_fetches", "result_kind", "probe")
 def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field",
                        options=None, box=None, filter: str = "bilinear", seed: int = 0,
                        threads: int | None = None, progress: bool = False,
-                       packed=None) -> RenderResult:
+                       packed=None, device: str = "cpu") -> RenderResult:
     """Render ``camera``'s view from ``probe_set`` (a ``ProbeSet``, or a ``PackedProbes``)
     by ``method``.
 
@@ -58,8 +60,13 @@ def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field"
     ``box-proxy``: the nearest probe read through the proxy box ``box`` = (lo, hi), by
     default ``probe_set_bounds(probe_set)``. ``filter`` is the baselines' texel filter.
     ``seed`` is accepted for symmetry with the octree renderers: rays go through pixel
-    centres, so it changes nothing. Results do not depend on ``threads``.
+    centres, so it changes nothing. Results do not depend on ``threads``. ``device="cuda"``
+    traces the light field on a GPU (``lightfield.cuda_trace``), with the same image.
     """
+    if device == "cuda" and method != "light-field":
+        raise VoxfieldError(f"the {method} baseline runs on the CPU only; --device cuda "
+                            "serves the light-field trace")
+    check_device(device)
 
     if method not in METHODS:
         raise VoxfieldError(f"unknown probe render method {method!r}; choose one of "
@@ -78,7 +85,7 @@ def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field"
                     "resolution": int(np.asarray(probe_set.radiance).shape[1])}
 
     if method == "light-field":
-        query, trace_params = _light_field_query(probe_set, camera, options, packed)
+        query, trace_params = _light_field_query(probe_set, camera, options, packed, device)
         params.update(trace_params)
     else:
         lo, hi = probe_set_bounds(probe_set) if box is None else _checked_box(box)
@@ -92,7 +99,14 @@ def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field"
         pixels = slice(rows.start * w, rows.stop * w)
         query(origins[pixels], dirs[pixels], result, rows)
 
-    result.seconds = run_in_bands(h, band, label=method, threads=threads, progress=progress)
+    if device == "cuda":  # one launch for the image; the empty band compiles the kernel
+        band(slice(0, 0))
+        start = time.perf_counter()
+        band(slice(0, h))
+        result.seconds = time.perf_counter() - start
+    else:
+        result.seconds = run_in_bands(h, band, label=method, threads=threads,
+                                      progress=progress)
     result.params = params
     return result
 
@@ -129,7 +143,7 @@ def _baseline_query(probe_set, method: str, filter: str, box):
     return query
 
 
-def _light_field_query(probe_set, camera: Camera, options, packed):
+def _light_field_query(probe_set, camera: Camera, options, packed, device: str):
     """A band function for ``trace_light_field``, and the options to record."""
 
     options = LightFieldOptions() if options is None else options
@@ -142,7 +156,8 @@ def _light_field_query(probe_set, camera: Camera, options, packed):
     kinds = result_kinds()
 
     def query(origins, dirs, result, rows):
-        hits = trace_light_field(packed, origins, dirs, options, pixel_angle=pixel_angle)
+        hits = trace_light_field(packed, origins, dirs, options, pixel_angle=pixel_angle,
+                                 device=device)
         if len(dirs) == 0:
             return
         kind = np.asarray(hits.kind)

@@ -18,6 +18,7 @@ from voxfield.kernels import probe_march as pm
 from voxfield.kernels import probe_multi as mk
 from voxfield.lightfield.packed import PackedProbes
 from voxfield.parallel import thread_count
+from voxfield.render.device import check_device
 
 #: Result kinds, as stored in ``kind`` arrays.
 MISS = pm.MISS
@@ -246,9 +247,12 @@ def trace_single(packed: PackedProbes, probe: int, origins, dirs,
 def trace_light_field(packed: PackedProbes, origins, dirs,
                       options: LightFieldOptions = LightFieldOptions(), *,
                       pixel_angle: float = 0.0, tmin=0.0, tmax=math.inf,
-                      threads: int | None = None) -> LightFieldHits:
+                      threads: int | None = None, device: str = "cpu") -> LightFieldHits:
     """Answer rays ``o + t·d`` (``d`` normalised here) from the probe cage around each
-    origin (Algorithms 4-6); ``pixel_angle`` is θ of the adaptive and angular ε (radians)."""
+    origin (Algorithms 4-6); ``pixel_angle`` is θ of the adaptive and angular ε (radians).
+    ``device="cuda"`` traces them on a GPU (``lightfield.cuda_trace``) with the same
+    results."""
+    check_device(device)
     if not packed.enabled.any():
         raise VoxfieldError("no probe of the set is enabled; bake some probes first")
     o, d, lo, hi = _rays(origins, dirs, tmin, tmax)
@@ -258,11 +262,18 @@ def trace_light_field(packed: PackedProbes, origins, dirs,
         normal=np.empty((n, 3), np.float32), distance=np.empty(n, np.float32),
         probe=np.empty(n, np.int32), probes_tried=np.empty(n, np.int32),
         fetches=np.empty(n, np.int64), steps=np.empty(n, np.int64))
+    modes = (MARCHERS[options.marcher], EPSILON_MODES[options.epsilon],
+             ORDERINGS[options.ordering], bool(options.fallback),
+             options.params(_pixel_angle(pixel_angle)))
+    if device == "cuda":
+        # optional: the CUDA path loads only when a GPU trace is asked for
+        from voxfield.lightfield.cuda_trace import trace_light_field_cuda
+
+        trace_light_field_cuda(packed, modes, o, d, lo, hi, out)
+        return out
     with thread_count(threads):
         mk.trace_light_field_rays(
-            MARCHERS[options.marcher], EPSILON_MODES[options.epsilon],
-            ORDERINGS[options.ordering], bool(options.fallback),
-            options.params(_pixel_angle(pixel_angle)), packed.positions, packed.enabled,
+            *modes, packed.positions, packed.enabled,
             packed.mips, packed.mip_offsets, packed.mip_sizes, packed.normals, packed.radiance,
             packed.radiance_bordered, packed.distance_bordered, packed.resolution,
             packed.grid_origin, packed.grid_spacing, packed.grid_counts,

@@ -1,0 +1,52 @@
+"""The light-field trace on CUDA: one GPU thread per ray, the CPU's own per-ray code.
+
+The thread body is ``kernels.probe_multi.answer_ray`` (the cage walk, the marchers, the hit's
+colour probe and its bilinear read), plain ``@njit`` code that Numba compiles for the GPU as
+device functions, so kinds, times, colours, probes and fetch counts equal the CPU's. Only
+the scratch differs: per-thread local arrays instead of heap arrays.
+"""
+
+from __future__ import annotations
+
+import functools
+
+from numba import types
+
+from voxfield.kernels.probe_multi import MAX_PROBE_TRACES, answer_ray
+
+#: ``numba.cuda``, bound by ``probe_kernel`` on first use (a module global, which Numba's
+#: simulator swaps in for the kernel).
+cuda = None
+
+
+@functools.cache
+def probe_kernel():
+    """The CUDA kernel, compiled on its first launch (one per process)."""
+    global cuda
+    # optional: numba.cuda loads only when a GPU trace is asked for
+    from numba import cuda as numba_cuda
+
+    cuda = numba_cuda
+    return numba_cuda.jit(_trace_light_field_cuda)
+
+
+def _trace_light_field_cuda(
+    marcher, eps_mode, ordering, fallback, params, positions, enabled, mips, mip_offsets,
+    mip_sizes, normals, radiance, radiance_bordered, distance_bordered, resolution,
+    grid_origin, grid_spacing, grid_counts, origins, dirs, tmin, tmax, tolerance,
+    out_kind, out_t, out_radiance, out_normal, out_distance, out_probe, out_tried,
+    out_fetches, out_steps,
+):
+    """Ray ``cuda.grid(1)`` as ``kernels.probe_multi.trace_light_field_rays`` answers it."""
+    i = cuda.grid(1)
+    if i >= origins.shape[0]:
+        return
+    scratch = (cuda.local.array(8, types.int64), cuda.local.array(8, types.int64),
+               cuda.local.array(MAX_PROBE_TRACES, types.int64),
+               cuda.local.array(MAX_PROBE_TRACES, types.float64))
+    answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
+               mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
+               distance_bordered, resolution, grid_origin, grid_spacing, grid_counts,
+               origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
+               out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
+               scratch)
