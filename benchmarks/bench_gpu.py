@@ -10,8 +10,8 @@ and the light-field trace from a probe layer over the terrain (``--probe-grid``)
 ``device="cuda"`` against ``device="cpu"``, beam off on both (the beam pass runs on the CPU
 and would time the CPU). GPU figures are kernel time (the first launch, which compiles, and
 the one-off octree upload are excluded); every GPU image, depth map and
-step map is compared with the CPU's, and any difference is printed. The error-aware and
-adaptive renderers have no CUDA kernel yet: the script says so rather than guess.
+step map is compared with the CPU's, and any difference is printed. The error-aware renderer
+has no CUDA kernel yet: the script says so rather than guess.
 
 ``--check-ptx`` needs only ``numba-cuda``: numba-cuda asks the (absent) device for its compute
 capability when compiling device functions, so the check answers that query with 9.0 (an
@@ -94,7 +94,7 @@ def run(args) -> int:
                       f"{cpu.seconds / gpu.seconds:,.0f}× | "
                       f"{'yes' if not diff else '; '.join(diff)} |", flush=True)
         probe_rows(octree, f"{args.recipe} {footprint}²", args)
-    print("\nThe error-aware and adaptive renderers have no CUDA kernel yet.")
+    print("\nThe error-aware renderer has no CUDA kernel yet.")
     return 0
 
 
@@ -146,7 +146,7 @@ def check_ptx() -> int:
     cuda_primary.cuda = cuda
     f64, i64 = types.float64, types.int64
     for colours in (types.uint8[:, ::1], types.float32[:, ::1]):
-        signature = (f64[::1], i64, i64, i64, i64, i64[::1], i64, i64, f64, colours,
+        signature = (f64[::1], i64, i64, i64[::1], i64, i64, i64[::1], i64, i64, f64, colours,
                      types.uint8[:, :, ::1], f64[:, ::1], i64, types.float32[:, ::1],
                      types.float32[::1], types.float32[:, ::1], types.int32[::1],
                      types.int32[::1], i64[::1], types.int8[::1])

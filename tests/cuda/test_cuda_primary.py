@@ -13,6 +13,7 @@ import pytest
 
 from random_scenes import random_scene
 from voxfield.render import Camera, orbit_camera
+from voxfield.render.adaptive import render_adaptive
 from voxfield.render.device import cuda_available
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.scene.builtin import pillars
@@ -81,7 +82,20 @@ def test_the_gpu_benchmark_runs_and_finds_the_same_pixels(capsys):
     bench = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(bench)
     assert bench.main(["--footprint", "32", "--width", "8", "--height", "6", "--repeats",
-                       "1", "--views", "oblique"]) == 0
+                       "1", "--views", "oblique", "--probe-grid", "2x1x1",
+                       "--probe-resolution", "4"]) == 0
     rows = [line for line in capsys.readouterr().out.splitlines()
             if line.startswith("| mountain")]
-    assert len(rows) == 2 and all(row.endswith("| yes |") for row in rows)
+    assert len(rows) == 3 and all(row.endswith("| yes |") for row in rows)  # + light field
+
+
+def test_adaptive_renders_equal_the_cpu(octree):
+    """The first pass and every refinement run on the GPU; the variance that picks the
+    pixels is the CPU's, so the same pixels refine and the image is the same."""
+    camera = next(cameras(octree))
+    cpu = render_adaptive(octree, camera, base_lod=1, variance_normalisation=0.01)
+    gpu = render_adaptive(octree, camera, base_lod=1, variance_normalisation=0.01,
+                          device="cuda")
+    _assert_same(cpu, gpu)
+    assert np.array_equal(cpu.maps["refinement_class"], gpu.maps["refinement_class"])
+    assert (cpu.ray_count > 1).any()  # some pixels refined

@@ -44,15 +44,16 @@ def primary_kernel():
 
 
 def _render_pixels_cuda(
-    cam, width, height, side, seed, inner_nodes, depth, stop_level, cone_scale, colors,
-    facing, beam_bound, block,
+    cam, width, height, pixels, side, seed, inner_nodes, depth, stop_level, cone_scale,
+    colors, facing, beam_bound, block,
     out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
 ):
-    """Pixel ``cuda.grid(1)`` (row-major) of the image into the flat ``out_*`` arrays, as
-    ``kernels.primary.render_pixels`` traces it with the scalar loop."""
-    pixel = cuda.grid(1)
-    if pixel >= width * height:
+    """Pixel ``pixels[cuda.grid(1)]`` (a flat index) into entry ``cuda.grid(1)`` of the
+    ``out_*`` arrays, as ``kernels.primary.render_pixels`` traces it with the scalar loop."""
+    entry = cuda.grid(1)
+    if entry >= pixels.shape[0]:
         return
+    pixel = pixels[entry]
     stack = cuda.local.array(MAX_LEVELS, types.int64)
     path = cuda.local.array(12, types.int64)
     start_stacks = cuda.local.array((2, MAX_LEVELS), types.int64)
@@ -71,8 +72,8 @@ def _render_pixels_cuda(
     trace_pixel(cam, width, height, pixel, side, seed, inner_nodes, depth, stop_level,
                 radius, spread, colors, facing, beam_bound, block,
                 (stack, path, start_stacks), sums, tallies, 0)
-    store_sums(out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod, pixel,
-               sums, tallies, 0, side * side)
+    store_sums(out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
+               entry, sums, tallies, 0, side * side)
 
 
 def launch_shape(pixels: int) -> tuple[int, int]:

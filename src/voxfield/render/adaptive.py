@@ -20,6 +20,7 @@ from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import thread_count
 from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
+from voxfield.render.device import check_device, trace_pixels_cuda
 from voxfield.render.primary import render_lod
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
@@ -121,16 +122,20 @@ def render_adaptive(
     iterations: int = AdaptiveOptions.iterations,
     variance_normalisation: float = AdaptiveOptions.variance_normalisation, seed: int = 0,
     channel: str = "albedo", threads: int | None = None, progress: bool = False,
+    device: str = "cpu",
 ) -> RenderResult:
     """Render 1 ray per pixel, then refine high-variance pixels at LOD 0 (``iterations`` times;
     later iterations only raise a pixel's class). ``maps`` holds the last iteration's
-    normalised ``variance`` and the final ``refinement_class``."""
+    normalised ``variance`` and the final ``refinement_class``. ``device="cuda"`` traces the
+    first pass and the refinements on a GPU (the variance and the beam bounds stay on the
+    CPU), with the same image."""
+    check_device(device)
     if iterations < 0:
         raise VoxfieldError("iterations must be zero or more")
     if not variance_normalisation > 0:
         raise VoxfieldError("the variance normalisation must be positive")
     first = render_lod(octree, camera, lod=base_lod, seed=seed, channel=channel,
-                       threads=threads, progress=progress)
+                       threads=threads, progress=progress, device=device)
     start = time.perf_counter()
     result = RenderResult(
         first.image.copy(), first.depth.copy(), first.normal.copy(), first.ray_count.copy(),
@@ -148,7 +153,7 @@ def render_adaptive(
             todo = np.flatnonzero((wanted == cls) & (current < cls))
             if len(todo):
                 refine_pixels(octree, camera, todo, CLASS_SIDE[cls], seed, (colors, facing),
-                              result, threads)
+                              result, threads, device, channel)
                 current.reshape(-1)[todo] = cls
     result.seconds = first.seconds + time.perf_counter() - start
     result.maps["variance"] = variance
@@ -161,23 +166,32 @@ def render_adaptive(
     return result
 
 
-def refine_pixels(octree, camera, pixels, side, seed, colours, result, threads) -> None:
+def refine_pixels(octree, camera, pixels, side, seed, colours, result, threads,
+                  device: str = "cpu", channel: str = "albedo") -> None:
     """Re-render the listed pixels with side×side rays at LOD 0 into ``result`` (colours as
-    ``Octree.kernel_colours`` gives them); their rays and steps add to what they had."""
+    ``Octree.kernel_colours`` gives them, of ``channel`` on a GPU); their rays and steps add to
+    what they had."""
     n = len(pixels)
-    color = np.empty((n, 3), np.float32)
-    depth = np.empty(n, np.float32)
-    normal = np.empty((n, 3), np.float32)
-    rays = np.empty(n, np.int32)
-    hits = np.empty(n, np.int32)
-    steps = np.empty(n, np.int64)
-    lod = np.empty(n, np.int8)
     pixels = pixels.astype(np.int64)
     with thread_count(threads):
         beam = primary_beam(octree, camera, stop_level=octree.depth, side=side, pixels=pixels)
-        render_pixels(camera.params, camera.width, camera.height, pixels, -1, side,
-                      seed, octree.inner_nodes, octree.depth, octree.depth, 0.0, *colours,
-                      beam.bound, beam.block, color, depth, normal, rays, hits, steps, lod)
+    if device == "cuda":
+        (color, depth, normal, rays, hits, steps, lod), _ = trace_pixels_cuda(
+            octree, camera, pixels, side=side, stop_level=octree.depth, cone_scale=0.0,
+            seed=seed, channel=channel, beam_bound=beam.bound, block=beam.block)
+    else:
+        color = np.empty((n, 3), np.float32)
+        depth = np.empty(n, np.float32)
+        normal = np.empty((n, 3), np.float32)
+        rays = np.empty(n, np.int32)
+        hits = np.empty(n, np.int32)
+        steps = np.empty(n, np.int64)
+        lod = np.empty(n, np.int8)
+        with thread_count(threads):
+            render_pixels(camera.params, camera.width, camera.height, pixels, -1, side,
+                          seed, octree.inner_nodes, octree.depth, octree.depth, 0.0, *colours,
+                          beam.bound, beam.block, color, depth, normal, rays, hits, steps,
+                          lod)
     steps += beam.pixel_steps(pixels, camera.width)
     flat = {name: getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])
             for name in ("image", "depth", "normal", "ray_count", "hit_count", "steps",

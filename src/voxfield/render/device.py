@@ -18,8 +18,8 @@ from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
 
 DEVICES = ("cpu", "cuda")
-#: Renderers that can run on CUDA so far (the adaptive and error-aware ones cannot yet).
-CUDA_RENDERERS = ("reference", "lod")
+#: Renderers that can run on CUDA so far (the error-aware one cannot yet).
+CUDA_RENDERERS = ("reference", "lod", "adaptive")
 
 
 def cuda_available() -> bool:
@@ -58,6 +58,24 @@ def trace_image_cuda(
     """``render.primary.trace_image``'s pixels on the GPU: the same results, with
     ``seconds`` the kernel time (compilation and the first upload excluded). ``threads``,
     ``progress`` and ``label`` concern CPU renders: one kernel launch has no bands."""
+    h, w = camera.height, camera.width
+    buffers, seconds = trace_pixels_cuda(
+        octree, camera, np.arange(h * w, dtype=np.int64), side=side, stop_level=stop_level,
+        cone_scale=cone_scale, seed=seed, channel=channel, beam_bound=beam_bound, block=block)
+    result = RenderResult.allocate(h, w)
+    for host, values in zip(result.buffers(), buffers, strict=True):
+        host.reshape(values.shape)[...] = values
+    result.seconds = seconds
+    return result
+
+
+def trace_pixels_cuda(
+    octree: Octree, camera, pixels: np.ndarray, *, side: int, stop_level: int,
+    cone_scale: float, seed: int, channel: str, beam_bound: np.ndarray, block: int,
+) -> tuple[tuple, float]:
+    """The listed pixels (flat indices) on the GPU, as ``kernels.primary.render_pixels``
+    traces them with ``out_base`` -1: flat host arrays in ``RenderResult.buffers`` order, one
+    entry per listed pixel, and the kernel's seconds (compilation excluded)."""
     # optional: the CUDA target loads only when a GPU render is asked for
     from numba import cuda
 
@@ -68,22 +86,19 @@ def trace_image_cuda(
     nodes, colors, facing = octree.derived(("cuda", channel), lambda: tuple(
         cuda.to_device(np.ascontiguousarray(a))
         for a in (octree.inner_nodes, *octree.kernel_colours(channel))))
-    h, w = camera.height, camera.width
     cam = cuda.to_device(camera.params)
     bound = cuda.to_device(np.ascontiguousarray(beam_bound, np.float64))
-    outputs = cuda_primary.empty_outputs(h * w)
-    arguments = (cam, w, h, side, seed, nodes, octree.depth, stop_level, cone_scale, colors,
-                 facing, bound, block)
+    listed = cuda.to_device(np.ascontiguousarray(pixels, np.int64))
+    outputs = cuda_primary.empty_outputs(len(pixels))
     kernel = cuda_primary.primary_kernel()
-    kernel[1, 1](*arguments[:1], 0, 0, *arguments[3:], *outputs)
-    cuda.synchronize()  # an empty image: compiles (or loads) the kernel outside the timing
-    blocks, threads = cuda_primary.launch_shape(h * w)
+    before = (cam, camera.width, camera.height)
+    after = (side, seed, nodes, octree.depth, stop_level, cone_scale, colors, facing, bound,
+             block)
+    kernel[1, 1](*before, listed[:0], *after, *outputs)
+    cuda.synchronize()  # no pixels: compiles (or loads) the kernel outside the timing
+    blocks, threads = cuda_primary.launch_shape(len(pixels))
     start = time.perf_counter()
-    kernel[blocks, threads](*arguments, *outputs)
+    kernel[blocks, threads](*before, listed, *after, *outputs)
     cuda.synchronize()
     seconds = time.perf_counter() - start
-    result = RenderResult.allocate(h, w)
-    for host, device_array in zip(result.buffers(), outputs, strict=True):
-        host.reshape(device_array.shape)[...] = device_array.copy_to_host()
-    result.seconds = seconds
-    return result
+    return tuple(device_array.copy_to_host() for device_array in outputs), seconds
