@@ -52,6 +52,13 @@ def test_curves_follow_their_knobs_and_resume(octree, tmp_path):
         psnr = [math.inf if p["psnr"] is None else p["psnr"] for p in exact]
         assert psnr == sorted(psnr)
         assert exact[-1]["fraction"] == 1.0 and exact[-1]["psnr"] is None
+        # Its choice is the ranking the selection scores measure against: precision 1.
+        for p in curves["oracle"]["points"]:
+            assert p["selection_precision"] in (None, 1.0)
+        for p in (p for curve in curves.values() for p in curve["points"]):
+            assert 0.0 <= p["refined_share"] <= 1.0
+            for key in ("selection_precision", "error_covered"):
+                assert p[key] is None or 0.0 <= p[key] <= 1.0
         # The hybrid refines at least where EA does: never fewer rays at any threshold.
         for ea_point, hybrid_point in zip(curves["EA d=0.2"]["points"],
                                           curves["hybrid d=0.2"]["points"], strict=True):

@@ -171,6 +171,7 @@ class CameraSweep:
         self.reference = folder.render_item(f"{name}-reference", self.view, lambda: (
             render_reference(octree, camera, side=4, seed=settings["seed"],
                              channel=settings["channel"])))
+        self.first_error = first_pass_error(octree, camera, self.reference, **settings)
         bar.update(1)
 
     def point(self, name: str, params: dict, render, needs_reference: bool = False) -> dict:
@@ -181,10 +182,11 @@ class CameraSweep:
         camera = self.camera
 
         def measure(shared):
-            octree, reference = shared
+            octree, reference, first_error = shared
             result = (render(octree, camera, reference) if needs_reference
                       else render(octree, camera))
-            return costs_and_quality(reference, result)
+            return {**costs_and_quality(reference, result),
+                    **selection(result.ray_count, first_error)}
 
         self.pending.append((point, (f"{self.name}-{name}", {**self.view, **params}, measure)))
         return point
@@ -193,7 +195,8 @@ class CameraSweep:
         """Compute the pending points (independent items: a batch on the folder's
         scheduler) and fill them in."""
         values = self.folder.value_batch([spec for _, spec in self.pending],
-                                         shared=(self.octree, self.reference), bar=self.bar)
+                                         shared=(self.octree, self.reference, self.first_error),
+                                         bar=self.bar)
         for (point, _), value in zip(self.pending, values, strict=True):
             point.update(value)
         self.pending.clear()
@@ -203,6 +206,38 @@ class CameraSweep:
         return {"knob": knob, "points": points}
 
 
+def first_pass_error(octree: Octree, camera: Camera, reference, *, base_lod: int | None,
+                     seed: int, channel: str) -> np.ndarray:
+    """Per pixel, the squared error (summed over RGB) of one ray at ``base_lod`` against the
+    reference: what every adaptive renderer starts from, and what refining a pixel removes."""
+    return _first_pass(octree, camera, reference, base_lod, seed, channel)[1]
+
+
+def _first_pass(octree, camera, reference, base_lod, seed, channel):
+    """The first pass at ``base_lod`` and its per-pixel squared error against the reference."""
+    first = render_lod(octree, camera, lod=base_lod, seed=seed, channel=channel)
+    truth = np.clip(reference.image, 0.0, 1.0)
+    return first, np.sum((np.clip(first.image, 0.0, 1.0) - truth) ** 2, axis=-1)
+
+
+def selection(ray_count: np.ndarray, first_error: np.ndarray) -> dict:
+    """How well a render chose the pixels it refined (more than one ray), against the first
+    pass's true error: ``refined_share`` of the pixels; ``selection_precision``, the share of
+    them among the as many pixels with the largest error (1: an oracle's choice); and
+    ``error_covered``, the share of the first pass's squared error in them."""
+    refined = np.asarray(ray_count).reshape(-1) > 1
+    error = np.asarray(first_error, np.float64).reshape(-1)
+    count = int(refined.sum())
+    total = float(error.sum())
+    if count == 0:
+        return {"refined_share": 0.0, "selection_precision": None, "error_covered": 0.0}
+    worst = np.zeros(error.size, bool)
+    worst[np.argsort(-error, kind="stable")[:count]] = True
+    return {"refined_share": count / error.size,
+            "selection_precision": float(np.count_nonzero(refined & worst)) / count,
+            "error_covered": float(error[refined].sum()) / total if total > 0 else None}
+
+
 def render_oracle(octree: Octree, camera: Camera, reference, *, fraction: float, side: int,
                   base_lod: int | None, seed: int, channel: str):
     """The first pass at ``base_lod``, then the ``fraction`` of its pixels with the largest
@@ -210,9 +245,8 @@ def render_oracle(octree: Octree, camera: Camera, reference, *, fraction: float,
     refinement with a perfect choice of pixels. No rule that refines as A does can choose
     better at the same cost, so the gap between this curve and A's (or the hybrid's) is
     what a better error predictor could still win."""
-    result = render_lod(octree, camera, lod=base_lod, seed=seed, channel=channel)
-    truth = np.clip(reference.image, 0.0, 1.0)
-    error = np.sum((np.clip(result.image, 0.0, 1.0) - truth) ** 2, axis=-1).reshape(-1)
+    result, error = _first_pass(octree, camera, reference, base_lod, seed, channel)
+    error = error.reshape(-1)
     count = int(round(fraction * error.size))
     worst = np.argsort(-error, kind="stable")[:count]
     worst = np.sort(worst[error[worst] > 0.0])
@@ -281,11 +315,21 @@ def results_markdown(report: dict) -> str:
                 side = f" ({p['side']}×{p['side']})" if "side" in p else ""
                 rows.append([name, f"{curve['knob']} {fmt(p[curve['knob']], 'g')}{side}",
                              fmt(p["rays"]), fmt(p["steps"]), fmt(p["psnr"], ".2f"),
-                             fmt(p["ssim"], ".4f"), fmt(p.get("flip"), ".4f")])
-        lines.append(markdown_table(["curve", "knob", "rays", "steps", "PSNR", "SSIM", "FLIP"],
-                                    rows))
+                             fmt(p["ssim"], ".4f"), fmt(p.get("flip"), ".4f"),
+                             _percent(p.get("refined_share")),
+                             _percent(p.get("selection_precision")),
+                             _percent(p.get("error_covered"))])
+        lines.append(markdown_table(["curve", "knob", "rays", "steps", "PSNR", "SSIM", "FLIP",
+                                     "refined %", "precision %", "error covered %"], rows))
+        lines.append("Precision: the share of the refined pixels among as many pixels with "
+                     "the largest first-pass error (the oracle's choice scores 100); error "
+                     "covered: the share of the first pass's squared error in them.\n")
         lines.append("")
     return "\n".join(lines)
+
+
+def _percent(share) -> str:
+    return fmt(None if share is None else 100 * share, ".1f")
 
 
 def _sharpest_for_cost(points: list[dict]) -> list[dict]:
