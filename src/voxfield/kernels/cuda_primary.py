@@ -13,6 +13,7 @@ the scratch differs: per-thread local arrays instead of heap arrays.
 from __future__ import annotations
 
 import functools
+import sys
 
 import numpy as np
 from numba import types
@@ -27,20 +28,24 @@ MAX_LEVELS = 32
 THREADS_PER_BLOCK = 128
 
 
-#: ``numba.cuda``, bound by ``primary_kernel`` on first use. The kernel reads it as a module
-#: global because Numba's simulator swaps its own module in only for globals.
+#: ``numba.cuda``, bound by ``jit_for_gpu`` when the kernel is first asked for.
 cuda = None
+
+
+def jit_for_gpu(module, function):
+    """``numba.cuda.jit(function)``, with ``module.cuda`` bound first: a kernel reads ``cuda``
+    as a global of its module, which is what Numba's simulator swaps its own module in for."""
+    # optional: numba.cuda loads only when a GPU kernel is asked for
+    from numba import cuda as numba_cuda
+
+    module.cuda = numba_cuda
+    return numba_cuda.jit(function)
 
 
 @functools.cache
 def primary_kernel():
     """The CUDA kernel, compiled on its first launch (one per process)."""
-    global cuda
-    # optional: numba.cuda loads only when a GPU render is asked for
-    from numba import cuda as numba_cuda
-
-    cuda = numba_cuda
-    return numba_cuda.jit(_render_pixels_cuda)
+    return jit_for_gpu(sys.modules[__name__], _render_pixels_cuda)
 
 
 def _render_pixels_cuda(

@@ -9,25 +9,21 @@ the scratch differs: per-thread local arrays instead of heap arrays.
 from __future__ import annotations
 
 import functools
+import sys
 
 from numba import types
 
+from voxfield.kernels.cuda_primary import jit_for_gpu
 from voxfield.kernels.probe_multi import MAX_PROBE_TRACES, answer_ray
 
-#: ``numba.cuda``, bound by ``probe_kernel`` on first use (a module global, which Numba's
-#: simulator swaps in for the kernel).
+#: ``numba.cuda``, bound by ``jit_for_gpu`` when the kernel is first asked for.
 cuda = None
 
 
 @functools.cache
 def probe_kernel():
     """The CUDA kernel, compiled on its first launch (one per process)."""
-    global cuda
-    # optional: numba.cuda loads only when a GPU trace is asked for
-    from numba import cuda as numba_cuda
-
-    cuda = numba_cuda
-    return numba_cuda.jit(_trace_light_field_cuda)
+    return jit_for_gpu(sys.modules[__name__], _trace_light_field_cuda)
 
 
 def _trace_light_field_cuda(
