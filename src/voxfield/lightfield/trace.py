@@ -16,6 +16,7 @@ import numpy as np
 from voxfield.errors import VoxfieldError
 from voxfield.kernels import probe_march as pm
 from voxfield.kernels import probe_multi as mk
+from voxfield.lightfield.cuda_trace import trace_light_field_cuda
 from voxfield.lightfield.packed import PackedProbes
 from voxfield.parallel import thread_count
 from voxfield.render.device import check_device
@@ -266,9 +267,6 @@ def trace_light_field(packed: PackedProbes, origins, dirs,
              ORDERINGS[options.ordering], bool(options.fallback),
              options.params(_pixel_angle(pixel_angle)))
     if device == "cuda":
-        # optional: the CUDA path loads only when a GPU trace is asked for
-        from voxfield.lightfield.cuda_trace import trace_light_field_cuda
-
         trace_light_field_cuda(packed, modes, o, d, lo, hi, out)
         return out
     with thread_count(threads):
