@@ -93,7 +93,7 @@ def test_quality_does_not_fall_from_8_to_27_probes(cornell_probes, view):
 
 def test_consensus_hits_agree_with_the_octree(cornell, cornell_probes):
     """Hits the consensus check lets through lie on the octree's surface, within ε and a
-    texel's slope; it takes fewer false hits than the trace without it."""
+    texel's slope, but for a few."""
     packed = cornell_probes[3]
     rng = np.random.default_rng(9)
     origins = rng.uniform(3.0, 29.0, (3000, 3))
@@ -107,7 +107,26 @@ def test_consensus_hits_agree_with_the_octree(cornell, cornell_probes):
         hit = (field.kind == HIT) & seen
         errors[consensus] = np.abs(field.t[hit] - truth.t[hit])
     assert np.median(errors[True]) < 0.5
-    assert np.mean(errors[True] > 2.0) <= np.mean(errors[False] > 2.0)
+    # Rays that only pass in front of a surface are no hits already, so the check has few
+    # false hits left to remove (measured: 1.2 % with it, 1.2 % without).
+    assert np.mean(errors[True] > 2.0) < 0.02
+
+
+def test_rays_passing_in_front_of_a_surface_are_not_hits_on_it(cornell, cornell_probes):
+    """A ray that grazes a wall or passes beside an edge comes within a texel's thickness of
+    the stored surface without reaching it. Taken as a hit, it stops voxels short of the true
+    surface. (Measured: 1.4 % / 0.7 % of the hits at 8 / 27 probes; 3.2 % / 1.5 % when any
+    ray within the thickness was taken.)"""
+    rng = np.random.default_rng(9)
+    origins = rng.uniform(3.0, 29.0, (3000, 3))
+    dirs = rng.normal(size=(3000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    truth = trace(cornell, origins, dirs, lod=0)
+    for n, limit in ((2, 0.02), (3, 0.01)):
+        field = trace_light_field(cornell_probes[n], origins, dirs, LightFieldOptions())
+        hit = (field.kind == HIT) & truth.hit
+        short = field.t[hit] < truth.t[hit] - 2.0
+        assert short.mean() < limit, n
 
 
 def test_depth_agreement_and_pixel_classes_add_up(cornell_probes, view):

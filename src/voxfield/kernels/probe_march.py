@@ -329,7 +329,9 @@ def texel_event(eps_mode: int, params: np.ndarray, normals: np.ndarray, probe: i
     Angular (§7.1): a candidate is any texel where ``ρ`` reaches ``d``; it is a hit when the
     stored point ``Y`` is within ``kθ`` of the ray direction seen from ``X``, else lost.
     Backface rejection (§7.2): a hit whose stored normal faces along ω is lost instead, from
-    ε before the texel (the true front face was within ε of where the probe saw empty space)."""
+    ε before the texel (the true front face was within ε of where the probe saw empty space).
+    Footprint ε: a ray that meets the plane of a front-facing stored surface more than ε
+    after it leaves the texel's cone goes on (it passed in front of the surface)."""
     if not d < math.inf:
         return _GO, tb
     ax = ox - px
@@ -377,6 +379,11 @@ def texel_event(eps_mode: int, params: np.ndarray, normals: np.ndarray, probe: i
     facing = nx * dx + ny * dy + nz * dz
     if abs(facing) > PLANE_MIN_COSINE:
         t_plane = ((yx - ox) * nx + (yy - oy) * ny + (yz - oz) * nz) / facing
+        if eps_mode == EPS_FOOTPRINT and facing < 0.0 and t_plane > tb + eps:
+            # The ray leaves the texel's cone before it reaches the stored surface: it
+            # passes in front of it (beside an edge, at a grazing angle). If the surface
+            # goes on, the next texel along the ray meets it.
+            return _GO, tb
         t_hit = min(max(t_plane, ta), tb)
     if eps_mode == EPS_ANGULAR:
         vx = yx - ox
