@@ -185,11 +185,7 @@ def check_probe_ptx(cuda) -> None:
     cuda_probe.cuda = cuda
     packed = tiny_probe_set()
     n = 4
-    out = LightFieldHits(
-        kind=np.empty(n, np.int8), t=np.empty(n), radiance=np.empty((n, 3), np.float32),
-        normal=np.empty((n, 3), np.float32), distance=np.empty(n, np.float32),
-        probe=np.empty(n, np.int32), probes_tried=np.empty(n, np.int32),
-        fetches=np.empty(n, np.int64), steps=np.empty(n, np.int64))
+    out = LightFieldHits.empty(n)
     rays = (np.zeros((n, 3)), np.ones((n, 3)), np.zeros(n), np.full(n, np.inf))
     modes = (0, 0, 0, True, LightFieldOptions().params(0.0))
     signature = tuple(numba.typeof(a) for a in kernel_arguments(packed, modes, rays, out))

@@ -31,7 +31,12 @@ from voxfield.errors import VoxfieldError
 from voxfield.lightfield.accuracy import depth_agreement, perfect_trace_image, pixel_classes
 from voxfield.lightfield.baselines import FILTERS
 from voxfield.lightfield.packed import PackedProbes
-from voxfield.lightfield.probe_render import METHODS, probe_set_bounds, render_from_probes
+from voxfield.lightfield.probe_render import (
+    METHODS,
+    check_probe_device,
+    probe_set_bounds,
+    render_from_probes,
+)
 from voxfield.lightfield.probe_render_figures import (
     map_summary,
     write_probe_maps,
@@ -47,7 +52,7 @@ from voxfield.lightfield.trace import (
 )
 from voxfield.metrics import compare_images
 from voxfield.probes.probe_folder import open_probe_set
-from voxfield.render.device import DEVICES, check_device
+from voxfield.render.device import DEVICES
 from voxfield.render.image_io import save_result_image
 from voxfield.render.placement import camera_placement_problem
 from voxfield.render.primary import render_lod, render_reference
@@ -145,10 +150,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
-    if args.device == "cuda" and args.method != "light-field":
-        raise VoxfieldError(f"the {args.method} baseline runs on the CPU only; --device cuda "
-                            "serves the light-field trace")
-    check_device(args.device)  # before anything loads: fail fast
+    check_probe_device(args.device, args.method)  # before anything loads: fail fast
     out = Path(args.out) if args.out else default_output(
         "probe_render", Path(args.probes).name or "probes", f"_{args.method}.png")
     if out.suffix.lower() not in (".png", ".exr"):

@@ -63,10 +63,7 @@ def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field"
     centres, so it changes nothing. Results do not depend on ``threads``. ``device="cuda"``
     traces the light field on a GPU (``lightfield.cuda_trace``), with the same image.
     """
-    if device == "cuda" and method != "light-field":
-        raise VoxfieldError(f"the {method} baseline runs on the CPU only; --device cuda "
-                            "serves the light-field trace")
-    check_device(device)
+    check_probe_device(device, method)
 
     if method not in METHODS:
         raise VoxfieldError(f"unknown probe render method {method!r}; choose one of "
@@ -109,6 +106,14 @@ def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field"
                                       progress=progress)
     result.params = params
     return result
+
+
+def check_probe_device(device: str, method: str) -> None:
+    """A clear error for a method that has no GPU path, then ``render.device``'s checks."""
+    if device == "cuda" and method != "light-field":
+        raise VoxfieldError(f"the {method} baseline runs on the CPU only; --device cuda "
+                            "serves the light-field trace")
+    check_device(device)
 
 
 # --------------------------------------------------------------------------- methods

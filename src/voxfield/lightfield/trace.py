@@ -178,6 +178,15 @@ class LightFieldHits:
     def hit(self) -> np.ndarray:
         return self.kind == HIT
 
+    @classmethod
+    def empty(cls, n: int) -> LightFieldHits:
+        """Buffers for ``n`` rays, in the dtypes the kernels write."""
+        return cls(kind=np.empty(n, np.int8), t=np.empty(n),
+                   radiance=np.empty((n, 3), np.float32), normal=np.empty((n, 3), np.float32),
+                   distance=np.empty(n, np.float32), probe=np.empty(n, np.int32),
+                   probes_tried=np.empty(n, np.int32), fetches=np.empty(n, np.int64),
+                   steps=np.empty(n, np.int64))
+
     def summary(self) -> dict:
         """Counts of each kind and mean cost per ray."""
         n = max(len(self.kind), 1)
@@ -257,12 +266,7 @@ def trace_light_field(packed: PackedProbes, origins, dirs,
     if not packed.enabled.any():
         raise VoxfieldError("no probe of the set is enabled; bake some probes first")
     o, d, lo, hi = _rays(origins, dirs, tmin, tmax)
-    n = len(o)
-    out = LightFieldHits(
-        kind=np.empty(n, np.int8), t=np.empty(n), radiance=np.empty((n, 3), np.float32),
-        normal=np.empty((n, 3), np.float32), distance=np.empty(n, np.float32),
-        probe=np.empty(n, np.int32), probes_tried=np.empty(n, np.int32),
-        fetches=np.empty(n, np.int64), steps=np.empty(n, np.int64))
+    out = LightFieldHits.empty(len(o))
     modes = (MARCHERS[options.marcher], EPSILON_MODES[options.epsilon],
              ORDERINGS[options.ordering], bool(options.fallback),
              options.params(_pixel_angle(pixel_angle)))
