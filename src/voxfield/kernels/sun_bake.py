@@ -236,3 +236,20 @@ def bake_sun_visibility(
                 face_sky, face_weight, scratch,
                 out_direct, out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps,
             )
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def lit_colours(
+    albedo: np.ndarray, direct: np.ndarray, sky: np.ndarray, irradiance: np.ndarray,
+    sky_colour: np.ndarray, out: np.ndarray,
+) -> None:
+    """Per voxel ``i`` and sun ``k``, ``albedo × (irradiance_k × direct[k, i] + sky_colour_k ×
+    sky[i])`` worked out in float64 and stored as float32 in ``out[k, i]``: every sun's lit
+    leaf colours in one pass, each sun's contiguous as the channel averages read them."""
+    for i in prange(albedo.shape[0]):
+        s = np.float64(sky[i])
+        for k in range(direct.shape[0]):
+            d = np.float64(direct[k, i])
+            for c in range(3):
+                out[k, i, c] = np.float64(albedo[i, c]) * (
+                    d * irradiance[k, c] + s * sky_colour[k, c])

@@ -17,12 +17,13 @@ import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.sun_bake import bake_sun_visibility
+from voxfield.kernels.colour import decode_channel
+from voxfield.kernels.sun_bake import bake_sun_visibility, lit_colours
 from voxfield.lighting.sun import SunLight
 from voxfield.parallel import thread_count
 from voxfield.progress import progress_bar
 from voxfield.scaleout import run_tasks
-from voxfield.svo.channels import with_channels
+from voxfield.svo.channels import with_channel_block
 from voxfield.svo.lod_colours import exposed_faces
 from voxfield.svo.octree import Octree
 
@@ -209,12 +210,10 @@ def bake_sun_lighting(
         octree, dirs, sky_rays=sky_rays, shadow_rays=shadow_rays, seed=seed,
         threads=threads, progress=progress, scheduler=scheduler,
     )
-    albedo = octree.color[octree.level_slice(octree.depth)].astype(np.float64)
-    channels = {}
-    for k, sun in enumerate(suns):
-        light = np.outer(vis.direct[k], sun.irradiance) + np.outer(vis.sky, sun.sky)
-        channels[sun.name] = (albedo * light).astype(np.float32)
-        del light
+    albedo = decode_channel(octree.attributes["color"][octree.level_slice(octree.depth)])
+    leaves = np.empty((len(suns), octree.voxel_count, 3), np.float32)
+    lit_colours(albedo, vis.direct, vis.sky, np.array([s.irradiance for s in suns], np.float64),
+                np.array([s.sky for s in suns], np.float64), leaves)
     surface_count = int(vis.surface.sum())
     seen = vis.seen
     seen_count = max(int(seen.sum()), 1)
@@ -234,7 +233,7 @@ def bake_sun_lighting(
             for k, s in enumerate(suns)
         },
     )
-    return with_channels(octree, channels, weights=vis.weight), report
+    return with_channel_block(octree, [s.name for s in suns], leaves, vis.weight), report
 
 
 def _threads_used(threads: int | None) -> int:

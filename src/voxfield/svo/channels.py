@@ -18,9 +18,13 @@ from dataclasses import replace
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.octree_levels import average_children
 from voxfield.svo.octree import Octree
 
-__all__ = ["check_channel_name", "propagate_channel", "with_channel", "with_channels"]
+__all__ = [
+    "check_channel_name", "propagate_channel", "with_channel", "with_channel_block",
+    "with_channels",
+]
 
 #: Channel names become ``attr_NAME`` keys in octree files and file-name parts of previews.
 _NAME = re.compile(r"[A-Za-z0-9_-]{1,64}")
@@ -65,27 +69,20 @@ def propagate_channel(
     zero takes their plain mean.
     """
     depth = octree.depth
-    leaf_values = np.asarray(leaf_values, np.float32)
+    leaf_values = np.ascontiguousarray(leaf_values, np.float32)
     out = np.empty((octree.node_count, leaf_values.shape[1]), np.float32)
     out[octree.level_slice(depth)] = leaf_values
-    weights = None if leaf_weights is None else np.asarray(leaf_weights, np.float64)
+    weighted = leaf_weights is not None
+    weights = np.ascontiguousarray(leaf_weights if weighted else np.zeros(0), np.float64)
     first_child = octree.first_child
     for level in range(depth - 1, -1, -1):
         parents = octree.level_slice(level)
         children = octree.level_slice(level + 1)
         starts = first_child[parents] - int(octree.level_offsets[level + 1])
-        child_values = out[children]
-        counts = np.diff(np.append(starts, len(child_values)))
-        mean = np.add.reduceat(child_values, starts, axis=0, dtype=np.float64)
-        mean /= counts[:, None]
-        if weights is not None:
-            weighted = np.add.reduceat(
-                child_values * weights[:, None], starts, axis=0, dtype=np.float64
-            )
-            weights = np.add.reduceat(weights, starts)
-            seen = weights > 0.0
-            mean[seen] = weighted[seen] / weights[seen, None]
-        out[parents] = mean
+        parent_weights = np.empty(len(starts) if weighted else 0, np.float64)
+        average_children(starts, out[children], weights, weighted, out[parents],
+                         parent_weights)
+        weights = parent_weights
     return out
 
 
@@ -104,19 +101,25 @@ def with_channels(
         leaf_weights = _leaf_array(octree, weights, "channel weights", None)
         if np.any(leaf_weights < 0):
             raise VoxfieldError("channel weights must not be negative")
-    attributes = dict(octree.attributes)
     names = list(channels)
     for name in names:
         check_channel_name(name)
-    if names:
-        # All channels side by side: one pass over the levels for all of them.
-        leaves = np.concatenate([
-            _leaf_array(octree, channels[name], f"channel {name!r}", 3).astype(np.float32)
-            for name in names], axis=1)
-        values = propagate_channel(octree, leaves, leaf_weights)
-        del leaves
-        for k, name in enumerate(names):
-            attributes[name] = np.ascontiguousarray(values[:, 3 * k : 3 * k + 3])
+    if not names:
+        return replace(octree, attributes=dict(octree.attributes))
+    leaves = np.stack([
+        _leaf_array(octree, channels[name], f"channel {name!r}", 3).astype(np.float32)
+        for name in names])
+    return with_channel_block(octree, names, leaves, leaf_weights)
+
+
+def with_channel_block(
+    octree: Octree, names: list[str], leaves: np.ndarray, weights: np.ndarray | None
+) -> Octree:
+    """``with_channels`` for leaf values already checked and stacked: ``(len(names),
+    voxels, 3)`` float32, channel ``k`` in ``leaves[k]``."""
+    attributes = dict(octree.attributes)
+    for name, values in zip(names, leaves, strict=True):
+        attributes[check_channel_name(name)] = propagate_channel(octree, values, weights)
     return replace(octree, attributes=attributes)
 
 

@@ -27,6 +27,7 @@ from voxfield.fingerprint import array_fingerprint
 from voxfield.kernels.colour import decode_channel
 from voxfield.kernels.facing_colour import NO_FACING
 from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT
+from voxfield.kernels.octree_levels import child_corners
 
 
 @dataclass(frozen=True)
@@ -128,13 +129,12 @@ class Octree:
 
     def _coords_by_level(self):
         coords = np.zeros((1, 3), np.int64)
-        octant_offsets = np.array([[(c >> a) & 1 for a in range(3)] for c in range(8)])
         yield coords
         for parent_level in range(self.depth):
             masks = (self.descriptors[self.level_slice(parent_level)] & 0xFF).astype(np.uint8)
-            bits = np.unpackbits(masks[:, None], axis=1, bitorder="little")
-            parents, octants = np.nonzero(bits)
-            coords = coords[parents] * 2 + octant_offsets[octants]
+            children = np.empty((self.nodes_per_level()[parent_level + 1], 3), np.int64)
+            child_corners(masks, coords, children)
+            coords = children
             yield coords
 
     def lod_voxels(self, lod: int) -> np.ndarray:

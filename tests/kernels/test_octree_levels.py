@@ -1,0 +1,65 @@
+"""Level kernels: parent averages equal NumPy's ``add.reduceat`` to the bit; child corners
+equal the octant arithmetic; the lighting bake's lit colours equal the NumPy formula."""
+
+import numpy as np
+
+from voxfield.kernels.octree_levels import average_children, child_corners
+from voxfield.kernels.sun_bake import lit_colours
+
+
+def _runs(rng, parents):
+    counts = rng.integers(1, 9, parents)
+    return np.concatenate(([0], np.cumsum(counts)[:-1])).astype(np.int64), int(counts.sum())
+
+
+def test_parent_means_equal_reduceat_bit_for_bit():
+    rng = np.random.default_rng(3)
+    starts, children = _runs(rng, 5000)
+    values = (rng.random((children, 6)) * 7).astype(np.float32)
+    out = np.empty((len(starts), 6), np.float32)
+    average_children(starts, values, np.zeros(0), False, out, np.zeros(0))
+    counts = np.diff(np.append(starts, children))
+    want = (np.add.reduceat(values, starts, axis=0, dtype=np.float64)
+            / counts[:, None]).astype(np.float32)
+    assert np.array_equal(out.view(np.uint32), want.view(np.uint32))
+
+
+def test_weighted_parent_means_and_weight_sums():
+    rng = np.random.default_rng(4)
+    starts, children = _runs(rng, 3000)
+    values = (rng.random((children, 3)) * 2).astype(np.float32)
+    weights = rng.random(children) * (rng.random(children) < 0.5)
+    out = np.empty((len(starts), 3), np.float32)
+    sums = np.empty(len(starts))
+    average_children(starts, values, weights, True, out, sums)
+    counts = np.diff(np.append(starts, children))
+    want_sums = np.add.reduceat(weights, starts)
+    plain = np.add.reduceat(values, starts, axis=0, dtype=np.float64) / counts[:, None]
+    weighted = np.add.reduceat(values * weights[:, None], starts, axis=0, dtype=np.float64)
+    seen = want_sums > 0
+    plain[seen] = weighted[seen] / want_sums[seen, None]
+    assert np.array_equal(sums, want_sums)
+    assert np.array_equal(out, plain.astype(np.float32))
+    assert (~seen).any() and seen.any()  # both rules were exercised
+
+
+def test_child_corners_follow_the_octant_bits():
+    masks = np.array([0b10000001, 0b00000110], np.uint8)
+    parents = np.array([[0, 0, 0], [3, 1, 2]], np.int64)
+    out = np.empty((4, 3), np.int64)
+    child_corners(masks, parents, out)
+    assert out.tolist() == [[0, 0, 0], [1, 1, 1], [7, 2, 4], [6, 3, 4]]
+
+
+def test_lit_colours_equal_the_per_sun_formula():
+    rng = np.random.default_rng(5)
+    n, suns = 1000, 3
+    albedo = rng.random((n, 3)).astype(np.float32)
+    direct = rng.random((suns, n)).astype(np.float32)
+    sky = rng.random(n).astype(np.float32)
+    irradiance, sky_colour = rng.random((suns, 3)), rng.random((suns, 3))
+    out = np.empty((suns, n, 3), np.float32)
+    lit_colours(albedo, direct, sky, irradiance, sky_colour, out)
+    for k in range(suns):
+        light = np.outer(direct[k], irradiance[k]) + np.outer(sky, sky_colour[k])
+        assert np.array_equal(out[k], (albedo.astype(np.float64) * light).astype(np.float32))
