@@ -9,6 +9,7 @@ from numba import njit
 
 from kernels.test_traversal import adversarial_rays
 from random_scenes import random_scene
+from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.traversal import new_scratch, trace_ray
 from voxfield.kernels.traversal import occluded as occluded_ray
 from voxfield.render import orbit_camera
@@ -129,3 +130,47 @@ def test_any_hit_blocks_exactly_the_rays_that_hit_and_takes_fewer_steps():
         assert np.all(anyhit.steps <= closest.steps)
         if solid_interiors:  # pillars have solid 2³ and 4³ blocks: rays stop at them
             assert anyhit.steps.sum() < 0.9 * closest.steps.sum()
+
+
+@njit
+def _any_hit_packets(o, d, tmax, inner, depth, blocked, steps):
+    """``occluded`` for every ray through any-hit packets of up to 64 rays."""
+    scratch = new_packet_scratch(depth)
+    n = o.shape[0]
+    tmins = np.zeros(PACKET_RAYS)
+    tmaxs = np.full(PACKET_RAYS, tmax)
+    node = np.empty(PACKET_RAYS, np.int64)
+    level = np.empty(PACKET_RAYS, np.int64)
+    t = np.empty(PACKET_RAYS)
+    normal = np.empty(PACKET_RAYS, np.int64)
+    ray_steps = np.empty(PACKET_RAYS, np.int64)
+    for first in range(0, n, PACKET_RAYS):
+        count = min(PACKET_RAYS, n - first)
+        trace_packet(count, o[first:first + count], d[first:first + count], tmins, tmaxs,
+                     inner, depth, depth, scratch, node, level, t, normal, ray_steps, True)
+        for k in range(count):
+            blocked[first + k] = node[k] != -1
+            steps[first + k] = ray_steps[k]
+
+
+def test_any_hit_packets_equal_the_scalar_any_hit_query():
+    """Packets stop in solid nodes where ``occluded`` stops: same verdict, same steps, for
+    rays from voxel tops (the sun bake's shadow rays) and adversarial rays."""
+    for octree in _scenes():
+        lo, hi = octree.voxel_bounds
+        origins, directions = adversarial_rays(lo, hi, 3000, seed=6)
+        top = octree.node_coords(octree.depth) + [0.5, 1.0, 0.5]
+        rng = np.random.default_rng(1)
+        up = rng.normal(size=top.shape)
+        up[:, 1] = np.abs(up[:, 1])
+        for o, d in ((origins, directions), (top, up)):
+            for tmax in (math.inf, 3.5):
+                want = occluded(octree, o, d, tmax=tmax)
+                blocked = np.empty(len(o), np.bool_)
+                steps = np.empty(len(o), np.int64)
+                _any_hit_packets(np.ascontiguousarray(o, np.float64),
+                                 np.ascontiguousarray(d, np.float64), tmax,
+                                 octree.inner_nodes, octree.depth, blocked, steps)
+                assert np.array_equal(blocked, want.blocked)
+                assert np.array_equal(steps, want.steps)
+                assert want.blocked.any() and not want.blocked.all()

@@ -4,9 +4,11 @@ Why: the samples of one pixel (and of its neighbours) visit almost the same node
 loop (``kernels.traversal``) pays a dependent load and a hard-to-predict branch per node and
 per ray; a packet loads each node's descriptor once and decides, per child, with one pass of
 branch-free arithmetic over the packet's rays (which the compiler vectorises) and one branch
-for the whole packet. Supersampled primary rays run about twice as fast this way; a packet of
-rays that diverge (one ray per pixel over fine voxels, incoherent secondary rays) gains
-nothing, so those keep the scalar loop.
+for the whole packet. Supersampled primary rays run about twice as fast this way, and so do
+the sun bake's shadow rays, parallel rays from neighbouring voxels (any-hit packets: a ray
+stops in the first solid node it enters, as ``occluded`` stops); a packet of rays that
+diverge (one ray per pixel over fine voxels, cosine-weighted sky rays) gains nothing, so
+those keep the scalar loop.
 
 **Same answers.** Rays are grouped by direction signs (``flip``); within a group the children
 of a node, taken in mirrored octant order, are front to back for every ray. A depth-first walk
@@ -25,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-from voxfield.kernels.node_descriptor import child_index
+from voxfield.kernels.node_descriptor import SOLID_BIT, child_index
 from voxfield.kernels.traversal import (
     MISS,
     NO_NORMAL,
@@ -89,10 +91,13 @@ def trace_packet(
     count: int, origins: np.ndarray, directions: np.ndarray, tmins: np.ndarray, tmaxs: np.ndarray,
     inner_nodes: np.ndarray, depth: int, stop_level: int, scratch,
     out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
-    out_normal: np.ndarray, out_steps: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray, any_hit: bool = False,
 ) -> None:
     """Trace ``count`` ≤ 64 rays (``origins[k] + t·directions[k]`` over ``[tmins[k],
-    tmaxs[k])``) to ``stop_level``; results as ``trace_ray`` with no cone, entry ``k``."""
+    tmaxs[k])``) to ``stop_level``; results as ``trace_ray`` with no cone, entry ``k``.
+    With ``any_hit`` (``stop_level`` the leaves) they are ``occluded``'s instead: a ray stops
+    in the first solid node it enters, and only ``out_node`` (``MISS`` or not) and
+    ``out_steps`` mean anything."""
     table = scratch[4]
     members = scratch[7]
     g_node, g_level, g_t, g_normal, g_steps = scratch[8:13]
@@ -128,7 +133,7 @@ def trace_packet(
         if n == 0:
             continue
         walk_sign_group(n, flip, inner_nodes, depth, stop_level, scratch,
-                        g_node, g_level, g_t, g_normal, g_steps)
+                        g_node, g_level, g_t, g_normal, g_steps, any_hit)
         for j in range(n):
             k = members[j]
             out_node[k] = g_node[j]
@@ -200,7 +205,7 @@ def _interval_mask(n: int, times: np.ndarray, ex: int, ey: int, ez: int, span: i
 def walk_sign_group(
     n: int, flip: int, inner_nodes: np.ndarray, depth: int, stop_level: int, scratch,
     out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
-    out_normal: np.ndarray, out_steps: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray, any_hit: bool,
 ) -> None:
     """The depth-first packet walk over the first ``n`` rays of the ray table, which share
     the direction signs ``flip``."""
@@ -259,6 +264,16 @@ def walk_sign_group(
         size = root >> level
         half = size >> 1
         descriptor = inner_nodes[node]
+        if any_hit and (descriptor & SOLID_BIT) != 0:
+            # Every ray that enters a solid node is blocked there, as ``occluded`` stops.
+            for k in range(n):
+                if (active >> k) & 1:
+                    out_node[k] = node
+                    out_level[k] = level
+            done |= active
+            if done == full:
+                return
+            continue
         _plane_times(n, times, x0, y0, z0, size, exit_x, exit_y, exit_z, ox, oy, oz, ix, iy,
                      iz)
         for i in range(8):

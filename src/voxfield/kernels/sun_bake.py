@@ -38,14 +38,17 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
-from voxfield.kernels.traversal import new_scratch, occluded
+from voxfield.kernels.traversal import MISS, new_scratch, occluded
 
 _GOLDEN = 0x9E3779B9
 _POSITION_SALT = 0x68E31DA4
 _SHADOW_SALT = 0xB5297A4D
 #: Code of the face looking down (−y).
 FACE_DOWN = 2
+#: Surface voxels per parallel task; their shadow rays towards one sun share packets.
+BAKE_BLOCK = 32
 
 
 @njit(cache=True, nogil=True)
@@ -108,18 +111,14 @@ def face_sample(s: int, count: int, pattern: int) -> tuple[float, float]:
 
 
 @njit(cache=True, nogil=True)
-def bake_voxel(
-    i: int, x: int, y: int, z: int, voxel_id: int, faces: int,
-    sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float,
-    face_sky: np.ndarray, face_weight: np.ndarray,
-    scratch,
-    out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
-    out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
-) -> None:
-    """Bake one voxel (``faces``: bit ``f`` set for exposed face ``f``) into row ``i`` of the
-    outputs; see the module docstring for the quantities."""
-    voxel_pattern = pixel_pattern(voxel_id, seed)  # a hash of an index and the seed
+def sky_visibility(
+    x: int, y: int, z: int, voxel_pattern: int, faces: int, sky_rays: int,
+    inner_nodes: np.ndarray, depth: int, y_top: float, face_sky: np.ndarray,
+    face_weight: np.ndarray, scratch,
+) -> tuple[float, float, int, int]:
+    """One voxel's sky rays (``faces``: bit ``f`` set for exposed face ``f``): fills its
+    per-face sky visibility and weights and returns ``(sky, weight seen, rays, steps)``; a
+    voxel none of whose faces sees the sky gets equal face weights (module docstring)."""
     # A face looking down (−y) sees no sky and no sun above the horizon: it gets no rays.
     exposed = 0
     open_faces = 0
@@ -130,8 +129,7 @@ def bake_voxel(
                 open_faces += 1
     steps = 0
     sky_cast = 0
-    shadow_cast = 0
-    # Sky: ``sky_rays`` per voxel shared among its faces that can see up, at least one each.
+    # ``sky_rays`` per voxel shared among its faces that can see up, at least one each.
     k = 0
     total_weight = 0.0
     for f in range(6):
@@ -166,7 +164,7 @@ def bake_voxel(
             face_weight[f] = face_sky[f]
             k += 1
         total_weight += face_weight[f]
-    out_weight[i] = total_weight
+    seen_weight = total_weight
     if total_weight == 0.0:
         # No face sees the sky (a cave, an underside): its faces count equally.
         for f in range(6):
@@ -175,41 +173,122 @@ def bake_voxel(
     sky = 0.0
     for f in range(6):
         sky += face_weight[f] * face_sky[f]
-    out_sky[i] = sky / total_weight
-    # Sun: shadow rays from the faces turned to each sun (above the horizon only).
+    return sky / total_weight, seen_weight, sky_cast, steps
+
+
+@njit(cache=True, nogil=True, inline="always")
+def face_cosine(face: int, lx: float, ly: float, lz: float) -> float:
+    """Cosine between face ``face``'s outward normal and the unit direction ``l``."""
+    axis, sign = face_axis_sign(face)
+    return sign * (lx if axis == 0 else (ly if axis == 1 else lz))
+
+
+@njit(cache=True, nogil=True)
+def new_shadow_queue():
+    """One packet of queued shadow rays: origins, directions, ``tmin`` (0), ``tmax``, the
+    (block voxel, face) each belongs to, and the packet's result buffers (node, level,
+    ``t``, normal, steps)."""
+    return (np.empty((PACKET_RAYS, 3)), np.empty((PACKET_RAYS, 3)), np.zeros(PACKET_RAYS),
+            np.empty(PACKET_RAYS), np.empty(PACKET_RAYS, np.int64),
+            np.empty(PACKET_RAYS, np.int64), np.empty(PACKET_RAYS, np.int64),
+            np.empty(PACKET_RAYS, np.int64), np.empty(PACKET_RAYS),
+            np.empty(PACKET_RAYS, np.int64), np.empty(PACKET_RAYS, np.int64))
+
+
+@njit(cache=True, nogil=True)
+def trace_shadow_queue(count: int, queue, inner_nodes: np.ndarray, depth: int,
+                       packet_scratch, unblocked: np.ndarray, first: int,
+                       out_steps: np.ndarray) -> None:
+    """Trace the first ``count`` queued shadow rays as one any-hit packet: each ray that
+    reaches the sky adds one to ``unblocked[voxel, face]``, and its steps go to its voxel's
+    row ``first + voxel`` of ``out_steps``."""
+    origins, directions, tmins, tmaxs, voxel, face, node, level, t, normal, ray_steps = queue
+    trace_packet(count, origins, directions, tmins, tmaxs, inner_nodes, depth, depth,
+                 packet_scratch, node, level, t, normal, ray_steps, True)
+    for k in range(count):
+        out_steps[first + voxel[k]] += ray_steps[k]
+        if node[k] == MISS:
+            unblocked[voxel[k], face[k]] += 1
+
+
+@njit(cache=True, nogil=True)
+def bake_block(
+    first: int, last: int, coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
+    sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
+    inner_nodes: np.ndarray, depth: int, y_top: float,
+    out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
+    out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
+) -> None:
+    """Bake voxels ``first..last-1`` (at most ``BAKE_BLOCK``): each voxel's sky rays one by
+    one, then per sun the block's shadow rays (from the faces turned to it) queued and
+    traced as any-hit packets: parallel rays from neighbouring voxels walk almost the same
+    nodes, and a packet loads each node once for all of them."""
+    scratch = new_scratch(depth)
+    packet_scratch = new_packet_scratch(depth)
+    queue = new_shadow_queue()
+    origins, directions, _, tmaxs, ray_voxel, ray_face = queue[:6]
+    face_sky = np.empty(6)
+    face_weight = np.empty((BAKE_BLOCK, 6))
+    total_weight = np.zeros(BAKE_BLOCK)
+    unblocked = np.empty((BAKE_BLOCK, 6), np.int64)
+    for i in range(first, last):
+        j = i - first
+        sky, seen_weight, sky_cast, steps = sky_visibility(
+            coords[i, 0], coords[i, 1], coords[i, 2], pixel_pattern(voxel_ids[i], seed),
+            faces[i], sky_rays, inner_nodes, depth, y_top, face_sky, face_weight[j], scratch)
+        out_sky[i] = sky
+        out_weight[i] = seen_weight
+        out_sky_rays[i] = sky_cast
+        out_shadow_rays[i] = 0
+        out_steps[i] = steps
+        for f in range(6):
+            total_weight[j] += face_weight[j, f]
     for sun in range(sun_dirs.shape[0]):
         lx = sun_dirs[sun, 0]
         ly = sun_dirs[sun, 1]
         lz = sun_dirs[sun, 2]
-        direct = 0.0
-        if ly > 0.0:
-            for f in range(6):
-                if face_weight[f] == 0.0:
-                    continue
-                axis, sign = face_axis_sign(f)
-                cos_theta = sign * (lx if axis == 0 else (ly if axis == 1 else lz))
-                if cos_theta <= 0.0:
-                    continue
-                shadow_pattern = hash_u32(
-                    hash_u32(voxel_pattern ^ ((f + 1) * _GOLDEN)) + _SHADOW_SALT
-                )
-                unblocked = 0
-                for s in range(shadow_rays):
-                    pu, pv = face_sample(s, shadow_rays, shadow_pattern)
-                    ox, oy, oz = face_point(x, y, z, f, pu, pv)
-                    blocked, ray_steps = occluded(
-                        ox, oy, oz, lx, ly, lz, 0.0, (y_top - oy) / ly, inner_nodes, depth,
-                        scratch,
+        unblocked[:, :] = 0
+        queued = 0
+        if ly > 0.0:  # a sun below the horizon lights nothing
+            for i in range(first, last):
+                j = i - first
+                voxel_pattern = pixel_pattern(voxel_ids[i], seed)
+                for f in range(6):
+                    if face_weight[j, f] == 0.0 or face_cosine(f, lx, ly, lz) <= 0.0:
+                        continue
+                    shadow_pattern = hash_u32(
+                        hash_u32(voxel_pattern ^ ((f + 1) * _GOLDEN)) + _SHADOW_SALT
                     )
-                    steps += ray_steps
-                    if not blocked:
-                        unblocked += 1
-                shadow_cast += shadow_rays
-                direct += face_weight[f] * cos_theta * (unblocked / shadow_rays)
-        out_direct[sun, i] = direct / total_weight
-    out_sky_rays[i] = sky_cast
-    out_shadow_rays[i] = shadow_cast
-    out_steps[i] = steps
+                    out_shadow_rays[i] += shadow_rays
+                    for s in range(shadow_rays):
+                        pu, pv = face_sample(s, shadow_rays, shadow_pattern)
+                        ox, oy, oz = face_point(coords[i, 0], coords[i, 1], coords[i, 2], f,
+                                                pu, pv)
+                        origins[queued, 0] = ox
+                        origins[queued, 1] = oy
+                        origins[queued, 2] = oz
+                        directions[queued, 0] = lx
+                        directions[queued, 1] = ly
+                        directions[queued, 2] = lz
+                        tmaxs[queued] = (y_top - oy) / ly
+                        ray_voxel[queued] = j
+                        ray_face[queued] = f
+                        queued += 1
+                        if queued == PACKET_RAYS:
+                            trace_shadow_queue(queued, queue, inner_nodes, depth,
+                                               packet_scratch, unblocked, first, out_steps)
+                            queued = 0
+            if queued > 0:
+                trace_shadow_queue(queued, queue, inner_nodes, depth, packet_scratch,
+                                   unblocked, first, out_steps)
+        for i in range(first, last):
+            j = i - first
+            direct = 0.0
+            for f in range(6):
+                cos_theta = face_cosine(f, lx, ly, lz)
+                if ly > 0.0 and face_weight[j, f] != 0.0 and cos_theta > 0.0:
+                    direct += face_weight[j, f] * cos_theta * (unblocked[j, f] / shadow_rays)
+            out_direct[sun, i] = direct / total_weight[j]
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -224,18 +303,11 @@ def bake_sun_visibility(
     ``voxel_ids[k]`` (seeds the sampling) and exposed-face bits ``faces[k]``; row ``k`` of
     every output (column ``k`` of ``out_direct``, one row per sun) belongs to voxel ``k``."""
     n = coords.shape[0]
-    block = 32
-    for b in prange((n + block - 1) // block):
-        scratch = new_scratch(depth)
-        face_sky = np.empty(6, np.float64)
-        face_weight = np.empty(6, np.float64)
-        for i in range(b * block, min(n, (b + 1) * block)):
-            bake_voxel(
-                i, coords[i, 0], coords[i, 1], coords[i, 2], voxel_ids[i], faces[i],
-                sun_dirs, sky_rays, shadow_rays, seed, inner_nodes, depth, y_top,
-                face_sky, face_weight, scratch,
-                out_direct, out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps,
-            )
+    for b in prange((n + BAKE_BLOCK - 1) // BAKE_BLOCK):
+        first = b * BAKE_BLOCK
+        bake_block(first, min(n, first + BAKE_BLOCK), coords, voxel_ids, faces, sun_dirs,
+                   sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, out_direct,
+                   out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps)
 
 
 @njit(parallel=True, cache=True, nogil=True)
