@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from lf_helpers import bake_grid
 
+from voxfield.errors import VoxfieldError
 from voxfield.kernels.probe_multi import MAX_PROBE_TRACES, cage, trace_light_field_ray
 from voxfield.lightfield import HIT, LightFieldOptions, trace_light_field
 from voxfield.lightfield.accuracy import depth_agreement, perfect_trace_image, pixel_classes
@@ -127,6 +128,33 @@ def test_rays_passing_in_front_of_a_surface_are_not_hits_on_it(cornell, cornell_
         hit = (field.kind == HIT) & truth.hit
         short = field.t[hit] < truth.t[hit] - 2.0
         assert short.mean() < limit, n
+
+
+def test_a_front_epsilon_capped_at_the_texel_keeps_silhouettes_sharp(cornell):
+    """Maps whose texels are finer than ε: a ray passing beside an edge within ε of the edge
+    texel's surface is no hit once ε in front is capped at a quarter texel. (Measured with
+    128² maps: 44 → 23 hits short of the true surface of 6000 rays, far ones 3 → 5.)"""
+    packed = bake_grid(cornell, _grid((2, 2, 2)), 128)
+    rng = np.random.default_rng(9)
+    origins = rng.uniform(3.0, 29.0, (6000, 3))
+    dirs = rng.normal(size=(6000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    truth = trace(cornell, origins, dirs, lod=0)
+    counts = {}
+    for front in (np.inf, LightFieldOptions().epsilon_front):
+        field = trace_light_field(packed, origins, dirs, LightFieldOptions(epsilon_front=front))
+        hit = (field.kind == HIT) & truth.hit
+        counts[front] = (int((field.t[hit] < truth.t[hit] - 1.0).sum()),
+                         int((field.t[hit] > truth.t[hit] + 1.0).sum()))
+    (short_uncapped, far_uncapped), (short, far) = counts.values()
+    assert short <= 0.7 * short_uncapped
+    assert far <= far_uncapped + 5
+
+
+@pytest.mark.parametrize("front", [-0.1, float("nan"), True, "0.25"])
+def test_a_bad_front_epsilon_is_refused(front):
+    with pytest.raises(VoxfieldError, match="epsilon_front"):
+        LightFieldOptions(epsilon_front=front)
 
 
 def test_depth_agreement_and_pixel_classes_add_up(cornell_probes, view):

@@ -93,6 +93,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--epsilon-k", type=float, default=defaults.epsilon_k, metavar="K",
                    help=f"light-field, adaptive/angular epsilon: scale k "
                    f"(default {defaults.epsilon_k})")
+    p.add_argument("--epsilon-front", type=float, default=defaults.epsilon_front, metavar="T",
+                   help=f"light-field, footprint epsilon: at most T texel widths in front of "
+                   f"a surface, inf for no cap (default {defaults.epsilon_front})")
     p.add_argument("--step", type=float, default=defaults.step,
                    help=f"light-field, march3d: step in voxels (default {defaults.step})")
     p.add_argument("--backface", action="store_true",
@@ -211,8 +214,9 @@ def _trace_options(args):
     """``LightFieldOptions`` from the command line (it checks the values)."""
     return LightFieldOptions(
         marcher=args.marcher, step=args.step, epsilon=args.epsilon,
-        epsilon_value=args.epsilon_value, epsilon_k=args.epsilon_k, backface=args.backface,
-        ordering=args.ordering, fallback=not args.no_fallback, consensus=args.consensus,
+        epsilon_value=args.epsilon_value, epsilon_k=args.epsilon_k,
+        epsilon_front=args.epsilon_front, backface=args.backface, ordering=args.ordering,
+        fallback=not args.no_fallback, consensus=args.consensus,
         colour_filter=args.colour_filter, colour_probe=args.colour_probe)
 
 

@@ -373,6 +373,9 @@ def _register_probes(actions) -> argparse.ArgumentParser:
                    help=f"constant epsilon in voxels (default {defaults.epsilon_value})")
     p.add_argument("--epsilon-k", type=float, default=defaults.epsilon_k, metavar="K",
                    help=f"adaptive/angular epsilon scale (default {defaults.epsilon_k})")
+    p.add_argument("--epsilon-front", type=float, default=defaults.epsilon_front, metavar="T",
+                   help=f"footprint epsilon: at most T texel widths in front of a surface, "
+                   f"inf for no cap (default {defaults.epsilon_front})")
     p.add_argument("--backface", action="store_true", help="reject backface hits")
     p.add_argument("--no-fallback", action="store_true",
                    help="leave rays every probe loses unknown instead of falling back")
@@ -408,8 +411,9 @@ def run_probes(args) -> int:
     view = scene_camera(args, octree)
     check_camera_placement(octree, view)
     options = LightFieldOptions(epsilon=args.epsilon, epsilon_value=args.epsilon_value,
-                                epsilon_k=args.epsilon_k, backface=args.backface,
-                                fallback=not args.no_fallback, colour_probe=args.colour_probe)
+                                epsilon_k=args.epsilon_k, epsilon_front=args.epsilon_front,
+                                backface=args.backface, fallback=not args.no_fallback,
+                                colour_probe=args.colour_probe)
     out = args.out or default_output("probe_study", args.scene)
     report = run_probe_study(
         octree, out, scene_name=args.scene, camera=view, grid_counts=args.grid,

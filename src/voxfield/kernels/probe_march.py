@@ -67,7 +67,8 @@ SLOPE_TAN_MAX = 4.0
 #: ``EPS_ADAPTIVE``, has ``(1 - β·ν)``, near zero on walls facing the camera).
 EPS_ADAPTIVE_TEXT = 4
 #: The default: the depth one texel spans where the ray crosses it, behind the surface. In
-#: front the constant ε; behind it, that plus the slope term of ``EPS_SLOPE`` plus half the
+#: front the constant ε, at most ``params[P_FRONT]`` texel widths; behind it, that plus the
+#: slope term of ``EPS_SLOPE`` plus half the
 #: radial range a ray covers while it crosses a texel's cone, ``d · angle / 2 · cot φ`` (φ
 #: between the ray and the probe's direction, capped): it grows as ray and probe align, as
 #: McGuire et al. 2017's minimum thickness does, and stops rays slipping through surfaces.
@@ -90,7 +91,8 @@ P_BACKFACE = 5  # 1.0: reject hits on surfaces facing away from the ray
 P_CONSENSUS = 6  # 1.0: a hit another probe sees through is not taken (``probe_multi``)
 P_BILINEAR = 7  # 1.0: a hit's radiance is read bilinearly (``probe_multi``), else nearest
 P_COLOUR_PROBE = 8  # which probe answers a hit's colour (``probe_multi.COLOUR_*``)
-N_PARAMS = 9
+P_FRONT = 9  # footprint ε in front of a surface: at most this many texel widths there
+N_PARAMS = 10
 
 #: Events of one texel (or one march step): nothing yet, a hit, a loss of visibility.
 _GO = 0
@@ -290,6 +292,14 @@ def crossing_thickness(d: float, cx: float, cy: float, cz: float, dx: float, dy:
 
 
 @njit(cache=True, nogil=True)
+def front_epsilon(params: np.ndarray, d: float, resolution: int) -> float:
+    """The footprint ε in front of a surface at distance ``d``: the constant ε, at most
+    ``params[P_FRONT]`` texel widths there."""
+    capped = params[P_FRONT] * d * texel_angle(resolution)
+    return capped if capped < params[P_EPSILON] else params[P_EPSILON]
+
+
+@njit(cache=True, nogil=True)
 def skip_bound(eps_mode: int, params: np.ndarray, dmin: float, dxp: float,
                resolution: int) -> float:
     """A lower bound of ``D - ε`` over every stored ``D >= dmin``: a block whose largest ray
@@ -299,7 +309,8 @@ def skip_bound(eps_mode: int, params: np.ndarray, dmin: float, dxp: float,
     if eps_mode == EPS_CONSTANT:
         return dmin - params[P_EPSILON]
     if eps_mode == EPS_FOOTPRINT:
-        return dmin - params[P_EPSILON]  # its thickness lies behind the surface only
+        # Its thickness lies behind the surface; in front, D - ε grows with D.
+        return dmin - front_epsilon(params, dmin, resolution)
     if eps_mode == EPS_SLOPE:
         c = 0.5 * texel_angle(resolution) * SLOPE_TAN_MAX
         if c >= 1.0:
@@ -355,6 +366,10 @@ def texel_event(eps_mode: int, params: np.ndarray, normals: np.ndarray, probe: i
         # in front, so a hit is not taken before the ray reaches the surface.
         behind = eps + slope_thickness(d, cx, cy, cz, nx, ny, nz, resolution) + \
             crossing_thickness(d, cx, cy, cz, dx, dy, dz, resolution)
+        # In front, at most a share of the texel's width: a ray passing beside a silhouette
+        # within ε of the edge texel's surface takes it, so an ε wider than the texels
+        # would widen every silhouette the map resolves more finely.
+        eps = front_epsilon(params, d, resolution)
     if eps_mode == EPS_ANGULAR:
         if rho_max < d:
             return _GO, tb

@@ -48,7 +48,10 @@ class LightFieldOptions:
     mips; same answers as ``"dda"``, fewer fetches).
     ``epsilon``: hit acceptance — ``"footprint"`` (the default: ``epsilon_value`` plus the
     depth one texel spans where the ray crosses it, from the stored surface's slope and the
-    angle between ray and probe direction; ``kernels.probe_march.EPS_FOOTPRINT``),
+    angle between ray and probe direction; ``kernels.probe_march.EPS_FOOTPRINT``; in front
+    of the surface at most ``epsilon_front`` texel widths, so maps whose texels are finer
+    than ``epsilon_value`` keep silhouettes as sharp as they resolve them; ``inf`` turns the
+    cap off),
     ``"constant"`` (thickness ``epsilon_value`` world units),
     ``"adaptive"`` (thesis §7.1 as printed: ``k · tan θ · d(X, Y) · |α·β| · (1 - β·ν)``, θ the
     pixel angle given to the trace, ``k = epsilon_k``; see ``kernels.probe_march.epsilon_at``),
@@ -78,6 +81,7 @@ class LightFieldOptions:
     epsilon: str = "footprint"
     epsilon_value: float = 0.5
     epsilon_k: float = 1.0
+    epsilon_front: float = 0.25
     backface: bool = False
     ordering: str = "nearest"
     fallback: bool = True
@@ -104,6 +108,10 @@ class LightFieldOptions:
         if not (_finite(self.epsilon_value) and self.epsilon_value >= 0):
             raise VoxfieldError(f"epsilon_value must be a distance >= 0, got "
                                 f"{self.epsilon_value!r}")
+        if not (isinstance(self.epsilon_front, (int, float, np.integer, np.floating))
+                and not isinstance(self.epsilon_front, bool) and self.epsilon_front >= 0):
+            raise VoxfieldError(f"epsilon_front must be a number of texels >= 0 (inf: no cap), "
+                                f"got {self.epsilon_front!r}")
         if not (_finite(self.epsilon_k) and self.epsilon_k >= 0):
             raise VoxfieldError(f"epsilon_k must be a number >= 0, got {self.epsilon_k!r}")
 
@@ -119,6 +127,7 @@ class LightFieldOptions:
         out[pm.P_CONSENSUS] = 1.0 if self.consensus else 0.0
         out[pm.P_BILINEAR] = 1.0 if self.colour_filter == "bilinear" else 0.0
         out[pm.P_COLOUR_PROBE] = COLOUR_PROBES[self.colour_probe]
+        out[pm.P_FRONT] = self.epsilon_front
         return out
 
 
