@@ -223,3 +223,19 @@ def test_slope_epsilon_gives_up_less_and_is_never_wrong(cornell, cornell_probe64
         assert np.array_equal(kind[known], expected[known]), epsilon
         unknown[epsilon] = np.count_nonzero(~known)
     assert unknown["slope"] <= unknown["constant"]
+
+
+@pytest.mark.parametrize("front", [0.0, 0.25, 1e6, float("inf")])
+def test_hierarchical_and_dda_agree_whatever_the_front_epsilon(cornell, cornell_probe64, front):
+    """The hierarchical skip bound reads the capped front ε: it must stay conservative for
+    no cap, the default, none at all and a cap wider than the texels."""
+    rng = np.random.default_rng(12)
+    origins = rng.uniform(3.0, 28.0, (1500, 3))
+    dirs = _unit(rng.normal(size=(1500, 3)))
+    options = {"epsilon_front": front}
+    dda = trace_single(cornell_probe64, 0, origins, dirs,
+                       LightFieldOptions(marcher="dda", **options))
+    hier = trace_single(cornell_probe64, 0, origins, dirs,
+                        LightFieldOptions(marcher="hierarchical", **options))
+    assert np.array_equal(dda.kind, hier.kind)
+    np.testing.assert_allclose(hier.t, dda.t, rtol=0, atol=1e-9)

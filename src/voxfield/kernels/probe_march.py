@@ -68,10 +68,10 @@ SLOPE_TAN_MAX = 4.0
 EPS_ADAPTIVE_TEXT = 4
 #: The default: the depth one texel spans where the ray crosses it, behind the surface. In
 #: front the constant ε, at most ``params[P_FRONT]`` texel widths; behind it, that plus the
-#: slope term of ``EPS_SLOPE`` plus half the
-#: radial range a ray covers while it crosses a texel's cone, ``d · angle / 2 · cot φ`` (φ
-#: between the ray and the probe's direction, capped): it grows as ray and probe align, as
-#: McGuire et al. 2017's minimum thickness does, and stops rays slipping through surfaces.
+#: slope term of ``EPS_SLOPE`` plus half the radial range a ray covers while it crosses a
+#: texel's cone, ``d · angle / 2 · cot φ`` (φ between the ray and the probe's direction,
+#: capped): it grows as ray and probe align, as McGuire et al. 2017's minimum thickness does,
+#: and stops rays slipping through surfaces.
 EPS_FOOTPRINT = 5
 #: The crossing term's cotangent limit (45°): larger caps let rays aligned with a probe take
 #: surfaces behind the true one (measured on the Cornell box: 1 beats 2 and 4 at 27 and 64
@@ -309,8 +309,11 @@ def skip_bound(eps_mode: int, params: np.ndarray, dmin: float, dxp: float,
     if eps_mode == EPS_CONSTANT:
         return dmin - params[P_EPSILON]
     if eps_mode == EPS_FOOTPRINT:
-        # Its thickness lies behind the surface; in front, D - ε grows with D.
-        return dmin - front_epsilon(params, dmin, resolution)
+        # Its thickness lies behind the surface. In front, D - ε grows with D while the cap
+        # grows slower than D (under one texel's width per unit distance).
+        if params[P_FRONT] * texel_angle(resolution) < 1.0:
+            return dmin - front_epsilon(params, dmin, resolution)
+        return dmin - params[P_EPSILON]
     if eps_mode == EPS_SLOPE:
         c = 0.5 * texel_angle(resolution) * SLOPE_TAN_MAX
         if c >= 1.0:
