@@ -115,10 +115,11 @@ def sky_visibility(
     x: int, y: int, z: int, voxel_pattern: int, faces: int, sky_rays: int,
     inner_nodes: np.ndarray, depth: int, y_top: float, face_sky: np.ndarray,
     face_weight: np.ndarray, scratch,
-) -> tuple[float, float, int, int]:
+) -> tuple[float, float, float, int, int]:
     """One voxel's sky rays (``faces``: bit ``f`` set for exposed face ``f``): fills its
-    per-face sky visibility and weights and returns ``(sky, weight seen, rays, steps)``; a
-    voxel none of whose faces sees the sky gets equal face weights (module docstring)."""
+    per-face sky visibility and weights and returns ``(sky, weight seen, weight total, rays,
+    steps)``; a voxel none of whose faces sees the sky gets equal face weights, which its
+    total then sums (module docstring)."""
     # A face looking down (−y) sees no sky and no sun above the horizon: it gets no rays.
     exposed = 0
     open_faces = 0
@@ -173,7 +174,7 @@ def sky_visibility(
     sky = 0.0
     for f in range(6):
         sky += face_weight[f] * face_sky[f]
-    return sky / total_weight, seen_weight, sky_cast, steps
+    return sky / total_weight, seen_weight, total_weight, sky_cast, steps
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -229,20 +230,17 @@ def bake_block(
     origins, directions, _, tmaxs, ray_voxel, ray_face = queue[:6]
     face_sky = np.empty(6)
     face_weight = np.empty((BAKE_BLOCK, 6))
-    total_weight = np.zeros(BAKE_BLOCK)
+    total_weight = np.empty(BAKE_BLOCK)
     unblocked = np.empty((BAKE_BLOCK, 6), np.int64)
     for i in range(first, last):
         j = i - first
-        sky, seen_weight, sky_cast, steps = sky_visibility(
+        sky, out_weight[i], total_weight[j], sky_cast, steps = sky_visibility(
             coords[i, 0], coords[i, 1], coords[i, 2], pixel_pattern(voxel_ids[i], seed),
             faces[i], sky_rays, inner_nodes, depth, y_top, face_sky, face_weight[j], scratch)
         out_sky[i] = sky
-        out_weight[i] = seen_weight
         out_sky_rays[i] = sky_cast
         out_shadow_rays[i] = 0
         out_steps[i] = steps
-        for f in range(6):
-            total_weight[j] += face_weight[j, f]
     for sun in range(sun_dirs.shape[0]):
         lx = sun_dirs[sun, 0]
         ly = sun_dirs[sun, 1]

@@ -118,6 +118,8 @@ def with_channel_block(
     """``with_channels`` for leaf values already checked and stacked: ``(len(names),
     voxels, 3)`` float32, channel ``k`` in ``leaves[k]``."""
     attributes = dict(octree.attributes)
+    if weights is not None:  # widened once for every channel
+        weights = np.ascontiguousarray(weights, np.float64)
     for name, values in zip(names, leaves, strict=True):
         attributes[check_channel_name(name)] = propagate_channel(octree, values, weights)
     return replace(octree, attributes=attributes)

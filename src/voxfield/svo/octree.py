@@ -132,7 +132,8 @@ class Octree:
         yield coords
         for parent_level in range(self.depth):
             masks = (self.descriptors[self.level_slice(parent_level)] & 0xFF).astype(np.uint8)
-            children = np.empty((self.nodes_per_level()[parent_level + 1], 3), np.int64)
+            sl = self.level_slice(parent_level + 1)
+            children = np.empty((sl.stop - sl.start, 3), np.int64)
             child_corners(masks, coords, children)
             coords = children
             yield coords
