@@ -157,6 +157,44 @@ def test_a_bad_front_epsilon_is_refused(front):
         LightFieldOptions(epsilon_front=front)
 
 
+def test_hits_refined_against_their_colour_probe_land_nearer_the_surface(cornell,
+                                                                       cornell_probes):
+    """The probe that finds a hit may see the surface through a wide, grazing texel; traced
+    again against the probe that answers its colour, the hit moves towards the octree's.
+    (Measured with 48² maps, 6000 rays: hits more than a voxel off 127 → 97 at 8 probes and
+    73 → 39 at 27, more than two voxels off 52 → 52 and 44 → 34.) A refined hit stays
+    within the window of the first one."""
+    rng = np.random.default_rng(9)
+    origins = rng.uniform(3.0, 29.0, (6000, 3))
+    dirs = rng.normal(size=(6000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    truth = trace(cornell, origins, dirs, lod=0)
+    window = LightFieldOptions().refine_window
+    assert window > 0
+    # The widest texel: a ray's hit is at most the box's diagonal from a probe.
+    widest = float(np.sqrt(3.0) * 32.0 * np.sqrt(4.0 * np.pi) / 48)
+    for n, share in ((2, 0.85), (3, 0.7)):
+        plain = trace_light_field(cornell_probes[n], origins, dirs,
+                                  LightFieldOptions(refine_window=0.0))
+        refined = trace_light_field(cornell_probes[n], origins, dirs, LightFieldOptions())
+        assert np.array_equal(plain.kind, refined.kind)
+        hit = (plain.kind == HIT) & truth.hit
+        off_plain = np.abs(plain.t[hit] - truth.t[hit])
+        off_refined = np.abs(refined.t[hit] - truth.t[hit])
+        assert (off_refined > 1.0).sum() <= share * (off_plain > 1.0).sum(), n
+        assert (off_refined > 2.0).sum() <= (off_plain > 2.0).sum(), n
+        answered = plain.kind == HIT
+        moved = np.abs(refined.t[answered] - plain.t[answered])
+        assert moved.max() <= window * max(1.0, widest) + 1e-9, n
+        assert moved.max() > 0.0, n
+
+
+@pytest.mark.parametrize("window", [-1.0, float("nan"), float("inf"), True, "3"])
+def test_a_bad_refine_window_is_refused(window):
+    with pytest.raises(VoxfieldError, match="refine_window"):
+        LightFieldOptions(refine_window=window)
+
+
 def test_depth_agreement_and_pixel_classes_add_up(cornell_probes, view):
     camera, reference = view
     result = render_from_probes(cornell_probes[3], camera)

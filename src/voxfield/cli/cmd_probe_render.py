@@ -96,6 +96,10 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--epsilon-front", type=float, default=defaults.epsilon_front, metavar="T",
                    help=f"light-field, footprint epsilon: at most T texel widths in front of "
                    f"a surface, inf for no cap (default {defaults.epsilon_front})")
+    p.add_argument("--refine-window", type=float, default=defaults.refine_window,
+                   metavar="W", help=f"light-field: trace a hit again against the probe that "
+                   f"answers its colour within W of its texel widths, 0 for off (default "
+                   f"{defaults.refine_window})")
     p.add_argument("--step", type=float, default=defaults.step,
                    help=f"light-field, march3d: step in voxels (default {defaults.step})")
     p.add_argument("--backface", action="store_true",
@@ -217,7 +221,8 @@ def _trace_options(args):
         epsilon_value=args.epsilon_value, epsilon_k=args.epsilon_k,
         epsilon_front=args.epsilon_front, backface=args.backface, ordering=args.ordering,
         fallback=not args.no_fallback, consensus=args.consensus,
-        colour_filter=args.colour_filter, colour_probe=args.colour_probe)
+        colour_filter=args.colour_filter, colour_probe=args.colour_probe,
+        refine_window=args.refine_window)
 
 
 def _open_scene(args, probe_set):

@@ -376,6 +376,10 @@ def _register_probes(actions) -> argparse.ArgumentParser:
     p.add_argument("--epsilon-front", type=float, default=defaults.epsilon_front, metavar="T",
                    help=f"footprint epsilon: at most T texel widths in front of a surface, "
                    f"inf for no cap (default {defaults.epsilon_front})")
+    p.add_argument("--refine-window", type=float, default=defaults.refine_window,
+                   metavar="W", help=f"trace a hit again against the probe that answers its "
+                   f"colour within W of its texel widths, 0 for off (default "
+                   f"{defaults.refine_window})")
     p.add_argument("--backface", action="store_true", help="reject backface hits")
     p.add_argument("--no-fallback", action="store_true",
                    help="leave rays every probe loses unknown instead of falling back")
@@ -413,7 +417,8 @@ def run_probes(args) -> int:
     options = LightFieldOptions(epsilon=args.epsilon, epsilon_value=args.epsilon_value,
                                 epsilon_k=args.epsilon_k, epsilon_front=args.epsilon_front,
                                 backface=args.backface, fallback=not args.no_fallback,
-                                colour_probe=args.colour_probe)
+                                colour_probe=args.colour_probe,
+                                refine_window=args.refine_window)
     out = args.out or default_output("probe_study", args.scene)
     report = run_probe_study(
         octree, out, scene_name=args.scene, camera=view, grid_counts=args.grid,

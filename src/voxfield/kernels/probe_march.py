@@ -92,7 +92,8 @@ P_CONSENSUS = 6  # 1.0: a hit another probe sees through is not taken (``probe_m
 P_BILINEAR = 7  # 1.0: a hit's radiance is read bilinearly (``probe_multi``), else nearest
 P_COLOUR_PROBE = 8  # which probe answers a hit's colour (``probe_multi.COLOUR_*``)
 P_FRONT = 9  # footprint ε in front of a surface: at most this many texel widths there
-N_PARAMS = 10
+P_REFINE = 10  # a hit is re-traced against its colour probe within ± this many texel widths
+N_PARAMS = 11
 
 #: Events of one texel (or one march step): nothing yet, a hit, a loss of visibility.
 _GO = 0

@@ -33,8 +33,10 @@ from voxfield.kernels.probe_march import (
     P_COLOUR_PROBE,
     P_CONSENSUS,
     P_EPSILON,
+    P_REFINE,
     UNKNOWN,
     slope_thickness,
+    texel_angle,
     trace_probe,
 )
 
@@ -438,14 +440,36 @@ def trace_block(marcher, eps_mode, ordering, fallback, params, positions, enable
 
 
 @njit(cache=True, nogil=True)
+def refine_hit(marcher: int, eps_mode: int, params: np.ndarray, positions: np.ndarray,
+               mips: np.ndarray, mip_offsets: np.ndarray, mip_sizes: np.ndarray,
+               normals: np.ndarray, resolution: int, probe: int, ox: float, oy: float,
+               oz: float, dx: float, dy: float, dz: float, t: float, length: float,
+               tmin: float) -> tuple[float, int, int]:
+    """A hit at ``t`` re-traced against ``probe``, the view that answers its colour, over
+    ``t ± w`` (``w``: ``params[P_REFINE]`` texel widths of that probe at the hit, at least
+    that many voxels); returns the refined ``t`` (``t`` itself where that probe finds no
+    hit there), the texels fetched and the march steps.
+
+    Why: the probe that found the hit may see the surface at a grazing angle, through a
+    texel spanning several voxels of a staircase, so the hit can be voxels off along the
+    ray; the colour probe sees the point most sharply, and its depth places it best."""
+    w = params[P_REFINE] * max(1.0, length * texel_angle(resolution))
+    kind, t_refined, _, _, fetches, steps = trace_probe(
+        marcher, eps_mode, params, positions, mips, mip_offsets, mip_sizes, normals,
+        resolution, probe, ox, oy, oz, dx, dy, dz, max(tmin, t - w), t + w)
+    return (t_refined if kind == HIT else t), fetches, steps
+
+
+@njit(cache=True, nogil=True)
 def answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
                mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
                distance_bordered, resolution, grid_origin, grid_spacing, grid_counts,
                origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
                out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
                scratch) -> None:
-    """Ray ``i``: its trace, then its hit's colour from ``hit_colour_probe``, into the
-    ``out_*`` arrays. The body both the CPU loop and the CUDA kernel run."""
+    """Ray ``i``: its trace, then its hit refined against (``refine_hit``) and coloured by
+    the probe ``hit_colour_probe`` picks, into the ``out_*`` arrays. The body both the CPU
+    loop and the CUDA kernel run."""
     corners, corners2, tried_probe, tried_t = scratch
     ox = origins[i, 0]
     oy = origins[i, 1]
@@ -458,12 +482,7 @@ def answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enab
         mip_offsets, mip_sizes, normals, resolution, grid_origin, grid_spacing,
         grid_counts, ox, oy, oz, dx, dy, dz, tmin[i], tmax[i], corners, tried_probe,
         tried_t, corners2)
-    out_kind[i] = kind
-    out_t[i] = t
     out_probe[i] = p
-    out_tried[i] = tried
-    out_fetches[i] = fetches
-    out_steps[i] = steps
     if kind == HIT and row >= 0:
         yx = ox + t * dx
         yy = oy + t * dy
@@ -473,6 +492,19 @@ def answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enab
                              tolerance, corners, int(params[P_COLOUR_PROBE]))
         length, cx, cy, cz, qr, qc, _, slack = point_from_probe(
             positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
+        if params[P_REFINE] > 0.0 and length > 0.0:
+            t_refined, f, s = refine_hit(marcher, eps_mode, params, positions, mips,
+                                         mip_offsets, mip_sizes, normals, resolution, q, ox,
+                                         oy, oz, dx, dy, dz, t, length, tmin[i])
+            fetches += f
+            steps += s
+            if t_refined != t:
+                t = t_refined
+                yx = ox + t * dx
+                yy = oy + t * dy
+                yz = oz + t * dz
+                length, cx, cy, cz, qr, qc, _, slack = point_from_probe(
+                    positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
         if length > 0.0:
             if params[P_BILINEAR] != 0.0:
                 cr, cg, cb = radiance_at(radiance_bordered, distance_bordered, q, cx, cy,
@@ -503,6 +535,11 @@ def answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enab
             out_radiance[i, c] = 0.0
             out_normal[i, c] = 0.0
         out_distance[i] = math.inf
+    out_kind[i] = kind
+    out_t[i] = t
+    out_tried[i] = tried
+    out_fetches[i] = fetches
+    out_steps[i] = steps
 
 
 @njit(cache=True, nogil=True, parallel=True)

@@ -72,7 +72,10 @@ class LightFieldOptions:
     right for view-independent radiance, which is what bakes store) or ``"parallel"`` (the
     one that sees it most nearly along the ray). ``colour_filter``: that probe is read
     ``"bilinear"`` over its bordered map (texels showing another surface left out) or at the
-    ``"nearest"`` texel.
+    ``"nearest"`` texel. ``refine_window``: a hit is then traced again against that probe
+    within ± this many of its texel widths (at least as many voxels): the probe that found
+    the hit may have seen the surface at a grazing angle through a wide texel, and the view
+    that sees it most sharply places it best (``kernels.probe_multi.refine_hit``; 0: off).
     """
 
     marcher: str = "hierarchical"
@@ -88,6 +91,7 @@ class LightFieldOptions:
     consensus: bool = False
     colour_filter: str = "bilinear"
     colour_probe: str = "footprint"
+    refine_window: float = 3.0
 
     def __post_init__(self) -> None:
         for name, table in (("marcher", MARCHERS), ("epsilon", EPSILON_MODES),
@@ -112,6 +116,9 @@ class LightFieldOptions:
                 and not isinstance(self.epsilon_front, bool) and self.epsilon_front >= 0):
             raise VoxfieldError(f"epsilon_front must be a number of texels >= 0 (inf: no cap), "
                                 f"got {self.epsilon_front!r}")
+        if not (_finite(self.refine_window) and self.refine_window >= 0):
+            raise VoxfieldError(f"refine_window must be a number of texels >= 0 (0: off), got "
+                                f"{self.refine_window!r}")
         if not (_finite(self.epsilon_k) and self.epsilon_k >= 0):
             raise VoxfieldError(f"epsilon_k must be a number >= 0, got {self.epsilon_k!r}")
 
@@ -128,6 +135,7 @@ class LightFieldOptions:
         out[pm.P_BILINEAR] = 1.0 if self.colour_filter == "bilinear" else 0.0
         out[pm.P_COLOUR_PROBE] = COLOUR_PROBES[self.colour_probe]
         out[pm.P_FRONT] = self.epsilon_front
+        out[pm.P_REFINE] = self.refine_window
         return out
 
 
