@@ -9,7 +9,7 @@ from lf_helpers import bake_grid
 
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.probe_multi import MAX_PROBE_TRACES, cage, trace_light_field_ray
-from voxfield.lightfield import HIT, LightFieldOptions, trace_light_field
+from voxfield.lightfield import HIT, MISS, LightFieldOptions, trace_light_field
 from voxfield.lightfield.accuracy import depth_agreement, perfect_trace_image, pixel_classes
 from voxfield.lightfield.probe_render import render_from_probes
 from voxfield.lightfield.trace import EPSILON_MODES, MARCHERS, ORDERINGS
@@ -109,8 +109,27 @@ def test_consensus_hits_agree_with_the_octree(cornell, cornell_probes):
         errors[consensus] = np.abs(field.t[hit] - truth.t[hit])
     assert np.median(errors[True]) < 0.5
     # Rays that only pass in front of a surface are no hits already, so the check has few
-    # false hits left to remove (measured: 1.2 % with it, 1.2 % without).
+    # false hits left to remove here.
     assert np.mean(errors[True] > 2.0) < 0.02
+
+
+def test_the_consensus_check_never_turns_a_hit_into_a_fallback(cornell, cornell_probes):
+    """A hit two probes see through is passed over, but kept: if every probe loses the ray
+    behind it, the ray comes back to it rather than falling back to an environment map."""
+    rng = np.random.default_rng(4)
+    origins = rng.uniform(3.0, 29.0, (3000, 3))
+    dirs = rng.normal(size=(3000, 3))
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    for n in (2, 3):
+        plain = trace_light_field(cornell_probes[n], origins, dirs,
+                                  LightFieldOptions(consensus=False))
+        checked = trace_light_field(cornell_probes[n], origins, dirs,
+                                    LightFieldOptions(consensus=True))
+        was_hit = plain.kind == HIT
+        assert np.isin(checked.kind[was_hit], [HIT, MISS]).all(), n
+        # It does pass over some hits.
+        both = was_hit & (checked.kind == HIT)
+        assert (checked.t[both] != plain.t[both]).any(), n
 
 
 def test_rays_passing_in_front_of_a_surface_are_not_hits_on_it(cornell, cornell_probes):
@@ -157,13 +176,13 @@ def test_a_bad_front_epsilon_is_refused(front):
         LightFieldOptions(epsilon_front=front)
 
 
-def test_hits_refined_against_their_colour_probe_land_nearer_the_surface(cornell,
-                                                                       cornell_probes):
-    """The probe that finds a hit may see the surface through a wide, grazing texel; traced
-    again against the probe that answers its colour, the hit moves towards the octree's.
-    (Measured with 48² maps, 6000 rays: hits more than a voxel off 127 → 97 at 8 probes and
-    73 → 39 at 27, more than two voxels off 52 → 52 and 44 → 34.) A refined hit stays
-    within the window of the first one."""
+def test_refined_hits_land_nearer_the_surface(cornell, cornell_probes):
+    """Refinement, on by default: a hit that two other probes see behind a surface the ray
+    crosses just before it moves there (the ray slipped through a wall where two walls meet),
+    then the hit is traced again against its colour probe. (Measured with 48² maps, 6000
+    rays, refined against plain: hits more than a voxel beyond the octree's 73 → 40 at 8
+    probes and 48 → 13 at 27, more than a voxel short 54 → 52 and 25 → 21, more than two
+    voxels off either way 52 → 49 and 44 → 31.) A refined hit moves by at most two windows."""
     rng = np.random.default_rng(9)
     origins = rng.uniform(3.0, 29.0, (6000, 3))
     dirs = rng.normal(size=(6000, 3))
@@ -173,19 +192,22 @@ def test_hits_refined_against_their_colour_probe_land_nearer_the_surface(cornell
     assert window > 0
     # The widest texel: a ray's hit is at most the box's diagonal from a probe.
     widest = float(np.sqrt(3.0) * 32.0 * np.sqrt(4.0 * np.pi) / 48)
-    for n, share in ((2, 0.85), (3, 0.7)):
+    for n, share, far_share in ((2, 0.85, 0.65), (3, 0.7, 0.4)):
         plain = trace_light_field(cornell_probes[n], origins, dirs,
-                                  LightFieldOptions(refine_window=0.0))
-        refined = trace_light_field(cornell_probes[n], origins, dirs, LightFieldOptions())
+                                  LightFieldOptions(refine_window=0.0, consensus=False))
+        refined = trace_light_field(cornell_probes[n], origins, dirs,
+                                    LightFieldOptions(consensus=False))
         assert np.array_equal(plain.kind, refined.kind)
         hit = (plain.kind == HIT) & truth.hit
-        off_plain = np.abs(plain.t[hit] - truth.t[hit])
-        off_refined = np.abs(refined.t[hit] - truth.t[hit])
-        assert (off_refined > 1.0).sum() <= share * (off_plain > 1.0).sum(), n
-        assert (off_refined > 2.0).sum() <= (off_plain > 2.0).sum(), n
+        off_plain = plain.t[hit] - truth.t[hit]
+        off_refined = refined.t[hit] - truth.t[hit]
+        assert (np.abs(off_refined) > 1.0).sum() <= share * (np.abs(off_plain) > 1.0).sum(), n
+        assert (np.abs(off_refined) > 2.0).sum() <= (np.abs(off_plain) > 2.0).sum(), n
+        assert (off_refined > 1.0).sum() <= far_share * (off_plain > 1.0).sum(), n
+        assert (off_refined < -1.0).sum() <= (off_plain < -1.0).sum(), n
         answered = plain.kind == HIT
         moved = np.abs(refined.t[answered] - plain.t[answered])
-        assert moved.max() <= window * max(1.0, widest) + 1e-9, n
+        assert moved.max() <= 2.0 * window * max(1.0, widest) + 1e-9, n
         assert moved.max() > 0.0, n
 
 

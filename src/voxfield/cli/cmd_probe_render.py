@@ -97,8 +97,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help=f"light-field, footprint epsilon: at most T texel widths in front of "
                    f"a surface, inf for no cap (default {defaults.epsilon_front})")
     p.add_argument("--refine-window", type=float, default=defaults.refine_window,
-                   metavar="W", help=f"light-field: trace a hit again against the probe that "
-                   f"answers its colour within W of its texel widths, 0 for off (default "
+                   metavar="W", help=f"light-field: check a hit against the probes that may see "
+                   "a surface in front of it and trace it again against its colour probe, "
+                   f"over W of their texel widths; 0 for off (default "
                    f"{defaults.refine_window})")
     p.add_argument("--step", type=float, default=defaults.step,
                    help=f"light-field, march3d: step in voxels (default {defaults.step})")
@@ -107,9 +108,11 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--no-fallback", action="store_true",
                    help="light-field: leave rays every probe loses unknown (black) instead of "
                    "reading the nearest probe as an environment map")
-    p.add_argument("--consensus", action="store_true",
+    p.add_argument("--consensus", action=argparse.BooleanOptionalAction,
+                   default=defaults.consensus,
                    help="light-field: before taking a hit, ask the other probes around it "
-                   "whether they see empty space there (fewer false hits, more fetches)")
+                   "whether they see empty space there (fewer false hits, more fetches; "
+                   f"default {'on' if defaults.consensus else 'off'})")
     p.add_argument("--colour-filter", choices=COLOUR_FILTERS, default=defaults.colour_filter,
                    help=f"light-field: how a hit's radiance is read (default "
                    f"{defaults.colour_filter})")

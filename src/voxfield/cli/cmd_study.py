@@ -377,9 +377,14 @@ def _register_probes(actions) -> argparse.ArgumentParser:
                    help=f"footprint epsilon: at most T texel widths in front of a surface, "
                    f"inf for no cap (default {defaults.epsilon_front})")
     p.add_argument("--refine-window", type=float, default=defaults.refine_window,
-                   metavar="W", help=f"trace a hit again against the probe that answers its "
-                   f"colour within W of its texel widths, 0 for off (default "
+                   metavar="W", help=f"check a hit against the probes that may see "
+                   "a surface in front of it and trace it again against its colour probe, "
+                   f"over W of their texel widths; 0 for off (default "
                    f"{defaults.refine_window})")
+    p.add_argument("--consensus", action=argparse.BooleanOptionalAction,
+                   default=defaults.consensus,
+                   help="before taking a hit, ask the other probes around it whether they see "
+                   f"empty space there (default {'on' if defaults.consensus else 'off'})")
     p.add_argument("--backface", action="store_true", help="reject backface hits")
     p.add_argument("--no-fallback", action="store_true",
                    help="leave rays every probe loses unknown instead of falling back")
@@ -418,7 +423,7 @@ def run_probes(args) -> int:
                                 epsilon_k=args.epsilon_k, epsilon_front=args.epsilon_front,
                                 backface=args.backface, fallback=not args.no_fallback,
                                 colour_probe=args.colour_probe,
-                                refine_window=args.refine_window)
+                                refine_window=args.refine_window, consensus=args.consensus)
     out = args.out or default_output("probe_study", args.scene)
     report = run_probe_study(
         octree, out, scene_name=args.scene, camera=view, grid_counts=args.grid,

@@ -57,6 +57,16 @@ COLOUR_PARALLEL = 1
 #: still has a finite footprint.
 FOOTPRINT_MIN_COSINE = 0.05
 
+#: Probes of the cage that must agree before a hit is moved: that see empty space at it
+#: (``seen_through``, the consensus check) or that find a surface in front of it
+#: (``hit_in_front``). One alone is often wrong beside an edge, where its texel spans two
+#: surfaces (measured, built-in Cornell box, 8 probes, 48² maps, 6000 random rays: hits
+#: more than two voxels short 35 → 50 with one witness in front, 35 → 41 with two, while
+#: the far ones fall alike, 73 → 38 / 40; Cornell box room view at 256², 8 / 27 / 64
+#: probes: the consensus check with one witness 36.21 / 38.64 / 39.56 dB, with two 36.29 /
+#: 38.91 / 40.08).
+WITNESSES = 2
+
 #: Successive corners differ by this, mod 8 (Algorithm 6).
 CORNER_STRIDE = 3
 #: Most probe traces one ray makes across all the cages it passes through.
@@ -176,14 +186,21 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
     The cage is formed around the point the ray has reached: at first its origin, then,
     each time a probe loses the ray further on, the point where it was lost, so the probes
     around that point (not those around the camera) continue it. A probe is never traced
-    twice from the same point. With ``params[P_CONSENSUS]`` a hit that another probe of the
-    cage around it sees through (``seen_through``) is not taken: the ray marches on past it.
+    twice from the same point. With ``params[P_CONSENSUS]`` a hit that other probes of the
+    cage around it see through (``seen_through``) is not taken: the ray marches on past it,
+    and comes back to it only if every probe loses the ray behind it.
     ``corners`` and ``corners2`` are 8-int scratch; ``tried_probe`` / ``tried_t``
     (``MAX_PROBE_TRACES`` each) log the traces made."""
     t = tmin
     tried = 0
     fetches = 0
     steps = 0
+    # The first hit the consensus check passed over: the answer if no probe can tell what
+    # lies behind it (a proven miss still wins: the witnesses saw empty space there too).
+    kept_t = math.inf
+    kept_probe = -1
+    kept_row = -1
+    kept_col = -1
     while tried < MAX_PROBE_TRACES and t < tmax:
         qx = ox + t * dx
         qy = oy + t * dy
@@ -217,7 +234,12 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
                                 grid_spacing, grid_counts, p, ox + t_out * dx,
                                 oy + t_out * dy, oz + t_out * dz, hit_tolerance(params),
                                 corners2):
-                    # Another probe sees empty space at the hit point: march on past it.
+                    # Other probes see empty space at the hit point: march on past it.
+                    if kept_probe < 0:
+                        kept_t = t_out
+                        kept_probe = p
+                        kept_row = row
+                        kept_col = col
                     kind = UNKNOWN
                     t_out = t_out + hit_tolerance(params)
             if kind == HIT or kind == MISS:
@@ -228,6 +250,8 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
                 break  # re-form the cage where this probe lost the ray
         if not advanced:
             break
+    if kept_probe >= 0:
+        return HIT, kept_t, kept_probe, kept_row, kept_col, tried, fetches, steps
     if not fallback:
         return UNKNOWN, t, -1, -1, -1, tried, fetches, steps
     cage(grid_origin, grid_spacing, grid_counts, ox, oy, oz, corners)
@@ -271,10 +295,11 @@ def seen_through(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray
                  mips: np.ndarray, resolution: int, grid_origin: np.ndarray,
                  grid_spacing: np.ndarray, grid_counts: np.ndarray, hit_probe: int, yx: float,
                  yy: float, yz: float, tolerance: float, corners: np.ndarray) -> bool:
-    """Whether a probe of the cage around ``Y`` (other than the one that found it) stores a
-    surface farther than ``Y`` in ``Y``'s direction, by more than ``tolerance`` plus the
-    texel's slope: it sees empty space where the hit claims a surface."""
+    """Whether ``WITNESSES`` probes of the cage around ``Y`` (other than the one that found
+    it) store a surface farther than ``Y`` in ``Y``'s direction, by more than ``tolerance``
+    plus the texel's slope: they see empty space where the hit claims a surface."""
     cage(grid_origin, grid_spacing, grid_counts, yx, yy, yz, corners)
+    seen = 0
     for corner in range(8):
         q = corners[corner]
         if q == hit_probe or not enabled[q]:
@@ -282,8 +307,8 @@ def seen_through(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray
         length, _, _, _, _, _, stored, slack = point_from_probe(
             positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
         if length > 0.0 and stored > length + slack:
-            return True
-    return False
+            seen += 1
+    return seen >= WITNESSES
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -440,6 +465,71 @@ def trace_block(marcher, eps_mode, ordering, fallback, params, positions, enable
 
 
 @njit(cache=True, nogil=True)
+def hit_in_front(marcher: int, eps_mode: int, params: np.ndarray, positions: np.ndarray,
+                 enabled: np.ndarray, mips: np.ndarray, mip_offsets: np.ndarray,
+                 mip_sizes: np.ndarray, normals: np.ndarray, resolution: int,
+                 grid_origin: np.ndarray, grid_spacing: np.ndarray, grid_counts: np.ndarray,
+                 hit_probe: int, row: int, col: int, ox: float, oy: float, oz: float,
+                 dx: float, dy: float, dz: float, t: float, tmin: float, tolerance: float,
+                 corners: np.ndarray):
+    """A hit at ``t`` checked against the other probes of the cage around it: one that
+    stores a surface in front of the hit point (nearer by more than its slack), within ``w``
+    of the stretch of the ray before the hit, re-traces that stretch (``w``:
+    ``params[P_REFINE]`` of its texel widths, at least as many voxels). When
+    ``WITNESSES`` of them find the ray crossing a surface there, the nearest such hit
+    replaces this one. Returns ``(t, probe, row, col, fetches, steps)``.
+
+    Why: where two walls meet, the texel through which the finding probe saw the first wall
+    may store the second, so the ray passes the first wall unseen and stops on the second's
+    plane behind it; probes that see the corner from elsewhere have the first wall in front
+    of that point. One probe alone is not trusted: beside a silhouette it may take a surface
+    the ray only passes."""
+    fetches = 0
+    steps = 0
+    found = 0
+    nearest = t
+    nearest_probe = hit_probe
+    nearest_row = row
+    nearest_col = col
+    yx = ox + t * dx
+    yy = oy + t * dy
+    yz = oz + t * dz
+    cage(grid_origin, grid_spacing, grid_counts, yx, yy, yz, corners)
+    for corner in range(8):
+        q = corners[corner]
+        if q == hit_probe or not enabled[q]:
+            continue
+        length, cx, cy, cz, _, _, stored, slack = point_from_probe(
+            positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
+        fetches += 1
+        if not (length > 0.0 and stored < length - slack):
+            continue
+        # The surface it sees in front must lie by the stretch of the ray before the hit.
+        w = params[P_REFINE] * max(1.0, length * texel_angle(resolution))
+        vx = positions[q, 0] + stored * cx - ox
+        vy = positions[q, 1] + stored * cy - oy
+        vz = positions[q, 2] + stored * cz - oz
+        along = vx * dx + vy * dy + vz * dz
+        if not (t - w <= along <= t and vx * vx + vy * vy + vz * vz - along * along <= w * w):
+            continue
+        kind, t_front, q_row, q_col, f, s = trace_probe(
+            marcher, eps_mode, params, positions, mips, mip_offsets, mip_sizes, normals,
+            resolution, q, ox, oy, oz, dx, dy, dz, max(tmin, t - w), t)
+        fetches += f
+        steps += s
+        if kind == HIT and t_front < t:
+            found += 1
+            if t_front < nearest:
+                nearest = t_front
+                nearest_probe = q
+                nearest_row = q_row
+                nearest_col = q_col
+    if found >= WITNESSES:
+        return nearest, nearest_probe, nearest_row, nearest_col, fetches, steps
+    return t, hit_probe, row, col, fetches, steps
+
+
+@njit(cache=True, nogil=True)
 def refine_hit(marcher: int, eps_mode: int, params: np.ndarray, positions: np.ndarray,
                mips: np.ndarray, mip_offsets: np.ndarray, mip_sizes: np.ndarray,
                normals: np.ndarray, resolution: int, probe: int, ox: float, oy: float,
@@ -467,9 +557,10 @@ def answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enab
                origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
                out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
                scratch) -> None:
-    """Ray ``i``: its trace, then its hit refined against (``refine_hit``) and coloured by
-    the probe ``hit_colour_probe`` picks, into the ``out_*`` arrays. The body both the CPU
-    loop and the CUDA kernel run."""
+    """Ray ``i``: its trace; then its hit checked against the probes that may see a surface
+    in front of it (``hit_in_front``), refined against (``refine_hit``) and coloured by the
+    probe ``hit_colour_probe`` picks; into the ``out_*`` arrays. The body both the CPU loop
+    and the CUDA kernel run."""
     corners, corners2, tried_probe, tried_t = scratch
     ox = origins[i, 0]
     oy = origins[i, 1]
@@ -482,6 +573,13 @@ def answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enab
         mip_offsets, mip_sizes, normals, resolution, grid_origin, grid_spacing,
         grid_counts, ox, oy, oz, dx, dy, dz, tmin[i], tmax[i], corners, tried_probe,
         tried_t, corners2)
+    if kind == HIT and row >= 0 and params[P_REFINE] > 0.0:
+        t, p, row, col, f, s = hit_in_front(
+            marcher, eps_mode, params, positions, enabled, mips, mip_offsets, mip_sizes,
+            normals, resolution, grid_origin, grid_spacing, grid_counts, p, row, col, ox, oy,
+            oz, dx, dy, dz, t, tmin[i], tolerance, corners2)
+        fetches += f
+        steps += s
     out_probe[i] = p
     if kind == HIT and row >= 0:
         yx = ox + t * dx

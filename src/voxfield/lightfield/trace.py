@@ -65,17 +65,22 @@ class LightFieldOptions:
     follow ``i + 3 mod 8``, and a probe that loses the ray further on re-forms the cage
     there. ``fallback``: when every probe loses the ray, answer with the nearest
     probe's radiance in direction ω (kind ``FALLBACK``) rather than ``UNKNOWN``.
-    ``consensus``: before a hit is taken, the other probes of the cage around the hit point
-    are asked whether they see empty space there; if one does, the ray marches on.
+    ``consensus`` (on by default): before a hit is taken, the other probes of the cage
+    around the hit point are asked whether they see empty space there; if two do
+    (``kernels.probe_multi.WITNESSES``), the ray marches on, and comes back to that hit only
+    if every probe loses it behind.
     ``colour_probe``: which cage probe that sees a hit point answers its radiance:
     ``"footprint"`` (the default: the one whose texel is smallest on the surface there,
     right for view-independent radiance, which is what bakes store) or ``"parallel"`` (the
     one that sees it most nearly along the ray). ``colour_filter``: that probe is read
     ``"bilinear"`` over its bordered map (texels showing another surface left out) or at the
-    ``"nearest"`` texel. ``refine_window``: a hit is then traced again against that probe
-    within ± this many of its texel widths (at least as many voxels): the probe that found
-    the hit may have seen the surface at a grazing angle through a wide texel, and the view
-    that sees it most sharply places it best (``kernels.probe_multi.refine_hit``; 0: off).
+    ``"nearest"`` texel. ``refine_window`` (texel widths, at least as many voxels; 0: off):
+    a hit that another probe of the cage around it sees behind a nearer surface is traced
+    again by that probe over this stretch before it (``kernels.probe_multi.hit_in_front``:
+    where two walls meet, the finding probe's texel may hold the far wall, so the ray passes
+    the near one unseen), and the hit is then traced again against its colour probe within ±
+    this stretch (``refine_hit``: the finding probe may see the surface through a wide,
+    grazing texel; the sharpest view places it best).
     """
 
     marcher: str = "hierarchical"
@@ -88,7 +93,7 @@ class LightFieldOptions:
     backface: bool = False
     ordering: str = "nearest"
     fallback: bool = True
-    consensus: bool = False
+    consensus: bool = True
     colour_filter: str = "bilinear"
     colour_probe: str = "footprint"
     refine_window: float = 3.0
