@@ -61,7 +61,7 @@ FOOTPRINT_MIN_COSINE = 0.05
 #: (``seen_through``, the consensus check) or that find a surface in front of it
 #: (``hit_in_front``). One alone is often wrong beside an edge, where its texel spans two
 #: surfaces (measured, built-in Cornell box, 8 probes, 48² maps, 6000 random rays: hits
-#: more than two voxels short 35 → 50 with one witness in front, 35 → 41 with two, while
+#: more than two voxels short 35 → 50 with one witness in front, 35 → 43 with two, while
 #: the far ones fall alike, 73 → 38 / 40; Cornell box room view at 256², 8 / 27 / 64
 #: probes: the consensus check with one witness 36.21 / 38.64 / 39.56 dB, with two 36.29 /
 #: 38.91 / 40.08).
