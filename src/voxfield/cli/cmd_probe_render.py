@@ -20,9 +20,11 @@ import numpy as np
 
 from voxfield.atomic import atomic_path
 from voxfield.cli.options import (
+    add_hit_options,
     add_view_options,
     camera,
     default_output,
+    hit_options,
     int_between,
     positive_int,
     vector_arg,
@@ -44,8 +46,6 @@ from voxfield.lightfield.probe_render_figures import (
 )
 from voxfield.lightfield.trace import (
     COLOUR_FILTERS,
-    COLOUR_PROBES,
-    EPSILON_MODES,
     MARCHERS,
     ORDERINGS,
     LightFieldOptions,
@@ -83,45 +83,12 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--ordering", choices=tuple(ORDERINGS), default=defaults.ordering,
                    help=f"light-field: which probe of each cage goes first (default "
                    f"{defaults.ordering}; signed-dot is the probe thesis's)")
-    p.add_argument("--epsilon", choices=tuple(EPSILON_MODES), default=defaults.epsilon,
-                   help=f"light-field: hit acceptance rule (default {defaults.epsilon}: thick "
-                   "behind a surface by the depth one texel spans; adaptive is the probe "
-                   "thesis's §7.1 as printed, adaptive-text the form its text derives)")
-    p.add_argument("--epsilon-value", type=float, default=defaults.epsilon_value, metavar="E",
-                   help=f"light-field, constant epsilon: thickness in voxels "
-                   f"(default {defaults.epsilon_value})")
-    p.add_argument("--epsilon-k", type=float, default=defaults.epsilon_k, metavar="K",
-                   help=f"light-field, adaptive/angular epsilon: scale k "
-                   f"(default {defaults.epsilon_k})")
-    p.add_argument("--epsilon-front", type=float, default=defaults.epsilon_front, metavar="T",
-                   help=f"light-field, footprint epsilon: at most T texel widths in front of "
-                   f"a surface, inf for no cap (default {defaults.epsilon_front})")
-    p.add_argument("--refine-window", type=float, default=defaults.refine_window,
-                   metavar="W", help=f"light-field: check a hit against the probes that may see "
-                   "a surface in front of it and trace it again against its colour probe, "
-                   f"over W of their texel widths; 0 for off (default "
-                   f"{defaults.refine_window})")
+    add_hit_options(p, prefix="light-field: ")
     p.add_argument("--step", type=float, default=defaults.step,
                    help=f"light-field, march3d: step in voxels (default {defaults.step})")
-    p.add_argument("--backface", action="store_true",
-                   help="light-field: reject hits whose stored normal faces along the ray")
-    p.add_argument("--no-fallback", action="store_true",
-                   help="light-field: leave rays every probe loses unknown (black) instead of "
-                   "reading the nearest probe as an environment map")
-    p.add_argument("--consensus", action=argparse.BooleanOptionalAction,
-                   default=defaults.consensus,
-                   help="light-field: before taking a hit, ask the other probes around it "
-                   "whether they see empty space there (fewer false hits, more fetches; "
-                   f"default {'on' if defaults.consensus else 'off'})")
     p.add_argument("--colour-filter", choices=COLOUR_FILTERS, default=defaults.colour_filter,
                    help=f"light-field: how a hit's radiance is read (default "
                    f"{defaults.colour_filter})")
-    p.add_argument("--colour-probe", choices=tuple(COLOUR_PROBES),
-                   default=defaults.colour_probe,
-                   help="light-field: which probe that sees a hit answers its colour: "
-                   "footprint (its texel is smallest there; for the view-independent "
-                   "radiance bakes store) or parallel (it sees the hit most nearly along the "
-                   f"ray) (default {defaults.colour_probe})")
     p.add_argument("--filter", choices=FILTERS, default="bilinear",
                    help="baselines: bilinear (bordered map, default) or nearest texel")
     p.add_argument("--box-min", type=vector_arg, default=None, metavar="X,Y,Z",
@@ -220,12 +187,8 @@ def run(args) -> int:
 def _trace_options(args):
     """``LightFieldOptions`` from the command line (it checks the values)."""
     return LightFieldOptions(
-        marcher=args.marcher, step=args.step, epsilon=args.epsilon,
-        epsilon_value=args.epsilon_value, epsilon_k=args.epsilon_k,
-        epsilon_front=args.epsilon_front, backface=args.backface, ordering=args.ordering,
-        fallback=not args.no_fallback, consensus=args.consensus,
-        colour_filter=args.colour_filter, colour_probe=args.colour_probe,
-        refine_window=args.refine_window)
+        marcher=args.marcher, step=args.step, ordering=args.ordering,
+        colour_filter=args.colour_filter, **hit_options(args))
 
 
 def _open_scene(args, probe_set):

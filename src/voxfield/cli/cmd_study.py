@@ -8,6 +8,7 @@ import math
 
 from voxfield.cli.options import (
     add_channel_option,
+    add_hit_options,
     add_quiet,
     add_renderer_options,
     add_scene_options,
@@ -17,6 +18,7 @@ from voxfield.cli.options import (
     default_output,
     finite_float,
     float_list,
+    hit_options,
     int_between,
     lod_arg,
     name_list,
@@ -26,7 +28,7 @@ from voxfield.cli.options import (
     scheduler_name,
 )
 from voxfield.errors import VoxfieldError
-from voxfield.lightfield.trace import COLOUR_PROBES, EPSILON_MODES, LightFieldOptions
+from voxfield.lightfield.trace import LightFieldOptions
 from voxfield.lighting import bake_sun_lighting, parse_suns
 from voxfield.probes.grid import parse_grid
 from voxfield.render.camera import preset_camera
@@ -366,32 +368,7 @@ def _register_probes(actions) -> argparse.ArgumentParser:
                    help="comma-separated marchers (default march3d,dda,hierarchical)")
     p.add_argument("--orderings", type=name_list, default=ORDERINGS,
                    help="comma-separated orderings (default signed-dot,nearest,fixed)")
-    defaults = LightFieldOptions()
-    p.add_argument("--epsilon", choices=tuple(EPSILON_MODES), default=defaults.epsilon,
-                   help=f"hit acceptance rule (default {defaults.epsilon})")
-    p.add_argument("--epsilon-value", type=float, default=defaults.epsilon_value, metavar="E",
-                   help=f"constant epsilon in voxels (default {defaults.epsilon_value})")
-    p.add_argument("--epsilon-k", type=float, default=defaults.epsilon_k, metavar="K",
-                   help=f"adaptive/angular epsilon scale (default {defaults.epsilon_k})")
-    p.add_argument("--epsilon-front", type=float, default=defaults.epsilon_front, metavar="T",
-                   help=f"footprint epsilon: at most T texel widths in front of a surface, "
-                   f"inf for no cap (default {defaults.epsilon_front})")
-    p.add_argument("--refine-window", type=float, default=defaults.refine_window,
-                   metavar="W", help=f"check a hit against the probes that may see "
-                   "a surface in front of it and trace it again against its colour probe, "
-                   f"over W of their texel widths; 0 for off (default "
-                   f"{defaults.refine_window})")
-    p.add_argument("--consensus", action=argparse.BooleanOptionalAction,
-                   default=defaults.consensus,
-                   help="before taking a hit, ask the other probes around it whether they see "
-                   f"empty space there (default {'on' if defaults.consensus else 'off'})")
-    p.add_argument("--backface", action="store_true", help="reject backface hits")
-    p.add_argument("--no-fallback", action="store_true",
-                   help="leave rays every probe loses unknown instead of falling back")
-    p.add_argument("--colour-probe", choices=tuple(COLOUR_PROBES), default=defaults.colour_probe,
-                   help="which probe that sees a hit answers its colour: footprint (smallest "
-                   "texel there) or parallel (most nearly along the ray) (default "
-                   f"{defaults.colour_probe})")
+    add_hit_options(p)
     p.add_argument("--no-relocate", action="store_true",
                    help="keep probes on their lattice points even inside geometry")
     p.add_argument("--repeats", type=int, default=3,
@@ -419,11 +396,7 @@ def run_probes(args) -> int:
     octree = open_octree(args)
     view = scene_camera(args, octree)
     check_camera_placement(octree, view)
-    options = LightFieldOptions(epsilon=args.epsilon, epsilon_value=args.epsilon_value,
-                                epsilon_k=args.epsilon_k, epsilon_front=args.epsilon_front,
-                                backface=args.backface, fallback=not args.no_fallback,
-                                colour_probe=args.colour_probe,
-                                refine_window=args.refine_window, consensus=args.consensus)
+    options = LightFieldOptions(**hit_options(args))
     out = args.out or default_output("probe_study", args.scene)
     report = run_probe_study(
         octree, out, scene_name=args.scene, camera=view, grid_counts=args.grid,

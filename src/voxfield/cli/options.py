@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.lightfield.trace import COLOUR_PROBES, EPSILON_MODES, LightFieldOptions
 from voxfield.render.camera import CAMERA_PRESETS, Camera, preset_camera
 from voxfield.render.framing import content_box
 from voxfield.render.registry import RENDERERS
@@ -337,3 +338,53 @@ def default_output(prefix: str, scene: str, suffix: str = "") -> Path:
     name = scene.split(":", 1)[1] if ":" in scene and not Path(scene).exists() else scene
     name = Path(name).stem or "scene"
     return Path("out") / f"{prefix}_{re.sub(r'[^A-Za-z0-9_.-]+', '_', name)}{suffix}"
+
+
+def add_hit_options(p: argparse.ArgumentParser, prefix: str = "") -> None:
+    """How a light-field trace accepts, checks and colours a hit: the options ``probe-render``
+    and ``study probes`` share (``prefix`` starts each help line); ``hit_options`` reads
+    them back."""
+    defaults = LightFieldOptions()
+    p.add_argument("--epsilon", choices=tuple(EPSILON_MODES), default=defaults.epsilon,
+                   help=f"{prefix}hit acceptance rule (default {defaults.epsilon}: thick "
+                   "behind a surface by the depth one texel spans; adaptive is the probe "
+                   "thesis's §7.1 as printed, adaptive-text the form its text derives)")
+    p.add_argument("--epsilon-value", type=float, default=defaults.epsilon_value, metavar="E",
+                   help=f"{prefix}constant epsilon: thickness in voxels "
+                   f"(default {defaults.epsilon_value})")
+    p.add_argument("--epsilon-k", type=float, default=defaults.epsilon_k, metavar="K",
+                   help=f"{prefix}adaptive/angular epsilon: scale k "
+                   f"(default {defaults.epsilon_k})")
+    p.add_argument("--epsilon-front", type=float, default=defaults.epsilon_front, metavar="T",
+                   help=f"{prefix}footprint epsilon: at most T texel widths in front of "
+                   f"a surface, inf for no cap (default {defaults.epsilon_front})")
+    p.add_argument("--refine-window", type=float, default=defaults.refine_window,
+                   metavar="W", help=f"{prefix}check a hit against the probes that may see "
+                   "a surface in front of it and trace it again against its colour probe, "
+                   f"over W of their texel widths; 0 for off (default "
+                   f"{defaults.refine_window})")
+    p.add_argument("--consensus", action=argparse.BooleanOptionalAction,
+                   default=defaults.consensus,
+                   help=f"{prefix}before taking a hit, ask the other probes around it "
+                   "whether they see empty space there (fewer false hits, more fetches; "
+                   f"default {'on' if defaults.consensus else 'off'})")
+    p.add_argument("--backface", action="store_true",
+                   help=f"{prefix}reject hits whose stored normal faces along the ray")
+    p.add_argument("--no-fallback", action="store_true",
+                   help=f"{prefix}leave rays every probe loses unknown (black) instead of "
+                   "reading the nearest probe as an environment map")
+    p.add_argument("--colour-probe", choices=tuple(COLOUR_PROBES),
+                   default=defaults.colour_probe,
+                   help=f"{prefix}which probe that sees a hit answers its colour: "
+                   "footprint (its texel is smallest there; for the view-independent "
+                   "radiance bakes store) or parallel (it sees the hit most nearly along the "
+                   f"ray) (default {defaults.colour_probe})")
+
+
+def hit_options(args) -> dict:
+    """The ``LightFieldOptions`` fields ``add_hit_options`` put on the command line."""
+    return {"epsilon": args.epsilon, "epsilon_value": args.epsilon_value,
+            "epsilon_k": args.epsilon_k, "epsilon_front": args.epsilon_front,
+            "refine_window": args.refine_window, "consensus": args.consensus,
+            "backface": args.backface, "fallback": not args.no_fallback,
+            "colour_probe": args.colour_probe}
