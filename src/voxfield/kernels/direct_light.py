@@ -34,6 +34,7 @@ node it stopped at, of any node it refined into, or, where it met nothing, the L
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -65,6 +66,59 @@ NO_LOD = -1
 _LIGHT_STREAM = 0x68E31DA4
 
 
+class ShadowScene(NamedTuple):
+    """What a shadow ray reads of the octree: packed descriptors, depth, every node's corner
+    in its level's node units, and which nodes hold emitting voxels (1) or not (0)."""
+
+    inner_nodes: np.ndarray
+    depth: int
+    node_coord: np.ndarray
+    node_is_light: np.ndarray
+
+
+class Emitters(NamedTuple):
+    """The emitting voxel faces a light sample picks from (``render.direct_light``'s
+    ``EmitterFaces``): corner, axis, outward sign, radiance and the luminance CDF."""
+
+    corner: np.ndarray
+    axis: np.ndarray
+    sign: np.ndarray
+    radiance: np.ndarray
+    cdf: np.ndarray
+
+
+class ShadowLod(NamedTuple):
+    """How shadow rays pick their LOD (module docstring): the mode, the baseline's LOD-1
+    distance, and the error-aware refinement's depth limit, test and error table."""
+
+    mode: int
+    lod_distance: float
+    max_refinements: int
+    threshold: float
+    decay: float
+    encoding: int
+    oct_map: np.ndarray
+    sh: np.ndarray
+
+
+class DirectLightOutputs(NamedTuple):
+    """Per-pixel output rows: the ``RenderResult`` buffers, then the shadow rays cast, their
+    traversals, steps, mean LOD used and refinements."""
+
+    color: np.ndarray
+    depth: np.ndarray
+    normal: np.ndarray
+    rays: np.ndarray
+    hits: np.ndarray
+    steps: np.ndarray
+    lod: np.ndarray
+    shadow_rays: np.ndarray
+    shadow_traversals: np.ndarray
+    shadow_steps: np.ndarray
+    shadow_lod: np.ndarray
+    refinements: np.ndarray
+
+
 @njit(cache=True, nogil=True)
 def distance_lod(t: float, lod_distance: float, depth: int) -> int:
     """``floor(log2(1 + t / lod_distance))``, at most ``depth``: the LOD the baseline samples
@@ -76,27 +130,27 @@ def distance_lod(t: float, lod_distance: float, depth: int) -> int:
 
 
 @njit(cache=True, nogil=True)
-def new_frames(depth: int) -> tuple[np.ndarray, np.ndarray]:
-    """Per-thread refinement frames (stop level, end time): one per LOD a ray can refine."""
-    return np.empty(depth + 2, np.int64), np.empty(depth + 2, np.float64)
+def new_shadow_scratch(depth: int):
+    """Per-thread scratch of shadow rays: the traversal's (``new_scratch``) and the
+    refinement frames (stop level, end time), one per LOD a ray can refine."""
+    return new_scratch(depth), np.empty(depth + 2, np.int64), np.empty(depth + 2, np.float64)
 
 
 @njit(cache=True, nogil=True)
 def trace_shadow_ray(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float, tmax: float,
-    mode: int, inner_nodes: np.ndarray, depth: int, node_coord: np.ndarray,
-    node_is_light: np.ndarray, lod_distance: float, max_refinements: int,
-    threshold: float, decay: float, encoding: int, oct_map: np.ndarray, sh: np.ndarray,
-    scratch,
-    frame_stop: np.ndarray, frame_end: np.ndarray,
+    scene: ShadowScene, lod: ShadowLod, work,
 ) -> tuple[bool, int, int, int, int]:
     """Whether the segment ``(0, tmax)`` of the ray reaches the light unblocked.
 
     Returns ``(visible, steps, traversals, lod_used, refinements)``. Frames: frame 0 is the
     ray at its base LOD up to ``tmax``; a refinement pushes a frame that covers only the
     refined node's interval at one LOD finer; a frame whose segment is empty pops, and the
-    frame below goes on from where it ended.
+    frame below goes on from where it ended. ``work`` comes from ``new_shadow_scratch``.
     """
+    inner_nodes, depth, node_coord, node_is_light = scene
+    mode, lod_distance, max_refinements, threshold, decay, encoding, oct_map, sh = lod
+    scratch, frame_stop, frame_end = work
     use_distance = mode != SHADOW_REFERENCE
     radius = 1.0 if use_distance else 0.0
     spread = 1.0 / lod_distance if use_distance else 0.0
@@ -175,14 +229,7 @@ def pick_face(face_cdf: np.ndarray, u: float) -> int:
 @njit(cache=True, nogil=True)
 def light_sample(
     px: float, py: float, pz: float, nx: float, ny: float, nz: float,
-    u: float, v: float,
-    face_corner: np.ndarray, face_axis: np.ndarray, face_sign: np.ndarray,
-    face_radiance: np.ndarray, face_cdf: np.ndarray,
-    mode: int, inner_nodes: np.ndarray, depth: int, node_coord: np.ndarray,
-    node_is_light: np.ndarray, lod_distance: float, max_refinements: int,
-    threshold: float, decay: float, encoding: int, oct_map: np.ndarray, sh: np.ndarray,
-    scratch,
-    frame_stop: np.ndarray, frame_end: np.ndarray,
+    u: float, v: float, emitters: Emitters, scene: ShadowScene, lod: ShadowLod, work,
 ) -> tuple[float, float, float, int, int, int, int]:
     """One light sample at surface point p with normal n, for a white (albedo 1) surface.
 
@@ -191,6 +238,7 @@ def light_sample(
     refinements)``; no ray is cast (lod ``NO_LOD``) when the point and the face do not face
     each other.
     """
+    face_corner, face_axis, face_sign, face_radiance, face_cdf = emitters
     face = pick_face(face_cdf, u)
     below = face_cdf[face - 1] if face > 0 else 0.0
     probability = face_cdf[face] - below
@@ -231,32 +279,20 @@ def light_sample(
     cos_light = -sign * toward
     if cos_surface <= 0.0 or cos_light <= 0.0:
         return 0.0, 0.0, 0.0, 0, 0, NO_LOD, 0
-    visible, steps, traversals, lod, refinements = trace_shadow_ray(
-        ox, oy, oz, wx, wy, wz, dist - SURFACE_OFFSET, mode, inner_nodes, depth, node_coord,
-        node_is_light, lod_distance, max_refinements, threshold, decay, encoding, oct_map, sh,
-        scratch, frame_stop, frame_end,
-    )
+    visible, steps, traversals, lod_used, refinements = trace_shadow_ray(
+        ox, oy, oz, wx, wy, wz, dist - SURFACE_OFFSET, scene, lod, work)
     if not visible:
-        return 0.0, 0.0, 0.0, steps, traversals, lod, refinements
+        return 0.0, 0.0, 0.0, steps, traversals, lod_used, refinements
     weight = cos_surface * cos_light / (r2 * probability * math.pi)
     return (face_radiance[face, 0] * weight, face_radiance[face, 1] * weight,
-            face_radiance[face, 2] * weight, steps, traversals, lod, refinements)
+            face_radiance[face, 2] * weight, steps, traversals, lod_used, refinements)
 
 
 @njit(parallel=True, cache=True, nogil=True)
 def render_direct_light_rows(
     cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
-    grid_x: int, grid_y: int,
-    inner_nodes: np.ndarray, depth: int, node_coord: np.ndarray, albedo: np.ndarray,
-    emission: np.ndarray, node_is_light: np.ndarray,
-    face_corner: np.ndarray, face_axis: np.ndarray, face_sign: np.ndarray,
-    face_radiance: np.ndarray, face_cdf: np.ndarray,
-    mode: int, lod_distance: float, max_refinements: int, threshold: float, decay: float,
-    encoding: int, oct_map: np.ndarray, sh: np.ndarray,
-    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
-    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
-    out_shadow_rays: np.ndarray, out_shadow_traversals: np.ndarray,
-    out_shadow_steps: np.ndarray, out_shadow_lod: np.ndarray, out_refinements: np.ndarray,
+    grid_x: int, grid_y: int, scene: ShadowScene, albedo: np.ndarray, emission: np.ndarray,
+    emitters: Emitters, lod: ShadowLod, out: DirectLightOutputs,
 ) -> None:
     """Rows ``[row0, row1)``: ``grid_x · grid_y`` samples per pixel, each a primary ray at
     LOD 0 through a CMJ sub-pixel position and, where it hits a surface, one light sample.
@@ -265,38 +301,21 @@ def render_direct_light_rows(
     the light's edges anti-alias); the pixel is the mean of its samples, clamped to [0, 1].
     """
     for row in prange(row0, row1):
-        render_direct_light_row(
-            cam, width, height, row0, row1, seed, grid_x, grid_y, inner_nodes, depth,
-            node_coord, albedo, emission, node_is_light, face_corner, face_axis,
-            face_sign, face_radiance, face_cdf, mode, lod_distance, max_refinements,
-            threshold, decay, encoding, oct_map, sh, out_color, out_depth, out_normal,
-            out_rays, out_hits, out_steps, out_lod, out_shadow_rays,
-            out_shadow_traversals, out_shadow_steps, out_shadow_lod, out_refinements,
-            row,
-        )
+        render_direct_light_row(cam, width, height, row0, seed, grid_x, grid_y, scene, albedo,
+                                emission, emitters, lod, out, row)
 
 
 @njit(cache=True, nogil=True)
 def render_direct_light_row(
-    cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
-    grid_x: int, grid_y: int,
-    inner_nodes: np.ndarray, depth: int, node_coord: np.ndarray, albedo: np.ndarray,
-    emission: np.ndarray, node_is_light: np.ndarray,
-    face_corner: np.ndarray, face_axis: np.ndarray, face_sign: np.ndarray,
-    face_radiance: np.ndarray, face_cdf: np.ndarray,
-    mode: int, lod_distance: float, max_refinements: int, threshold: float, decay: float,
-    encoding: int, oct_map: np.ndarray, sh: np.ndarray,
-    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
-    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
-    out_shadow_rays: np.ndarray, out_shadow_traversals: np.ndarray,
-    out_shadow_steps: np.ndarray, out_shadow_lod: np.ndarray, out_refinements: np.ndarray,
-    row: int,
+    cam: np.ndarray, width: int, height: int, row0: int, seed: int, grid_x: int, grid_y: int,
+    scene: ShadowScene, albedo: np.ndarray, emission: np.ndarray, emitters: Emitters,
+    lod: ShadowLod, out: DirectLightOutputs, row: int,
 ) -> None:
     """One row of ``render_direct_light_rows`` (the traversal is inlined here, never straight
     into a ``prange`` body, where Numba's parfor pass would hoist its initialisations)."""
+    inner_nodes, depth, _node_coord, node_is_light = scene
     samples = grid_x * grid_y
-    scratch = new_scratch(depth)
-    frame_stop, frame_end = new_frames(depth)
+    work = new_shadow_scratch(depth)
     i = row - row0
     for col in range(width):
         pattern = pixel_pattern(row * width + col, seed)
@@ -323,7 +342,7 @@ def render_direct_light_row(
             ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
             node, level, t, normal, steps = trace_ray(
                 ox, oy, oz, dx, dy, dz, 0.0, math.inf, inner_nodes, depth, depth, 0.0, 0.0,
-                scratch,
+                work[0],
             )
             steps_sum += steps
             if node == MISS:
@@ -340,12 +359,9 @@ def render_direct_light_row(
                 b += min(emission[node, 2], 1.0)
                 continue
             u, v = cmj_sample(s, grid_x, grid_y, light_pattern)
-            lr, lg, lb, n_steps, n_traversals, lod, n_refined = light_sample(
-                ox + t * dx, oy + t * dy, oz + t * dz, nx, ny, nz, u, v,
-                face_corner, face_axis, face_sign, face_radiance, face_cdf,
-                mode, inner_nodes, depth, node_coord, node_is_light, lod_distance,
-                max_refinements, threshold, decay, encoding, oct_map, sh,
-                scratch, frame_stop, frame_end,
+            lr, lg, lb, n_steps, n_traversals, lod_used, n_refined = light_sample(
+                ox + t * dx, oy + t * dy, oz + t * dz, nx, ny, nz, u, v, emitters, scene, lod,
+                work,
             )
             ar, ag, ab = node_rgb(albedo, node)
             r += ar * lr
@@ -354,31 +370,27 @@ def render_direct_light_row(
             shadow_traversals += n_traversals
             shadow_steps += n_steps
             refinements += n_refined
-            if lod != NO_LOD:
-                lod_sum += lod
+            if lod_used != NO_LOD:
+                lod_sum += lod_used
                 lod_count += 1
         scale = 1.0 / samples
         store_pixel(
-            out_color[i], out_depth[i], out_normal[i], out_rays[i], out_hits[i],
-            out_steps[i], out_lod[i], col, min(r * scale, 1.0), min(g * scale, 1.0),
+            out.color[i], out.depth[i], out.normal[i], out.rays[i], out.hits[i],
+            out.steps[i], out.lod[i], col, min(r * scale, 1.0), min(g * scale, 1.0),
             min(b * scale, 1.0), t_sum, hits, nx_sum, ny_sum, nz_sum,
             samples + shadow_traversals, hits, steps_sum + shadow_steps, 0,
         )
-        out_shadow_rays[i, col] = lod_count
-        out_shadow_traversals[i, col] = shadow_traversals
-        out_shadow_steps[i, col] = shadow_steps
-        out_shadow_lod[i, col] = lod_sum / lod_count if lod_count else NO_LOD
-        out_refinements[i, col] = refinements
+        out.shadow_rays[i, col] = lod_count
+        out.shadow_traversals[i, col] = shadow_traversals
+        out.shadow_steps[i, col] = shadow_steps
+        out.shadow_lod[i, col] = lod_sum / lod_count if lod_count else NO_LOD
+        out.refinements[i, col] = refinements
 
 
 @njit(parallel=True, cache=True, nogil=True)
 def direct_light_points(
     points: np.ndarray, normals: np.ndarray, seed: int, grid_x: int, grid_y: int,
-    inner_nodes: np.ndarray, depth: int, node_coord: np.ndarray, node_is_light: np.ndarray,
-    face_corner: np.ndarray, face_axis: np.ndarray, face_sign: np.ndarray,
-    face_radiance: np.ndarray, face_cdf: np.ndarray,
-    mode: int, lod_distance: float, max_refinements: int, threshold: float, decay: float,
-    encoding: int, oct_map: np.ndarray, sh: np.ndarray,
+    scene: ShadowScene, emitters: Emitters, lod: ShadowLod,
     out_radiance: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
 ) -> None:
     """Light reflected by a white surface at given points (``grid_x · grid_y`` CMJ light
@@ -387,8 +399,7 @@ def direct_light_points(
     samples = grid_x * grid_y
     chunk = 64
     for c in prange((n + chunk - 1) // chunk):
-        scratch = new_scratch(depth)
-        frame_stop, frame_end = new_frames(depth)
+        work = new_shadow_scratch(scene.depth)
         for k in range(c * chunk, min(n, (c + 1) * chunk)):
             pattern = hash_u32(pixel_pattern(k, seed) + _LIGHT_STREAM)
             r = 0.0
@@ -399,20 +410,17 @@ def direct_light_points(
             lod_count = 0
             for s in range(samples):
                 u, v = cmj_sample(s, grid_x, grid_y, pattern)
-                lr, lg, lb, n_steps, _traversals, lod, _refined = light_sample(
+                lr, lg, lb, n_steps, _traversals, lod_used, _refined = light_sample(
                     points[k, 0], points[k, 1], points[k, 2],
-                    normals[k, 0], normals[k, 1], normals[k, 2], u, v,
-                    face_corner, face_axis, face_sign, face_radiance, face_cdf,
-                    mode, inner_nodes, depth, node_coord, node_is_light, lod_distance,
-                    max_refinements, threshold, decay, encoding, oct_map, sh,
-                    scratch, frame_stop, frame_end,
+                    normals[k, 0], normals[k, 1], normals[k, 2], u, v, emitters, scene, lod,
+                    work,
                 )
                 r += lr
                 g += lg
                 b += lb
                 steps += n_steps
-                if lod != NO_LOD:
-                    lod_sum += lod
+                if lod_used != NO_LOD:
+                    lod_sum += lod_used
                     lod_count += 1
             out_radiance[k, 0] = r / samples
             out_radiance[k, 1] = g / samples

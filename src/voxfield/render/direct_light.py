@@ -26,6 +26,10 @@ from voxfield.kernels.direct_light import (
     SHADOW_DISTANCE,
     SHADOW_ERROR_AWARE,
     SHADOW_REFERENCE,
+    DirectLightOutputs,
+    Emitters,
+    ShadowLod,
+    ShadowScene,
     direct_light_points,
     render_direct_light_rows,
 )
@@ -112,7 +116,9 @@ class _ShadowSetup:
     """Everything the kernels need besides the rays, checked once."""
 
     grid: tuple[int, int]
-    kernel_args: tuple
+    scene: ShadowScene
+    emitters: Emitters
+    lod: ShadowLod
     params: dict
 
 
@@ -152,9 +158,10 @@ def _setup(
     emission = octree.attributes["emission"]
     node_is_light = ((emission.astype(np.float64) @ _LUMINANCE) > 0.0).astype(np.uint8)
     refinements = octree.depth if max_refinements is None else int(max_refinements)
-    kernel_args = (
-        octree.inner_nodes, octree.depth, octree.all_node_coords(),
-        node_is_light, faces.corner, faces.axis, faces.sign, faces.radiance, faces.cdf,
+    scene = ShadowScene(octree.inner_nodes, octree.depth, octree.all_node_coords(),
+                        node_is_light)
+    emitters = Emitters(faces.corner, faces.axis, faces.sign, faces.radiance, faces.cdf)
+    lod = ShadowLod(
         SHADOW_MODES[shadow_lod], float(lod_distance), refinements, float(threshold),
         float(decay), ENCODING_SH if encoding == "sh" else ENCODING_OCT,
         np.ascontiguousarray(table.oct_map, np.float64), np.ascontiguousarray(table.sh, np.float64),
@@ -168,7 +175,7 @@ def _setup(
     if shadow_lod == "error-aware":
         params.update(threshold=float(threshold), decay=float(decay), encoding=encoding,
                       max_refinements=refinements)
-    return _ShadowSetup(_sample_grid(int(light_samples)), kernel_args, params)
+    return _ShadowSetup(_sample_grid(int(light_samples)), scene, emitters, lod, params)
 
 
 def render_direct_light(
@@ -194,7 +201,6 @@ def render_direct_light(
     setup = _setup(octree, shadow_lod=shadow_lod, light_samples=light_samples,
                    lod_distance=lod_distance, threshold=threshold, decay=decay,
                    max_refinements=max_refinements, table=table, encoding=encoding, seed=seed)
-    (inner_nodes, depth, node_coord, node_is_light, *shadow_args) = setup.kernel_args
     colors = octree.channel("albedo")
     emission = octree.attributes["emission"]
     h, w = camera.height, camera.width
@@ -207,12 +213,11 @@ def render_direct_light(
     cam = camera.params
 
     def band(rows: slice) -> None:
-        render_direct_light_rows(
-            cam, w, h, rows.start, rows.stop, seed, *setup.grid, inner_nodes, depth,
-            node_coord, colors, emission, node_is_light, *shadow_args,
-            *result.buffers(rows), shadow_rays[rows], shadow_traversals[rows], shadow_steps[rows],
-            shadow_lod_map[rows], refinements[rows],
-        )
+        out = DirectLightOutputs(*result.buffers(rows), shadow_rays[rows],
+                                 shadow_traversals[rows], shadow_steps[rows],
+                                 shadow_lod_map[rows], refinements[rows])
+        render_direct_light_rows(cam, w, h, rows.start, rows.stop, seed, *setup.grid,
+                                 setup.scene, colors, emission, setup.emitters, setup.lod, out)
 
     result.seconds = run_in_bands(h, band, label=f"direct light ({shadow_lod})",
                                   threads=threads, progress=progress)
@@ -253,6 +258,6 @@ def light_on_surface(
     steps = np.empty(n, np.int64)
     lod = np.empty(n, np.float32)
     with thread_count(threads):
-        direct_light_points(pts, nrm, seed, *setup.grid, *setup.kernel_args, radiance, steps,
-                            lod)
+        direct_light_points(pts, nrm, seed, *setup.grid, setup.scene, setup.emitters, setup.lod,
+                            radiance, steps, lod)
     return radiance, steps, lod
