@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.beam import start_distance
+from voxfield.kernels.bundles import BeamBounds, OctreeView
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.error_lookup import colour_error, oct_error, sh_error, sh_evaluate
@@ -163,16 +164,6 @@ def lighting_node_error(
     return error + decay * total / count
 
 
-class OctreeView(NamedTuple):
-    """What a traversal reads of an octree: packed descriptors, depth, one colour channel and
-    its directional colours (``kernels.facing_colour``; empty when it has none)."""
-
-    inner_nodes: np.ndarray
-    depth: int
-    colors: np.ndarray
-    facing: np.ndarray
-
-
 class Refinement(NamedTuple):
     """Where a pixel's first ray stops and how far refinement may go (EA §5.1.3, §6.2)."""
 
@@ -203,13 +194,6 @@ class ErrorModel(NamedTuple):
     colour_error: np.ndarray
     colour_to_voxels: bool
     context: np.ndarray
-
-
-class BeamBounds(NamedTuple):
-    """Per pixel block, the distance its rays may start at (``kernels.beam``)."""
-
-    bound: np.ndarray
-    block: int
 
 
 class ErrorAwareOutputs(NamedTuple):

@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.beam import start_distance
+from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
@@ -61,43 +62,33 @@ def store_pixel(
 @njit(parallel=True, cache=True, nogil=True)
 def render_pixels(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
-    side: int, seed: int,
-    inner_nodes: np.ndarray, depth: int,
-    stop_level: int, cone_scale: float, colors: np.ndarray, facing: np.ndarray,
-    beam_bound: np.ndarray, block: int,
-    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
-    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
+    side: int, seed: int, view: OctreeView, stop_level: int, cone_scale: float,
+    beam: BeamBounds, out: PixelOutputs,
 ) -> None:
     """Trace the listed pixels (flat indices) with side×side samples each, in list order
     (so a list in tile order keeps neighbouring rays together); pixel ``pixels[k]`` goes to
-    entry ``pixels[k] - out_base`` of every flat ``out_*`` array, or to entry ``k`` when
+    entry ``pixels[k] - out_base`` of every flat output row, or to entry ``k`` when
     ``out_base`` is negative.
 
     ``cone_scale`` > 0 stops descent where a node is no larger than ``cone_scale`` times the
     sub-sample footprint; 0 descends to ``stop_level``. Hits are coloured by
-    ``kernels.facing_colour.seen_rgb`` from ``colors`` and ``facing``; misses contribute black.
-    Rays of the ``block``×``block`` pixel block ``(by, bx)`` start at ``beam_bound[by, bx]``
+    ``kernels.facing_colour.seen_rgb`` from the view's colours; misses contribute black.
+    Rays of the ``block``×``block`` pixel block ``(by, bx)`` start at ``beam.bound[by, bx]``
     (``kernels.beam``; zeros start every ray at the camera).
     """
     n = pixels.shape[0]
     chunk = 64
     for c in prange((n + chunk - 1) // chunk):
-        render_pixel_chunk(
-            cam, width, height, pixels, out_base, c * chunk, min(n, (c + 1) * chunk), side, seed,
-            inner_nodes, depth, stop_level, cone_scale, colors, facing, beam_bound, block,
-            out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
-        )
+        render_pixel_chunk(cam, width, height, pixels, out_base, c * chunk,
+                           min(n, (c + 1) * chunk), side, seed, view, stop_level, cone_scale,
+                           beam, out)
 
 
 @njit(cache=True, nogil=True)
 def render_pixel_chunk(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
-    first: int, last: int, side: int, seed: int,
-    inner_nodes: np.ndarray, depth: int,
-    stop_level: int, cone_scale: float, colors: np.ndarray, facing: np.ndarray,
-    beam_bound: np.ndarray, block: int,
-    out_color: np.ndarray, out_depth: np.ndarray, out_normal: np.ndarray,
-    out_rays: np.ndarray, out_hits: np.ndarray, out_steps: np.ndarray, out_lod: np.ndarray,
+    first: int, last: int, side: int, seed: int, view: OctreeView, stop_level: int,
+    cone_scale: float, beam: BeamBounds, out: PixelOutputs,
 ) -> None:
     """Pixels ``first..last-1`` of ``render_pixels``: one thread's serial share.
 
@@ -120,17 +111,15 @@ def render_pixel_chunk(
     tallies = np.zeros((count, 3), np.int64)  # hits, steps, finest LOD
     tallies[:, 2] = 127
     if side > 1 and radius == 0.0 and spread == 0.0 and not beam_shortens(
-            beam_bound, block, pixels, first, last, width):
-        trace_chunk_in_packets(cam, width, height, pixels, first, last, side, seed,
-                               inner_nodes, depth, stop_level, colors, facing, beam_bound,
-                               block, sums, tallies)
+            beam.bound, beam.block, pixels, first, last, width):
+        trace_chunk_in_packets(cam, width, height, pixels, first, last, side, seed, view,
+                               stop_level, beam, sums, tallies)
     else:
-        trace_chunk_per_ray(cam, width, height, pixels, first, last, side, seed, inner_nodes,
-                            depth, stop_level, radius, spread, colors, facing, beam_bound,
-                            block, sums, tallies)
+        trace_chunk_per_ray(cam, width, height, pixels, first, last, side, seed, view,
+                            stop_level, radius, spread, beam, sums, tallies)
     for j in range(count):
         i = first + j
-        store_sums(out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod,
+        store_sums(out.color, out.depth, out.normal, out.rays, out.hits, out.steps, out.lod,
                    i if out_base < 0 else pixels[i] - out_base, sums, tallies, j, spp)
 
 
@@ -202,16 +191,15 @@ def add_sample(sums: np.ndarray, tallies: np.ndarray, j: int, colors: np.ndarray
 @njit(cache=True, nogil=True)
 def trace_chunk_per_ray(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, first: int, last: int,
-    side: int, seed: int, inner_nodes: np.ndarray, depth: int, stop_level: int,
-    radius: float, spread: float, colors: np.ndarray, facing: np.ndarray,
-    beam_bound: np.ndarray, block: int, sums: np.ndarray, tallies: np.ndarray,
+    side: int, seed: int, view: OctreeView, stop_level: int, radius: float, spread: float,
+    beam: BeamBounds, sums: np.ndarray, tallies: np.ndarray,
 ) -> None:
     """Every sample through the scalar traversal, with the cone ``radius + spread·t``."""
-    scratch = new_scratch(depth)
+    scratch = new_scratch(view.depth)
     for j in range(last - first):
-        trace_pixel(cam, width, height, pixels[first + j], side, seed, inner_nodes, depth,
-                    stop_level, radius, spread, colors, facing, beam_bound, block, scratch,
-                    sums, tallies, j)
+        trace_pixel(cam, width, height, pixels[first + j], side, seed, view.inner_nodes,
+                    view.depth, stop_level, radius, spread, view.colors, view.facing,
+                    beam.bound, beam.block, scratch, sums, tallies, j)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -239,12 +227,12 @@ def trace_pixel(
 @njit(cache=True, nogil=True)
 def trace_chunk_in_packets(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, first: int, last: int,
-    side: int, seed: int, inner_nodes: np.ndarray, depth: int, stop_level: int,
-    colors: np.ndarray, facing: np.ndarray, beam_bound: np.ndarray, block: int,
+    side: int, seed: int, view: OctreeView, stop_level: int, beam: BeamBounds,
     sums: np.ndarray, tallies: np.ndarray,
 ) -> None:
     """Every sample to ``stop_level``, 64 consecutive samples (in pixel, then sample order)
     per packet."""
+    inner_nodes, depth, colors, facing = view
     scratch = new_packet_scratch(depth)
     origins = np.empty((PACKET_RAYS, 3))
     directions = np.empty((PACKET_RAYS, 3))
@@ -269,7 +257,7 @@ def trace_chunk_in_packets(
             if s == 0:  # a new pixel: hash its pattern once
                 pixel = pixels[first + j]
                 pattern = pixel_pattern(pixel, seed) if side > 1 else 0
-                t_start = beam_start(beam_bound, block, pixel, width)
+                t_start = beam_start(beam.bound, beam.block, pixel, width)
             ox, oy, oz, dx, dy, dz = sample_ray(cam, width, height, pixel, s, side, pattern)
             origins[k, 0] = ox
             origins[k, 1] = oy

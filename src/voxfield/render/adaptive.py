@@ -16,6 +16,7 @@ import numpy as np
 from scipy import ndimage
 
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
 from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import thread_count
 from voxfield.render.beam import primary_beam
@@ -189,9 +190,9 @@ def refine_pixels(octree, camera, pixels, side, seed, colours, result, threads,
         lod = np.empty(n, np.int8)
         with thread_count(threads):
             render_pixels(camera.params, camera.width, camera.height, pixels, -1, side,
-                          seed, octree.inner_nodes, octree.depth, octree.depth, 0.0, *colours,
-                          beam.bound, beam.block, color, depth, normal, rays, hits, steps,
-                          lod)
+                          seed, OctreeView(octree.inner_nodes, octree.depth, *colours),
+                          octree.depth, 0.0, BeamBounds(beam.bound, beam.block),
+                          PixelOutputs(color, depth, normal, rays, hits, steps, lod))
     steps += beam.pixel_steps(pixels, camera.width)
     flat = {name: getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])
             for name in ("image", "depth", "normal", "ray_count", "hit_count", "steps",

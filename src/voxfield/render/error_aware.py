@@ -16,15 +16,14 @@ from voxfield.error_table.table import (
     load_error_table,
 )
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.bundles import BeamBounds, OctreeView
 from voxfield.kernels.colour import decode_channel
 from voxfield.kernels.error_aware import (
     ENCODING_OCT,
     ENCODING_SH,
     MAX_REFINEMENTS,
-    BeamBounds,
     ErrorAwareOutputs,
     ErrorModel,
-    OctreeView,
     Refinement,
     render_error_aware_rows,
 )

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
 from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import run_in_bands, thread_count
 from voxfield.render.beam import primary_beam
@@ -75,14 +76,16 @@ def trace_image_cpu(
     h, w = camera.height, camera.width
     cam = camera.params
     result = RenderResult.allocate(h, w)
-    args = (octree.inner_nodes, octree.depth, stop_level, cone_scale, colors, facing,
-            beam_bound, block)
+    view = OctreeView(octree.inner_nodes, octree.depth, colors, facing)
+    beam = BeamBounds(beam_bound, block)
     order = tile_order(h, w)
 
     def band(rows: slice) -> None:
         pixels = order[rows.start * w : rows.stop * w]
-        flat = (b.reshape(len(pixels), *b.shape[2:]) for b in result.buffers(rows))
-        render_pixels(cam, w, h, pixels, rows.start * w, side, seed, *args, *flat)
+        out = PixelOutputs(*(b.reshape(len(pixels), *b.shape[2:])
+                             for b in result.buffers(rows)))
+        render_pixels(cam, w, h, pixels, rows.start * w, side, seed, view, stop_level,
+                      cone_scale, beam, out)
 
     result.seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress,
                                   granule=TILE)
