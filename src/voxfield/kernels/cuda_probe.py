@@ -14,7 +14,14 @@ import sys
 from numba import types
 
 from voxfield.kernels.cuda_primary import jit_for_gpu
-from voxfield.kernels.probe_multi import MAX_PROBE_TRACES, answer_ray
+from voxfield.kernels.probe_multi import (
+    MAX_PROBE_TRACES,
+    LightFieldOutputs,
+    ProbeField,
+    RayBatch,
+    TraceModes,
+    answer_ray,
+)
 
 #: ``numba.cuda``, bound by ``jit_for_gpu`` when the kernel is first asked for.
 cuda = None
@@ -33,16 +40,18 @@ def _trace_light_field_cuda(
     out_kind, out_t, out_radiance, out_normal, out_distance, out_probe, out_tried,
     out_fetches, out_steps,
 ):
-    """Ray ``cuda.grid(1)`` as ``kernels.probe_multi.trace_light_field_rays`` answers it."""
+    """Ray ``cuda.grid(1)`` as ``kernels.probe_multi.trace_light_field_rays`` answers it.
+    (A launch passes flat arrays; the bundles ``answer_ray`` takes are built here.)"""
     i = cuda.grid(1)
     if i >= origins.shape[0]:
         return
     scratch = (cuda.local.array(8, types.int64), cuda.local.array(8, types.int64),
                cuda.local.array(MAX_PROBE_TRACES, types.int64),
                cuda.local.array(MAX_PROBE_TRACES, types.float64))
-    answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
-               mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
-               distance_bordered, resolution, grid_origin, grid_spacing, grid_counts,
-               origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
-               out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
-               scratch)
+    field = ProbeField(positions, enabled, mips, mip_offsets, mip_sizes, normals, radiance,
+                       radiance_bordered, distance_bordered, resolution, grid_origin,
+                       grid_spacing, grid_counts)
+    out = LightFieldOutputs(out_kind, out_t, out_radiance, out_normal, out_distance,
+                            out_probe, out_tried, out_fetches, out_steps)
+    answer_ray(i, TraceModes(marcher, eps_mode, ordering, fallback, params), field,
+               RayBatch(origins, dirs, tmin, tmax), out, tolerance, scratch)

@@ -20,6 +20,7 @@ there (``COLOUR_FOOTPRINT``), or the one that sees it most nearly along the ray
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange
@@ -403,31 +404,71 @@ def radiance_at(radiance_bordered: np.ndarray, distance_bordered: np.ndarray, pr
             np.float64(radiance_bordered[probe, row + 1, col + 1, 2]))
 
 
+class TraceModes(NamedTuple):
+    """How rays are traced (``lightfield.LightFieldOptions`` as numbers): marcher, epsilon
+    mode, cage ordering, whether to fall back, and the float parameters (``P_*``)."""
+
+    marcher: int
+    eps_mode: int
+    ordering: int
+    fallback: bool
+    params: np.ndarray
+
+
+class ProbeField(NamedTuple):
+    """What a trace reads of a packed probe set (``lightfield.PackedProbes``): positions,
+    enabled flags, distance mips, normals, radiance (plain and bordered for bilinear reads),
+    map resolution and the grid."""
+
+    positions: np.ndarray
+    enabled: np.ndarray
+    mips: np.ndarray
+    mip_offsets: np.ndarray
+    mip_sizes: np.ndarray
+    normals: np.ndarray
+    radiance: np.ndarray
+    radiance_bordered: np.ndarray
+    distance_bordered: np.ndarray
+    resolution: int
+    grid_origin: np.ndarray
+    grid_spacing: np.ndarray
+    grid_counts: np.ndarray
+
+
+class RayBatch(NamedTuple):
+    """Rays ``o + t·d`` with ``tmin[i] <= t < tmax[i]``."""
+
+    origins: np.ndarray
+    dirs: np.ndarray
+    tmin: np.ndarray
+    tmax: np.ndarray
+
+
+class LightFieldOutputs(NamedTuple):
+    """Per-ray answers (``lightfield.LightFieldHits``'s arrays): kind, t, radiance, normal,
+    stored distance, answering probe, probes tried, texel fetches and march steps."""
+
+    kind: np.ndarray
+    t: np.ndarray
+    radiance: np.ndarray
+    normal: np.ndarray
+    distance: np.ndarray
+    probe: np.ndarray
+    tried: np.ndarray
+    fetches: np.ndarray
+    steps: np.ndarray
+
+
 @njit(cache=True, nogil=True, parallel=True)
-def trace_light_field_rays(marcher: int, eps_mode: int, ordering: int, fallback: bool,
-                           params: np.ndarray, positions: np.ndarray, enabled: np.ndarray,
-                           mips: np.ndarray, mip_offsets: np.ndarray, mip_sizes: np.ndarray,
-                           normals: np.ndarray, radiance: np.ndarray,
-                           radiance_bordered: np.ndarray, distance_bordered: np.ndarray,
-                           resolution: int, grid_origin: np.ndarray, grid_spacing: np.ndarray,
-                           grid_counts: np.ndarray, origins: np.ndarray, dirs: np.ndarray,
-                           tmin: np.ndarray, tmax: np.ndarray, out_kind: np.ndarray,
-                           out_t: np.ndarray, out_radiance: np.ndarray,
-                           out_normal: np.ndarray, out_distance: np.ndarray,
-                           out_probe: np.ndarray, out_tried: np.ndarray,
-                           out_fetches: np.ndarray, out_steps: np.ndarray) -> None:
+def trace_light_field_rays(modes: TraceModes, field: ProbeField, rays: RayBatch,
+                           out: LightFieldOutputs) -> None:
     """Every ray, in parallel blocks; each ray's results depend only on that ray. A hit's
     colour comes from ``hit_colour_probe``, read bilinearly at the hit point."""
-    n = len(origins)
+    n = len(rays.origins)
     block = 256
-    tolerance = hit_tolerance(params)
+    tolerance = hit_tolerance(modes.params)
     for b in prange((n + block - 1) // block):
-        trace_block(marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
-                    mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
-                    distance_bordered, resolution, grid_origin, grid_spacing, grid_counts,
-                    origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
-                    out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
-                    b * block, min(n, (b + 1) * block))
+        trace_block(modes, field, rays, out, tolerance, b * block, min(n, (b + 1) * block))
 
 
 @njit(cache=True, nogil=True)
@@ -446,22 +487,13 @@ def new_ray_scratch():
 
 
 @njit(cache=True, nogil=True)
-def trace_block(marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
-                mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
-                distance_bordered, resolution, grid_origin, grid_spacing, grid_counts,
-                origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
-                out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
-                i0, i1) -> None:
+def trace_block(modes: TraceModes, field: ProbeField, rays: RayBatch, out: LightFieldOutputs,
+                tolerance: float, i0: int, i1: int) -> None:
     """Rays ``[i0, i1)`` of ``trace_light_field_rays`` (a function of its own, so the
     parallel loop only calls it)."""
     scratch = new_ray_scratch()
     for i in range(i0, i1):
-        answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
-                   mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
-                   distance_bordered, resolution, grid_origin, grid_spacing, grid_counts,
-                   origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
-                   out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
-                   scratch)
+        answer_ray(i, modes, field, rays, out, tolerance, scratch)
 
 
 @njit(cache=True, nogil=True)
@@ -551,16 +583,18 @@ def refine_hit(marcher: int, eps_mode: int, params: np.ndarray, positions: np.nd
 
 
 @njit(cache=True, nogil=True)
-def answer_ray(i, marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
-               mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
-               distance_bordered, resolution, grid_origin, grid_spacing, grid_counts,
-               origins, dirs, tmin, tmax, out_kind, out_t, out_radiance, out_normal,
-               out_distance, out_probe, out_tried, out_fetches, out_steps, tolerance,
-               scratch) -> None:
+def answer_ray(i: int, modes: TraceModes, field: ProbeField, rays: RayBatch,
+               out: LightFieldOutputs, tolerance: float, scratch) -> None:
     """Ray ``i``: its trace; then its hit checked against the probes that may see a surface
     in front of it (``hit_in_front``), refined against (``refine_hit``) and coloured by the
-    probe ``hit_colour_probe`` picks; into the ``out_*`` arrays. The body both the CPU loop
-    and the CUDA kernel run."""
+    probe ``hit_colour_probe`` picks; into the outputs. The body both the CPU loop and the
+    CUDA kernel run."""
+    marcher, eps_mode, ordering, fallback, params = modes
+    (positions, enabled, mips, mip_offsets, mip_sizes, normals, radiance, radiance_bordered,
+     distance_bordered, resolution, grid_origin, grid_spacing, grid_counts) = field
+    origins, dirs, tmin, tmax = rays
+    (out_kind, out_t, out_radiance, out_normal, out_distance, out_probe, out_tried,
+     out_fetches, out_steps) = out
     corners, corners2, tried_probe, tried_t = scratch
     ox = origins[i, 0]
     oy = origins[i, 1]

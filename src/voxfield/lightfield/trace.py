@@ -276,6 +276,15 @@ def trace_single(packed: PackedProbes, probe: int, origins, dirs,
     return ProbeHits(kind, t, row, col, radiance, normal, distance, fetches, steps)
 
 
+def probe_field(packed: PackedProbes) -> mk.ProbeField:
+    """The maps and grid of ``packed`` that the trace kernels read."""
+    return mk.ProbeField(packed.positions, packed.enabled, packed.mips, packed.mip_offsets,
+                         packed.mip_sizes, packed.normals, packed.radiance,
+                         packed.radiance_bordered, packed.distance_bordered,
+                         packed.resolution, packed.grid_origin, packed.grid_spacing,
+                         packed.grid_counts)
+
+
 def trace_light_field(packed: PackedProbes, origins, dirs,
                       options: LightFieldOptions = LightFieldOptions(), *,
                       pixel_angle: float = 0.0, tmin=0.0, tmax=math.inf,
@@ -297,10 +306,7 @@ def trace_light_field(packed: PackedProbes, origins, dirs,
         return out
     with thread_count(threads):
         mk.trace_light_field_rays(
-            *modes, packed.positions, packed.enabled,
-            packed.mips, packed.mip_offsets, packed.mip_sizes, packed.normals, packed.radiance,
-            packed.radiance_bordered, packed.distance_bordered, packed.resolution,
-            packed.grid_origin, packed.grid_spacing, packed.grid_counts,
-            o, d, lo, hi, out.kind, out.t, out.radiance, out.normal, out.distance, out.probe,
-            out.probes_tried, out.fetches, out.steps)
+            mk.TraceModes(*modes), probe_field(packed), mk.RayBatch(o, d, lo, hi),
+            mk.LightFieldOutputs(out.kind, out.t, out.radiance, out.normal, out.distance,
+                                 out.probe, out.probes_tried, out.fetches, out.steps))
     return out
