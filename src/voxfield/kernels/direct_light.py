@@ -39,6 +39,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
+from voxfield.kernels.bundles import PixelOutputs
 from voxfield.kernels.camera_rays import camera_ray
 from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.error_aware import node_error
@@ -101,17 +102,10 @@ class ShadowLod(NamedTuple):
     sh: np.ndarray
 
 
-class DirectLightOutputs(NamedTuple):
-    """Per-pixel output rows: the ``RenderResult`` buffers, then the shadow rays cast, their
-    traversals, steps, mean LOD used and refinements."""
+class ShadowMaps(NamedTuple):
+    """Per-pixel output rows beside the image's (``bundles.PixelOutputs``): the shadow rays
+    cast, their traversals, steps, mean LOD used and refinements."""
 
-    color: np.ndarray
-    depth: np.ndarray
-    normal: np.ndarray
-    rays: np.ndarray
-    hits: np.ndarray
-    steps: np.ndarray
-    lod: np.ndarray
     shadow_rays: np.ndarray
     shadow_traversals: np.ndarray
     shadow_steps: np.ndarray
@@ -292,7 +286,7 @@ def light_sample(
 def render_direct_light_rows(
     cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
     grid_x: int, grid_y: int, scene: ShadowScene, albedo: np.ndarray, emission: np.ndarray,
-    emitters: Emitters, lod: ShadowLod, out: DirectLightOutputs,
+    emitters: Emitters, lod: ShadowLod, out: PixelOutputs, maps: ShadowMaps,
 ) -> None:
     """Rows ``[row0, row1)``: ``grid_x · grid_y`` samples per pixel, each a primary ray at
     LOD 0 through a CMJ sub-pixel position and, where it hits a surface, one light sample.
@@ -302,14 +296,14 @@ def render_direct_light_rows(
     """
     for row in prange(row0, row1):
         render_direct_light_row(cam, width, height, row0, seed, grid_x, grid_y, scene, albedo,
-                                emission, emitters, lod, out, row)
+                                emission, emitters, lod, out, maps, row)
 
 
 @njit(cache=True, nogil=True)
 def render_direct_light_row(
     cam: np.ndarray, width: int, height: int, row0: int, seed: int, grid_x: int, grid_y: int,
     scene: ShadowScene, albedo: np.ndarray, emission: np.ndarray, emitters: Emitters,
-    lod: ShadowLod, out: DirectLightOutputs, row: int,
+    lod: ShadowLod, out: PixelOutputs, maps: ShadowMaps, row: int,
 ) -> None:
     """One row of ``render_direct_light_rows`` (the traversal is inlined here, never straight
     into a ``prange`` body, where Numba's parfor pass would hoist its initialisations)."""
@@ -380,11 +374,11 @@ def render_direct_light_row(
             min(b * scale, 1.0), t_sum, hits, nx_sum, ny_sum, nz_sum,
             samples + shadow_traversals, hits, steps_sum + shadow_steps, 0,
         )
-        out.shadow_rays[i, col] = lod_count
-        out.shadow_traversals[i, col] = shadow_traversals
-        out.shadow_steps[i, col] = shadow_steps
-        out.shadow_lod[i, col] = lod_sum / lod_count if lod_count else NO_LOD
-        out.refinements[i, col] = refinements
+        maps.shadow_rays[i, col] = lod_count
+        maps.shadow_traversals[i, col] = shadow_traversals
+        maps.shadow_steps[i, col] = shadow_steps
+        maps.shadow_lod[i, col] = lod_sum / lod_count if lod_count else NO_LOD
+        maps.refinements[i, col] = refinements
 
 
 @njit(parallel=True, cache=True, nogil=True)

@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.beam import start_distance
-from voxfield.kernels.bundles import BeamBounds, OctreeView
+from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.error_lookup import colour_error, oct_error, sh_error, sh_evaluate
@@ -196,16 +196,10 @@ class ErrorModel(NamedTuple):
     context: np.ndarray
 
 
-class ErrorAwareOutputs(NamedTuple):
-    """Per-pixel output rows: the ``RenderResult`` buffers plus refinements and discards."""
+class RefinementMaps(NamedTuple):
+    """Per-pixel output rows beside the image's (``bundles.PixelOutputs``): refinements and
+    discarded rays."""
 
-    color: np.ndarray
-    depth: np.ndarray
-    normal: np.ndarray
-    rays: np.ndarray
-    hits: np.ndarray
-    steps: np.ndarray
-    lod: np.ndarray
     refined: np.ndarray
     discarded: np.ndarray
 
@@ -214,20 +208,20 @@ class ErrorAwareOutputs(NamedTuple):
 def render_error_aware_rows(
     cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
     view: OctreeView, refinement: Refinement, model: ErrorModel, beam: BeamBounds,
-    out: ErrorAwareOutputs,
+    out: PixelOutputs, maps: RefinementMaps,
 ) -> None:
     """Trace rows ``[row0, row1)``; ``refinement.cone_scale`` > 0 picks the base LOD by pixel
     cone; ``model.lighting_aware`` adds the bright-flag colour error to the geometric one."""
     for row in prange(row0, row1):
         render_error_aware_row(cam, width, height, row0, seed, view, refinement, model, beam,
-                               out, row)
+                               out, maps, row)
 
 
 @njit(cache=True, nogil=True)
 def render_error_aware_row(
     cam: np.ndarray, width: int, height: int, row0: int, seed: int, view: OctreeView,
-    refinement: Refinement, model: ErrorModel, beam: BeamBounds, out: ErrorAwareOutputs,
-    row: int,
+    refinement: Refinement, model: ErrorModel, beam: BeamBounds, out: PixelOutputs,
+    maps: RefinementMaps, row: int,
 ) -> None:
     """One row of ``render_error_aware_rows`` (the traversal is inlined here, never straight
     into a ``prange`` body, where Numba's parfor pass would hoist its initialisations)."""
@@ -237,8 +231,8 @@ def render_error_aware_row(
      light_map, class_of, symmetry_of, symmetries, colour_weight, colour_error,
      colour_to_voxels, context) = model
     beam_bound, block = beam
-    (out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod, out_refined,
-     out_discarded) = out
+    out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod = out
+    out_refined, out_discarded = maps
     fine = 1 << max_refinements  # finest cells per pixel side
     radius, spread = pixel_cone(cam, height)
     radius *= cone_scale

@@ -22,13 +22,14 @@ from voxfield.error_table.table import (
     load_error_table,
 )
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.bundles import PixelOutputs
 from voxfield.kernels.direct_light import (
     SHADOW_DISTANCE,
     SHADOW_ERROR_AWARE,
     SHADOW_REFERENCE,
-    DirectLightOutputs,
     Emitters,
     ShadowLod,
+    ShadowMaps,
     ShadowScene,
     direct_light_points,
     render_direct_light_rows,
@@ -213,11 +214,11 @@ def render_direct_light(
     cam = camera.params
 
     def band(rows: slice) -> None:
-        out = DirectLightOutputs(*result.buffers(rows), shadow_rays[rows],
-                                 shadow_traversals[rows], shadow_steps[rows],
-                                 shadow_lod_map[rows], refinements[rows])
+        maps = ShadowMaps(shadow_rays[rows], shadow_traversals[rows], shadow_steps[rows],
+                          shadow_lod_map[rows], refinements[rows])
         render_direct_light_rows(cam, w, h, rows.start, rows.stop, seed, *setup.grid,
-                                 setup.scene, colors, emission, setup.emitters, setup.lod, out)
+                                 setup.scene, colors, emission, setup.emitters, setup.lod,
+                                 PixelOutputs(*result.buffers(rows)), maps)
 
     result.seconds = run_in_bands(h, band, label=f"direct light ({shadow_lod})",
                                   threads=threads, progress=progress)

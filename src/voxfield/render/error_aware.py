@@ -16,15 +16,15 @@ from voxfield.error_table.table import (
     load_error_table,
 )
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.bundles import BeamBounds, OctreeView
+from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
 from voxfield.kernels.colour import decode_channel
 from voxfield.kernels.error_aware import (
     ENCODING_OCT,
     ENCODING_SH,
     MAX_REFINEMENTS,
-    ErrorAwareOutputs,
     ErrorModel,
     Refinement,
+    RefinementMaps,
     render_error_aware_rows,
 )
 from voxfield.kernels.neighbour_context import same_shape_neighbours
@@ -168,9 +168,10 @@ def render_error_aware(
                             cone_scale=cone_scale if base_lod is None else 0.0)
 
     def band(rows: slice) -> None:
-        out = ErrorAwareOutputs(*result.buffers(rows), refined[rows], discarded[rows])
+        out = PixelOutputs(*result.buffers(rows))
+        maps = RefinementMaps(refined[rows], discarded[rows])
         render_error_aware_rows(cam, w, h, rows.start, rows.stop, seed, view, refinement,
-                                model, BeamBounds(beam.bound, beam.block), out)
+                                model, BeamBounds(beam.bound, beam.block), out, maps)
 
     result.seconds = beam.seconds + run_in_bands(h, band, label="error-aware", threads=threads,
                                                  progress=progress)
