@@ -416,9 +416,9 @@ class TraceModes(NamedTuple):
 
 
 class ProbeField(NamedTuple):
-    """What a trace reads of a packed probe set (``lightfield.PackedProbes``): positions,
-    enabled flags, distance mips, normals, radiance (plain and bordered for bilinear reads),
-    map resolution and the grid."""
+    """What a trace reads of a packed probe set, named as ``lightfield.PackedProbes``'s
+    attributes: positions, enabled flags, distance mips, normals, radiance (plain and
+    bordered for bilinear reads), map resolution and the grid."""
 
     positions: np.ndarray
     enabled: np.ndarray
@@ -445,8 +445,8 @@ class RayBatch(NamedTuple):
 
 
 class LightFieldOutputs(NamedTuple):
-    """Per-ray answers (``lightfield.LightFieldHits``'s arrays): kind, t, radiance, normal,
-    stored distance, answering probe, probes tried, texel fetches and march steps."""
+    """Per-ray answers, named as ``lightfield.LightFieldHits``'s arrays: kind, t, radiance,
+    normal, stored distance, answering probe, probes tried, texel fetches and march steps."""
 
     kind: np.ndarray
     t: np.ndarray
@@ -454,7 +454,7 @@ class LightFieldOutputs(NamedTuple):
     normal: np.ndarray
     distance: np.ndarray
     probe: np.ndarray
-    tried: np.ndarray
+    probes_tried: np.ndarray
     fetches: np.ndarray
     steps: np.ndarray
 

@@ -8,15 +8,14 @@ import numpy as np
 
 from voxfield.kernels import cuda_probe
 from voxfield.kernels.cuda_primary import launch_shape
-from voxfield.kernels.probe_multi import hit_tolerance
+from voxfield.kernels.probe_multi import LightFieldOutputs, ProbeField, hit_tolerance
 from voxfield.lightfield.packed import PackedProbes
 
-#: The maps a trace reads, in the kernel's argument order.
-_MAPS = ("positions", "enabled", "mips", "mip_offsets", "mip_sizes", "normals", "radiance",
-         "radiance_bordered", "distance_bordered")
-_GRID = ("grid_origin", "grid_spacing", "grid_counts")
-_OUTPUTS = ("kind", "t", "radiance", "normal", "distance", "probe", "probes_tried", "fetches",
-            "steps")
+#: The maps a trace reads and the grid, in the kernel's argument order (``ProbeField``'s, with
+#: the map resolution between them), and its outputs (``LightFieldOutputs``' order).
+_MAPS = ProbeField._fields[:ProbeField._fields.index("resolution")]
+_GRID = ProbeField._fields[ProbeField._fields.index("resolution") + 1:]
+_OUTPUTS = LightFieldOutputs._fields
 
 
 def kernel_arguments(packed: PackedProbes, modes: tuple, rays: tuple, out, maps=None,

@@ -278,11 +278,7 @@ def trace_single(packed: PackedProbes, probe: int, origins, dirs,
 
 def probe_field(packed: PackedProbes) -> mk.ProbeField:
     """The maps and grid of ``packed`` that the trace kernels read."""
-    return mk.ProbeField(packed.positions, packed.enabled, packed.mips, packed.mip_offsets,
-                         packed.mip_sizes, packed.normals, packed.radiance,
-                         packed.radiance_bordered, packed.distance_bordered,
-                         packed.resolution, packed.grid_origin, packed.grid_spacing,
-                         packed.grid_counts)
+    return mk.ProbeField(*(getattr(packed, name) for name in mk.ProbeField._fields))
 
 
 def trace_light_field(packed: PackedProbes, origins, dirs,
@@ -307,6 +303,5 @@ def trace_light_field(packed: PackedProbes, origins, dirs,
     with thread_count(threads):
         mk.trace_light_field_rays(
             mk.TraceModes(*modes), probe_field(packed), mk.RayBatch(o, d, lo, hi),
-            mk.LightFieldOutputs(out.kind, out.t, out.radiance, out.normal, out.distance,
-                                 out.probe, out.probes_tried, out.fetches, out.steps))
+            mk.LightFieldOutputs(*(getattr(out, name) for name in mk.LightFieldOutputs._fields)))
     return out
