@@ -157,11 +157,14 @@ def sky_visibility(
                 pu, pv = face_sample(s, count, position_pattern)
                 ox, oy, oz = face_point(x, y, z, f, pu, pv)
                 t_clear = clear_time(ox, oy, oz, dx, dy, dz, 0.0, (y_top - oy) / dy, columns)
+                sky_cast += 1
+                if not t_clear > 0.0:
+                    escaped += 1  # clear from its start: a traversal would take 0 steps
+                    continue
                 blocked, ray_steps = occluded(
                     ox, oy, oz, dx, dy, dz, 0.0, t_clear, inner_nodes, depth, scratch,
                 )
                 steps += ray_steps
-                sky_cast += 1
                 if not blocked:
                     escaped += 1
             face_sky[f] = escaped / count
@@ -266,14 +269,18 @@ def bake_block(
                         pu, pv = face_sample(s, shadow_rays, shadow_pattern)
                         ox, oy, oz = face_point(coords[i, 0], coords[i, 1], coords[i, 2], f,
                                                 pu, pv)
+                        t_clear = clear_time(ox, oy, oz, lx, ly, lz, 0.0, (y_top - oy) / ly,
+                                             columns)
+                        if not t_clear > 0.0:
+                            unblocked[j, f] += 1  # clear from its start: nothing to trace
+                            continue
                         origins[queued, 0] = ox
                         origins[queued, 1] = oy
                         origins[queued, 2] = oz
                         directions[queued, 0] = lx
                         directions[queued, 1] = ly
                         directions[queued, 2] = lz
-                        tmaxs[queued] = clear_time(ox, oy, oz, lx, ly, lz, 0.0,
-                                                   (y_top - oy) / ly, columns)
+                        tmaxs[queued] = t_clear
                         ray_voxel[queued] = j
                         ray_face[queued] = f
                         queued += 1
