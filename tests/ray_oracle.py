@@ -53,28 +53,3 @@ def first_hits(origins, directions, box_min, box_size, tmin=0.0, chunk=64):
         hit[sl] = np.where(found, best, -1)
         t_hit[sl] = best_t
     return hit, t_hit
-
-
-def last_exits(origins, directions, box_min, box_size, tmin, tmax, chunk=64):
-    """Per ray, the latest time it is still inside a box within ``[tmin, tmax)`` (the largest
-    clipped exit over the boxes whose clipped interval is non-empty), or -inf when it meets
-    none: the end of the last stretch in which any query could find a box."""
-    origins = np.asarray(origins, np.float64)
-    directions = np.asarray(directions, np.float64)
-    tmin = np.broadcast_to(np.asarray(tmin, np.float64), (len(origins),))
-    tmax = np.broadcast_to(np.asarray(tmax, np.float64), (len(origins),))
-    lo = np.asarray(box_min, np.float64)
-    hi = lo + float(box_size)
-    out = np.full(len(origins), -np.inf)
-    for start in range(0, len(origins), chunk):
-        sl = slice(start, start + chunk)
-        enter = np.full((len(origins[sl]), len(lo)), -np.inf)
-        leave = np.full_like(enter, np.inf)
-        for axis in range(3):
-            e, l_ = _axis_times(origins[sl, axis], directions[sl, axis], lo[:, axis], hi[:, axis])
-            enter = np.maximum(enter, e)
-            leave = np.minimum(leave, l_)
-        near = np.maximum(enter, tmin[sl, None])
-        far = np.minimum(leave, tmax[sl, None])
-        out[sl] = np.where(near < far, far, -np.inf).max(axis=1)
-    return out

@@ -185,29 +185,6 @@ def test_results_do_not_depend_on_threads_or_chunking(monkeypatch):
     assert not np.array_equal(one.channel("noon"), other_seed.channel("noon"))
 
 
-def test_clipping_rays_at_their_clear_time_changes_no_answer(monkeypatch):
-    """With a pyramid that calls every column full to the top no ray is clipped: the bake
-    must give the same bits, in more steps."""
-    from kernels.test_column_heights import terrain_with_overhangs
-
-    octree = build_octree(terrain_with_overhangs(4, side=48))
-    suns = np.array([s.direction() for s in TIMES_OF_DAY.values()])
-    clipped, clipped_cost = sun_visibility(octree, suns, sky_rays=16, shadow_rays=2, seed=1)
-    real = bake_module.column_heights
-
-    def full_columns(coords, depth):
-        columns = real(coords, depth)
-        return columns._replace(heights=np.full_like(columns.heights, 1 << depth))
-
-    monkeypatch.setattr(bake_module, "column_heights", full_columns)
-    unclipped, unclipped_cost = sun_visibility(octree, suns, sky_rays=16, shadow_rays=2, seed=1)
-    for key in ("direct", "sky", "weight", "surface"):
-        assert np.array_equal(getattr(clipped, key), getattr(unclipped, key))
-    assert clipped_cost["sky_rays"] == unclipped_cost["sky_rays"]
-    assert clipped_cost["traversal_steps"] < 0.95 * unclipped_cost["traversal_steps"]
-    assert 0.0 < clipped.sky[clipped.surface].mean() < 1.0  # some sky blocked, some not
-
-
 def test_sun_directions_follow_the_compass():
     assert np.allclose(sun_at("e", 90.0, 0.0).direction(), [1.0, 0.0, 0.0], atol=1e-12)
     assert np.allclose(sun_at("s", 180.0, 0.0).direction(), [0.0, 0.0, 1.0], atol=1e-12)

@@ -25,11 +25,10 @@ and ``Σ_f w_f`` is returned as the voxel's weight in coarse-level averages.
 Rays start exactly on the face plane with ``tmin = 0``: under the traversal's half-open slab
 contract the voxel's own interval ends at exactly ``t = 0``, so a ray leaving a face never
 hits its own voxel and needs no offset, while a neighbour touching the start point still
-blocks it. Rays stop where they rise above the highest voxel (``y_top``), or sooner, where
-they have risen above every voxel left on their way (``kernels.column_heights``): nothing can
-block them there, so the answer is the same. A face looking down and a sky ray heading down
-cannot see the sky, so they are counted without being traced. All sampling is hashed from
-the voxel's index and the seed: results are the same for any thread count and any chunking.
+blocks it. Rays stop where they rise above the highest voxel (``y_top``): nothing can block
+them there. A face looking down and a sky ray heading down cannot see the sky, so they are
+counted without being traced. All sampling is hashed from the voxel's index and the seed:
+results are the same for any thread count and any chunking.
 """
 
 from __future__ import annotations
@@ -39,7 +38,6 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from voxfield.kernels.column_heights import ColumnHeights, clear_time
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
 from voxfield.kernels.traversal import MISS, new_scratch, occluded
@@ -115,8 +113,8 @@ def face_sample(s: int, count: int, pattern: int) -> tuple[float, float]:
 @njit(cache=True, nogil=True)
 def sky_visibility(
     x: int, y: int, z: int, voxel_pattern: int, faces: int, sky_rays: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float, columns: ColumnHeights,
-    face_sky: np.ndarray, face_weight: np.ndarray, scratch,
+    inner_nodes: np.ndarray, depth: int, y_top: float, face_sky: np.ndarray,
+    face_weight: np.ndarray, scratch,
 ) -> tuple[float, float, float, int, int]:
     """One voxel's sky rays (``faces``: bit ``f`` set for exposed face ``f``): fills its
     per-face sky visibility and weights and returns ``(sky, weight seen, weight total, rays,
@@ -156,15 +154,11 @@ def sky_visibility(
                     continue  # it would see the ground at best: no sky, no need to trace
                 pu, pv = face_sample(s, count, position_pattern)
                 ox, oy, oz = face_point(x, y, z, f, pu, pv)
-                t_clear = clear_time(ox, oy, oz, dx, dy, dz, 0.0, (y_top - oy) / dy, columns)
-                sky_cast += 1
-                if not t_clear > 0.0:
-                    escaped += 1  # clear from its start: a traversal would take 0 steps
-                    continue
                 blocked, ray_steps = occluded(
-                    ox, oy, oz, dx, dy, dz, 0.0, t_clear, inner_nodes, depth, scratch,
+                    ox, oy, oz, dx, dy, dz, 0.0, (y_top - oy) / dy, inner_nodes, depth, scratch,
                 )
                 steps += ray_steps
+                sky_cast += 1
                 if not blocked:
                     escaped += 1
             face_sky[f] = escaped / count
@@ -222,7 +216,7 @@ def trace_shadow_queue(count: int, queue, inner_nodes: np.ndarray, depth: int,
 def bake_block(
     first: int, last: int, coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
     sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float, columns: ColumnHeights,
+    inner_nodes: np.ndarray, depth: int, y_top: float,
     out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
     out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
 ) -> None:
@@ -242,8 +236,7 @@ def bake_block(
         j = i - first
         sky, out_weight[i], total_weight[j], sky_cast, steps = sky_visibility(
             coords[i, 0], coords[i, 1], coords[i, 2], pixel_pattern(voxel_ids[i], seed),
-            faces[i], sky_rays, inner_nodes, depth, y_top, columns, face_sky, face_weight[j],
-            scratch)
+            faces[i], sky_rays, inner_nodes, depth, y_top, face_sky, face_weight[j], scratch)
         out_sky[i] = sky
         out_sky_rays[i] = sky_cast
         out_shadow_rays[i] = 0
@@ -269,18 +262,13 @@ def bake_block(
                         pu, pv = face_sample(s, shadow_rays, shadow_pattern)
                         ox, oy, oz = face_point(coords[i, 0], coords[i, 1], coords[i, 2], f,
                                                 pu, pv)
-                        t_clear = clear_time(ox, oy, oz, lx, ly, lz, 0.0, (y_top - oy) / ly,
-                                             columns)
-                        if not t_clear > 0.0:
-                            unblocked[j, f] += 1  # clear from its start: nothing to trace
-                            continue
                         origins[queued, 0] = ox
                         origins[queued, 1] = oy
                         origins[queued, 2] = oz
                         directions[queued, 0] = lx
                         directions[queued, 1] = ly
                         directions[queued, 2] = lz
-                        tmaxs[queued] = t_clear
+                        tmaxs[queued] = (y_top - oy) / ly
                         ray_voxel[queued] = j
                         ray_face[queued] = f
                         queued += 1
@@ -305,7 +293,7 @@ def bake_block(
 def bake_sun_visibility(
     coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
     sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float, columns: ColumnHeights,
+    inner_nodes: np.ndarray, depth: int, y_top: float,
     out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
     out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
 ) -> None:
@@ -316,7 +304,7 @@ def bake_sun_visibility(
     for b in prange((n + BAKE_BLOCK - 1) // BAKE_BLOCK):
         first = b * BAKE_BLOCK
         bake_block(first, min(n, first + BAKE_BLOCK), coords, voxel_ids, faces, sun_dirs,
-                   sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, columns, out_direct,
+                   sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, out_direct,
                    out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps)
 
 

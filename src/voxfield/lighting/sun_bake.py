@@ -18,7 +18,6 @@ import numpy as np
 
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.colour import decode_channel
-from voxfield.kernels.column_heights import column_heights
 from voxfield.kernels.sun_bake import bake_sun_visibility, lit_colours
 from voxfield.lighting.sun import SunLight
 from voxfield.parallel import thread_count
@@ -143,7 +142,6 @@ def sun_visibility(
 
     # Everything large is shared (scattered to a cluster once); a chunk is a range of it.
     shared = {"inner": inner, "depth": depth, "y_top": y_top, "dirs": dirs,
-              "columns": column_heights(leaves, depth),
               "sky_rays": sky_rays, "shadow_rays": shadow_rays, "seed": int(seed),
               "leaves": leaves, "faces": faces, "surface": surface}
     ranges = [(first, min(len(surface), first + CHUNK_VOXELS))
@@ -188,8 +186,7 @@ def visibility_task(shared: dict, chunk: tuple[int, int], kernel_threads: int | 
         bake_sun_visibility(
             np.ascontiguousarray(corners, np.int64), ids, faces, dirs, shared["sky_rays"],
             shared["shadow_rays"], shared["seed"], shared["inner"], shared["depth"],
-            shared["y_top"], shared["columns"], direct, sky, weight, sky_cast, shadow_cast,
-            steps,
+            shared["y_top"], direct, sky, weight, sky_cast, shadow_cast, steps,
         )
     return (direct, sky, weight, int(sky_cast.sum()), int(shadow_cast.sum()),
             int(steps.sum()))
