@@ -73,7 +73,8 @@ def test_random_scene_with_8bit_colours_and_the_device_arrays_kept():
     assert [k for k in octree.__dict__["_derived"] if k[0] == "cuda"] == [("cuda", "albedo")]
 
 
-def test_the_gpu_benchmark_runs_and_finds_the_same_pixels(capsys):
+def test_the_gpu_benchmark_runs_and_finds_the_same_pixels(capsys, shared_data):
+    """The benchmark's mountain recipe reads a real elevation model: skipped without it."""
     import importlib.util
     from pathlib import Path
 
