@@ -2,7 +2,9 @@
 equal the octant arithmetic; the lighting bake's lit colours equal the NumPy formula."""
 
 import numpy as np
+import pytest
 
+from voxfield.kernels.colour import decode_channel, to_srgb8
 from voxfield.kernels.octree_levels import average_children, child_corners
 from voxfield.kernels.sun_bake import lit_colours
 
@@ -51,15 +53,23 @@ def test_child_corners_follow_the_octant_bits():
     assert out.tolist() == [[0, 0, 0], [1, 1, 1], [7, 2, 4], [6, 3, 4]]
 
 
-def test_lit_colours_equal_the_per_sun_formula():
+@pytest.mark.parametrize("storage", ["float32", "srgb8"])
+def test_lit_colours_equal_the_per_sun_formula(storage):
+    """Whatever the albedo's storage, the kernel decodes it as ``decode_channel`` does, and
+    writes into strided rows (the voxel rows of a channel block) as into an array."""
     rng = np.random.default_rng(5)
     n, suns = 1000, 3
-    albedo = rng.random((n, 3)).astype(np.float32)
+    stored = rng.random((n, 3)).astype(np.float32)
+    if storage == "srgb8":
+        stored = to_srgb8(stored)
+    albedo = decode_channel(stored)
     direct = rng.random((suns, n)).astype(np.float32)
     sky = rng.random(n).astype(np.float32)
     irradiance, sky_colour = rng.random((suns, 3)), rng.random((suns, 3))
-    out = np.empty((suns, n, 3), np.float32)
-    lit_colours(albedo, direct, sky, irradiance, sky_colour, out)
+    block = np.full((suns, n + 7, 3), np.nan, np.float32)
+    lit_colours(stored, direct, sky, irradiance, sky_colour, block[:, 5:5 + n])
+    assert np.isnan(block[:, :5]).all() and np.isnan(block[:, 5 + n:]).all()
     for k in range(suns):
         light = np.outer(direct[k], irradiance[k]) + np.outer(sky, sky_colour[k])
-        assert np.array_equal(out[k], (albedo.astype(np.float64) * light).astype(np.float32))
+        want = (albedo.astype(np.float64) * light).astype(np.float32)
+        assert np.array_equal(block[k, 5:5 + n], want)

@@ -9,7 +9,13 @@ from random_scenes import random_scene
 from voxfield.errors import VoxfieldError
 from voxfield.render import Camera, render_reference
 from voxfield.svo import build_octree
-from voxfield.svo.channels import with_channel, with_channels
+from voxfield.svo.channels import (
+    new_channel_block,
+    propagate_channel,
+    with_channel,
+    with_channel_block,
+    with_channels,
+)
 from voxfield.svo.io import load_octree, save_octree
 
 
@@ -117,3 +123,17 @@ def test_bad_channels_are_refused(octree, name, values, weights, message):
     weight_arrays = {None: None, "negative": -np.ones(n), "short": np.ones(n - 1)}
     with pytest.raises(VoxfieldError, match=message):
         with_channel(octree, name, arrays[values], weights=weight_arrays[weights])
+
+
+def test_a_channel_block_is_filled_in_place(octree):
+    """The bake writes its voxels into a block and the octree keeps the block's rows: the
+    channels equal ``propagate_channel``'s and no channel is a copy."""
+    rng = np.random.default_rng(3)
+    leaves = rng.random((2, octree.voxel_count, 3)).astype(np.float32)
+    weights = rng.random(octree.voxel_count)
+    block = new_channel_block(octree, 2)
+    block[:, octree.level_slice(octree.depth)] = leaves
+    lit = with_channel_block(octree, ["a", "b"], block, weights)
+    for k, name in enumerate("ab"):
+        assert np.shares_memory(lit.attributes[name], block)
+        assert np.array_equal(lit.attributes[name], propagate_channel(octree, leaves[k], weights))

@@ -17,6 +17,7 @@ from voxfield.svo import build_octree
 from voxfield.svo.io import load_octree, save_octree
 from voxfield.svo.lod_colours import (
     DEFAULT_LOD_COLOUR,
+    apply_lod_colour,
     exposed_face_weights,
     exposed_faces,
     facing_colours,
@@ -225,3 +226,32 @@ def test_directional_colours_in_bands_equal_one_call(monkeypatch):
     monkeypatch.setattr(lod_colours, "KERNEL_BAND_NODES", 3)
     np.testing.assert_array_equal(lod_colours.facing_colours(octree), whole)
     assert whole.any()
+
+
+def test_exposed_faces_are_found_once_per_structure_and_kept_read_only():
+    """A command builds (facing colours read the exposure) and then bakes (which reads it
+    again): the recoloured octrees between them share one table, which nobody can alter."""
+    octree = build_octree(random_scene(5, n=400, size=16), lod_colour="mean")
+    bits = exposed_faces(octree)
+    assert not bits.flags.writeable
+    with_facing = apply_lod_colour(octree, "facing")
+    with_surface = apply_lod_colour(with_facing, "surface")
+    assert exposed_faces(with_facing) is bits and exposed_faces(with_surface) is bits
+    # A different structure gets its own table.
+    other = build_octree(random_scene(6, n=400, size=16), lod_colour="mean")
+    assert exposed_faces(other) is not bits
+    # Weights are derived from a copy: the shared table stays as it was.
+    before = bits.copy()
+    exposed_face_weights(with_surface)
+    assert np.array_equal(exposed_faces(with_surface), before)
+
+
+def test_recoloured_copies_change_colours_only():
+    octree = build_octree(random_scene(7, n=300, size=16), lod_colour="mean")
+    with pytest.raises(ValueError, match="colours only"):
+        octree.recoloured(descriptors=octree.descriptors.copy())
+    octree.derived(("colour_error", "color", 0.5), lambda: "per colour")
+    copy = octree.recoloured(name="renamed")
+    assert copy.name == "renamed" and copy.descriptors is octree.descriptors
+    # Tables of the colours are not carried: the copy works its own out.
+    assert copy.derived(("colour_error", "color", 0.5), lambda: "again") == "again"

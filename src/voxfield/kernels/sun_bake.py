@@ -38,6 +38,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
 from voxfield.kernels.traversal import MISS, new_scratch, occluded
@@ -315,11 +316,13 @@ def lit_colours(
 ) -> None:
     """Per voxel ``i`` and sun ``k``, ``albedo × (irradiance_k × direct[k, i] + sky_colour_k ×
     sky[i])`` worked out in float64 and stored as float32 in ``out[k, i]``: every sun's lit
-    leaf colours in one pass, each sun's contiguous as the channel averages read them."""
+    leaf colours in one pass. ``albedo`` is the voxels' stored albedo (8-bit sRGB or float32,
+    ``kernels.colour``), decoded here; ``out`` may be the voxel rows of a channel block."""
     for i in prange(albedo.shape[0]):
         s = np.float64(sky[i])
+        r, g, b = node_rgb(albedo, i)
         for k in range(direct.shape[0]):
             d = np.float64(direct[k, i])
-            for c in range(3):
-                out[k, i, c] = np.float64(albedo[i, c]) * (
-                    d * irradiance[k, c] + s * sky_colour[k, c])
+            out[k, i, 0] = r * (d * irradiance[k, 0] + s * sky_colour[k, 0])
+            out[k, i, 1] = g * (d * irradiance[k, 1] + s * sky_colour[k, 1])
+            out[k, i, 2] = b * (d * irradiance[k, 2] + s * sky_colour[k, 2])

@@ -13,7 +13,6 @@ darken the coarse levels: a node's lit colour is then the colour of its visible 
 from __future__ import annotations
 
 import re
-from dataclasses import replace
 
 import numpy as np
 
@@ -22,8 +21,8 @@ from voxfield.kernels.octree_levels import average_children
 from voxfield.svo.octree import Octree
 
 __all__ = [
-    "check_channel_name", "propagate_channel", "with_channel", "with_channel_block",
-    "with_channels",
+    "check_channel_name", "fill_inner_levels", "new_channel_block", "propagate_channel",
+    "with_channel", "with_channel_block", "with_channels",
 ]
 
 #: Channel names become ``attr_NAME`` keys in octree files and file-name parts of previews.
@@ -68,10 +67,19 @@ def propagate_channel(
     children and carries the sum of their weights; a parent whose children all weigh
     zero takes their plain mean.
     """
-    depth = octree.depth
     leaf_values = np.ascontiguousarray(leaf_values, np.float32)
     out = np.empty((octree.node_count, leaf_values.shape[1]), np.float32)
-    out[octree.level_slice(depth)] = leaf_values
+    out[octree.level_slice(octree.depth)] = leaf_values
+    fill_inner_levels(octree, out, leaf_weights)
+    return out
+
+
+def fill_inner_levels(
+    octree: Octree, values: np.ndarray, leaf_weights: np.ndarray | None = None
+) -> None:
+    """``propagate_channel`` in place: ``values`` (``(nodes, C)`` float32) has its voxel
+    rows set, and gets every inner row from them, with no copy of the leaves."""
+    depth = octree.depth
     weighted = leaf_weights is not None
     weights = np.ascontiguousarray(leaf_weights if weighted else np.zeros(0), np.float64)
     first_child = octree.first_child
@@ -80,10 +88,15 @@ def propagate_channel(
         children = octree.level_slice(level + 1)
         starts = first_child[parents] - int(octree.level_offsets[level + 1])
         parent_weights = np.empty(len(starts) if weighted else 0, np.float64)
-        average_children(starts, out[children], weights, weighted, out[parents],
+        average_children(starts, values[children], weights, weighted, values[parents],
                          parent_weights)
         weights = parent_weights
-    return out
+
+
+def new_channel_block(octree: Octree, count: int) -> np.ndarray:
+    """Room for ``count`` channels, ``(count, nodes, 3)`` float32: fill the voxel rows
+    (``block[:, octree.level_slice(octree.depth)]``) and pass it to ``with_channel_block``."""
+    return np.empty((count, octree.node_count, 3), np.float32)
 
 
 def with_channels(
@@ -105,24 +118,28 @@ def with_channels(
     for name in names:
         check_channel_name(name)
     if not names:
-        return replace(octree, attributes=dict(octree.attributes))
-    leaves = np.stack([
-        _leaf_array(octree, channels[name], f"channel {name!r}", 3).astype(np.float32)
-        for name in names])
-    return with_channel_block(octree, names, leaves, leaf_weights)
+        return octree.recoloured(attributes=dict(octree.attributes))
+    block = new_channel_block(octree, len(names))
+    leaves = octree.level_slice(octree.depth)
+    for k, name in enumerate(names):
+        block[k, leaves] = _leaf_array(octree, channels[name], f"channel {name!r}", 3)
+    return with_channel_block(octree, names, block, leaf_weights)
 
 
 def with_channel_block(
-    octree: Octree, names: list[str], leaves: np.ndarray, weights: np.ndarray | None
+    octree: Octree, names: list[str], block: np.ndarray, weights: np.ndarray | None
 ) -> Octree:
-    """``with_channels`` for leaf values already checked and stacked: ``(len(names),
-    voxels, 3)`` float32, channel ``k`` in ``leaves[k]``."""
+    """``with_channels`` for channels whose leaf values are already checked and in place:
+    ``block`` from ``new_channel_block`` with its voxel rows set, channel ``k`` in
+    ``block[k]``. Its inner rows are filled in place and the octree keeps ``block[k]``
+    (views of one array: no channel is copied)."""
     attributes = dict(octree.attributes)
     if weights is not None:  # widened once for every channel
         weights = np.ascontiguousarray(weights, np.float64)
-    for name, values in zip(names, leaves, strict=True):
-        attributes[check_channel_name(name)] = propagate_channel(octree, values, weights)
-    return replace(octree, attributes=attributes)
+    for name, values in zip(names, block, strict=True):
+        fill_inner_levels(octree, values, weights)
+        attributes[check_channel_name(name)] = values
+    return octree.recoloured(attributes=attributes)
 
 
 def with_channel(

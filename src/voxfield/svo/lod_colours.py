@@ -17,8 +17,6 @@ Only the albedo gets directional colours; baked channels keep their own weightin
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import numba
 import numpy as np
 
@@ -52,13 +50,13 @@ def apply_lod_colour(octree: Octree, rule: str) -> Octree:
     if rule == "surface":
         return surface_weighted(octree)
     if rule == "facing":
-        return replace(octree, facing=facing_colours(octree))
+        return octree.recoloured(facing=facing_colours(octree))
     return octree
 
 
 def exposed_face_weights(octree: Octree) -> np.ndarray:
     """Per voxel, the number of faces no voxel covers, less a down face on the box floor."""
-    bits = exposed_faces(octree)
+    bits = exposed_faces(octree).copy()
     on_floor = octree.node_coords(octree.depth)[:, 1] == octree.voxel_box[0, 1]
     bits[on_floor] &= np.uint8(~(1 << _DOWN_FACE) & 0xFF)
     return np.unpackbits(bits[:, None], axis=1).sum(axis=1).astype(np.float64)
@@ -72,7 +70,7 @@ def surface_weighted(octree: Octree) -> Octree:
     for name, stored in octree.attributes.items():
         values = propagate_channel(octree, decode_channel(stored[leaves]), weights)
         attributes[name] = encode_channel(values, SRGB8 if stored.dtype == np.uint8 else FLOAT32)
-    return replace(octree, attributes=attributes)
+    return octree.recoloured(attributes=attributes)
 
 
 def facing_colours(octree: Octree) -> np.ndarray:
@@ -90,7 +88,12 @@ def facing_colours(octree: Octree) -> np.ndarray:
 
 
 def exposed_faces(octree: Octree) -> np.ndarray:
-    """Per voxel (leaf order), the bits of its faces no voxel covers (``kernels.exposure``)."""
+    """Per voxel (leaf order), the bits of its faces no voxel covers (``kernels.exposure``);
+    worked out once per structure (``Octree.derived``) and read-only, as it is shared."""
+    return octree.derived(("exposed_faces",), lambda: _find_exposed_faces(octree))
+
+
+def _find_exposed_faces(octree: Octree) -> np.ndarray:
     start_level = min(octree.depth - 1, 4)
     out = np.zeros(octree.voxel_count, np.uint8)
     first = int(octree.level_offsets[start_level])
@@ -101,4 +104,5 @@ def exposed_faces(octree: Octree) -> np.ndarray:
     for k in range(0, len(coords), band):
         leaf_exposure(octree.descriptors, octree.depth, start_level, first + k,
                       coords[k:k + band], out)
+    out.setflags(write=False)
     return out

@@ -17,7 +17,7 @@ Node positions are not stored: a node's position is its path from the root, so
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -28,6 +28,11 @@ from voxfield.kernels.colour import decode_channel
 from voxfield.kernels.facing_colour import NO_FACING
 from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT
 from voxfield.kernels.octree_levels import child_corners
+
+#: Fields ``Octree.recoloured`` may change: everything but the structure.
+_COLOUR_FIELDS = frozenset({"attributes", "facing", "name"})
+#: ``Octree.derived`` keys (first item) of tables that depend on the structure alone.
+STRUCTURAL_TABLES = frozenset({"exposed_faces"})
 
 
 @dataclass(frozen=True)
@@ -85,11 +90,28 @@ class Octree:
 
     def derived(self, key: tuple, compute):
         """``compute()``, worked out once per octree and ``key`` and kept with it (as the
-        cached properties are): per-node tables several renders of one octree read."""
+        cached properties are): per-node tables several renders of one octree read. A key
+        whose first item is in ``STRUCTURAL_TABLES`` names a table of the structure alone,
+        which ``recoloured`` copies keep."""
         cache = self.__dict__.setdefault("_derived", {})
         if key not in cache:
             cache[key] = compute()
         return cache[key]
+
+    def recoloured(self, **changes) -> Octree:
+        """This octree with other colours (``attributes``, ``facing``, ``name``): the copy
+        shares the structure, so it keeps every table derived from the structure alone,
+        and the stages of one command (LOD colours, a bake) work each out once."""
+        if not changes.keys() <= _COLOUR_FIELDS:
+            raise ValueError(f"recoloured changes colours only, not {sorted(changes)}")
+        copy = replace(self, **changes)
+        kept = {key: table for key, table in self.__dict__.get("_derived", {}).items()
+                if key[0] in STRUCTURAL_TABLES}
+        copy.__dict__["_derived"] = kept
+        for name in ("child_mask", "first_child"):  # cached properties of the structure
+            if name in self.__dict__:
+                copy.__dict__[name] = self.__dict__[name]
+        return copy
 
     def solid_nodes(self) -> np.ndarray:
         """``(nodes,)`` bool: is every voxel of the node's cube present? (Voxels are.)"""
