@@ -13,8 +13,10 @@ import pytest
 from kernels.test_traversal import adversarial_rays
 from random_scenes import random_scene
 from ray_oracle import first_hits
+from voxfield.kernels.beam import start_distance
 from voxfield.kernels.ray_batch import trace_rays, trace_rays_in_packets
-from voxfield.render.camera import Camera, top_down_camera
+from voxfield.render.beam import primary_beam
+from voxfield.render.camera import Camera, oblique_camera
 from voxfield.render.primary import render_reference
 from voxfield.scene.terrain import recipe_scene
 from voxfield.svo import build_octree
@@ -76,20 +78,36 @@ def test_mixed_signs_and_broken_rays_in_one_packet():
     assert len(signs) == 8
 
 
-def test_supersampled_render_through_packets_counts_as_the_scalar_loop():
-    """With the beam off, reference pixels are traced in packets: their step map equals the
-    sum of the scalar loop's steps over each pixel's rays, and the image equals the beam
-    render's (the scalar loop with restarts)."""
+def test_supersampled_renders_go_through_packets_from_their_beam_bounds():
+    """Reference pixels are traced in packets, each ray from its pixel block's beam bound:
+    the step map equals the scalar loop's steps over each pixel's rays started there (plus
+    the beam pass's share), and the image equals that of rays started at the camera."""
     octree = build_octree(recipe_scene("mountain", footprint=64, seed=0))
     lo, hi = octree.voxel_bounds
-    camera = top_down_camera(lo, hi, size=24, fov_deg=70)
-    packets = render_reference(octree, camera, side=2, beam=False, threads=2)
-    scalar = render_reference(octree, camera, side=2, beam=True, threads=2)
-    assert np.array_equal(packets.image, scalar.image)
-    assert np.array_equal(packets.depth, scalar.depth)
+    camera = oblique_camera(lo, hi, size=24, fov_deg=70, elevation_deg=45)
+    with_beam = render_reference(octree, camera, side=2, beam=True, threads=2)
+    from_camera = render_reference(octree, camera, side=2, beam=False, threads=1)
+    assert np.array_equal(with_beam.image, from_camera.image)
+    assert np.array_equal(with_beam.depth, from_camera.depth)
+
     origins, directions = camera.rays(side=2, seed=0)
-    steps = _run(trace_rays, octree, origins, directions)[4]
-    assert np.array_equal(packets.steps.reshape(-1), steps.reshape(-1, 4).sum(axis=1))
+    for render, beam_on in ((with_beam, True), (from_camera, False)):
+        beam = primary_beam(octree, camera, stop_level=octree.depth, side=2, enabled=beam_on)
+        rows, cols = np.divmod(np.arange(camera.height * camera.width), camera.width)
+        pixel_start = np.array([start_distance(b) for b in
+                                beam.bound[rows // beam.block, cols // beam.block]])
+        assert (pixel_start > 0).all() == beam_on
+        ray_start = np.repeat(pixel_start, 4)  # each pixel's 2×2 rays are consecutive
+        steps = np.empty(len(origins), np.int64)
+        for start in np.unique(ray_start):
+            rays = ray_start == start
+            steps[rays] = _run(trace_rays, octree, origins[rays], directions[rays],
+                               tmin=start)[4]
+        want = steps.reshape(-1, 4).sum(axis=1) + beam.image_steps(camera.height,
+                                                                   camera.width).reshape(-1)
+        assert np.array_equal(render.steps.reshape(-1), want)
+        if beam_on:  # the starts matter: rays from the camera take other steps
+            assert (steps != _run(trace_rays, octree, origins, directions)[4]).sum() > 100
 
 
 def test_octahedral_probe_render_through_packets_matches_per_ray_tracing():
