@@ -151,9 +151,12 @@ def dense_facing(occupied, colour, levels: int):
     return out
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_exposed_faces_match_the_dense_grid(seed):
-    octree = build_octree(random_scene(seed, n=700, size=16))
+@pytest.mark.parametrize(("seed", "n", "size"), [(0, 700, 16), (1, 700, 16), (2, 700, 16),
+                                                  (8, 120_000, 64)])
+def test_exposed_faces_match_the_dense_grid(seed, n, size):
+    """Sparse small scenes, and a dense 64³ one deep enough that most neighbours are found
+    from a common ancestor the walk holds rather than from the root."""
+    octree = build_octree(random_scene(seed, n=n, size=size))
     occupied, _ = dense_grid(octree)
     coords = octree.node_coords(octree.depth)
     expected = dense_exposure(occupied)[tuple(coords.T)]

@@ -1,7 +1,9 @@
 """Which faces of each voxel no other voxel covers, found in the octree itself.
 
 A face is exposed when the voxel across it is absent. Faces toward a sibling are read from
-the parent's child mask; the others by a point lookup from the root. Memory stays at one
+the parent's child mask; the others by a lookup from the lowest ancestor the two voxels
+share, which the depth-first walk keeps (most neighbours share a grandparent: two levels
+down instead of the whole depth). Memory stays at one
 byte per voxel, so this runs on streamed terrains far larger than their coordinate arrays.
 Bits follow ``scene.surface.DIRECTIONS``: -x, +x, -y, +y, -z, +z.
 """
@@ -11,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
-from voxfield.kernels.node_descriptor import child_index, node_at
+from voxfield.kernels.node_descriptor import child_index, node_at, node_below
+from voxfield.kernels.traversal import highest_bit
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -27,6 +30,8 @@ def leaf_exposure(descriptors, depth: int, start_level: int, start_first: int,
         stack_node = np.empty(8 * (depth + 1), np.int64)
         stack_level = np.empty(8 * (depth + 1), np.int64)
         stack_pos = np.empty((8 * (depth + 1), 3), np.int64)
+        path = np.empty(depth + 1, np.int64)  # the walk's current node per level
+        side = 1 << depth
         top = 0
         stack_node[0] = start_first + s
         stack_level[0] = start_level
@@ -41,6 +46,7 @@ def leaf_exposure(descriptors, depth: int, start_level: int, start_first: int,
             px = stack_pos[top, 0]
             py = stack_pos[top, 1]
             pz = stack_pos[top, 2]
+            path[level] = node
             descriptor = descriptors[node]
             mask = descriptor & 0xFF
             if level + 1 < depth:
@@ -74,6 +80,15 @@ def leaf_exposure(descriptors, depth: int, start_level: int, start_first: int,
                     nx = x + (step if axis == 0 else 0)
                     ny = y + (step if axis == 1 else 0)
                     nz = z + (step if axis == 2 else 0)
-                    if node_at(descriptors, depth, depth, nx, ny, nz) < 0:
+                    if nx < 0 or ny < 0 or nz < 0 or nx >= side or ny >= side or nz >= side:
+                        bits |= 1 << outward_face
+                        continue
+                    # The lowest common ancestor: above the highest bit where they differ.
+                    shared = depth - 1 - highest_bit((x ^ nx) | (y ^ ny) | (z ^ nz))
+                    if shared >= start_level:
+                        found = node_below(descriptors, path[shared], shared, depth, nx, ny, nz)
+                    else:
+                        found = node_at(descriptors, depth, depth, nx, ny, nz)
+                    if found < 0:
                         bits |= 1 << outward_face
                 out[child_index(descriptor, octant) - inner] = bits

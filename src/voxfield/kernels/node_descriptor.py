@@ -67,9 +67,17 @@ def node_at(descriptors, depth: int, level: int, x: int, y: int, z: int) -> int:
     side = 1 << level
     if x < 0 or y < 0 or z < 0 or x >= side or y >= side or z >= side:
         return -1
-    node = 0
-    for current in range(level):
-        shift = level - current - 1
+    return node_below(descriptors, 0, 0, level, x, y, z)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def node_below(descriptors, node: int, level: int, target_level: int, x: int, y: int,
+               z: int) -> int:
+    """``node_at`` from an ancestor: the node at ``target_level`` with corner ``(x, y, z)``
+    (that level's units) below ``node`` at ``level``, whose cube must hold it; -1 where
+    there is none. A lookup next to a known node starts at their common ancestor."""
+    for current in range(level, target_level):
+        shift = target_level - current - 1
         octant = ((x >> shift) & 1) | (((y >> shift) & 1) << 1) | (((z >> shift) & 1) << 2)
         descriptor = descriptors[node]
         if not (descriptor >> octant) & 1:
