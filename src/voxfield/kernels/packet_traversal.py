@@ -2,13 +2,13 @@
 
 Why: the samples of one pixel (and of its neighbours) visit almost the same nodes. The scalar
 loop (``kernels.traversal``) pays a dependent load and a hard-to-predict branch per node and
-per ray; a packet loads each node's descriptor once and decides, per child, with one pass of
-branch-free arithmetic over the packet's rays (which the compiler vectorises) and one branch
-for the whole packet. Supersampled primary rays run about twice as fast this way, and so do
-the sun bake's shadow rays, parallel rays from neighbouring voxels (any-hit packets: a ray
-stops in the first solid node it enters, as ``occluded`` stops); a packet of rays that
-diverge (one ray per pixel over fine voxels, cosine-weighted sky rays) gains nothing, so
-those keep the scalar loop.
+per ray; a packet loads each node's descriptor once and decides for all eight children with
+one pass of branch-free arithmetic over the packet's rays (which the compiler vectorises),
+and one branch for the whole packet. Supersampled primary rays run about twice as fast this
+way, and so do the sun bake's shadow rays, parallel rays from neighbouring voxels (any-hit
+packets: a ray stops in the first solid node it enters, as ``occluded`` stops); a packet of
+rays that diverge (one ray per pixel over fine voxels, cosine-weighted sky rays) gains
+nothing, so those keep the scalar loop.
 
 **Same answers.** Rays are grouped by direction signs (``flip``); within a group the children
 of a node, taken in mirrored octant order, are front to back for every ray. A depth-first walk
@@ -201,6 +201,82 @@ def _interval_mask(n: int, times: np.ndarray, ex: int, ey: int, ez: int, span: i
     return mask
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _child_masks(n: int, x0: int, y0: int, z0: int, size: int, exit_x: int, exit_y: int,
+                 exit_z: int, ox: np.ndarray, oy: np.ndarray, oz: np.ndarray, ix: np.ndarray,
+                 iy: np.ndarray, iz: np.ndarray, tmn: np.ndarray, tmx: np.ndarray,
+                 masks: np.ndarray) -> None:
+    """``masks[i]``: bit ``k`` set where ray ``k``'s clipped interval in child ``i`` (octant
+    bits in the mirrored frame) of the node at ``(x0, y0, z0)`` is non-empty, the eight in
+    one pass over the packet. Each ray's nine plane times stay in registers, and the
+    children share their partial maxima and minima: an axis's entry is clipped by ``tmin``
+    and its exit by ``tmax`` once, the x and y pairs once for the four z children. Max and
+    min are exact, so every mask equals ``_interval_mask``'s."""
+    half = size >> 1
+    near_x = float(x0 + (size & ~exit_x))
+    mid_x = float(x0 + half)
+    far_x = float(x0 + (size & exit_x))
+    near_y = float(y0 + (size & ~exit_y))
+    mid_y = float(y0 + half)
+    far_y = float(y0 + (size & exit_y))
+    near_z = float(z0 + (size & ~exit_z))
+    mid_z = float(z0 + half)
+    far_z = float(z0 + (size & exit_z))
+    m0 = m1 = m2 = m3 = m4 = m5 = m6 = m7 = 0
+    for k in range(n):
+        lo = tmn[k]
+        hi = tmx[k]
+        x_in0 = fmax((near_x - ox[k]) * ix[k], lo)
+        x_mid = (mid_x - ox[k]) * ix[k]
+        x_in1 = fmax(x_mid, lo)
+        x_out0 = fmin(x_mid, hi)
+        x_out1 = fmin((far_x - ox[k]) * ix[k], hi)
+        y_in0 = (near_y - oy[k]) * iy[k]
+        y_mid = (mid_y - oy[k]) * iy[k]
+        y_out1 = (far_y - oy[k]) * iy[k]
+        z_in0 = (near_z - oz[k]) * iz[k]
+        z_mid = (mid_z - oz[k]) * iz[k]
+        z_out1 = (far_z - oz[k]) * iz[k]
+        # Entry and exit of the four (x, y) columns, then of each z half.
+        in00 = fmax(x_in0, y_in0)
+        in10 = fmax(x_in1, y_in0)
+        in01 = fmax(x_in0, y_mid)
+        in11 = fmax(x_in1, y_mid)
+        out00 = fmin(x_out0, y_mid)
+        out10 = fmin(x_out1, y_mid)
+        out01 = fmin(x_out0, y_out1)
+        out11 = fmin(x_out1, y_out1)
+        m0 |= np.int64(fmax(in00, z_in0) < fmin(out00, z_mid)) << k
+        m1 |= np.int64(fmax(in10, z_in0) < fmin(out10, z_mid)) << k
+        m2 |= np.int64(fmax(in01, z_in0) < fmin(out01, z_mid)) << k
+        m3 |= np.int64(fmax(in11, z_in0) < fmin(out11, z_mid)) << k
+        m4 |= np.int64(fmax(in00, z_mid) < fmin(out00, z_out1)) << k
+        m5 |= np.int64(fmax(in10, z_mid) < fmin(out10, z_out1)) << k
+        m6 |= np.int64(fmax(in01, z_mid) < fmin(out01, z_out1)) << k
+        m7 |= np.int64(fmax(in11, z_mid) < fmin(out11, z_out1)) << k
+    masks[0] = m0
+    masks[1] = m1
+    masks[2] = m2
+    masks[3] = m3
+    masks[4] = m4
+    masks[5] = m5
+    masks[6] = m6
+    masks[7] = m7
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _child_entry(k: int, i: int, x0: int, y0: int, z0: int, size: int, exit_x: int,
+                 exit_y: int, exit_z: int, ox: np.ndarray, oy: np.ndarray, oz: np.ndarray,
+                 ix: np.ndarray, iy: np.ndarray, iz: np.ndarray) -> tuple[float, float, float]:
+    """Ray ``k``'s entry-plane times of child ``i`` (mirrored octant bits), each by
+    ``face_time``'s formula as ``_plane_times`` computes it."""
+    half = size >> 1
+    px = float(x0 + half) if i & 1 else float(x0 + (size & ~exit_x))
+    py = float(y0 + half) if i & 2 else float(y0 + (size & ~exit_y))
+    pz = float(z0 + half) if i & 4 else float(z0 + (size & ~exit_z))
+    return (px - ox[k]) * ix[k], (py - oy[k]) * iy[k], (pz - oz[k]) * iz[k]
+
+
 @njit(cache=True, nogil=True)
 def walk_sign_group(
     n: int, flip: int, inner_nodes: np.ndarray, depth: int, stop_level: int, scratch,
@@ -274,13 +350,10 @@ def walk_sign_group(
             if done == full:
                 return
             continue
-        _plane_times(n, times, x0, y0, z0, size, exit_x, exit_y, exit_z, ox, oy, oz, ix, iy,
-                     iz)
+        _child_masks(n, x0, y0, z0, size, exit_x, exit_y, exit_z, ox, oy, oz, ix, iy, iz,
+                     tmn, tmx, masks)
         for i in range(8):
-            masks[i] = 0
-            if (descriptor >> (i ^ flip)) & 1:
-                masks[i] = active & _interval_mask(
-                    n, times, i & 1, 3 + ((i >> 1) & 1), 6 + (i >> 2), 1, tmn, tmx)
+            masks[i] = active & masks[i] if (descriptor >> (i ^ flip)) & 1 else 0
         if level + 1 >= stop_level:
             # The children are leaves for this query: each ray stops at the first it meets.
             for i in range(8):
@@ -288,18 +361,17 @@ def walk_sign_group(
                 if hits == 0:
                     continue
                 child = child_index(descriptor, i ^ flip)
-                ex = i & 1
-                ey = 3 + ((i >> 1) & 1)
-                ez = 6 + (i >> 2)
                 for k in range(n):
                     if (hits >> k) & 1:
                         out_steps[k] += 1
                         out_node[k] = child
                         out_level[k] = level + 1
-                        out_t[k] = fmax(fmax(fmax(times[ex, k], times[ey, k]),
-                                               times[ez, k]), tmn[k])
-                        out_normal[k] = entry_normal(times[ex, k], times[ey, k], times[ez, k],
-                                                     tmn[k], sx, sy, sz)
+                        if any_hit:
+                            continue  # an any-hit answer has no time or normal
+                        tx, ty, tz = _child_entry(k, i, x0, y0, z0, size, exit_x, exit_y,
+                                                  exit_z, ox, oy, oz, ix, iy, iz)
+                        out_t[k] = fmax(fmax(fmax(tx, ty), tz), tmn[k])
+                        out_normal[k] = entry_normal(tx, ty, tz, tmn[k], sx, sy, sz)
                 done |= hits
             if done == full:
                 return
