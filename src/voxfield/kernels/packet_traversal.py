@@ -156,22 +156,26 @@ def _clear_results(n: int, out_node: np.ndarray, out_level: np.ndarray, out_t: n
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _node_planes(x0: int, y0: int, z0: int, size: int, exit_x: int, exit_y: int,
+                 exit_z: int):
+    """The planes a ray enters, halves and leaves a node by, per axis in the mirrored frame
+    (near, middle, far), as floats for ``face_time``'s formula. (``_child_masks``, the hot
+    pass, spells them out: there the tuple measured up to 8 % slower.)"""
+    half = size >> 1
+    return (float(x0 + (size & ~exit_x)), float(x0 + half), float(x0 + (size & exit_x)),
+            float(y0 + (size & ~exit_y)), float(y0 + half), float(y0 + (size & exit_y)),
+            float(z0 + (size & ~exit_z)), float(z0 + half), float(z0 + (size & exit_z)))
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _plane_times(n: int, times: np.ndarray, x0: int, y0: int, z0: int, size: int,
                  exit_x: int, exit_y: int, exit_z: int, ox: np.ndarray, oy: np.ndarray,
                  oz: np.ndarray, ix: np.ndarray, iy: np.ndarray, iz: np.ndarray) -> None:
     """Crossing times of a node's nine planes per ray: entry, middle and exit of each axis in
     rows ``3a, 3a + 1, 3a + 2`` (``face_time``'s formula), so a child's entry planes are rows
     ``3a + bit`` and its exit planes the next rows."""
-    half = size >> 1
-    near_x = float(x0 + (size & ~exit_x))
-    mid_x = float(x0 + half)
-    far_x = float(x0 + (size & exit_x))
-    near_y = float(y0 + (size & ~exit_y))
-    mid_y = float(y0 + half)
-    far_y = float(y0 + (size & exit_y))
-    near_z = float(z0 + (size & ~exit_z))
-    mid_z = float(z0 + half)
-    far_z = float(z0 + (size & exit_z))
+    near_x, mid_x, far_x, near_y, mid_y, far_y, near_z, mid_z, far_z = _node_planes(
+        x0, y0, z0, size, exit_x, exit_y, exit_z)
     for k in range(n):
         times[0, k] = (near_x - ox[k]) * ix[k]
         times[1, k] = (mid_x - ox[k]) * ix[k]
