@@ -8,6 +8,7 @@ import pytest
 from random_scenes import random_scene
 from voxfield.errors import VoxfieldError
 from voxfield.render import Camera, orbit_camera, render, render_lod, render_reference
+from voxfield.render.primary import TILE, tile_order
 from voxfield.scene.builtin import pillars
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
@@ -99,3 +100,20 @@ def test_bad_renderer_options_raise(pillar_octree):
         render_lod(pillar_octree, cam, lod=99)
     with pytest.raises(VoxfieldError, match="no channel"):
         render_reference(pillar_octree, cam, channel="sunset")
+
+
+@pytest.mark.parametrize(("height", "width"), [(16, 24), (13, 10)])
+def test_tile_order_visits_each_pixel_once_tile_by_tile_in_quads(height, width):
+    """Every pixel once; whole rows of 8×8 tiles are contiguous runs (the bands a render
+    hands out); inside a full tile every four consecutive pixels form a 2×2 quad."""
+    order = tile_order(height, width)
+    assert np.array_equal(np.sort(order), np.arange(height * width))
+    rows, cols = np.divmod(order, width)
+    tile_rows = rows // TILE
+    assert np.all(np.diff(tile_rows) >= 0)
+    first = order[: TILE * TILE]  # the first tile, always full here (both sides >= 8)
+    r, c = np.divmod(first, width)
+    assert r.max() < TILE and c.max() < TILE
+    for quad in range(0, TILE * TILE, 4):
+        qr, qc = r[quad:quad + 4], c[quad:quad + 4]
+        assert qr.max() - qr.min() == 1 and qc.max() - qc.min() == 1

@@ -97,9 +97,10 @@ TILE = 8
 
 
 def tile_order(height: int, width: int) -> np.ndarray:
-    """Flat pixel indices in ``TILE``×``TILE`` tiles (tiles and the pixels inside each in
-    row-major order): neighbouring rays run one after another and share cached nodes and
-    restarts. Bands of whole tile rows are contiguous runs of it."""
+    """Flat pixel indices in ``TILE``×``TILE`` tiles (tiles in row-major order, the pixels
+    inside each in Morton order): neighbouring rays run one after another and share cached
+    nodes and restarts, and a packet's consecutive pixels are 2×2 quads, not strips. Bands of
+    whole tile rows are contiguous runs of it."""
     return _tile_order(height, width).copy()
 
 
@@ -107,8 +108,10 @@ def tile_order(height: int, width: int) -> np.ndarray:
 def _tile_order(height: int, width: int) -> np.ndarray:
     """The sort behind ``tile_order``, once per image size (it costs more than a copy)."""
     rows, cols = np.divmod(np.arange(height * width, dtype=np.int64), width)
-    key = (rows // TILE * (-(-width // TILE)) + cols // TILE) * TILE * TILE + (
-        rows % TILE) * TILE + cols % TILE
+    inside = np.zeros_like(rows)
+    for bit in range(TILE.bit_length() - 1):  # Morton order inside a tile
+        inside |= ((cols >> bit) & 1) << (2 * bit) | ((rows >> bit) & 1) << (2 * bit + 1)
+    key = (rows // TILE * (-(-width // TILE)) + cols // TILE) * TILE * TILE + inside
     return np.argsort(key, kind="stable")
 
 
