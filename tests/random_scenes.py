@@ -12,3 +12,24 @@ def random_scene(seed: int = 0, n: int = 600, size: int = 16) -> VoxelScene:
     rng = np.random.default_rng(seed)
     coords = rng.integers(0, size, size=(n, 3))
     return VoxelScene(coords, rng.random((n, 3)), name=f"random{seed}").dedupe()
+
+
+def overhanging_terrain(seed: int = 0, size: int = 24) -> VoxelScene:
+    """Rolling ground with holes under it, floating ledges and arches: columns whose voxels
+    do not form one run, as rays towards the sky meet in caves and under overhangs."""
+    rng = np.random.default_rng(seed)
+    x, z = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
+    ground = 3 + np.round(2 * np.sin(x / 3.0 + seed) + 2 * np.cos(z / 4.0)).astype(int)
+    parts = []
+    for y in range(int(ground.max()) + 1):
+        below = (y < ground) & ((y >= ground - 2) | (rng.random(ground.shape) < 0.5))
+        parts.append(np.stack([x[below], np.full(below.sum(), y), z[below]], axis=1))
+    for _ in range(size // 3):  # ledges a few voxels above the ground
+        x0, z0 = rng.integers(0, size - 4, size=2)
+        w, d = rng.integers(1, 6, size=2)
+        y = int(ground[x0, z0]) + int(rng.integers(2, 6))
+        xs, zs = np.meshgrid(np.arange(x0, x0 + w), np.arange(z0, z0 + d), indexing="ij")
+        parts.append(np.stack([xs.ravel(), np.full(xs.size, y), zs.ravel()], axis=1))
+    coords = np.concatenate(parts)
+    coords = coords[(coords[:, 0] < size) & (coords[:, 2] < size)]
+    return VoxelScene(coords, rng.random((len(coords), 3)), name=f"ledges{seed}").dedupe()

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from random_scenes import random_scene
+from random_scenes import overhanging_terrain, random_scene
 from ray_oracle import first_hits
 from voxfield.cli.cmd_light import register as add_light_parser
 from voxfield.errors import VoxfieldError
@@ -136,6 +136,22 @@ def test_shadow_rays_agree_with_a_brute_force_oracle():
         expected[seen] /= total[seen]
         assert np.allclose(vis.direct[k], expected, rtol=1e-6, atol=1e-7)
         assert 0.0 < (expected > 0).mean() < 1.0  # some faces lit, some in shadow
+
+
+def test_rays_settled_over_column_tops_give_the_octree_bake():
+    """Terrain with caves, ledges and hollows: walking the column tops first changes the
+    cost, never a voxel's sky or sun visibility."""
+    octree = build_octree(overhanging_terrain(seed=3, size=40))
+    suns = np.array([sun_at("a", 130.0, 35.0).direction(), sun_at("b", 300.0, 10.0).direction()])
+    walked, walked_cost = sun_visibility(octree, suns, sky_rays=12, shadow_rays=3, seed=1)
+    plain, plain_cost = sun_visibility(octree, suns, sky_rays=12, shadow_rays=3, seed=1,
+                                       columns=False)
+    for name in ("direct", "sky", "weight", "surface"):
+        assert np.array_equal(getattr(walked, name), getattr(plain, name)), name
+    assert walked_cost["sky_rays"] == plain_cost["sky_rays"]
+    assert walked_cost["shadow_rays"] == plain_cost["shadow_rays"]
+    assert walked_cost["traversal_steps"] < plain_cost["traversal_steps"]
+    assert 0.0 < walked.sky[walked.surface].mean() < 1.0
 
 
 def test_an_isolated_voxel_sees_all_the_sky_above_and_half_from_its_sides():

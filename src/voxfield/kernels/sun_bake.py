@@ -29,6 +29,12 @@ blocks it. Rays stop where they rise above the highest voxel (``y_top``): nothin
 them there. A face looking down and a sky ray heading down cannot see the sky, so they are
 counted without being traced. All sampling is hashed from the voxel's index and the seed:
 results are the same for any thread count and any chunking.
+
+Every traced ray rises, so it first walks the column-top pyramid (``kernels.upward_rays``):
+over open ground that settles most rays (clear above the terrain, or blocked by the run of
+voxels they dip into) in a few 2D cells; the rest go on through the octree from where the
+walk left them, with the answer the octree alone gives. A ray's steps are the pyramid cells
+it visits plus the octree nodes it enters.
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
 from voxfield.kernels.traversal import MISS, new_scratch, occluded
+from voxfield.kernels.upward_rays import BLOCKED, UNDECIDED, rising_ray_query
 
 _GOLDEN = 0x9E3779B9
 _POSITION_SALT = 0x68E31DA4
@@ -114,7 +121,7 @@ def face_sample(s: int, count: int, pattern: int) -> tuple[float, float]:
 @njit(cache=True, nogil=True)
 def sky_visibility(
     x: int, y: int, z: int, voxel_pattern: int, faces: int, sky_rays: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float, face_sky: np.ndarray,
+    inner_nodes: np.ndarray, depth: int, y_top: float, columns, face_sky: np.ndarray,
     face_weight: np.ndarray, scratch,
 ) -> tuple[float, float, float, int, int]:
     """One voxel's sky rays (``faces``: bit ``f`` set for exposed face ``f``): fills its
@@ -155,9 +162,14 @@ def sky_visibility(
                     continue  # it would see the ground at best: no sky, no need to trace
                 pu, pv = face_sample(s, count, position_pattern)
                 ox, oy, oz = face_point(x, y, z, f, pu, pv)
-                blocked, ray_steps = occluded(
-                    ox, oy, oz, dx, dy, dz, 0.0, (y_top - oy) / dy, inner_nodes, depth, scratch,
-                )
+                tmax = (y_top - oy) / dy
+                verdict, t_on, ray_steps = rising_ray_query(ox, oy, oz, dx, dy, dz, tmax,
+                                                            columns)
+                blocked = verdict == BLOCKED
+                if verdict == UNDECIDED:
+                    blocked, octree_steps = occluded(ox, oy, oz, dx, dy, dz, t_on, tmax,
+                                                     inner_nodes, depth, scratch)
+                    ray_steps += octree_steps
                 steps += ray_steps
                 sky_cast += 1
                 if not blocked:
@@ -217,18 +229,19 @@ def trace_shadow_queue(count: int, queue, inner_nodes: np.ndarray, depth: int,
 def bake_block(
     first: int, last: int, coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
     sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float,
+    inner_nodes: np.ndarray, depth: int, y_top: float, columns,
     out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
     out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
 ) -> None:
     """Bake voxels ``first..last-1`` (at most ``BAKE_BLOCK``): each voxel's sky rays one by
-    one, then per sun the block's shadow rays (from the faces turned to it) queued and
-    traced as any-hit packets: parallel rays from neighbouring voxels walk almost the same
-    nodes, and a packet loads each node once for all of them."""
+    one, then per sun the block's shadow rays (from the faces turned to it); those the
+    column walk leaves undecided are queued and traced as any-hit packets: parallel rays from
+    neighbouring voxels walk almost the same nodes, and a packet loads each node once for
+    all of them. ``columns`` is a ``svo.column_tops.ColumnTops`` (empty: octree only)."""
     scratch = new_scratch(depth)
     packet_scratch = new_packet_scratch(depth)
     queue = new_shadow_queue()
-    origins, directions, _, tmaxs, ray_voxel, ray_face = queue[:6]
+    origins, directions, tmins, tmaxs, ray_voxel, ray_face = queue[:6]
     face_sky = np.empty(6)
     face_weight = np.empty((BAKE_BLOCK, 6))
     total_weight = np.empty(BAKE_BLOCK)
@@ -237,7 +250,8 @@ def bake_block(
         j = i - first
         sky, out_weight[i], total_weight[j], sky_cast, steps = sky_visibility(
             coords[i, 0], coords[i, 1], coords[i, 2], pixel_pattern(voxel_ids[i], seed),
-            faces[i], sky_rays, inner_nodes, depth, y_top, face_sky, face_weight[j], scratch)
+            faces[i], sky_rays, inner_nodes, depth, y_top, columns, face_sky, face_weight[j],
+            scratch)
         out_sky[i] = sky
         out_sky_rays[i] = sky_cast
         out_shadow_rays[i] = 0
@@ -263,13 +277,22 @@ def bake_block(
                         pu, pv = face_sample(s, shadow_rays, shadow_pattern)
                         ox, oy, oz = face_point(coords[i, 0], coords[i, 1], coords[i, 2], f,
                                                 pu, pv)
+                        tmax = (y_top - oy) / ly
+                        verdict, t_on, ray_steps = rising_ray_query(ox, oy, oz, lx, ly, lz,
+                                                                    tmax, columns)
+                        out_steps[i] += ray_steps
+                        if verdict != UNDECIDED:
+                            if verdict != BLOCKED:
+                                unblocked[j, f] += 1
+                            continue
                         origins[queued, 0] = ox
                         origins[queued, 1] = oy
                         origins[queued, 2] = oz
                         directions[queued, 0] = lx
                         directions[queued, 1] = ly
                         directions[queued, 2] = lz
-                        tmaxs[queued] = (y_top - oy) / ly
+                        tmins[queued] = t_on
+                        tmaxs[queued] = tmax
                         ray_voxel[queued] = j
                         ray_face[queued] = f
                         queued += 1
@@ -294,7 +317,7 @@ def bake_block(
 def bake_sun_visibility(
     coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
     sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float,
+    inner_nodes: np.ndarray, depth: int, y_top: float, columns,
     out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
     out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
 ) -> None:
@@ -305,7 +328,7 @@ def bake_sun_visibility(
     for b in prange((n + BAKE_BLOCK - 1) // BAKE_BLOCK):
         first = b * BAKE_BLOCK
         bake_block(first, min(n, first + BAKE_BLOCK), coords, voxel_ids, faces, sun_dirs,
-                   sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, out_direct,
+                   sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, columns, out_direct,
                    out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps)
 
 

@@ -23,6 +23,7 @@ from voxfield.parallel import thread_count
 from voxfield.progress import progress_bar
 from voxfield.scaleout import run_tasks
 from voxfield.svo.channels import new_channel_block, with_channel_block
+from voxfield.svo.column_tops import column_tops, no_column_tops
 from voxfield.svo.lod_colours import exposed_faces
 from voxfield.svo.octree import Octree
 
@@ -52,7 +53,8 @@ class SunVisibility:
 
 @dataclass
 class BakeReport:
-    """What a bake cost; ``rays`` and ``traversal_steps`` are the hardware-independent part."""
+    """What a bake cost; ``rays`` and ``traversal_steps`` are the hardware-independent part
+    (the steps count column-top cells as well as octree nodes, ``kernels.sun_bake``)."""
 
     voxels: int
     surface_voxels: int
@@ -110,9 +112,14 @@ def _check_suns(suns: Sequence[SunLight]) -> list[SunLight]:
 def sun_visibility(
     octree: Octree, sun_dirs: np.ndarray, *, sky_rays: int = 16, shadow_rays: int = 4,
     seed: int = 0, threads: int | None = None, progress: bool = False, scheduler=None,
+    columns: bool = True,
 ) -> tuple[SunVisibility, dict]:
     """Trace the visibility terms of every surface voxel for unit directions ``sun_dirs``
     (suns×3, towards the sun); returns them and the cost counters.
+
+    The rays rise, so they first walk the column-top pyramid (``svo.column_tops``), which
+    settles most of them, and only the rest go through the octree; ``columns=False`` sends
+    every ray through the octree, with the same visibility (for comparisons and tests).
 
     Chunks of ``CHUNK_VOXELS`` surface voxels are independent (each voxel's rays are hashed
     from its index and ``seed``): without a ``scheduler`` they run one after another here,
@@ -138,9 +145,11 @@ def sun_visibility(
     counters = {"sky_rays": 0, "shadow_rays": 0, "traversal_steps": 0}
     inner, depth = octree.inner_nodes, octree.depth
     y_top = float(octree.voxel_bounds[1][1])
+    tops = (octree.derived(("column_tops",), lambda: column_tops(leaves))
+            if columns else no_column_tops())
 
     # Everything large is shared (scattered to a cluster once); a chunk is a range of it.
-    shared = {"inner": inner, "depth": depth, "y_top": y_top, "dirs": dirs,
+    shared = {"inner": inner, "depth": depth, "y_top": y_top, "columns": tops, "dirs": dirs,
               "sky_rays": sky_rays, "shadow_rays": shadow_rays, "seed": int(seed),
               "leaves": leaves, "faces": faces, "surface": surface}
     ranges = [(first, min(len(surface), first + CHUNK_VOXELS))
@@ -194,7 +203,8 @@ def visibility_task(shared: dict, chunk: tuple[int, int], kernel_threads: int | 
         bake_sun_visibility(
             np.ascontiguousarray(corners, np.int64), ids, faces, dirs, shared["sky_rays"],
             shared["shadow_rays"], shared["seed"], shared["inner"], shared["depth"],
-            shared["y_top"], direct, sky, weight, sky_cast, shadow_cast, steps,
+            shared["y_top"], shared["columns"], direct, sky, weight, sky_cast, shadow_cast,
+            steps,
         )
     return (direct, sky, weight, int(sky_cast.sum()), int(shadow_cast.sum()),
             int(steps.sum()))

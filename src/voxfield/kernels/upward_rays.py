@@ -1,0 +1,131 @@
+"""Any-hit queries for rising rays over the column-top pyramid (``svo.column_tops``).
+
+A ray with ``dy > 0`` walks the pyramid's cells in 2D, coarse where it can: in a cell whose
+highest top it is above when it enters, it stays above every voxel until it leaves (it
+only rises), so the cell is skipped whole and the walk climbs a level; below a cell's top
+the walk descends. In a single column below its top, a ray that meets the column's top run
+of voxels is blocked; one that passes under it (an overhang, a cave, a hollow shell) is
+handed to the octree from that point on, ``UNDECIDED`` with its time.
+
+**Exactness.** Every time is the traversal's ``face_time`` of an integer plane, so a skipped
+cell holds no voxel whose interval (``kernels.traversal``'s contract) meets the skipped
+stretch, and a blocked verdict means a voxel's interval meets ``[0, tmax)``: the answers are
+those of ``occluded`` over the whole ray, and ``occluded`` from the hand-over time finishes
+an undecided ray with the answer the whole ray would get.
+
+**Steps.** Each cell the walk visits counts as one traversal step, as each octree node does.
+"""
+
+from __future__ import annotations
+
+import math
+
+from numba import njit
+
+from voxfield.kernels.traversal import face_time, flush_uninvertible
+
+CLEAR = 0
+BLOCKED = 1
+UNDECIDED = 2
+#: Rays flatter than this (``dy``) gain nothing from columns: they go to the octree.
+MIN_RISE = 1e-9
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _start_cell(o: float, d: float, inv: float) -> int:
+    """The unit cell ``[k, k + 1)`` of one axis the ray is in at ``t = 0`` under the
+    contract: a ray on a plane and running down is in the cell below it."""
+    k = int(math.floor(o))
+    if d < 0.0 and not 0.0 < face_time(k, o, inv):
+        k -= 1
+    return k
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _upper_half(lo_plane_mid: int, o: float, d: float, inv: float, t: float) -> int:
+    """1 if the ray is past the mid plane of a cell at time ``t`` (in the cell's upper half
+    along this axis), else 0."""
+    if d > 0.0:
+        return 1 if face_time(lo_plane_mid, o, inv) <= t else 0
+    if d < 0.0:
+        return 1 if t < face_time(lo_plane_mid, o, inv) else 0
+    return 1 if o >= lo_plane_mid else 0
+
+
+@njit(cache=True, nogil=True)
+def rising_ray_query(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float, tmax: float, columns,
+) -> tuple[int, float, int]:
+    """``(verdict, t, steps)`` for the ray ``o + t·d``, ``0 <= t < tmax``: ``CLEAR`` (nothing
+    blocks it), ``BLOCKED``, or ``UNDECIDED`` from time ``t`` on (trace ``[t, tmax)`` with
+    ``occluded``). ``columns`` is a ``ColumnTops``; without levels every ray is undecided
+    from 0."""
+    tops, level_offset, level_width, level_depth, run_bottom = columns
+    if level_width.shape[0] == 0 or not dy > MIN_RISE:
+        return UNDECIDED, 0.0, 0
+    dx = flush_uninvertible(dx)
+    dz = flush_uninvertible(dz)
+    # As in the traversal, a zero component never crosses a plane: the origin moves to the
+    # middle of its unit cell, on the same side of every plane.
+    if dx == 0.0:
+        ox = math.floor(ox) + 0.5
+        ix = math.inf
+    else:
+        ix = 1.0 / dx
+    if dz == 0.0:
+        oz = math.floor(oz) + 0.5
+        iz = math.inf
+    else:
+        iz = 1.0 / dz
+    iy = 1.0 / dy
+    cx = _start_cell(ox, dx, ix)
+    cz = _start_cell(oz, dz, iz)
+    # Beside the footprint a ray is clear when it runs away from it (as every ray the walk
+    # steps out of the footprint does); one that runs towards it starts in the octree.
+    if (cx < 0 and dx > 0.0) or (cx >= level_width[0] and dx < 0.0) \
+            or (cz < 0 and dz > 0.0) or (cz >= level_depth[0] and dz < 0.0):
+        return UNDECIDED, 0.0, 0
+    # The exit plane of cell ``c`` of side ``2^l`` is ``(c + ahead) << l``.
+    ahead_x = 1 if dx > 0.0 else 0
+    ahead_z = 1 if dz > 0.0 else 0
+    step_x = 1 if dx > 0.0 else -1
+    step_z = 1 if dz > 0.0 else -1
+    top_level = level_width.shape[0] - 1
+    level = 0
+    t = 0.0
+    steps = 0
+    while True:
+        if cx < 0 or cz < 0 or cx >= level_width[level] or cz >= level_depth[level]:
+            return CLEAR, t, steps  # beside the footprint and leaving it
+        steps += 1
+        top = tops[level_offset[level] + cx * level_depth[level] + cz]
+        tx = face_time((cx + ahead_x) << level, ox, ix) if dx != 0.0 else math.inf
+        tz = face_time((cz + ahead_z) << level, oz, iz) if dz != 0.0 else math.inf
+        t_exit = min(tx, tz)
+        if t >= face_time(top, oy, iy):
+            # Above the highest voxel of the cell's columns, and rising: skip the cell.
+            if not t_exit < tmax:
+                return CLEAR, t, steps
+            t = t_exit
+            px = cx
+            pz = cz
+            if tx <= t_exit:
+                cx += step_x
+            if tz <= t_exit:
+                cz += step_z
+            if level < top_level and ((cx >> 1) != (px >> 1) or (cz >> 1) != (pz >> 1)):
+                level += 1  # entered another parent cell: try it whole
+                cx >>= 1
+                cz >>= 1
+            continue
+        if level > 0:
+            level -= 1
+            cx = 2 * cx + _upper_half((2 * cx + 1) << level, ox, dx, ix, t)
+            cz = 2 * cz + _upper_half((2 * cz + 1) << level, oz, dz, iz, t)
+            continue
+        # One column, and the ray is below its top while in it: does it meet the top run
+        # ``[bottom, top)`` there? That run is a box, so the contract's interval test is exact.
+        bottom = run_bottom[cx * level_depth[0] + cz]
+        if max(t, face_time(bottom, oy, iy)) < min(min(t_exit, tmax), face_time(top, oy, iy)):
+            return BLOCKED, t, steps
+        return UNDECIDED, t, steps

@@ -1,0 +1,138 @@
+"""Column tops: how high each vertical column of voxels reaches, as a maximum pyramid.
+
+Rays towards the sky (the bake's sky and sun rays) leave the ground and then run above it,
+where an octree still walks many small nodes: every cube the ray passes reaches down into
+the ground beside it. In a pyramid of column tops (a "maximum mipmap", as height-field
+tracers use, after Tevs, Ihrke and Seidel 2008) a rising ray that is above an area's highest
+voxel when it enters the area stays above it, so it skips the whole area in one step. The
+pyramid also keeps where each column's top run of voxels begins, so a ray that dips below a
+column's top and meets that run is known to be blocked without the octree.
+``kernels.upward_rays`` walks it; both are derived from the voxels alone, so they are exact.
+
+Level 0 has one cell per column ``(x, z)`` of the voxels' footprint, ``0 <= x < width``; a
+cell of level ``l`` covers ``2^l × 2^l`` columns and holds the largest top among them. A top
+is the ``y`` of the top face of a column's highest voxel (0 for an empty column).
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+__all__ = ["ColumnTops", "MAX_COLUMNS", "column_tops", "no_column_tops"]
+
+#: Largest footprint (columns) given a pyramid: 2^27 columns keep it near 1 GiB. Larger
+#: worlds trace their rising rays through the octree alone, with the same results.
+MAX_COLUMNS = 1 << 27
+
+
+class ColumnTops(NamedTuple):
+    """The pyramid as flat arrays a kernel reads (``kernels.upward_rays``); no levels means
+    none was built."""
+
+    tops: np.ndarray  # int32, every level's cells, level after level, x-major
+    level_offset: np.ndarray  # int64 (levels,): first cell of each level in ``tops``
+    level_width: np.ndarray  # int64 (levels,): cells along x
+    level_depth: np.ndarray  # int64 (levels,): cells along z
+    run_bottom: np.ndarray  # int32 (level-0 cells,): lowest y of each column's top run
+
+
+def no_column_tops() -> ColumnTops:
+    """An empty pyramid: every rising ray goes through the octree."""
+    empty = np.zeros(0, np.int64)
+    return ColumnTops(np.zeros(0, np.int32), empty, empty, empty, np.zeros(0, np.int32))
+
+
+def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS) -> ColumnTops:
+    """The pyramid of the voxels with corners ``voxels`` (``(n, 3)`` integer, octree units),
+    or ``no_column_tops()`` when there are none or the footprint exceeds ``max_columns``."""
+    if len(voxels) == 0:
+        return no_column_tops()
+    width = int(voxels[:, 0].max()) + 1
+    depth = int(voxels[:, 2].max()) + 1
+    if width * depth > max_columns:
+        return no_column_tops()
+    top, bottom = _tops_and_run_bottoms(voxels, width, depth)
+    levels = [top]
+    while levels[-1].shape != (1, 1):
+        levels.append(_coarser(levels[-1]))
+    sizes = np.array([level.size for level in levels], np.int64)
+    return ColumnTops(
+        tops=np.concatenate([level.ravel() for level in levels]),
+        level_offset=np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64),
+        level_width=np.array([level.shape[0] for level in levels], np.int64),
+        level_depth=np.array([level.shape[1] for level in levels], np.int64),
+        run_bottom=bottom.ravel(),
+    )
+
+
+def _coarser(level: np.ndarray) -> np.ndarray:
+    """The next level: the maximum of each 2×2 block of cells (an odd edge pads with 0)."""
+    w, d = (level.shape[0] + 1) // 2, (level.shape[1] + 1) // 2
+    padded = np.zeros((2 * w, 2 * d), level.dtype)
+    padded[: level.shape[0], : level.shape[1]] = level
+    return padded.reshape(w, 2, d, 2).max(axis=(1, 3))
+
+
+@njit(cache=True, nogil=True)
+def _column_heights(voxels: np.ndarray, width: int, depth: int):
+    """Each voxel's ``y`` bucketed by column (counting sort): per-column start offsets and
+    the heights."""
+    starts = np.zeros(width * depth + 1, np.int64)
+    for i in range(voxels.shape[0]):
+        starts[voxels[i, 0] * depth + voxels[i, 2] + 1] += 1
+    for c in range(width * depth):
+        starts[c + 1] += starts[c]
+    fill = starts[:-1].copy()
+    heights = np.empty(voxels.shape[0], np.int32)
+    for i in range(voxels.shape[0]):
+        c = voxels[i, 0] * depth + voxels[i, 2]
+        heights[fill[c]] = voxels[i, 1]
+        fill[c] += 1
+    return starts, heights
+
+
+@njit(cache=True, nogil=True)
+def _column_block(first: int, last: int, depth: int, starts: np.ndarray, heights: np.ndarray,
+                  top: np.ndarray, bottom: np.ndarray) -> None:
+    """Tops and top-run bottoms of the columns ``x = first..last-1`` (every ``z``)."""
+    present = np.zeros(0, np.bool_)  # per column: is there a voxel at y = lowest + index?
+    for x in range(first, last):
+        for z in range(depth):
+            c = x * depth + z
+            begin, end = starts[c], starts[c + 1]
+            if begin == end:
+                continue
+            low = heights[begin]
+            high = heights[begin]
+            for k in range(begin + 1, end):
+                low = min(low, heights[k])
+                high = max(high, heights[k])
+            if present.shape[0] < high - low + 1:
+                present = np.zeros(high - low + 1, np.bool_)
+            for k in range(begin, end):
+                present[heights[k] - low] = True
+            run = high
+            while run > low and present[run - 1 - low]:
+                run -= 1
+            for k in range(begin, end):
+                present[heights[k] - low] = False
+            top[x, z] = high + 1
+            bottom[x, z] = run
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _tops_and_run_bottoms(voxels: np.ndarray, width: int, depth: int):
+    """Per column, the top (highest voxel's ``y`` + 1, 0 when empty) and the lowest ``y`` of
+    the unbroken run of voxels that ends there (0 when empty)."""
+    starts, heights = _column_heights(voxels, width, depth)
+    top = np.zeros((width, depth), np.int32)
+    bottom = np.zeros((width, depth), np.int32)
+    blocks = 64
+    per_block = (width + blocks - 1) // blocks
+    for b in prange(blocks):
+        _column_block(min(width, b * per_block), min(width, (b + 1) * per_block), depth,
+                      starts, heights, top, bottom)
+    return top, bottom

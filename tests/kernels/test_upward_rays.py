@@ -1,0 +1,133 @@
+"""Rising rays over the column-top pyramid get exactly the octree's any-hit answer."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from random_scenes import overhanging_terrain, random_scene
+from voxfield.kernels.traversal import new_scratch, occluded
+from voxfield.kernels.upward_rays import BLOCKED, CLEAR, UNDECIDED, rising_ray_query
+from voxfield.scene.voxel_scene import VoxelScene
+from voxfield.svo import build_octree
+from voxfield.svo.column_tops import column_tops, no_column_tops
+
+
+@njit
+def _answers(o, d, tmax, inner, depth, columns, out):
+    """Per ray: the pyramid's verdict, the octree over the whole ray, the octree from the
+    hand-over time on, and the cells the pyramid visited."""
+    for k in range(o.shape[0]):
+        verdict, t, cells = rising_ray_query(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1],
+                                             d[k, 2], tmax[k], columns)
+        whole, _ = occluded(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2], 0.0,
+                            tmax[k], inner, depth, new_scratch(depth))
+        rest = whole
+        if verdict == UNDECIDED:
+            rest, _ = occluded(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2], t,
+                               tmax[k], inner, depth, new_scratch(depth))
+        out[k, 0] = verdict
+        out[k, 1] = 1 if whole else 0
+        out[k, 2] = 1 if rest else 0
+        out[k, 3] = cells
+
+
+def rising_rays(voxels: np.ndarray, n: int, seed: int):
+    """Rays with ``dy > 0``: the first ``n`` from points on voxel faces (as the bake casts
+    them), then from lattice points with small integer directions (through edges and
+    corners), with a zero ``x`` or ``z`` (grazing planes), straight up, and from random points
+    around the scene."""
+    rng = np.random.default_rng(seed)
+    lo, hi = voxels.min(axis=0), voxels.max(axis=0) + 1
+    parts_o, parts_d = [], []
+    corners = voxels[rng.integers(0, len(voxels), n)].astype(np.float64)
+    axis = rng.integers(0, 3, n)
+    offset = rng.random((n, 3))
+    offset[np.arange(n), axis] = rng.integers(0, 2, n)  # exactly on one face plane
+    parts_o.append(corners + offset)
+    d = rng.normal(size=(n, 3))
+    d[:, 1] = np.abs(d[:, 1]) * rng.choice([0.05, 0.3, 1.0], n)
+    parts_d.append(d)
+    parts_o.append(np.round(rng.uniform(lo - 2, hi + 2, (n, 3))))
+    d = rng.integers(-2, 3, (n, 3)).astype(np.float64)
+    d[:, 1] = rng.integers(1, 3, n)
+    parts_d.append(d)
+    o = rng.uniform(lo - 1, hi + 1, (n, 3))
+    o[:, [0, 2]] = np.round(o[:, [0, 2]] * 2) / 2
+    d = rng.normal(size=(n, 3))
+    d[:, 1] = np.abs(d[:, 1]) + 1e-3
+    d[np.arange(n), rng.choice([0, 2], n)] = 0.0
+    d[: n // 4, [0, 2]] = 0.0
+    parts_o.append(o)
+    parts_d.append(d)
+    parts_o.append(rng.uniform(lo - 3, hi + 3, (n, 3)))
+    d = rng.normal(size=(n, 3))
+    d[:, 1] = np.abs(d[:, 1])
+    parts_d.append(d)
+    origins, directions = np.concatenate(parts_o), np.concatenate(parts_d)
+    keep = directions[:, 1] > 0.0
+    return origins[keep], directions[keep]
+
+
+def test_rising_rays_get_the_octree_answer_in_scenes_with_overhangs_and_caves():
+    for scene in (overhanging_terrain(seed=0), overhanging_terrain(seed=5, size=37),
+                  random_scene(seed=6, n=900, size=17)):
+        octree = build_octree(scene)
+        voxels = octree.node_coords(octree.depth)
+        columns = column_tops(voxels)
+        origins, directions = rising_rays(voxels, 1500, seed=len(voxels))
+        rng = np.random.default_rng(1)
+        # The bake stops rays at the top of the voxels; others run on, or stop anywhere.
+        top = voxels[:, 1].max() + 1.0
+        tmax = np.where(rng.random(len(origins)) < 0.5,
+                        (top - origins[:, 1]) / directions[:, 1],
+                        rng.choice([math.inf, 2.0, 7.5], len(origins)))
+        out = np.empty((len(origins), 4), np.int64)
+        _answers(origins, directions, tmax, octree.inner_nodes, octree.depth, columns, out)
+        verdict, whole, rest = out[:, 0], out[:, 1], out[:, 2]
+        assert np.all(whole[verdict == CLEAR] == 0)
+        assert np.all(whole[verdict == BLOCKED] == 1)
+        assert np.array_equal(rest[verdict == UNDECIDED], whole[verdict == UNDECIDED])
+        assert set(verdict.tolist()) == {CLEAR, BLOCKED, UNDECIDED}
+
+
+def test_on_a_solid_height_field_every_ray_from_the_ground_up_is_settled_by_columns():
+    """Columns filled from the bottom to their top are one run each, so a rising ray that
+    dips below a column's top meets its voxels: no ray from on or above the ground needs
+    the octree, and the answers are still the octree's."""
+    rng = np.random.default_rng(7)
+    size = 40
+    x, z = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
+    height = 1 + np.round(4 + 3 * np.sin(x / 5.0) * np.cos(z / 7.0) + rng.random(x.shape))
+    voxels = np.array([(i, y, k) for i in range(size) for k in range(size)
+                       for y in range(int(height[i, k]))])
+    octree = build_octree(VoxelScene(voxels, np.full((len(voxels), 3), 0.5)))
+    voxels = octree.node_coords(octree.depth)
+    columns = column_tops(voxels)
+    n = 4000
+    cells = rng.integers(0, size, (n, 2))
+    origins = np.stack([cells[:, 0] + rng.random(n),
+                        height[cells[:, 0], cells[:, 1]] + 3 * rng.random(n),
+                        cells[:, 1] + rng.random(n)], axis=1)
+    origins[::2, 1] = height[cells[::2, 0], cells[::2, 1]]  # exactly on the top face
+    directions = rng.normal(size=(n, 3))
+    directions[:, 1] = np.abs(directions[:, 1]) * rng.choice([0.1, 1.0], n) + 1e-6
+    out = np.empty((n, 4), np.int64)
+    _answers(origins, directions, np.full(n, math.inf), octree.inner_nodes, octree.depth,
+             columns, out)
+    assert not np.any(out[:, 0] == UNDECIDED)
+    assert np.array_equal(out[:, 0] == BLOCKED, out[:, 1] == 1)
+    assert 0.1 < (out[:, 0] == BLOCKED).mean() < 0.9
+
+
+def test_without_a_pyramid_or_a_rise_rays_go_to_the_octree_from_their_start():
+    scene = overhanging_terrain(seed=2, size=12)
+    octree = build_octree(scene)
+    columns = column_tops(octree.node_coords(octree.depth))
+    assert rising_ray_query(3.5, 20.0, 3.5, 0.0, 1.0, 0.0, math.inf, columns)[0] == CLEAR
+    assert rising_ray_query(3.5, 20.0, 3.5, 0.0, 1.0, 0.0, math.inf,
+                            no_column_tops()) == (UNDECIDED, 0.0, 0)
+    assert rising_ray_query(3.5, 20.0, 3.5, 1.0, 1e-12, 0.0, math.inf,
+                            columns) == (UNDECIDED, 0.0, 0)

@@ -1,0 +1,72 @@
+"""The column-top pyramid against a column-by-column scan of the voxels."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from random_scenes import overhanging_terrain, random_scene
+from voxfield.svo import build_octree
+from voxfield.svo.column_tops import column_tops
+
+
+def voxels_of(scene) -> np.ndarray:
+    octree = build_octree(scene)
+    return octree.node_coords(octree.depth)
+
+
+def scanned_columns(voxels: np.ndarray):
+    """Per column ``(x, z)``: the top and the lowest ``y`` of the run that ends at it."""
+    found = {}
+    for x, z in {(int(x), int(z)) for x, _, z in voxels}:
+        ys = set(voxels[(voxels[:, 0] == x) & (voxels[:, 2] == z), 1].tolist())
+        bottom = max(ys)
+        while bottom - 1 in ys:
+            bottom -= 1
+        found[x, z] = (max(ys) + 1, bottom)
+    return found
+
+
+def test_tops_and_top_runs_match_a_scan_of_each_column():
+    for scene in (overhanging_terrain(seed=1), random_scene(seed=2, n=500, size=13)):
+        voxels = voxels_of(scene)
+        pyramid = column_tops(voxels)
+        width, depth = int(pyramid.level_width[0]), int(pyramid.level_depth[0])
+        assert (width, depth) == (voxels[:, 0].max() + 1, voxels[:, 2].max() + 1)
+        tops = pyramid.tops[:width * depth].reshape(width, depth)
+        bottoms = pyramid.run_bottom.reshape(width, depth)
+        expected_tops = np.zeros((width, depth), int)
+        expected_bottoms = np.zeros((width, depth), int)
+        for (x, z), (top, bottom) in scanned_columns(voxels).items():
+            expected_tops[x, z] = top
+            expected_bottoms[x, z] = bottom
+        assert np.array_equal(tops, expected_tops)
+        assert np.array_equal(bottoms, expected_bottoms)
+        # Some columns have voxels below a gap, so the run bottom is not the lowest voxel.
+        lowest = {(x, z): voxels[(voxels[:, 0] == x) & (voxels[:, 2] == z), 1].min()
+                  for (x, z) in scanned_columns(voxels)}
+        assert any(bottoms[x, z] > low for (x, z), low in lowest.items())
+
+
+def test_every_level_holds_the_highest_top_of_the_columns_it_covers():
+    voxels = voxels_of(random_scene(seed=3, n=400, size=11))
+    pyramid = column_tops(voxels)
+    base = pyramid.tops[:pyramid.level_width[0] * pyramid.level_depth[0]].reshape(
+        pyramid.level_width[0], pyramid.level_depth[0])
+    assert pyramid.level_width[-1] == pyramid.level_depth[-1] == 1
+    assert pyramid.tops[-1] == voxels[:, 1].max() + 1
+    for level in range(len(pyramid.level_width)):
+        w, d = int(pyramid.level_width[level]), int(pyramid.level_depth[level])
+        start = int(pyramid.level_offset[level])
+        cells = pyramid.tops[start:start + w * d].reshape(w, d)
+        side = 1 << level
+        for x in range(w):
+            for z in range(d):
+                block = base[x * side:(x + 1) * side, z * side:(z + 1) * side]
+                assert cells[x, z] == block.max()
+
+
+def test_no_pyramid_for_no_voxels_or_a_footprint_over_the_limit():
+    voxels = voxels_of(random_scene(seed=4, n=100, size=9))
+    assert len(column_tops(voxels).level_width) > 0
+    assert len(column_tops(voxels, max_columns=8).level_width) == 0
+    assert len(column_tops(voxels[:0]).level_width) == 0
