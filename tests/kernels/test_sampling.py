@@ -5,7 +5,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from voxfield.kernels.sampling import cmj_sample, permute, rand_float, subpixel
+from voxfield.kernels.sampling import (
+    cmj_sample,
+    cmj_sample_in,
+    cmj_strata,
+    permute,
+    rand_float,
+    subpixel,
+)
 
 
 @pytest.mark.parametrize("length", [1, 2, 3, 4, 7, 16, 33])
@@ -46,3 +53,13 @@ def test_python_and_numba_versions_agree():
     jit = [cmj_sample(s, 4, 4, 4242) for s in range(16)]
     py = [cmj_sample.py_func(s, 4, 4, 4242) for s in range(16)]
     assert jit == py
+
+
+def test_strata_tables_give_the_same_samples_as_permuting_per_sample():
+    for m, n, pattern in ((1, 1, 7), (2, 3, 12345), (4, 4, 0xDEADBEEF), (5, 7, 99), (32, 33, 3)):
+        column = np.empty(m, np.int64)
+        row = np.empty(n, np.int64)
+        cmj_strata(m, n, pattern, column, row)
+        for s in range(m * n):
+            assert cmj_sample_in(s, s % m, s // m, m, n, pattern, column, row) == \
+                cmj_sample(s, m, n, pattern)

@@ -6,6 +6,7 @@ functions give identical results in plain Python, under Numba, and on CUDA.
 
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 _U32 = 0xFFFFFFFF
@@ -83,6 +84,29 @@ def cmj_sample(s: int, m: int, n: int, p: int) -> tuple[float, float]:
     jy = rand_float(s, (p * 0x711AD6A5) & _U32)
     x = ((s % m) + (sy + jx) / n) / m
     y = ((s // m) + (sx + jy) / m) / n
+    return x, y
+
+
+@njit(cache=True, nogil=True)
+def cmj_strata(m: int, n: int, p: int, column: np.ndarray, row: np.ndarray) -> None:
+    """The two stratum permutations of the m×n pattern ``p``, once for all its samples:
+    ``cmj_sample`` permutes again for every sample, which is most of its cost when a caller
+    draws the whole pattern (``column`` needs ``m`` slots, ``row`` ``n``)."""
+    for i in range(m):
+        column[i] = permute(i, m, (p * 0xA511E9B3) & _U32)
+    for j in range(n):
+        row[j] = permute(j, n, (p * 0x63D83595) & _U32)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def cmj_sample_in(s: int, i: int, j: int, m: int, n: int, p: int, column: np.ndarray,
+                  row: np.ndarray) -> tuple[float, float]:
+    """``cmj_sample(s, m, n, p)`` for ``s = j·m + i`` from ``cmj_strata``'s tables: the same
+    arithmetic, so the same bits."""
+    jx = rand_float(s, (p * 0xA399D265) & _U32)
+    jy = rand_float(s, (p * 0x711AD6A5) & _U32)
+    x = (i + (row[j] + jx) / n) / m
+    y = (j + (column[i] + jy) / m) / n
     return x, y
 
 

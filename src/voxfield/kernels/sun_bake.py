@@ -46,7 +46,12 @@ from numba import njit, prange
 
 from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
-from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
+from voxfield.kernels.sampling import (
+    cmj_sample_in,
+    cmj_strata,
+    hash_u32,
+    pixel_pattern,
+)
 from voxfield.kernels.traversal import MISS, new_scratch, occluded
 from voxfield.kernels.upward_rays import BLOCKED, UNDECIDED, rising_ray_query
 
@@ -109,25 +114,34 @@ def pattern_shape(count: int) -> tuple[int, int]:
     return m, (count + m - 1) // m
 
 
-@njit(cache=True, nogil=True)
-def face_sample(s: int, count: int, pattern: int) -> tuple[float, float]:
-    """Sample ``s`` of ``count`` stratified points in ``[0, 1)²``; one sample is the centre."""
+@njit(cache=True, nogil=True, inline="always")
+def face_sample(s: int, i: int, j: int, count: int, m: int, n: int, pattern: int,
+                column: np.ndarray, row: np.ndarray) -> tuple[float, float]:
+    """Sample ``s`` (column ``i``, row ``j``) of ``count`` stratified points in ``[0, 1)²``
+    drawn from ``pattern``'s strata (``sampling.cmj_strata``); one sample is the centre."""
     if count == 1:
         return 0.5, 0.5
-    m, n = pattern_shape(count)
-    return cmj_sample(s, m, n, pattern)
+    return cmj_sample_in(s, i, j, m, n, pattern, column, row)
+
+
+@njit(cache=True, nogil=True)
+def new_strata(count: int):
+    """Stratum tables (``sampling.cmj_strata``) for two patterns of up to ``count``
+    samples: columns and rows of the first, then of the second."""
+    return (np.empty(count + 1, np.int64), np.empty(count + 1, np.int64),
+            np.empty(count + 1, np.int64), np.empty(count + 1, np.int64))
 
 
 @njit(cache=True, nogil=True)
 def sky_visibility(
     x: int, y: int, z: int, voxel_pattern: int, faces: int, sky_rays: int,
     inner_nodes: np.ndarray, depth: int, y_top: float, columns, face_sky: np.ndarray,
-    face_weight: np.ndarray, scratch,
+    face_weight: np.ndarray, scratch, strata,
 ) -> tuple[float, float, float, int, int]:
     """One voxel's sky rays (``faces``: bit ``f`` set for exposed face ``f``): fills its
     per-face sky visibility and weights and returns ``(sky, weight seen, weight total, rays,
     steps)``; a voxel none of whose faces sees the sky gets equal face weights, which its
-    total then sums (module docstring)."""
+    total then sums (module docstring). ``strata`` is ``new_strata(sky_rays)``."""
     # A face looking down (−y) sees no sky and no sun above the horizon: it gets no rays.
     exposed = 0
     open_faces = 0
@@ -154,13 +168,23 @@ def sky_visibility(
             face_pattern = hash_u32(voxel_pattern ^ ((f + 1) * _GOLDEN))
             position_pattern = hash_u32(face_pattern + _POSITION_SALT)
             m, n = pattern_shape(count)
+            cmj_strata(m, n, face_pattern, strata[0], strata[1])
+            cmj_strata(m, n, position_pattern, strata[2], strata[3])
             escaped = 0
+            i = 0  # sample s is column i, row j of the m×n patterns
+            j = 0
             for s in range(count):
-                u1, u2 = cmj_sample(s, m, n, face_pattern)
+                if s > 0:
+                    i += 1
+                    if i == m:
+                        i = 0
+                        j += 1
+                u1, u2 = cmj_sample_in(s, i, j, m, n, face_pattern, strata[0], strata[1])
                 dx, dy, dz = cosine_direction(f, u1, u2)
                 if dy <= 0.0:
                     continue  # it would see the ground at best: no sky, no need to trace
-                pu, pv = face_sample(s, count, position_pattern)
+                pu, pv = face_sample(s, i, j, count, m, n, position_pattern, strata[2],
+                                     strata[3])
                 ox, oy, oz = face_point(x, y, z, f, pu, pv)
                 tmax = (y_top - oy) / dy
                 verdict, t_on, ray_steps = rising_ray_query(ox, oy, oz, dx, dy, dz, tmax,
@@ -243,6 +267,7 @@ def bake_block(
     queue = new_shadow_queue()
     origins, directions, tmins, tmaxs, ray_voxel, ray_face = queue[:6]
     face_sky = np.empty(6)
+    strata = new_strata(max(sky_rays, shadow_rays))
     face_weight = np.empty((BAKE_BLOCK, 6))
     total_weight = np.empty(BAKE_BLOCK)
     unblocked = np.empty((BAKE_BLOCK, 6), np.int64)
@@ -251,11 +276,35 @@ def bake_block(
         sky, out_weight[i], total_weight[j], sky_cast, steps = sky_visibility(
             coords[i, 0], coords[i, 1], coords[i, 2], pixel_pattern(voxel_ids[i], seed),
             faces[i], sky_rays, inner_nodes, depth, y_top, columns, face_sky, face_weight[j],
-            scratch)
+            scratch, strata)
         out_sky[i] = sky
         out_sky_rays[i] = sky_cast
         out_shadow_rays[i] = 0
         out_steps[i] = steps
+    # Each face's shadow-ray start points serve every sun: drawn once.
+    shadow_points = np.empty((last - first, 6, shadow_rays, 2))
+    m, n = pattern_shape(shadow_rays)
+    for i in range(first, last):
+        j = i - first
+        voxel_pattern = pixel_pattern(voxel_ids[i], seed)
+        for f in range(6):
+            if face_weight[j, f] == 0.0 or f == FACE_DOWN:
+                continue  # no shadow rays (a face looking down never faces a risen sun)
+            shadow_pattern = hash_u32(hash_u32(voxel_pattern ^ ((f + 1) * _GOLDEN))
+                                      + _SHADOW_SALT)
+            cmj_strata(m, n, shadow_pattern, strata[0], strata[1])
+            column = 0
+            row = 0
+            for s in range(shadow_rays):
+                if s > 0:
+                    column += 1
+                    if column == m:
+                        column = 0
+                        row += 1
+                pu, pv = face_sample(s, column, row, shadow_rays, m, n, shadow_pattern,
+                                     strata[0], strata[1])
+                shadow_points[j, f, s, 0] = pu
+                shadow_points[j, f, s, 1] = pv
     for sun in range(sun_dirs.shape[0]):
         lx = sun_dirs[sun, 0]
         ly = sun_dirs[sun, 1]
@@ -265,18 +314,14 @@ def bake_block(
         if ly > 0.0:  # a sun below the horizon lights nothing
             for i in range(first, last):
                 j = i - first
-                voxel_pattern = pixel_pattern(voxel_ids[i], seed)
                 for f in range(6):
                     if face_weight[j, f] == 0.0 or face_cosine(f, lx, ly, lz) <= 0.0:
                         continue
-                    shadow_pattern = hash_u32(
-                        hash_u32(voxel_pattern ^ ((f + 1) * _GOLDEN)) + _SHADOW_SALT
-                    )
                     out_shadow_rays[i] += shadow_rays
                     for s in range(shadow_rays):
-                        pu, pv = face_sample(s, shadow_rays, shadow_pattern)
                         ox, oy, oz = face_point(coords[i, 0], coords[i, 1], coords[i, 2], f,
-                                                pu, pv)
+                                                shadow_points[j, f, s, 0],
+                                                shadow_points[j, f, s, 1])
                         tmax = (y_top - oy) / ly
                         verdict, t_on, ray_steps = rising_ray_query(ox, oy, oz, lx, ly, lz,
                                                                     tmax, columns)
