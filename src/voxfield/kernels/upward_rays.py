@@ -42,14 +42,14 @@ def _start_cell(o: float, d: float, inv: float) -> int:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _upper_half(lo_plane_mid: int, o: float, d: float, inv: float, t: float) -> int:
+def _upper_half(mid_plane: int, o: float, d: float, inv: float, t: float) -> int:
     """1 if the ray is past the mid plane of a cell at time ``t`` (in the cell's upper half
     along this axis), else 0."""
     if d > 0.0:
-        return 1 if face_time(lo_plane_mid, o, inv) <= t else 0
+        return 1 if face_time(mid_plane, o, inv) <= t else 0
     if d < 0.0:
-        return 1 if t < face_time(lo_plane_mid, o, inv) else 0
-    return 1 if o >= lo_plane_mid else 0
+        return 1 if t < face_time(mid_plane, o, inv) else 0
+    return 1 if o >= mid_plane else 0
 
 
 @njit(cache=True, nogil=True)
