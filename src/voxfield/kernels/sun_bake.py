@@ -124,6 +124,16 @@ def face_sample(s: int, i: int, j: int, count: int, m: int, n: int, pattern: int
     return cmj_sample_in(s, i, j, m, n, pattern, column, row)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def next_stratum(i: int, j: int, m: int) -> tuple[int, int]:
+    """Column and row of the sample after column ``i``, row ``j`` of an ``m``-column
+    pattern (start from ``(-1, 0)``): samples fill a pattern row by row."""
+    i += 1
+    if i == m:
+        return 0, j + 1
+    return i, j
+
+
 @njit(cache=True, nogil=True)
 def new_strata(count: int):
     """Stratum tables (``sampling.cmj_strata``) for two patterns of up to ``count``
@@ -171,14 +181,10 @@ def sky_visibility(
             cmj_strata(m, n, face_pattern, strata[0], strata[1])
             cmj_strata(m, n, position_pattern, strata[2], strata[3])
             escaped = 0
-            i = 0  # sample s is column i, row j of the m×n patterns
+            i = -1  # sample s is column i, row j of the m×n patterns
             j = 0
             for s in range(count):
-                if s > 0:
-                    i += 1
-                    if i == m:
-                        i = 0
-                        j += 1
+                i, j = next_stratum(i, j, m)
                 u1, u2 = cmj_sample_in(s, i, j, m, n, face_pattern, strata[0], strata[1])
                 dx, dy, dz = cosine_direction(f, u1, u2)
                 if dy <= 0.0:
@@ -293,14 +299,10 @@ def bake_block(
             shadow_pattern = hash_u32(hash_u32(voxel_pattern ^ ((f + 1) * _GOLDEN))
                                       + _SHADOW_SALT)
             cmj_strata(m, n, shadow_pattern, strata[0], strata[1])
-            column = 0
+            column = -1
             row = 0
             for s in range(shadow_rays):
-                if s > 0:
-                    column += 1
-                    if column == m:
-                        column = 0
-                        row += 1
+                column, row = next_stratum(column, row, m)
                 pu, pv = face_sample(s, column, row, shadow_rays, m, n, shadow_pattern,
                                      strata[0], strata[1])
                 shadow_points[j, f, s, 0] = pu
