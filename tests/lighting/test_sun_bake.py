@@ -154,6 +154,21 @@ def test_rays_settled_over_column_tops_give_the_octree_bake():
     assert 0.0 < walked.sky[walked.surface].mean() < 1.0
 
 
+@pytest.mark.parametrize("coords", [
+    [(0, 0, 0)],  # one voxel: a 1×1 footprint
+    [(0, y, 0) for y in (0, 1, 3, 4, 7)],  # one column with gaps
+    [(x, 0, 0) for x in range(9)] + [(4, 3, 0)],  # a row one voxel deep, a ledge above
+    [(x, y, z) for x in range(5) for z in range(5) for y in (0, 4)],  # a roof over a floor
+])
+def test_the_column_walk_agrees_with_the_octree_on_degenerate_footprints(coords):
+    octree = octree_of(np.array(coords))
+    suns = np.array([sun_at("a", 130.0, 35.0).direction(), sun_at("b", 0.0, 89.0).direction()])
+    walked, _ = sun_visibility(octree, suns, sky_rays=32, shadow_rays=4, seed=2)
+    plain, _ = sun_visibility(octree, suns, sky_rays=32, shadow_rays=4, seed=2, columns=False)
+    for name in ("direct", "sky", "weight"):
+        assert np.array_equal(getattr(walked, name), getattr(plain, name)), name
+
+
 def test_an_isolated_voxel_sees_all_the_sky_above_and_half_from_its_sides():
     octree = octree_of(np.zeros((1, 3), int))
     vis, _ = sun_visibility(octree, np.array([[0.0, 1.0, 0.0]]), sky_rays=1000)
