@@ -7,6 +7,7 @@ from numba import njit, prange
 
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.traversal import new_scratch, occluded, trace_ray
+from voxfield.kernels.upward_rays import BLOCKED, UNDECIDED, rising_ray_query
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -73,29 +74,42 @@ def trace_rays_in_packets(
 @njit(parallel=True, cache=True, nogil=True)
 def occlude_rays(
     origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
-    inner_nodes: np.ndarray, depth: int, out_blocked: np.ndarray, out_steps: np.ndarray,
+    inner_nodes: np.ndarray, depth: int, columns, out_blocked: np.ndarray,
+    out_steps: np.ndarray,
 ) -> None:
-    """Any-hit queries at LOD 0: is ``[tmin, tmax)`` of each ray blocked by a voxel?"""
+    """Any-hit queries at LOD 0: is ``[tmin, tmax)`` of each ray blocked by a voxel? With
+    ``tmin`` 0, rising rays walk ``columns`` (``kernels.upward_rays``; an empty pyramid
+    sends every ray to the octree) before the octree."""
     n = origins.shape[0]
     chunk = 256
     for c in prange((n + chunk - 1) // chunk):
         occlude_ray_chunk(origins, directions, c * chunk, min(n, (c + 1) * chunk), tmin, tmax,
-                          inner_nodes, depth, out_blocked, out_steps)
+                          inner_nodes, depth, columns, out_blocked, out_steps)
 
 
 @njit(cache=True, nogil=True)
 def occlude_ray_chunk(
     origins: np.ndarray, directions: np.ndarray, first: int, last: int,
-    tmin: float, tmax: float, inner_nodes: np.ndarray, depth: int,
+    tmin: float, tmax: float, inner_nodes: np.ndarray, depth: int, columns,
     out_blocked: np.ndarray, out_steps: np.ndarray,
 ) -> None:
     """Rays ``first..last-1`` of ``occlude_rays``."""
     scratch = new_scratch(depth)
     for k in range(first, last):
+        verdict, start, cells = UNDECIDED, tmin, 0
+        if tmin == 0.0:
+            verdict, start, cells = rising_ray_query(
+                origins[k, 0], origins[k, 1], origins[k, 2],
+                directions[k, 0], directions[k, 1], directions[k, 2], tmax, columns,
+            )
+        if verdict != UNDECIDED:
+            out_blocked[k] = verdict == BLOCKED
+            out_steps[k] = cells
+            continue
         blocked, steps = occluded(
             origins[k, 0], origins[k, 1], origins[k, 2],
-            directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
+            directions[k, 0], directions[k, 1], directions[k, 2], start, tmax,
             inner_nodes, depth, scratch,
         )
         out_blocked[k] = blocked
-        out_steps[k] = steps
+        out_steps[k] = cells + steps

@@ -23,7 +23,7 @@ from voxfield.parallel import thread_count
 from voxfield.progress import progress_bar
 from voxfield.scaleout import run_tasks
 from voxfield.svo.channels import new_channel_block, with_channel_block
-from voxfield.svo.column_tops import column_tops, no_column_tops
+from voxfield.svo.column_tops import no_column_tops, octree_column_tops
 from voxfield.svo.lod_colours import exposed_faces
 from voxfield.svo.octree import Octree
 
@@ -145,8 +145,7 @@ def sun_visibility(
     counters = {"sky_rays": 0, "shadow_rays": 0, "traversal_steps": 0}
     inner, depth = octree.inner_nodes, octree.depth
     y_top = float(octree.voxel_bounds[1][1])
-    tops = (octree.derived(("column_tops",), lambda: column_tops(leaves))
-            if columns else no_column_tops())
+    tops = octree_column_tops(octree, leaves) if columns else no_column_tops()
 
     # Everything large is shared (scattered to a cluster once); a chunk is a range of it.
     shared = {"inner": inner, "depth": depth, "y_top": y_top, "columns": tops, "dirs": dirs,

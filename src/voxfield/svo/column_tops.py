@@ -21,7 +21,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["ColumnTops", "MAX_COLUMNS", "column_tops", "no_column_tops"]
+__all__ = ["ColumnTops", "MAX_COLUMNS", "column_tops", "no_column_tops", "octree_column_tops"]
 
 #: Largest footprint (columns) given a pyramid: 2^27 columns keep it near 1 GiB. Larger
 #: worlds trace their rising rays through the octree alone, with the same results.
@@ -66,6 +66,15 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS) -> ColumnTop
         level_depth=np.array([level.shape[1] for level in levels], np.int64),
         run_bottom=bottom.ravel(),
     )
+
+
+def octree_column_tops(octree, voxels: np.ndarray | None = None) -> ColumnTops:
+    """The pyramid of an octree's voxels, worked out once per structure (``Octree.derived``);
+    ``voxels``, the octree's leaf corners, saves working them out again."""
+    def build() -> ColumnTops:
+        corners = octree.node_coords(octree.depth) if voxels is None else voxels
+        return column_tops(corners)
+    return octree.derived(("column_tops",), build)
 
 
 def _coarser(level: np.ndarray) -> np.ndarray:
