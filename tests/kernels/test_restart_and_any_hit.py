@@ -90,6 +90,15 @@ def _scenes():
     yield build_octree(random_scene(4, n=2000, size=32))
 
 
+def _rays_up_from_tops(octree, seed: int):
+    """Shadow-style rays: from the middle of every voxel's top face, in random upward
+    directions."""
+    top = octree.node_coords(octree.depth) + [0.5, 1.0, 0.5]
+    up = np.random.default_rng(seed).normal(size=top.shape)
+    up[:, 1] = np.abs(up[:, 1])
+    return top, up
+
+
 def test_restarted_rays_match_rays_from_the_root_in_everything():
     for octree in _scenes():
         lo, hi = octree.voxel_bounds
@@ -120,10 +129,7 @@ def test_any_hit_blocks_exactly_the_rays_that_hit_and_takes_fewer_steps():
             assert np.array_equal(anyhit.blocked, closest.hit)
             assert np.all(anyhit.steps <= closest.steps)
         # Shadow-style rays from surface points: solid interiors stop them early.
-        top = octree.node_coords(octree.depth) + [0.5, 1.0, 0.5]
-        rng = np.random.default_rng(0)
-        d = rng.normal(size=top.shape)
-        d[:, 1] = np.abs(d[:, 1])
+        top, d = _rays_up_from_tops(octree, seed=0)
         closest = trace(octree, top, d)
         anyhit = occluded(octree, top, d)
         assert np.array_equal(anyhit.blocked, closest.hit)
@@ -159,10 +165,7 @@ def test_any_hit_packets_equal_the_scalar_any_hit_query():
     for octree in _scenes():
         lo, hi = octree.voxel_bounds
         origins, directions = adversarial_rays(lo, hi, 3000, seed=6)
-        top = octree.node_coords(octree.depth) + [0.5, 1.0, 0.5]
-        rng = np.random.default_rng(1)
-        up = rng.normal(size=top.shape)
-        up[:, 1] = np.abs(up[:, 1])
+        top, up = _rays_up_from_tops(octree, seed=1)
         for o, d in ((origins, directions), (top, up)):
             for tmax in (math.inf, 3.5):
                 want = occluded(octree, o, d, tmax=tmax)
@@ -183,10 +186,7 @@ def test_any_hit_over_column_tops_keeps_every_verdict_in_fewer_steps():
     for octree in (*_scenes(), build_octree(overhanging_terrain(seed=4, size=30))):
         lo, hi = octree.voxel_bounds
         origins, directions = adversarial_rays(lo, hi, 3000, seed=8)
-        top = octree.node_coords(octree.depth) + [0.5, 1.0, 0.5]
-        rng = np.random.default_rng(2)
-        up = rng.normal(size=top.shape)
-        up[:, 1] = np.abs(up[:, 1])
+        top, up = _rays_up_from_tops(octree, seed=2)
         for o, d in ((origins, directions), (top, up)):
             for tmin, tmax in ((0.0, math.inf), (0.0, 3.5), (0.25, math.inf)):
                 plain = occluded(octree, o, d, tmin=tmin, tmax=tmax)
@@ -196,9 +196,7 @@ def test_any_hit_over_column_tops_keeps_every_verdict_in_fewer_steps():
                     assert np.array_equal(walked.steps, plain.steps)
     # Over wide ground the pyramid skips what the octree walks node by node.
     octree = build_octree(overhanging_terrain(seed=5, size=120))
-    top = octree.node_coords(octree.depth) + [0.5, 1.0, 0.5]
-    up = np.random.default_rng(3).normal(size=top.shape)
-    up[:, 1] = np.abs(up[:, 1])
+    top, up = _rays_up_from_tops(octree, seed=3)
     plain = occluded(octree, top, up)
     walked = occluded(octree, top, up, columns=True)
     assert np.array_equal(walked.blocked, plain.blocked)
