@@ -22,7 +22,7 @@ import math
 
 from numba import njit
 
-from voxfield.kernels.traversal import face_time, flush_uninvertible
+from voxfield.kernels.traversal import face_time, floor_float, flush_uninvertible
 
 CLEAR = 0
 BLOCKED = 1
@@ -34,8 +34,10 @@ MIN_RISE = 1e-9
 @njit(cache=True, nogil=True, inline="always")
 def _start_cell(o: float, d: float, inv: float) -> int:
     """The unit cell ``[k, k + 1)`` of one axis the ray is in at ``t = 0`` under the
-    contract: a ray on a plane and running down is in the cell below it."""
-    k = int(math.floor(o))
+    contract: a ray on a plane and running down is in the cell below it. Origins far beside
+    the footprint are clamped to a cell still beside it (no footprint reaches 2^52), so the
+    integer never overflows."""
+    k = int(min(max(floor_float(o), -2.0), 4503599627370496.0))
     if d < 0.0 and not 0.0 < face_time(k, o, inv):
         k -= 1
     return k
@@ -68,12 +70,12 @@ def rising_ray_query(
     # As in the traversal, a zero component never crosses a plane: the origin moves to the
     # middle of its unit cell, on the same side of every plane.
     if dx == 0.0:
-        ox = math.floor(ox) + 0.5
+        ox = floor_float(ox) + 0.5
         ix = math.inf
     else:
         ix = 1.0 / dx
     if dz == 0.0:
-        oz = math.floor(oz) + 0.5
+        oz = floor_float(oz) + 0.5
         iz = math.inf
     else:
         iz = 1.0 / dz
