@@ -31,6 +31,7 @@ from voxfield.kernels.node_descriptor import SOLID_BIT, child_index
 from voxfield.kernels.traversal import (
     MISS,
     NO_NORMAL,
+    axis_setup,
     entry_normal,
     flush_uninvertible,
     fmax,
@@ -77,15 +78,6 @@ def _traceable(origins, directions, tmins, tmaxs, k: int) -> bool:
             and tmins[k] == tmins[k] and tmaxs[k] == tmaxs[k])
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _axis_setup(o: float, d: float) -> tuple[float, float]:
-    """Origin and inverse direction of one axis, prepared as ``traverse`` prepares them: a
-    zero component sits mid-cell with an infinite inverse."""
-    if d == 0.0:
-        return np.floor(o) + 0.5, math.inf
-    return o, 1.0 / d
-
-
 @njit(cache=True, nogil=True)
 def trace_packet(
     count: int, origins: np.ndarray, directions: np.ndarray, tmins: np.ndarray, tmaxs: np.ndarray,
@@ -120,12 +112,9 @@ def trace_packet(
         for k in range(count):
             if group[k] != flip:
                 continue
-            table[_OX, n], table[_IX, n] = _axis_setup(origins[k, 0],
-                                                       flush_uninvertible(directions[k, 0]))
-            table[_OY, n], table[_IY, n] = _axis_setup(origins[k, 1],
-                                                       flush_uninvertible(directions[k, 1]))
-            table[_OZ, n], table[_IZ, n] = _axis_setup(origins[k, 2],
-                                                       flush_uninvertible(directions[k, 2]))
+            table[_OX, n], _, table[_IX, n] = axis_setup(origins[k, 0], directions[k, 0])
+            table[_OY, n], _, table[_IY, n] = axis_setup(origins[k, 1], directions[k, 1])
+            table[_OZ, n], _, table[_IZ, n] = axis_setup(origins[k, 2], directions[k, 2])
             table[_TMIN, n] = tmins[k]
             table[_TMAX, n] = tmaxs[k]
             members[n] = k

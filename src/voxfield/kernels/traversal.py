@@ -101,6 +101,17 @@ def flush_uninvertible(d: float) -> float:
     return d
 
 
+@njit(cache=True, nogil=True, inline="always")
+def axis_setup(o: float, d: float) -> tuple[float, float, float]:
+    """Origin, direction and inverse of one axis as ``traverse`` prepares them: ``d``
+    flushed (``flush_uninvertible``), and a zero component mid-cell with an infinite
+    inverse, for walks that must cross planes exactly as the traversal does."""
+    d = flush_uninvertible(d)
+    if d == 0.0:
+        return floor_float(o) + 0.5, d, math.inf
+    return o, d, 1.0 / d
+
+
 @njit(cache=True, nogil=True)
 def box_interval(
     ox: float, oy: float, oz: float,

@@ -22,7 +22,7 @@ import math
 
 from numba import njit
 
-from voxfield.kernels.traversal import face_time, floor_float, flush_uninvertible
+from voxfield.kernels.traversal import axis_setup, face_time, floor_float
 
 CLEAR = 0
 BLOCKED = 1
@@ -65,20 +65,8 @@ def rising_ray_query(
     tops, level_offset, level_width, level_depth, run_bottom = columns
     if level_width.shape[0] == 0 or not dy > MIN_RISE:
         return UNDECIDED, 0.0, 0
-    dx = flush_uninvertible(dx)
-    dz = flush_uninvertible(dz)
-    # As in the traversal, a zero component never crosses a plane: the origin moves to the
-    # middle of its unit cell, on the same side of every plane.
-    if dx == 0.0:
-        ox = floor_float(ox) + 0.5
-        ix = math.inf
-    else:
-        ix = 1.0 / dx
-    if dz == 0.0:
-        oz = floor_float(oz) + 0.5
-        iz = math.inf
-    else:
-        iz = 1.0 / dz
+    ox, dx, ix = axis_setup(ox, dx)
+    oz, dz, iz = axis_setup(oz, dz)
     iy = 1.0 / dy
     cx = _start_cell(ox, dx, ix)
     cz = _start_cell(oz, dz, iz)
