@@ -76,12 +76,14 @@ def run(args) -> int:
         for view in args.views:
             cam = camera(octree, view, args.width, args.height)
             for side in args.spp_side:
+                # The GPU walks the octree alone; so does the CPU render it is held to
+                # (the same steps), without the column-top walk.
                 def on(device, octree=octree, cam=cam, side=side):
                     if side == 1:
                         return render_lod(octree, cam, lod=0, device=device, beam=False,
-                                          threads=args.threads)
+                                          threads=args.threads, columns=False)
                     return render_reference(octree, cam, side=side, device=device,
-                                            beam=False, threads=args.threads)
+                                            beam=False, threads=args.threads, columns=False)
                 on("cuda")  # compile and upload
                 _, gpu = best_seconds(lambda: on("cuda"), args.repeats)
                 _, cpu = best_seconds(lambda: on("cpu"), args.cpu_repeats)

@@ -15,8 +15,10 @@ normals. Compile time is excluded (a tiny warm-up render), each figure is the be
 ``--repeats`` runs, and the two tracers alternate run by run, so a busy machine slows both.
 
 Rows:
-- primary rays, beam on (the default) and off (every ray starts at the camera); with 16
-  rays/pixel and the beam off, the renderer traces in packets (``kernels.packet_traversal``);
+- primary rays, beam on (the default) and off (every ray starts at the camera), each with the
+  column-top walk (the default: rays cross the air in the pyramid of column tops first,
+  ``kernels.surface_approach``) and through the octree alone; with 16 rays/pixel and the
+  octree alone, the renderer traces in packets (``kernels.packet_traversal``);
 - incoherent secondary rays: cosine-weighted directions from random points on voxel tops,
   voxfield's any-hit ``ray_query.occluded`` (through the octree alone, and with its
   column-top walk) against Embree's ``test_occlusions`` and closest-hit
@@ -148,8 +150,9 @@ def warm_up() -> None:
     tiny = build_octree(VoxelScene(coords, rng.random((64, 3)), name="warm-up").dedupe())
     cam = top_down_camera(*tiny.voxel_bounds, size=8)
     for beam in (True, False):
-        render_lod(tiny, cam, lod=0, beam=beam)
-        render_reference(tiny, cam, side=4, beam=beam)
+        for columns in (True, False):
+            render_lod(tiny, cam, lod=0, beam=beam, columns=columns)
+            render_reference(tiny, cam, side=4, beam=beam, columns=columns)
     o, d = cam.rays(side=1, seed=0)
     trace(tiny, o, d)
     occluded(tiny, o, d)
@@ -206,16 +209,19 @@ def run_view(o3d, embree, octree, stats: SceneStats, view: str, side: int, args)
 
     cam = camera_for(octree, view, args.size)
 
-    def vox(beam: bool):
+    def vox(beam: bool, columns: bool):
         def run():
             if side == 1:
-                r = render_lod(octree, cam, lod=0, threads=args.threads, beam=beam)
+                r = render_lod(octree, cam, lod=0, threads=args.threads, beam=beam,
+                               columns=columns)
             else:
-                r = render_reference(octree, cam, side=side, threads=args.threads, beam=beam)
+                r = render_reference(octree, cam, side=side, threads=args.threads, beam=beam,
+                                     columns=columns)
             return r.seconds, r
         return run
 
-    fns = {"beam": vox(True), "no_beam": vox(False)}
+    configs = [(beam, columns) for columns in (True, False) for beam in (True, False)]
+    fns = {config: vox(*config) for config in configs}
     rays32 = tensor = None
     if embree is not None:
         origins, directions = cam.rays(side=side, seed=0)
@@ -230,10 +236,11 @@ def run_view(o3d, embree, octree, stats: SceneStats, view: str, side: int, args)
 
         fns["embree"] = cast
     timed = best_of(args.repeats, fns)
-    for beam in (True, False):
-        seconds, res = timed["beam" if beam else "no_beam"]
+    for beam, columns in configs:
+        seconds, res = timed[beam, columns]
         row = {
-            "view": view, "spp": side * side, "beam": beam, "rays": res.total_rays,
+            "view": view, "spp": side * side, "beam": beam, "columns": columns,
+            "rays": res.total_rays,
             "vox_mrays": res.total_rays / seconds / 1e6,
             "steps_per_ray": res.total_steps / res.total_rays,
             "hit_frac": res.hit_count.sum() / res.total_rays,
@@ -244,7 +251,8 @@ def run_view(o3d, embree, octree, stats: SceneStats, view: str, side: int, args)
         stats.rows.append(row)
         print(f"  {stats.name} {view} {side * side} rays/px: {fmt_row(row)}", file=sys.stderr)
     if embree is not None:
-        agreement(octree, rays32, timed["embree"][1].astype(np.float64), stats.rows[-2], args)
+        agreement(octree, rays32, timed["embree"][1].astype(np.float64),
+                  stats.rows[-len(configs)], args)
 
 
 def agreement(octree, rays32, t_emb, row, args) -> None:
@@ -274,6 +282,17 @@ def secondary_rays(octree, count: int, seed: int) -> tuple[np.ndarray, np.ndarra
     return origins, directions
 
 
+def build_column_tops(octree, stats: SceneStats) -> None:
+    """The column-top pyramid the renders and the column walk use is set-up, like the
+    octree: built once, before and outside the timings."""
+    from voxfield.svo.column_tops import octree_column_tops
+
+    t0 = time.perf_counter()
+    pyramid = octree_column_tops(octree)
+    stats.pyramid_s = time.perf_counter() - t0
+    stats.pyramid_mib = sum(a.nbytes for a in pyramid) / 2**20
+
+
 def run_secondary(o3d, embree, octree, stats: SceneStats, args) -> None:
     """Any-hit and closest-hit queries on incoherent rays against Embree's."""
     from voxfield.render.ray_query import occluded, trace
@@ -296,14 +315,6 @@ def run_secondary(o3d, embree, octree, stats: SceneStats, args) -> None:
         t0 = time.perf_counter()
         out = trace(octree, o, d, tmin=tmin, threads=args.threads)
         return time.perf_counter() - t0, out
-
-    # The column-top pyramid is set-up, like the octree: built once, outside the timings.
-    from voxfield.svo.column_tops import octree_column_tops
-
-    t0 = time.perf_counter()
-    pyramid = octree_column_tops(octree)
-    stats.pyramid_s = time.perf_counter() - t0
-    stats.pyramid_mib = sum(a.nbytes for a in pyramid) / 2**20
 
     def any_hit_columns():
         t0 = time.perf_counter()
@@ -440,16 +451,17 @@ def table(head: list[str], rows: list[list[str]]) -> None:
 def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args) -> None:
     print(f"\n### Primary rays ({args.size}² image, 90° FOV, LOD 0, {args.threads} threads, "
           f"best of {args.repeats})\n")
-    head = ["scene", "view", "rays/px", "beam", "rays", "voxfield Mrays/s", "steps/ray",
-            "hit %"]
+    head = ["scene", "view", "rays/px", "beam", "columns", "rays", "voxfield Mrays/s",
+            "steps/ray", "hit %"]
     if peer:
         head += ["Embree Mrays/s", "voxfield/Embree", "hit/miss agree",
                  "only vox / only Embree", "median |Δt|"]
     rows = []
     for s in all_stats:
         for r in s.rows:
-            beam = "on" if r["beam"] else ("off, packets" if r["spp"] > 1 else "off")
-            cells = [s.name, r["view"], str(r["spp"]), beam,
+            beam = "on" if r["beam"] else "off"
+            columns = "on" if r["columns"] else ("off, packets" if r["spp"] > 1 else "off")
+            cells = [s.name, r["view"], str(r["spp"]), beam, columns,
                      f"{r['rays']:,}", num(r["vox_mrays"], ".2f"),
                      num(r["steps_per_ray"], ".1f"), num(100 * r["hit_frac"], ".1f")]
             if peer:
@@ -479,7 +491,8 @@ def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args
     table(head, rows)
     print("\nEmbree: `test_occlusions` for any-hit, `cast_rays` for closest hit; the same "
           "float32 rays, started 0.001 voxel above the faces. The column walk "
-          "(`occluded(columns=True)`) first walks the column-top pyramid, built once: "
+          "(`occluded(columns=True)`) and the primary rays with columns on first walk the "
+          "column-top pyramid, built once: "
           + "; ".join(f"{s.name} {s.pyramid_s:.2f} s, {s.pyramid_mib:.0f} MiB"
                       for s in all_stats if s.secondary) + ".")
 
@@ -577,6 +590,7 @@ def main(argv=None) -> int:
             bytes_per_triangle = stats.embree_bytes_per_triangle
         print(f"  {fmt_row({k: v for k, v in vars(stats).items() if not isinstance(v, list)})}",
               file=sys.stderr)
+        build_column_tops(octree, stats)
         for view in args.views:
             for side in args.spp_side:
                 run_view(o3d, embree, octree, stats, view, side, args)

@@ -79,14 +79,16 @@ def test_mixed_signs_and_broken_rays_in_one_packet():
 
 
 def test_supersampled_renders_go_through_packets_from_their_beam_bounds():
-    """Reference pixels are traced in packets, each ray from its pixel block's beam bound:
-    the step map equals the scalar loop's steps over each pixel's rays started there (plus
-    the beam pass's share), and the image equals that of rays started at the camera."""
+    """Reference pixels through the octree alone are traced in packets, each ray from its
+    pixel block's beam bound: the step map equals the scalar loop's steps over each pixel's
+    rays started there (plus the beam pass's share), and the image equals that of rays
+    started at the camera."""
     octree = build_octree(recipe_scene("mountain", footprint=64, seed=0))
     lo, hi = octree.voxel_bounds
     camera = oblique_camera(lo, hi, size=24, fov_deg=70, elevation_deg=45)
-    with_beam = render_reference(octree, camera, side=2, beam=True, threads=2)
-    from_camera = render_reference(octree, camera, side=2, beam=False, threads=1)
+    with_beam = render_reference(octree, camera, side=2, beam=True, threads=2, columns=False)
+    from_camera = render_reference(octree, camera, side=2, beam=False, threads=1,
+                                   columns=False)
     assert np.array_equal(with_beam.image, from_camera.image)
     assert np.array_equal(with_beam.depth, from_camera.depth)
 
@@ -111,10 +113,11 @@ def test_supersampled_renders_go_through_packets_from_their_beam_bounds():
 
 
 def test_octahedral_probe_render_through_packets_matches_per_ray_tracing():
-    """Probe cameras have no beam bound, so supersampled probe texels go through packets."""
+    """Probe cameras have no beam bound, so supersampled probe texels through the octree
+    alone go through packets."""
     octree = build_octree(random_scene(5, n=600, size=16))
     camera = Camera.octahedral(np.array([8.2, 8.1, 7.9]), resolution=16)
-    render = render_reference(octree, camera, side=2, threads=1)
+    render = render_reference(octree, camera, side=2, threads=1, columns=False)
     origins, directions = camera.rays(side=2, seed=0)
     node, _, t, _, steps = _run(trace_rays, octree, origins, directions)
     assert np.array_equal(render.steps.reshape(-1), steps.reshape(-1, 4).sum(axis=1))

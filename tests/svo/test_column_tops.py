@@ -6,7 +6,7 @@ import numpy as np
 
 from random_scenes import overhanging_terrain, random_scene
 from voxfield.svo import build_octree
-from voxfield.svo.column_tops import column_tops
+from voxfield.svo.column_tops import column_tops, octree_column_tops
 
 
 def voxels_of(scene) -> np.ndarray:
@@ -70,3 +70,19 @@ def test_no_pyramid_for_no_voxels_or_a_footprint_over_the_limit():
     assert len(column_tops(voxels).level_width) > 0
     assert len(column_tops(voxels, max_columns=8).level_width) == 0
     assert len(column_tops(voxels[:0]).level_width) == 0
+
+
+def test_an_octrees_pyramid_keeps_each_columns_top_voxel_node():
+    octree = build_octree(overhanging_terrain(seed=6))
+    pyramid = octree_column_tops(octree)
+    width, depth = int(pyramid.level_width[0]), int(pyramid.level_depth[0])
+    tops = pyramid.tops[:width * depth]
+    coords = octree.all_node_coords()
+    levels = octree.node_level(np.maximum(pyramid.top_node, 0))
+    x, z = np.divmod(np.arange(width * depth), depth)
+    filled = tops > 0
+    assert np.all(pyramid.top_node[~filled] == -1) and filled.sum() > 100
+    assert np.all(levels[filled] == octree.depth)
+    np.testing.assert_array_equal(coords[pyramid.top_node[filled]],
+                                  np.column_stack([x, tops - 1, z])[filled])
+    assert len(column_tops(octree.node_coords(octree.depth)).top_node) == 0  # nodes unknown

@@ -34,6 +34,7 @@ from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.node_descriptor import descriptor_first_child
 from voxfield.kernels.primary import normal_from_code, store_pixel
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
+from voxfield.kernels.surface_approach import trace_over_columns
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
 ENCODING_OCT = 0
@@ -208,20 +209,22 @@ class RefinementMaps(NamedTuple):
 def render_error_aware_rows(
     cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
     view: OctreeView, refinement: Refinement, model: ErrorModel, beam: BeamBounds,
-    out: PixelOutputs, maps: RefinementMaps,
+    out: PixelOutputs, maps: RefinementMaps, columns,
 ) -> None:
     """Trace rows ``[row0, row1)``; ``refinement.cone_scale`` > 0 picks the base LOD by pixel
-    cone; ``model.lighting_aware`` adds the bright-flag colour error to the geometric one."""
+    cone; ``model.lighting_aware`` adds the bright-flag colour error to the geometric one.
+    Rays at a fixed level cross the air in the column-top pyramid ``columns`` first
+    (``kernels.surface_approach``; ``no_column_tops()`` for none), as the LOD renderer's do."""
     for row in prange(row0, row1):
         render_error_aware_row(cam, width, height, row0, seed, view, refinement, model, beam,
-                               out, maps, row)
+                               out, maps, row, columns)
 
 
 @njit(cache=True, nogil=True)
 def render_error_aware_row(
     cam: np.ndarray, width: int, height: int, row0: int, seed: int, view: OctreeView,
     refinement: Refinement, model: ErrorModel, beam: BeamBounds, out: PixelOutputs,
-    maps: RefinementMaps, row: int,
+    maps: RefinementMaps, row: int, columns,
 ) -> None:
     """One row of ``render_error_aware_rows`` (the traversal is inlined here, never straight
     into a ``prange`` body, where Numba's parfor pass would hoist its initialisations)."""
@@ -290,12 +293,14 @@ def render_error_aware_row(
                 fx = (cx + 0.5) / cells
                 fy = (cy + 0.5) / cells
             ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
-            use_cone = k == 0 and cone_scale > 0.0
-            node, level, t, normal, steps = trace_ray(
-                ox, oy, oz, dx, dy, dz, max(tmin, t_start), math.inf, inner_nodes, depth, stop,
-                radius if use_cone else 0.0, spread if use_cone else 0.0,
-                scratch,
-            )
+            if k == 0 and cone_scale > 0.0:
+                node, level, t, normal, steps = trace_ray(
+                    ox, oy, oz, dx, dy, dz, max(tmin, t_start), math.inf, inner_nodes, depth,
+                    stop, radius, spread, scratch)
+            else:
+                node, level, t, normal, steps = trace_over_columns(
+                    ox, oy, oz, dx, dy, dz, max(tmin, t_start), math.inf, inner_nodes, depth,
+                    stop, scratch, columns)
             if tmin == _FRESH:
                 rays += 1
             elif normal < 0 and t == tmin:

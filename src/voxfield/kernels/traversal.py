@@ -25,7 +25,10 @@ monotonic), so only the ray's own ``tmax`` clips intervals.
 **Steps** (the EA thesis's traversal steps, the cost measure every renderer reports): the
 number of existing nodes with a non-empty interval the traversal enters, the root included,
 up to and including the node it stops at. Empty octants it skips are not counted. The count
-equals that of the textbook stack traversal that visits children front to back.
+equals that of the textbook stack traversal that visits children front to back. Rays that
+first walk the column-top pyramid (``kernels.surface_approach``, ``kernels.upward_rays``) add
+one step per pyramid cell they visit, and a node the pyramid settles without the octree
+counts as one step; the GPU kernel and ``columns=False`` renders walk the octree alone.
 
 **Restart.** Consecutive rays of one thread are usually close. Each hit leaves its path (the
 ancestors' descriptors on the stack, the hit node's position) in the per-thread scratch, and
@@ -270,6 +273,33 @@ def restart_level(
 
 
 @njit(cache=True, nogil=True, inline="always")
+def node_at_level(inner_nodes: np.ndarray, depth: int, level: int, x: int, y: int, z: int,
+            scratch) -> int:
+    """Flat index of the node at ``level`` (1..depth) with corner ``(x, y, z)`` (voxel units),
+    which must exist, recorded as the last hit (so the next ray restarts near it, as after
+    ``trace_ray``). The lookup starts at the deepest ancestor it shares with the last hit."""
+    stack, path, _ = scratch
+    start = 0
+    if path[_PATH_LEVEL] == level - 1:
+        diff = (x ^ path[1]) | (y ^ path[2]) | (z ^ path[3])
+        start = level - 1 if diff == 0 else min(max(depth - 1 - highest_bit(diff), 0), level - 1)
+    else:
+        stack[0] = inner_nodes[0]
+    node = 0
+    for current in range(start, level):
+        shift = depth - current - 1
+        octant = ((x >> shift) & 1) | (((y >> shift) & 1) << 1) | (((z >> shift) & 1) << 2)
+        node = child_index(stack[current], octant)
+        if current + 1 < level:
+            stack[current + 1] = inner_nodes[node]
+    path[_PATH_LEVEL] = level - 1
+    path[1] = x
+    path[2] = y
+    path[3] = z
+    return node
+
+
+@njit(cache=True, nogil=True, inline="always")
 def trace_ray(
     ox: float, oy: float, oz: float,
     dx: float, dy: float, dz: float,
@@ -286,7 +316,23 @@ def trace_ray(
     ``scratch`` comes from ``new_scratch``, one per thread. Non-finite inputs miss.
     """
     return traverse(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth, stop_level,
-                    cone_radius, cone_spread, scratch, False)
+                    cone_radius, cone_spread, scratch, False, tmin)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def trace_ray_from(
+    ox: float, oy: float, oz: float,
+    dx: float, dy: float, dz: float,
+    tmin: float, t_from: float, tmax: float,
+    inner_nodes: np.ndarray, depth: int, stop_level: int, scratch,
+) -> tuple[int, int, float, int, int]:
+    """``trace_ray`` of the ray over ``[tmin, tmax)``, at a fixed level, searched from
+    ``t_from >= tmin`` on: for a caller that knows nothing is hit before ``t_from``
+    (``kernels.surface_approach``). Hit, time and normal are those of the whole ray (a node
+    entered at ``t_from`` still has its entry face); the steps are those taken from
+    ``t_from``."""
+    return traverse(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth, stop_level,
+                    0.0, 0.0, scratch, False, max(t_from, tmin))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -303,7 +349,7 @@ def occluded(
     walls stop levels above the voxels, and no hit time or normal is worked out.
     """
     node, _, _, _, steps = traverse(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth,
-                                    depth, 0.0, 0.0, scratch, True)
+                                    depth, 0.0, 0.0, scratch, True, tmin)
     return node != MISS, steps
 
 
@@ -314,14 +360,16 @@ def traverse(
     tmin: float, tmax: float,
     inner_nodes: np.ndarray, depth: int,
     stop_level: int, cone_radius: float, cone_spread: float,
-    scratch, any_hit: bool,
+    scratch, any_hit: bool, t_from: float,
 ) -> tuple[int, int, float, int, int]:
-    """The loop behind ``trace_ray`` and ``occluded`` (``any_hit`` is a constant at each call
-    site, so each gets its own specialised copy). Any-hit results carry no time or normal."""
+    """The loop behind ``trace_ray``, ``trace_ray_from`` and ``occluded`` (``any_hit`` is a
+    constant at each call site, so each gets its own specialised copy). Any-hit results carry
+    no time or normal. The search starts at ``t_from >= tmin``; entry faces are judged
+    against ``tmin``."""
     if not (
         math.isfinite(ox) and math.isfinite(oy) and math.isfinite(oz)
         and math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dz)
-        and tmin == tmin and tmax == tmax
+        and tmin == tmin and tmax == tmax and t_from == t_from
     ):
         return MISS, 0, math.inf, NO_NORMAL, 0
     stack, path, start_stacks = scratch
@@ -359,7 +407,7 @@ def traverse(
     tex = face_time(root & ~exit_x, ox, ix)
     tey = face_time(root & ~exit_y, oy, iy)
     tez = face_time(root & ~exit_z, oz, iz)
-    t_min = max(max(max(tex, tey), tez), tmin)
+    t_min = max(max(max(tex, tey), tez), t_from)
     t_leave = min(min(face_time(root & exit_x, ox, ix), face_time(root & exit_y, oy, iy)),
                   face_time(root & exit_z, oz, iz))
     if not t_min < min(t_leave, tmax):

@@ -22,7 +22,7 @@ from voxfield.parallel import thread_count
 from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
 from voxfield.render.device import check_device, trace_pixels_cuda
-from voxfield.render.primary import render_lod
+from voxfield.render.primary import pixel_columns, render_lod
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
 
@@ -96,7 +96,8 @@ def normalisation_of(variances, quantile: float = 1.0) -> float:
 
 
 def refine_by_variance(octree: Octree, camera: Camera, result: RenderResult,
-                       normalisation: float, seed: int, colours, threads=None) -> np.ndarray:
+                       normalisation: float, seed: int, colours, threads=None,
+                       columns: bool = True) -> np.ndarray:
     """Refine the pixels of a finished render whose 3×3 luminance variance (normalised by
     ``normalisation``) asks for more rays than they have: class 2 → 4×4 below 16 rays,
     class 1 → 2×2 below 4 rays. Returns the class each pixel asked for (-1: background)."""
@@ -108,7 +109,8 @@ def refine_by_variance(octree: Octree, camera: Camera, result: RenderResult,
         side = CLASS_SIDE[cls]
         todo = np.flatnonzero((wanted.reshape(-1) == cls) & (rays < side * side))
         if len(todo):
-            refine_pixels(octree, camera, todo, side, seed, colours, result, threads)
+            refine_pixels(octree, camera, todo, side, seed, colours, result, threads,
+                          columns=columns)
     return wanted
 
 
@@ -123,20 +125,20 @@ def render_adaptive(
     iterations: int = AdaptiveOptions.iterations,
     variance_normalisation: float = AdaptiveOptions.variance_normalisation, seed: int = 0,
     channel: str = "albedo", threads: int | None = None, progress: bool = False,
-    device: str = "cpu",
+    device: str = "cpu", columns: bool = True,
 ) -> RenderResult:
     """Render 1 ray per pixel, then refine high-variance pixels at LOD 0 (``iterations`` times;
     later iterations only raise a pixel's class). ``maps`` holds the last iteration's
     normalised ``variance`` and the final ``refinement_class``. ``device="cuda"`` traces the
     first pass and the refinements on a GPU (the variance and the beam bounds stay on the
-    CPU), with the same image."""
+    CPU), with the same image. ``columns``: as ``render_lod``'s."""
     check_device(device)
     if iterations < 0:
         raise VoxfieldError("iterations must be zero or more")
     if not variance_normalisation > 0:
         raise VoxfieldError("the variance normalisation must be positive")
     first = render_lod(octree, camera, lod=base_lod, seed=seed, channel=channel,
-                       threads=threads, progress=progress, device=device)
+                       threads=threads, progress=progress, device=device, columns=columns)
     start = time.perf_counter()
     result = RenderResult(
         first.image.copy(), first.depth.copy(), first.normal.copy(), first.ray_count.copy(),
@@ -154,7 +156,7 @@ def render_adaptive(
             todo = np.flatnonzero((wanted == cls) & (current < cls))
             if len(todo):
                 refine_pixels(octree, camera, todo, CLASS_SIDE[cls], seed, (colors, facing),
-                              result, threads, device, channel)
+                              result, threads, device, channel, columns)
                 current.reshape(-1)[todo] = cls
     result.seconds = first.seconds + time.perf_counter() - start
     result.maps["variance"] = variance
@@ -168,7 +170,7 @@ def render_adaptive(
 
 
 def refine_pixels(octree, camera, pixels, side, seed, colours, result, threads,
-                  device: str = "cpu", channel: str = "albedo") -> None:
+                  device: str = "cpu", channel: str = "albedo", columns: bool = True) -> None:
     """Re-render the listed pixels with side×side rays at LOD 0 into ``result`` (colours as
     ``Octree.kernel_colours`` gives them, of ``channel`` on a GPU); their rays and steps add to
     what they had."""
@@ -192,7 +194,8 @@ def refine_pixels(octree, camera, pixels, side, seed, colours, result, threads,
             render_pixels(camera.params, camera.width, camera.height, pixels, -1, side,
                           seed, OctreeView(octree.inner_nodes, octree.depth, *colours),
                           octree.depth, 0.0, BeamBounds(beam.bound, beam.block),
-                          PixelOutputs(color, depth, normal, rays, hits, steps, lod))
+                          PixelOutputs(color, depth, normal, rays, hits, steps, lod),
+                          pixel_columns(octree, columns, side, beam.bound))
     steps += beam.pixel_steps(pixels, camera.width)
     flat = {name: getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])
             for name in ("image", "depth", "normal", "ray_count", "hit_count", "steps",

@@ -33,6 +33,7 @@ from voxfield.render.adaptive import luminance, refine_by_variance
 from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
 from voxfield.render.result import RenderResult
+from voxfield.svo.column_tops import no_column_tops, octree_column_tops
 from voxfield.svo.lod_colours import exposed_face_weights
 from voxfield.svo.octree import Octree
 
@@ -98,6 +99,7 @@ def render_error_aware(
     colour_variance: float | None = ErrorAwareOptions.colour_variance,
     lighting_table: LightingErrorTable | None = None,
     seed: int = 0, channel: str = "albedo", threads: int | None = None, progress: bool = False,
+    columns: bool = True,
 ) -> RenderResult:
     """One ray per pixel at ``base_lod`` (or, with ``base_lod=None``, the LOD whose nodes match
     ``cone_scale`` pixel footprints), refined 2×2 one LOD finer wherever
@@ -119,6 +121,8 @@ def render_error_aware(
     ``colour_variance`` makes it a hybrid: the geometric error refines first, then pixels
     whose image variance asks for more rays are re-rendered as the adaptive renderer does
     (``adaptive.refine_by_variance``; their earlier rays count as spent).
+    ``columns`` lets rays at a fixed level cross the air in the column-top pyramid first, as
+    ``render_lod``'s do (same image; steps count its cells).
     """
     table = load_error_table() if table is None else table
     encoding = encoding or table.default_encoding
@@ -163,6 +167,7 @@ def render_error_aware(
          if context_aware else np.zeros(0, np.uint8)),
     )
     cam = camera.params
+    pyramid = octree_column_tops(octree) if columns else no_column_tops()
     with thread_count(threads):
         beam = primary_beam(octree, camera, stop_level=stop_level,
                             cone_scale=cone_scale if base_lod is None else 0.0)
@@ -171,7 +176,7 @@ def render_error_aware(
         out = PixelOutputs(*result.buffers(rows))
         maps = RefinementMaps(refined[rows], discarded[rows])
         render_error_aware_rows(cam, w, h, rows.start, rows.stop, seed, view, refinement,
-                                model, BeamBounds(beam.bound, beam.block), out, maps)
+                                model, BeamBounds(beam.bound, beam.block), out, maps, pyramid)
 
     result.seconds = beam.seconds + run_in_bands(h, band, label="error-aware", threads=threads,
                                                  progress=progress)
@@ -194,7 +199,7 @@ def render_error_aware(
         hits_before = result.hit_count.copy()
         rays_before = result.ray_count.copy()
         refine_by_variance(octree, camera, result, colour_variance, seed, (colors, facing),
-                           threads)
+                           threads, columns)
         redone = result.ray_count != rays_before
         discarded[redone] += hits_before[redone]  # their earlier samples no longer show
         result.maps["variance_refined"] = redone.astype(np.int32)

@@ -37,24 +37,30 @@ class ColumnTops(NamedTuple):
     level_width: np.ndarray  # int64 (levels,): cells along x
     level_depth: np.ndarray  # int64 (levels,): cells along z
     run_bottom: np.ndarray  # int32 (level-0 cells,): lowest y of each column's top run
+    top_node: np.ndarray  # int64 (level-0 cells,): node of each column's top voxel (-1: none);
+    #                       empty when the voxels' nodes are not known
 
 
 def no_column_tops() -> ColumnTops:
     """An empty pyramid: every rising ray goes through the octree."""
     empty = np.zeros(0, np.int64)
-    return ColumnTops(np.zeros(0, np.int32), empty, empty, empty, np.zeros(0, np.int32))
+    return ColumnTops(np.zeros(0, np.int32), empty, empty, empty, np.zeros(0, np.int32), empty)
 
 
-def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS) -> ColumnTops:
+def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
+                first_node: int | None = None) -> ColumnTops:
     """The pyramid of the voxels with corners ``voxels`` (``(n, 3)`` integer, octree units),
-    or ``no_column_tops()`` when there are none or the footprint exceeds ``max_columns``."""
+    or ``no_column_tops()`` when there are none or the footprint exceeds ``max_columns``.
+    ``first_node``: the node index of ``voxels[0]``, the others following in order (an
+    octree's leaves, ``Octree.level_slice(depth)``), so each column's top voxel keeps its
+    node; None leaves ``top_node`` empty."""
     if len(voxels) == 0:
         return no_column_tops()
     width = int(voxels[:, 0].max()) + 1
     depth = int(voxels[:, 2].max()) + 1
     if width * depth > max_columns:
         return no_column_tops()
-    top, bottom = _tops_and_run_bottoms(voxels, width, depth)
+    top, bottom, top_voxel = _tops_and_run_bottoms(voxels, width, depth)
     levels = [top]
     while levels[-1].shape != (1, 1):
         levels.append(_coarser(levels[-1]))
@@ -65,6 +71,8 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS) -> ColumnTop
         level_width=np.array([level.shape[0] for level in levels], np.int64),
         level_depth=np.array([level.shape[1] for level in levels], np.int64),
         run_bottom=bottom.ravel(),
+        top_node=(np.zeros(0, np.int64) if first_node is None else
+                  np.where(top_voxel >= 0, top_voxel + first_node, -1).ravel()),
     )
 
 
@@ -73,7 +81,7 @@ def octree_column_tops(octree, voxels: np.ndarray | None = None) -> ColumnTops:
     ``voxels``, the octree's leaf corners, saves working them out again."""
     def build() -> ColumnTops:
         corners = octree.node_coords(octree.depth) if voxels is None else voxels
-        return column_tops(corners)
+        return column_tops(corners, first_node=octree.level_slice(octree.depth).start)
     return octree.derived(("column_tops",), build)
 
 
@@ -87,8 +95,8 @@ def _coarser(level: np.ndarray) -> np.ndarray:
 
 @njit(cache=True, nogil=True)
 def _column_heights(voxels: np.ndarray, width: int, depth: int):
-    """Each voxel's ``y`` bucketed by column (counting sort): per-column start offsets and
-    the heights."""
+    """Each voxel's ``y`` bucketed by column (counting sort): per-column start offsets, the
+    heights and the voxels' indices."""
     starts = np.zeros(width * depth + 1, np.int64)
     for i in range(voxels.shape[0]):
         starts[voxels[i, 0] * depth + voxels[i, 2] + 1] += 1
@@ -96,17 +104,21 @@ def _column_heights(voxels: np.ndarray, width: int, depth: int):
         starts[c + 1] += starts[c]
     fill = starts[:-1].copy()
     heights = np.empty(voxels.shape[0], np.int32)
+    index = np.empty(voxels.shape[0], np.int64)
     for i in range(voxels.shape[0]):
         c = voxels[i, 0] * depth + voxels[i, 2]
         heights[fill[c]] = voxels[i, 1]
+        index[fill[c]] = i
         fill[c] += 1
-    return starts, heights
+    return starts, heights, index
 
 
 @njit(cache=True, nogil=True)
 def _column_block(first: int, last: int, depth: int, starts: np.ndarray, heights: np.ndarray,
-                  top: np.ndarray, bottom: np.ndarray) -> None:
-    """Tops and top-run bottoms of the columns ``x = first..last-1`` (every ``z``)."""
+                  index: np.ndarray, top: np.ndarray, bottom: np.ndarray,
+                  top_voxel: np.ndarray) -> None:
+    """Tops, top-run bottoms and top voxels of the columns ``x = first..last-1`` (every
+    ``z``)."""
     present = np.zeros(0, np.bool_)  # per column: is there a voxel at y = lowest + index?
     for x in range(first, last):
         for z in range(depth):
@@ -116,9 +128,12 @@ def _column_block(first: int, last: int, depth: int, starts: np.ndarray, heights
                 continue
             low = heights[begin]
             high = heights[begin]
+            highest = begin
             for k in range(begin + 1, end):
                 low = min(low, heights[k])
-                high = max(high, heights[k])
+                if heights[k] > high:
+                    high = heights[k]
+                    highest = k
             if present.shape[0] < high - low + 1:
                 present = np.zeros(high - low + 1, np.bool_)
             for k in range(begin, end):
@@ -130,18 +145,21 @@ def _column_block(first: int, last: int, depth: int, starts: np.ndarray, heights
                 present[heights[k] - low] = False
             top[x, z] = high + 1
             bottom[x, z] = run
+            top_voxel[x, z] = index[highest]
 
 
 @njit(cache=True, nogil=True, parallel=True)
 def _tops_and_run_bottoms(voxels: np.ndarray, width: int, depth: int):
-    """Per column, the top (highest voxel's ``y`` + 1, 0 when empty) and the lowest ``y`` of
-    the unbroken run of voxels that ends there (0 when empty)."""
-    starts, heights = _column_heights(voxels, width, depth)
+    """Per column, the top (highest voxel's ``y`` + 1, 0 when empty), the lowest ``y`` of
+    the unbroken run of voxels that ends there (0 when empty) and the index of the highest
+    voxel (-1 when empty)."""
+    starts, heights, index = _column_heights(voxels, width, depth)
     top = np.zeros((width, depth), np.int32)
     bottom = np.zeros((width, depth), np.int32)
+    top_voxel = np.full((width, depth), -1, np.int64)
     blocks = 64
     per_block = (width + blocks - 1) // blocks
     for b in prange(blocks):
         _column_block(min(width, b * per_block), min(width, (b + 1) * per_block), depth,
-                      starts, heights, top, bottom)
-    return top, bottom
+                      starts, heights, index, top, bottom, top_voxel)
+    return top, bottom, top_voxel

@@ -1,0 +1,159 @@
+"""Closest-hit rays through the column-top pyramid get exactly the octree's hits."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from random_scenes import overhanging_terrain, random_scene
+from voxfield.kernels.surface_approach import (
+    HANDED_OVER,
+    MISSED,
+    approach_surface,
+    top_node_hit,
+    trace_over_columns,
+)
+from voxfield.kernels.traversal import new_scratch, trace_ray
+from voxfield.scene.voxel_scene import VoxelScene
+from voxfield.svo import build_octree
+from voxfield.svo.column_tops import column_tops, no_column_tops
+
+#: How a ray ended in the walk: missed, settled by the pyramid (a column's top run, a cell's
+#: top node), or finished by the octree.
+_MISSED, _TOP_NODE, _OCTREE = 0, 1, 2
+
+
+@njit
+def _hits(o, d, tmin, tmax, inner, depth, stop_level, columns, out, times, ends):
+    """Per ray: the octree's hit over the whole ray (fresh scratch) and the pyramid's (one
+    scratch for all rays, as a render thread keeps), and how the walk ended."""
+    scratch = new_scratch(depth)
+    for k in range(o.shape[0]):
+        a = trace_ray(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2], tmin[k], tmax[k],
+                      inner, depth, stop_level, 0.0, 0.0, new_scratch(depth))
+        b = trace_over_columns(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2], tmin[k],
+                               tmax[k], inner, depth, stop_level, scratch, columns)
+        out[k, 0] = a[0]
+        out[k, 1] = a[1]
+        out[k, 2] = a[3]
+        out[k, 3] = b[0]
+        out[k, 4] = b[1]
+        out[k, 5] = b[3]
+        out[k, 6] = b[4]
+        out[k, 7] = a[4]
+        times[k, 0] = a[2]
+        times[k, 1] = b[2]
+        finest = depth - min(stop_level, depth)
+        verdict, t, _, cx, cz = approach_surface(
+            o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2], tmin[k], tmax[k], finest,
+            finest + 2 if tmin[k] > 0.0 else depth, columns)
+        ends[k] = _MISSED if verdict == MISSED else _OCTREE
+        if verdict == HANDED_OVER and cx >= 0:
+            y, _, _ = top_node_hit(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2],
+                                   tmin[k], t, tmax[k], cx, cz, finest, columns)
+            if y >= 0:
+                ends[k] = _TOP_NODE
+
+
+def any_rays(voxels: np.ndarray, n: int, seed: int):
+    """Rays of every kind: down from a camera above (steep and oblique), from lattice points
+    with small integer directions (through edges and corners, level ones included), with
+    zero ``x`` or ``z`` or straight up and down, from inside voxels, and from random points
+    around the scene (beside the footprint and under it)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = voxels.min(axis=0), voxels.max(axis=0) + 1
+    size = float((hi - lo).max())
+    parts_o, parts_d = [], []
+    o = np.empty((n, 3))
+    o[:, [0, 2]] = rng.uniform(lo[[0, 2]] - 2, hi[[0, 2]] + 2, (n, 2))
+    o[:, 1] = hi[1] + rng.uniform(0.5, size, n)
+    parts_o.append(o)
+    d = rng.normal(size=(n, 3))
+    d[:, 1] = -np.abs(d[:, 1]) * rng.choice([0.1, 0.5, 2.0, 20.0], n)
+    parts_d.append(d)
+    parts_o.append(np.round(rng.uniform(lo - 2, hi + 2, (n, 3))))
+    parts_d.append(rng.integers(-2, 3, (n, 3)).astype(np.float64))
+    o = rng.uniform(lo - 1, hi + 1, (n, 3))
+    o[:, [0, 2]] = np.round(o[:, [0, 2]] * 2) / 2
+    d = rng.normal(size=(n, 3))
+    d[np.arange(n), rng.choice([0, 2], n)] = 0.0
+    d[: n // 4, [0, 2]] = 0.0
+    parts_o.append(o)
+    parts_d.append(d)
+    parts_o.append(voxels[rng.integers(0, len(voxels), n)] + rng.random((n, 3)))
+    parts_d.append(rng.normal(size=(n, 3)))
+    parts_o.append(rng.uniform(lo - 3, hi + 3, (n, 3)))
+    parts_d.append(rng.normal(size=(n, 3)))
+    origins, directions = np.concatenate(parts_o), np.concatenate(parts_d)
+    keep = np.any(directions != 0.0, axis=1)
+    return origins[keep], directions[keep]
+
+
+def _compare(octree, columns, origins, directions, tmin, tmax, stop_level):
+    n = len(origins)
+    out = np.zeros((n, 8), np.int64)
+    times = np.zeros((n, 2))
+    ends = np.zeros(n, np.int64)
+    _hits(origins, directions, tmin, tmax, octree.inner_nodes, octree.depth, stop_level,
+          columns, out, times, ends)
+    return out, times, ends
+
+
+def test_hits_are_the_octree_hits_at_every_fixed_level():
+    """Node, level, entry face and time bit for bit, at LOD 0 and coarser, whatever the ray,
+    its start bound and its end, with one scratch carried from ray to ray."""
+    seen_ends = np.zeros((3, 3), np.int64)
+    for scene in (overhanging_terrain(seed=1), overhanging_terrain(seed=7, size=37),
+                  random_scene(seed=8, n=900, size=19)):
+        octree = build_octree(scene)
+        voxels = octree.node_coords(octree.depth)
+        columns = column_tops(voxels)
+        origins, directions = any_rays(voxels, 800, seed=len(voxels))
+        rng = np.random.default_rng(3)
+        n = len(origins)
+        # Start bounds as a beam gives them (often before the hit, sometimes past it), and
+        # ends short of the scene or open.
+        tmin = np.where(rng.random(n) < 0.5, 0.0, rng.uniform(0.0, 30.0, n))
+        tmax = np.where(rng.random(n) < 0.7, math.inf, tmin + rng.uniform(0.0, 30.0, n))
+        for lod in (0, 1, 2):
+            out, times, ends = _compare(octree, columns, origins, directions, tmin, tmax,
+                                        octree.depth - lod)
+            np.testing.assert_array_equal(out[:, 3:6], out[:, 0:3])
+            assert np.array_equal(times[:, 1], times[:, 0])  # inf for misses, bit for bit
+            assert (out[:, 0] >= 0).sum() > n // 4  # plenty of hits and misses
+            assert (out[:, 0] < 0).sum() > n // 10
+            seen_ends[lod] += np.bincount(ends, minlength=3)
+    assert np.all(seen_ends > 100), seen_ends  # the walk ends all three ways at every level
+
+
+def test_no_pyramid_is_the_octree_alone():
+    octree = build_octree(overhanging_terrain(seed=2))
+    voxels = octree.node_coords(octree.depth)
+    origins, directions = any_rays(voxels, 200, seed=1)
+    n = len(origins)
+    out, times, _ = _compare(octree, no_column_tops(), origins, directions, np.zeros(n),
+                             np.full(n, math.inf), octree.depth)
+    np.testing.assert_array_equal(out[:, 3:7], out[:, [0, 1, 2, 7]])  # steps too
+    assert np.array_equal(times[:, 1], times[:, 0])
+
+
+def test_rays_onto_ground_end_in_the_pyramid_without_the_octree():
+    """Rays from high above onto a flat 64² field skip the air in the pyramid and land on a
+    column's top voxel: no octree walk, one step for the voxel after the cells."""
+    x, z = np.meshgrid(np.arange(64), np.arange(64), indexing="ij")
+    coords = np.stack([x.ravel(), np.zeros(x.size, np.int64), z.ravel()], axis=1)
+    octree = build_octree(VoxelScene(coords, np.full((x.size, 3), 0.5), name="ground"))
+    columns = column_tops(octree.node_coords(octree.depth))
+    rng = np.random.default_rng(0)
+    n = 500
+    origins = np.column_stack([rng.uniform(8, 56, n), np.full(n, 60.0), rng.uniform(8, 56, n)])
+    directions = np.column_stack([rng.uniform(-0.1, 0.1, n), -np.ones(n),
+                                  rng.uniform(-0.1, 0.1, n)])
+    out, times, ends = _compare(octree, columns, origins, directions, np.zeros(n),
+                                np.full(n, math.inf), octree.depth)
+    np.testing.assert_array_equal(out[:, 3:6], out[:, 0:3])
+    hit = out[:, 0] >= 0
+    assert hit.all() and np.all(ends == _TOP_NODE)
+    assert np.all(out[:, 5] == 3)  # entered through the top face (+y)
