@@ -15,18 +15,20 @@ def voxels_of(scene) -> np.ndarray:
 
 
 def scanned_columns(voxels: np.ndarray):
-    """Per column ``(x, z)``: the top and the lowest ``y`` of the run that ends at it."""
+    """Per column ``(x, z)``: the top, the lowest ``y`` of the run that ends at it, and the
+    top of the highest voxel under that run (0 when none)."""
     found = {}
     for x, z in {(int(x), int(z)) for x, _, z in voxels}:
         ys = set(voxels[(voxels[:, 0] == x) & (voxels[:, 2] == z), 1].tolist())
         bottom = max(ys)
         while bottom - 1 in ys:
             bottom -= 1
-        found[x, z] = (max(ys) + 1, bottom)
+        under = max((y + 1 for y in ys if y < bottom), default=0)
+        found[x, z] = (max(ys) + 1, bottom, under)
     return found
 
 
-def test_tops_and_top_runs_match_a_scan_of_each_column():
+def test_tops_top_runs_and_what_lies_under_them_match_a_scan_of_each_column():
     for scene in (overhanging_terrain(seed=1), random_scene(seed=2, n=500, size=13)):
         voxels = voxels_of(scene)
         pyramid = column_tops(voxels)
@@ -34,13 +36,13 @@ def test_tops_and_top_runs_match_a_scan_of_each_column():
         assert (width, depth) == (voxels[:, 0].max() + 1, voxels[:, 2].max() + 1)
         tops = pyramid.tops[:width * depth].reshape(width, depth)
         bottoms = pyramid.run_bottom.reshape(width, depth)
-        expected_tops = np.zeros((width, depth), int)
-        expected_bottoms = np.zeros((width, depth), int)
-        for (x, z), (top, bottom) in scanned_columns(voxels).items():
-            expected_tops[x, z] = top
-            expected_bottoms[x, z] = bottom
-        assert np.array_equal(tops, expected_tops)
-        assert np.array_equal(bottoms, expected_bottoms)
+        expected = np.zeros((3, width, depth), int)
+        for (x, z), found in scanned_columns(voxels).items():
+            expected[:, x, z] = found
+        assert np.array_equal(tops, expected[0])
+        assert np.array_equal(bottoms, expected[1])
+        assert np.array_equal(pyramid.under_top.reshape(width, depth), expected[2])
+        assert np.any(expected[2] > 0)
         # Some columns have voxels below a gap, so the run bottom is not the lowest voxel.
         lowest = {(x, z): voxels[(voxels[:, 0] == x) & (voxels[:, 2] == z), 1].min()
                   for (x, z) in scanned_columns(voxels)}

@@ -148,6 +148,24 @@ def _height_at(o: float, d: float, inv: float, t: float, top: int, level: int) -
     return max(min(k, top), -1)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _under_the_run(oy: float, dy: float, iy: float, t: float, t_exit: float, top: int,
+                   column: int, run_bottom, under_top) -> bool:
+    """Whether a ray that is not rising passes through a column's gap, under its top run
+    and above what lies below, for all of ``[t, t_exit)`` (an overhang it passes under).
+    Nothing below the run is not such a gap: a ray there is under a hollow shell, whose empty
+    inside the octree crosses in far fewer steps than column after column."""
+    y = _height_at(oy, dy, iy, t, top, 0)
+    if y >= top or y >= run_bottom[column]:  # (no read for a ray above the top)
+        return False
+    under = under_top[column]
+    if under == 0:
+        return False
+    if dy < 0.0:
+        return t_exit <= face_time(under, oy, iy)
+    return oy >= under
+
+
 @njit(cache=True, nogil=True)
 def approach_surface(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
@@ -160,7 +178,7 @@ def approach_surface(
     The walk starts at ``start_level`` (clamped to the pyramid): low when ``tmin`` is near
     the surface, at the top when not. ``columns`` is a ``ColumnTops``; without levels, or
     for non-finite rays, every ray is handed over at ``tmin``."""
-    tops, level_offset, level_width, level_depth, _, _ = columns
+    tops, level_offset, level_width, level_depth, run_bottom, under_top, _ = columns
     levels = level_width.shape[0]
     if finest_level < 0 or finest_level >= levels or not (
         math.isfinite(ox) and math.isfinite(oy) and math.isfinite(oz)
@@ -206,6 +224,9 @@ def approach_surface(
             above = t >= face_time(top, oy, iy)
         else:
             above = oy >= top
+        if not above and level == 0 and finest_level == 0 and top != 0 and dy <= 0.0:
+            above = _under_the_run(oy, dy, iy, t, t_exit, top, cx * level_depth[0] + cz,
+                                   run_bottom, under_top)
         if above or top == 0:  # (an empty cell's top is 0: no voxel, whatever the ray does)
             if not t_exit < t_end:
                 return MISSED, t, steps, -1, -1
@@ -244,7 +265,7 @@ def top_node_hit(
     the ray, so a falling ray above that node lands on it, and a ray inside it or (at level
     0) inside the run at ``t`` is in a node: its interval (the contract's, clipped at
     ``tmin``) starts the hit, and its entry face follows ``traversal.entry_normal``."""
-    tops, level_offset, _, level_depth, run_bottom, _ = columns
+    tops, level_offset, _, level_depth, run_bottom, _, _ = columns
     ox, dx, ix = axis_setup(ox, dx)
     oy, dy, iy = axis_setup(oy, dy)
     oz, dz, iz = axis_setup(oz, dz)

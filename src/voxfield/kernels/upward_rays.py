@@ -62,7 +62,7 @@ def rising_ray_query(
     blocks it), ``BLOCKED``, or ``UNDECIDED`` from time ``t`` on (trace ``[t, tmax)`` with
     ``occluded``). ``columns`` is a ``ColumnTops``; without levels every ray is undecided
     from 0."""
-    tops, level_offset, level_width, level_depth, run_bottom, _ = columns
+    tops, level_offset, level_width, level_depth, run_bottom, _, _ = columns
     if level_width.shape[0] == 0 or not dy > MIN_RISE:
         return UNDECIDED, 0.0, 0
     ox, dx, ix = axis_setup(ox, dx)

@@ -37,6 +37,7 @@ class ColumnTops(NamedTuple):
     level_width: np.ndarray  # int64 (levels,): cells along x
     level_depth: np.ndarray  # int64 (levels,): cells along z
     run_bottom: np.ndarray  # int32 (level-0 cells,): lowest y of each column's top run
+    under_top: np.ndarray  # int32 (level-0 cells,): top of what lies under the run's gap, or 0
     top_node: np.ndarray  # int64 (level-0 cells,): node of each column's top voxel (-1: none);
     #                       empty when the voxels' nodes are not known
 
@@ -44,7 +45,8 @@ class ColumnTops(NamedTuple):
 def no_column_tops() -> ColumnTops:
     """An empty pyramid: every rising ray goes through the octree."""
     empty = np.zeros(0, np.int64)
-    return ColumnTops(np.zeros(0, np.int32), empty, empty, empty, np.zeros(0, np.int32), empty)
+    none = np.zeros(0, np.int32)
+    return ColumnTops(none, empty, empty, empty, none, none, empty)
 
 
 def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
@@ -60,7 +62,7 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
     depth = int(voxels[:, 2].max()) + 1
     if width * depth > max_columns:
         return no_column_tops()
-    top, bottom, top_voxel = _tops_and_run_bottoms(voxels, width, depth)
+    top, bottom, under, top_voxel = _tops_and_run_bottoms(voxels, width, depth)
     levels = [top]
     while levels[-1].shape != (1, 1):
         levels.append(_coarser(levels[-1]))
@@ -71,6 +73,7 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
         level_width=np.array([level.shape[0] for level in levels], np.int64),
         level_depth=np.array([level.shape[1] for level in levels], np.int64),
         run_bottom=bottom.ravel(),
+        under_top=under.ravel(),
         top_node=(np.zeros(0, np.int64) if first_node is None else
                   np.where(top_voxel >= 0, top_voxel + first_node, -1).ravel()),
     )
@@ -115,10 +118,10 @@ def _column_heights(voxels: np.ndarray, width: int, depth: int):
 
 @njit(cache=True, nogil=True)
 def _column_block(first: int, last: int, depth: int, starts: np.ndarray, heights: np.ndarray,
-                  index: np.ndarray, top: np.ndarray, bottom: np.ndarray,
+                  index: np.ndarray, top: np.ndarray, bottom: np.ndarray, under: np.ndarray,
                   top_voxel: np.ndarray) -> None:
-    """Tops, top-run bottoms and top voxels of the columns ``x = first..last-1`` (every
-    ``z``)."""
+    """Tops, top-run bottoms, tops under the runs and top voxels of the columns
+    ``x = first..last-1`` (every ``z``)."""
     present = np.zeros(0, np.bool_)  # per column: is there a voxel at y = lowest + index?
     for x in range(first, last):
         for z in range(depth):
@@ -141,25 +144,31 @@ def _column_block(first: int, last: int, depth: int, starts: np.ndarray, heights
             run = high
             while run > low and present[run - 1 - low]:
                 run -= 1
+            below = run - 1  # the highest voxel under the gap below the run, if any
+            while below >= low and not present[below - low]:
+                below -= 1
             for k in range(begin, end):
                 present[heights[k] - low] = False
             top[x, z] = high + 1
             bottom[x, z] = run
+            under[x, z] = below + 1 if below >= low else 0
             top_voxel[x, z] = index[highest]
 
 
 @njit(cache=True, nogil=True, parallel=True)
 def _tops_and_run_bottoms(voxels: np.ndarray, width: int, depth: int):
     """Per column, the top (highest voxel's ``y`` + 1, 0 when empty), the lowest ``y`` of
-    the unbroken run of voxels that ends there (0 when empty) and the index of the highest
-    voxel (-1 when empty)."""
+    the unbroken run of voxels that ends there (0 when empty), the top of the highest voxel
+    under the gap below that run (0 when none) and the index of the highest voxel (-1 when
+    empty)."""
     starts, heights, index = _column_heights(voxels, width, depth)
     top = np.zeros((width, depth), np.int32)
     bottom = np.zeros((width, depth), np.int32)
+    under = np.zeros((width, depth), np.int32)
     top_voxel = np.full((width, depth), -1, np.int64)
     blocks = 64
     per_block = (width + blocks - 1) // blocks
     for b in prange(blocks):
         _column_block(min(width, b * per_block), min(width, (b + 1) * per_block), depth,
-                      starts, heights, index, top, bottom, top_voxel)
-    return top, bottom, top_voxel
+                      starts, heights, index, top, bottom, under, top_voxel)
+    return top, bottom, under, top_voxel
