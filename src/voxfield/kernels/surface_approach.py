@@ -218,13 +218,16 @@ def approach_surface(
         t_exit = min(tx, tz)
         # Above the cell's nodes for all of ``[t, t_exit)``: falling rays until they cross
         # the top plane, rising ones from the time they are above it, level ones throughout.
+        t_top = face_time(top, oy, iy)
         if dy < 0.0:
-            above = t_exit <= face_time(top, oy, iy)
+            above = t_exit <= t_top
         elif dy > 0.0:
-            above = t >= face_time(top, oy, iy)
+            above = t >= t_top
         else:
             above = oy >= top
-        if not above and level == 0 and finest_level == 0 and top != 0 and dy <= 0.0:
+        # A ray still above the top at ``t`` lands on it; one already below may pass under.
+        if not above and level == 0 and finest_level == 0 and top != 0 and dy <= 0.0 \
+                and not t < t_top:
             above = _under_the_run(oy, dy, iy, t, t_exit, top, cx * level_depth[0] + cz,
                                    run_bottom, under_top)
         if above or top == 0:  # (an empty cell's top is 0: no voxel, whatever the ray does)
@@ -271,7 +274,10 @@ def top_node_hit(
     oz, dz, iz = axis_setup(oz, dz)
     cell = cx * level_depth[level] + cz
     top = (tops[level_offset[level] + cell] + (1 << level) - 1) >> level  # node units
-    y = _height_at(oy, dy, iy, t, top, level)
+    if dy < 0.0 and t < face_time(top << level, oy, iy):
+        y = top  # not yet down to the top: the common landing, with no search for the height
+    else:
+        y = _height_at(oy, dy, iy, t, top, level)
     if y >= top:
         if not dy < 0.0:
             return -1, math.inf, -1
