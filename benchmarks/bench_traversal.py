@@ -18,7 +18,8 @@ Rows:
 - primary rays, beam on (the default) and off (every ray starts at the camera), each with the
   column-top walk (the default: rays cross the air in the pyramid of column tops first,
   ``kernels.surface_approach``) and through the octree alone; with 16 rays/pixel and the
-  octree alone, the renderer traces in packets (``kernels.packet_traversal``);
+  octree alone, or without a beam, the renderer traces in packets
+  (``kernels.packet_traversal``);
 - incoherent secondary rays: cosine-weighted directions from random points on voxel tops,
   voxfield's any-hit ``ray_query.occluded`` (through the octree alone, and with its
   column-top walk) against Embree's ``test_occlusions`` and closest-hit
@@ -460,7 +461,10 @@ def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args
     for s in all_stats:
         for r in s.rows:
             beam = "on" if r["beam"] else "off"
-            columns = "on" if r["columns"] else ("off, packets" if r["spp"] > 1 else "off")
+            # Supersampled rays without a beam bound go in packets through the octree alone
+            # (``render.primary.pixel_columns``), whatever ``columns`` asks.
+            walked = r["columns"] and (r["spp"] == 1 or r["beam"])
+            columns = "on" if walked else ("off, packets" if r["spp"] > 1 else "off")
             cells = [s.name, r["view"], str(r["spp"]), beam, columns,
                      f"{r['rays']:,}", num(r["vox_mrays"], ".2f"),
                      num(r["steps_per_ray"], ".1f"), num(100 * r["hit_frac"], ".1f")]
