@@ -156,6 +156,7 @@ def warm_up() -> None:
             render_reference(tiny, cam, side=4, beam=beam, columns=columns)
     o, d = cam.rays(side=1, seed=0)
     trace(tiny, o, d)
+    trace(tiny, o, d, columns=True)
     occluded(tiny, o, d)
 
 
@@ -322,7 +323,13 @@ def run_secondary(o3d, embree, octree, stats: SceneStats, args) -> None:
         out = occluded(octree, o, d, tmin=tmin, threads=args.threads, columns=True)
         return time.perf_counter() - t0, out
 
-    fns = {"any": any_hit, "any_columns": any_hit_columns, "closest": closest}
+    def closest_columns():
+        t0 = time.perf_counter()
+        out = trace(octree, o, d, tmin=tmin, threads=args.threads, columns=True)
+        return time.perf_counter() - t0, out
+
+    fns = {"any": any_hit, "any_columns": any_hit_columns, "closest": closest,
+           "closest_columns": closest_columns}
     if embree is not None:
         tensor = o3d.core.Tensor.from_numpy(rays32)
 
@@ -340,19 +347,21 @@ def run_secondary(o3d, embree, octree, stats: SceneStats, args) -> None:
         fns["emb_closest"] = cast
     timed = best_of(args.repeats, fns)
     n = len(o)
-    names = {"any": "any-hit", "any_columns": "any-hit, column walk", "closest": "closest hit"}
+    names = {"any": "any-hit", "any_columns": "any-hit, column walk", "closest": "closest hit",
+             "closest_columns": "closest hit, column walk"}
     for kind, query in names.items():
         seconds, res = timed[kind]
-        blocked = res.hit if kind == "closest" else res.blocked
+        closest_hit = kind.startswith("closest")
+        blocked = res.hit if closest_hit else res.blocked
         row = {"query": query, "rays": n,
                "vox_mrays": n / seconds / 1e6, "steps_per_ray": res.steps.mean(),
                "blocked": blocked.mean()}
         if embree is not None:
-            peer = "closest" if kind == "closest" else "any"
+            peer = "closest" if closest_hit else "any"
             e_seconds, e_out = timed["emb_" + peer]
             row["emb_mrays"] = n / e_seconds / 1e6
             row["ratio"] = row["vox_mrays"] / row["emb_mrays"]
-            e_blocked = np.isfinite(e_out) if kind == "closest" else e_out
+            e_blocked = np.isfinite(e_out) if closest_hit else e_out
             row["agree"] = float((blocked == e_blocked).mean())
         stats.secondary.append(row)
         print(f"  {stats.name} secondary: {fmt_row(row)}", file=sys.stderr)

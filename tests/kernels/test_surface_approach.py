@@ -157,3 +157,26 @@ def test_rays_onto_ground_end_in_the_pyramid_without_the_octree():
     hit = out[:, 0] >= 0
     assert hit.all() and np.all(ends == _TOP_NODE)
     assert np.all(out[:, 5] == 3)  # entered through the top face (+y)
+
+
+def test_ray_queries_through_the_pyramid_are_the_octree_hits():
+    """``ray_query.trace(columns=True)`` starts each walk at the finest level, as rays that
+    leave a surface do: the same hits from voxel faces, from above and from anywhere."""
+    from voxfield.render.ray_query import trace
+
+    octree = build_octree(overhanging_terrain(seed=9, size=33))
+    voxels = octree.node_coords(octree.depth)
+    origins, directions = any_rays(voxels, 600, seed=2)
+    rng = np.random.default_rng(5)
+    faces = voxels[rng.integers(0, len(voxels), 600)] + np.array([0.5, 1.0, 0.5])
+    up = rng.normal(size=(600, 3))
+    up[:, 1] = np.abs(up[:, 1])
+    origins, directions = np.concatenate([origins, faces]), np.concatenate([directions, up])
+    for lod in (0, 1, 2):
+        for tmin in (0.0, 1.5):
+            walked = trace(octree, origins, directions, lod=lod, tmin=tmin, columns=True)
+            alone = trace(octree, origins, directions, lod=lod, tmin=tmin)
+            for name in ("node", "level", "normal_code"):
+                assert np.array_equal(getattr(walked, name), getattr(alone, name)), name
+            assert np.array_equal(walked.t, alone.t)
+            assert np.any(walked.steps != alone.steps)  # the walk was taken

@@ -6,6 +6,7 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
+from voxfield.kernels.surface_approach import FROM_SURFACE, trace_over_columns
 from voxfield.kernels.traversal import new_scratch, occluded, trace_ray
 from voxfield.kernels.upward_rays import BLOCKED, UNDECIDED, rising_ray_query
 
@@ -15,15 +16,18 @@ def trace_rays(
     origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
     inner_nodes: np.ndarray, depth: int, stop_level: int,
     out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
-    out_normal: np.ndarray, out_steps: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray, columns=None,
 ) -> None:
-    """Trace arbitrary rays at a fixed stop level (batch API, tests, oracles, probes)."""
+    """Trace arbitrary rays at a fixed stop level (batch API, tests, oracles, probes). With
+    a column-top pyramid (``svo.column_tops``) each ray crosses the air in it first
+    (``kernels.surface_approach``, from the finest level, as rays from the surface do): the
+    same hits; the steps count its cells."""
     n = origins.shape[0]
     chunk = 256
     for c in prange((n + chunk - 1) // chunk):
         trace_ray_chunk(origins, directions, c * chunk, min(n, (c + 1) * chunk), tmin, tmax,
                         inner_nodes, depth, stop_level,
-                        out_node, out_level, out_t, out_normal, out_steps)
+                        out_node, out_level, out_t, out_normal, out_steps, columns)
 
 
 @njit(cache=True, nogil=True)
@@ -31,16 +35,23 @@ def trace_ray_chunk(
     origins: np.ndarray, directions: np.ndarray, first: int, last: int,
     tmin: float, tmax: float, inner_nodes: np.ndarray, depth: int, stop_level: int,
     out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
-    out_normal: np.ndarray, out_steps: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray, columns=None,
 ) -> None:
     """Rays ``first..last-1`` of ``trace_rays``."""
     scratch = new_scratch(depth)
     for k in range(first, last):
-        node, level, t, normal, steps = trace_ray(
-            origins[k, 0], origins[k, 1], origins[k, 2],
-            directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
-            inner_nodes, depth, stop_level, 0.0, 0.0, scratch,
-        )
+        if columns is None:
+            node, level, t, normal, steps = trace_ray(
+                origins[k, 0], origins[k, 1], origins[k, 2],
+                directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
+                inner_nodes, depth, stop_level, 0.0, 0.0, scratch,
+            )
+        else:
+            node, level, t, normal, steps = trace_over_columns(
+                origins[k, 0], origins[k, 1], origins[k, 2],
+                directions[k, 0], directions[k, 1], directions[k, 2], tmin, tmax,
+                inner_nodes, depth, stop_level, scratch, columns, FROM_SURFACE,
+            )
         out_node[k] = node
         out_level[k] = level
         out_t[k] = t

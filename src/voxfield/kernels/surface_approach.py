@@ -40,16 +40,21 @@ from voxfield.kernels.traversal import (
 
 MISSED = 0
 HANDED_OVER = 1
-#: Levels above the sampled one at which a walk from a start bound (``tmin > 0``: a beam
-#: bound or a continued ray, near the surface) begins; from the camera it begins at the top.
-#: Two measured best of 0, 2, 3, 4, 5 and the top on the mountain terrain.
+#: Levels above the sampled one at which a primary ray's walk from a start bound (``tmin >
+#: 0``: a beam bound or a continued ray, near the surface) begins; from the camera it begins
+#: at the top. Two measured best of 0, 2, 3, 4, 5 and the top on the mountain terrain.
 NEAR_START_LEVELS = 2
+#: ``start`` for ``trace_over_columns``: primary rays (as above) and rays that leave the
+#: surface (secondary rays: from the finest level, climbing as they rise).
+FROM_CAMERA = 0
+FROM_SURFACE = 1
 
 
 @njit(cache=True, nogil=True, inline="always")
 def trace_over_columns(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
     tmin: float, tmax: float, inner_nodes, depth: int, stop_level: int, scratch, columns,
+    start: int = FROM_CAMERA,
 ) -> tuple[int, int, float, int, int]:
     """``traversal.trace_ray`` at the fixed level ``stop_level`` (no cone), through the air in
     the column-top pyramid first: the same node, time and entry face; the steps count the
@@ -60,9 +65,12 @@ def trace_over_columns(
         return trace_ray(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth, stop_level,
                          0.0, 0.0, scratch)
     finest = depth - stop_level
-    start = finest + NEAR_START_LEVELS if tmin > 0.0 else depth
+    if start == FROM_SURFACE:
+        start_level = finest
+    else:
+        start_level = finest + NEAR_START_LEVELS if tmin > 0.0 else depth
     verdict, t_from, cells, cx, cz = approach_surface(ox, oy, oz, dx, dy, dz, tmin, tmax,
-                                                      finest, start, columns)
+                                                      finest, start_level, columns)
     if verdict == MISSED:
         return -1, 0, math.inf, -1, cells
     if cx >= 0:

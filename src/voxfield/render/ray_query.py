@@ -35,11 +35,14 @@ class RayHits:
 
 def trace(
     octree: Octree, origins, directions, *, lod: int = 0, tmin: float = 0.0,
-    tmax: float = math.inf, threads: int | None = None,
+    tmax: float = math.inf, threads: int | None = None, columns: bool = False,
 ) -> RayHits:
     """First node at ``lod`` hit by each ray ``o + t·d`` with ``tmin <= t < tmax``.
 
     Directions need not be normalised; ``t`` is in units of each direction's length.
+    ``columns=True`` lets each ray cross the air in the octree's column-top pyramid first
+    (``kernels.surface_approach``): the same hits, faster for rays that leave a surface;
+    the steps then count the pyramid's cells.
     """
     o, d = _checked_rays(origins, directions)
     if not 0 <= lod <= octree.depth:
@@ -53,6 +56,7 @@ def trace(
         trace_rays(
             o, d, float(tmin), float(tmax), octree.inner_nodes, octree.depth, octree.depth - lod,
             hits.node, hits.level, hits.t, hits.normal_code, hits.steps,
+            octree_column_tops(octree) if columns else None,
         )
     return hits
 
