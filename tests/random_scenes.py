@@ -33,3 +33,13 @@ def overhanging_terrain(seed: int = 0, size: int = 24) -> VoxelScene:
     coords = np.concatenate(parts)
     coords = coords[(coords[:, 0] < size) & (coords[:, 2] < size)]
     return VoxelScene(coords, rng.random((len(coords), 3)), name=f"ledges{seed}").dedupe()
+
+
+def octree_and_columns(scene: VoxelScene):
+    """The scene's octree, its voxels' corners and their column-top pyramid."""
+    from voxfield.svo import build_octree
+    from voxfield.svo.column_tops import column_tops
+
+    octree = build_octree(scene)
+    voxels = octree.node_coords(octree.depth)
+    return octree, voxels, column_tops(voxels)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
-from random_scenes import overhanging_terrain, random_scene
+from random_scenes import octree_and_columns, overhanging_terrain, random_scene
 from voxfield.kernels.surface_approach import (
     HANDED_OVER,
     MISSED,
@@ -107,9 +107,7 @@ def test_hits_are_the_octree_hits_at_every_fixed_level():
     seen_ends = np.zeros((3, 3), np.int64)
     for scene in (overhanging_terrain(seed=1), overhanging_terrain(seed=7, size=37),
                   random_scene(seed=8, n=900, size=19)):
-        octree = build_octree(scene)
-        voxels = octree.node_coords(octree.depth)
-        columns = column_tops(voxels)
+        octree, voxels, columns = octree_and_columns(scene)
         origins, directions = any_rays(voxels, 800, seed=len(voxels))
         rng = np.random.default_rng(3)
         n = len(origins)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 from numba import njit
 
-from random_scenes import overhanging_terrain, random_scene
+from random_scenes import octree_and_columns, overhanging_terrain, random_scene
 from voxfield.kernels.traversal import new_scratch, occluded
 from voxfield.kernels.upward_rays import BLOCKED, CLEAR, UNDECIDED, rising_ray_query
 from voxfield.scene.voxel_scene import VoxelScene
@@ -74,9 +74,7 @@ def rising_rays(voxels: np.ndarray, n: int, seed: int):
 def test_rising_rays_get_the_octree_answer_in_scenes_with_overhangs_and_caves():
     for scene in (overhanging_terrain(seed=0), overhanging_terrain(seed=5, size=37),
                   random_scene(seed=6, n=900, size=17)):
-        octree = build_octree(scene)
-        voxels = octree.node_coords(octree.depth)
-        columns = column_tops(voxels)
+        octree, voxels, columns = octree_and_columns(scene)
         origins, directions = rising_rays(voxels, 1500, seed=len(voxels))
         rng = np.random.default_rng(1)
         # The bake stops rays at the top of the voxels; others run on, or stop anywhere.

@@ -28,6 +28,7 @@ import math
 
 from numba import njit
 
+from voxfield.kernels.column_walk import step_across, step_down
 from voxfield.kernels.traversal import (
     axis_setup,
     entry_normal,
@@ -100,17 +101,6 @@ def _slab_times(o: float, d: float, inv: float, lo: int, hi: int) -> tuple[float
     if lo <= o and o < hi:
         return -math.inf, math.inf
     return math.inf, -math.inf
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _upper_half(mid_plane: int, o: float, d: float, inv: float, t: float) -> int:
-    """1 if the ray is past the mid plane of a cell at time ``t`` (in the cell's upper half
-    along this axis), else 0."""
-    if d > 0.0:
-        return 1 if face_time(mid_plane, o, inv) <= t else 0
-    if d < 0.0:
-        return 1 if t < face_time(mid_plane, o, inv) else 0
-    return 1 if o >= mid_plane else 0
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -242,21 +232,11 @@ def approach_surface(
             if not t_exit < t_end:
                 return MISSED, t, steps, -1, -1
             t = t_exit
-            px = cx
-            pz = cz
-            if tx <= t_exit:
-                cx += step_x
-            if tz <= t_exit:
-                cz += step_z
-            if level < top_level and ((cx >> 1) != (px >> 1) or (cz >> 1) != (pz >> 1)):
-                level += 1  # entered another parent cell: try it whole
-                cx >>= 1
-                cz >>= 1
+            cx, cz, level = step_across(cx, cz, level, tx, tz, t_exit, step_x, step_z,
+                                        top_level)
             continue
         if level > finest_level:
-            level -= 1
-            cx = 2 * cx + _upper_half((2 * cx + 1) << level, ox, dx, ix, t)
-            cz = 2 * cz + _upper_half((2 * cz + 1) << level, oz, dz, iz, t)
+            cx, cz, level = step_down(cx, cz, level, ox, dx, ix, oz, dz, iz, t)
             continue
         return HANDED_OVER, t, steps, cx, cz
 

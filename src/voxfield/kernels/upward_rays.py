@@ -22,6 +22,7 @@ import math
 
 from numba import njit
 
+from voxfield.kernels.column_walk import step_across, step_down
 from voxfield.kernels.traversal import axis_setup, face_time, floor_float
 
 CLEAR = 0
@@ -41,17 +42,6 @@ def _start_cell(o: float, d: float, inv: float) -> int:
     if d < 0.0 and not 0.0 < face_time(k, o, inv):
         k -= 1
     return k
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _upper_half(mid_plane: int, o: float, d: float, inv: float, t: float) -> int:
-    """1 if the ray is past the mid plane of a cell at time ``t`` (in the cell's upper half
-    along this axis), else 0."""
-    if d > 0.0:
-        return 1 if face_time(mid_plane, o, inv) <= t else 0
-    if d < 0.0:
-        return 1 if t < face_time(mid_plane, o, inv) else 0
-    return 1 if o >= mid_plane else 0
 
 
 @njit(cache=True, nogil=True)
@@ -97,21 +87,11 @@ def rising_ray_query(
             if not t_exit < tmax:
                 return CLEAR, t, steps
             t = t_exit
-            px = cx
-            pz = cz
-            if tx <= t_exit:
-                cx += step_x
-            if tz <= t_exit:
-                cz += step_z
-            if level < top_level and ((cx >> 1) != (px >> 1) or (cz >> 1) != (pz >> 1)):
-                level += 1  # entered another parent cell: try it whole
-                cx >>= 1
-                cz >>= 1
+            cx, cz, level = step_across(cx, cz, level, tx, tz, t_exit, step_x, step_z,
+                                        top_level)
             continue
         if level > 0:
-            level -= 1
-            cx = 2 * cx + _upper_half((2 * cx + 1) << level, ox, dx, ix, t)
-            cz = 2 * cz + _upper_half((2 * cz + 1) << level, oz, dz, iz, t)
+            cx, cz, level = step_down(cx, cz, level, ox, dx, ix, oz, dz, iz, t)
             continue
         # One column, and the ray is below its top while in it: does it meet the top run
         # ``[bottom, top)`` there? That run is a box, so the contract's interval test is exact.

@@ -1,0 +1,47 @@
+"""The moves of a walk through the column-top pyramid (``svo.column_tops``), shared by the
+rising any-hit rays (``kernels.upward_rays``) and the closest-hit rays
+(``kernels.surface_approach``). A walk is in cell ``(cx, cz)`` of ``level`` (side
+``2^level`` columns); every time is the traversal's ``face_time`` of an integer plane."""
+
+from __future__ import annotations
+
+from numba import njit
+
+from voxfield.kernels.traversal import face_time
+
+
+@njit(cache=True, nogil=True, inline="always")
+def upper_half(mid_plane: int, o: float, d: float, inv: float, t: float) -> int:
+    """1 if the ray is past the mid plane of a cell at time ``t`` (in the cell's upper half
+    along this axis), else 0."""
+    if d > 0.0:
+        return 1 if face_time(mid_plane, o, inv) <= t else 0
+    if d < 0.0:
+        return 1 if t < face_time(mid_plane, o, inv) else 0
+    return 1 if o >= mid_plane else 0
+
+
+@njit(cache=True, nogil=True, inline="always")
+def step_across(cx: int, cz: int, level: int, tx: float, tz: float, t_exit: float,
+                step_x: int, step_z: int, top_level: int) -> tuple[int, int, int]:
+    """The cell the ray enters at ``t_exit`` when it leaves a cell it skipped (through every
+    face it crosses then), a level up when that cell lies in another parent: coarse where
+    it can be."""
+    px = cx
+    pz = cz
+    if tx <= t_exit:
+        cx += step_x
+    if tz <= t_exit:
+        cz += step_z
+    if level < top_level and ((cx >> 1) != (px >> 1) or (cz >> 1) != (pz >> 1)):
+        return cx >> 1, cz >> 1, level + 1
+    return cx, cz, level
+
+
+@njit(cache=True, nogil=True, inline="always")
+def step_down(cx: int, cz: int, level: int, ox: float, dx: float, ix: float, oz: float,
+              dz: float, iz: float, t: float) -> tuple[int, int, int]:
+    """The child cell that holds the ray at time ``t``."""
+    level -= 1
+    return (2 * cx + upper_half((2 * cx + 1) << level, ox, dx, ix, t),
+            2 * cz + upper_half((2 * cz + 1) << level, oz, dz, iz, t), level)
