@@ -33,6 +33,7 @@ from voxfield.kernels.traversal import (
     axis_setup,
     entry_normal,
     face_time,
+    floor_float,
     flush_uninvertible,
     node_at_level,
     trace_ray,
@@ -104,46 +105,23 @@ def _slab_times(o: float, d: float, inv: float, lo: int, hi: int) -> tuple[float
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _cell_at(o: float, d: float, inv: float, t: float, level: int, cells: int) -> int:
-    """The cell ``[k, k + 1) << level`` of one axis that holds the ray at time ``t`` (inside
-    the footprint): a guess from the position, settled by the contract's crossing times."""
-    k = int(min(max(math.floor(o + t * d), 0.0), float((cells << level) - 1))) >> level
+def _cell_holding(o: float, d: float, inv: float, t: float, level: int, lo: int,
+                  hi: int) -> int:
+    """The cell ``[k, k + 1) << level`` of one axis that holds the ray at time ``t``, clamped
+    to ``lo..hi``: a guess from the position, settled by the contract's crossing times."""
+    guess = min(max(floor_float(o + t * d), float(lo << level)), float(((hi + 1) << level) - 1))
+    k = int(guess) >> level
     if d > 0.0:
-        while k > 0 and t < face_time(k << level, o, inv):
+        while k > lo and t < face_time(k << level, o, inv):
             k -= 1
-        while k < cells - 1 and face_time((k + 1) << level, o, inv) <= t:
+        while k < hi and face_time((k + 1) << level, o, inv) <= t:
             k += 1
     elif d < 0.0:
-        while k < cells - 1 and t < face_time((k + 1) << level, o, inv):
+        while k < hi and t < face_time((k + 1) << level, o, inv):
             k += 1
-        while k > 0 and face_time(k << level, o, inv) <= t:
+        while k > lo and face_time(k << level, o, inv) <= t:
             k -= 1
     return k
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _height_at(o: float, d: float, inv: float, t: float, top: int, level: int) -> int:
-    """The cell ``[k, k + 1) << level`` along y that holds the ray at time ``t``, settled by
-    the contract's crossing times; -1 anywhere below 0 and ``top`` anywhere above cell
-    ``top``."""
-    size = float(1 << level)
-    y = (o + t * d) / size
-    if y < -1.0:
-        return -1
-    if y > top + 2.0:
-        return top
-    k = int(math.floor(y))
-    if d > 0.0:
-        while t < face_time(k << level, o, inv):
-            k -= 1
-        while face_time((k + 1) << level, o, inv) <= t:
-            k += 1
-    elif d < 0.0:
-        while t < face_time((k + 1) << level, o, inv):
-            k += 1
-        while face_time(k << level, o, inv) <= t:
-            k -= 1
-    return max(min(k, top), -1)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -153,7 +131,7 @@ def _under_the_run(oy: float, dy: float, iy: float, t: float, t_exit: float, top
     and above what lies below, for all of ``[t, t_exit)`` (an overhang it passes under).
     Nothing below the run is not such a gap: a ray there is under a hollow shell, whose empty
     inside the octree crosses in far fewer steps than column after column."""
-    y = _height_at(oy, dy, iy, t, top, 0)
+    y = _cell_holding(oy, dy, iy, t, 0, -1, top)  # -1: below 0; top: at or above it
     if y >= top or y >= run_bottom[column]:  # (no read for a ray above the top)
         return False
     under = under_top[column]
@@ -203,8 +181,8 @@ def approach_surface(
     round_up = (1 << finest_level) - 1
     top_level = levels - 1
     level = min(max(start_level, finest_level), top_level)
-    cx = _cell_at(ox, dx, ix, t, level, level_width[level])
-    cz = _cell_at(oz, dz, iz, t, level, level_depth[level])
+    cx = _cell_holding(ox, dx, ix, t, level, 0, level_width[level] - 1)
+    cz = _cell_holding(oz, dz, iz, t, level, 0, level_depth[level] - 1)
     steps = 0
     while True:
         if cx < 0 or cz < 0 or cx >= level_width[level] or cz >= level_depth[level]:
@@ -265,7 +243,7 @@ def top_node_hit(
     if dy < 0.0 and t < face_time(top << level, oy, iy):
         y = top  # not yet down to the top: the common landing, with no search for the height
     else:
-        y = _height_at(oy, dy, iy, t, top, level)
+        y = _cell_holding(oy, dy, iy, t, level, -1, top)
     if y >= top:
         if not dy < 0.0:
             return -1, math.inf, -1

@@ -71,8 +71,7 @@ def trace_image(
         result = trace_image_cpu(
             octree, camera, side=side, stop_level=stop_level, cone_scale=cone_scale,
             seed=seed, channel=channel, beam_bound=bounds.bound, block=bounds.block,
-            threads=threads, progress=progress, label=label,
-            columns=columns and cone_scale == 0.0)
+            threads=threads, progress=progress, label=label, columns=columns)
     result.seconds += bounds.seconds
     result.steps += bounds.image_steps(camera.height, camera.width)
     return result
@@ -90,7 +89,7 @@ def trace_image_cpu(
     result = RenderResult.allocate(h, w)
     view = OctreeView(octree.inner_nodes, octree.depth, colors, facing)
     beam = BeamBounds(beam_bound, block)
-    pyramid = pixel_columns(octree, columns, side, beam_bound)
+    pyramid = pixel_columns(octree, columns, side, beam_bound, cone_scale)
     order = tile_order(h, w)
 
     def band(rows: slice) -> None:
@@ -105,12 +104,14 @@ def trace_image_cpu(
     return result
 
 
-def pixel_columns(octree: Octree, columns: bool, side: int, beam_bound: np.ndarray):
-    """The column-top pyramid ``render_pixels`` should walk, or none: supersampled rays
-    from the camera (no beam bound: probe cameras, ``beam=False``) go faster in packets
-    through the octree alone (mountain terrain, 16 rays a pixel: packets 1.1-1.3× the walk
-    without a beam, the walk 1.1-1.2× packets with one)."""
-    if not columns or (side > 1 and not np.any(beam_bound > 0)):
+def pixel_columns(octree: Octree, columns: bool, side: int, beam_bound: np.ndarray,
+                  cone_scale: float = 0.0):
+    """The column-top pyramid ``render_pixels`` should walk, or none: cone-LOD rays stay in
+    the octree (their node size grows along the ray), and supersampled rays from the camera
+    (no beam bound: probe cameras, ``beam=False``) go faster in packets through the octree
+    alone (mountain terrain, 16 rays a pixel: packets 1.1-1.3× the walk without a beam, the
+    walk 1.1-1.2× packets with one)."""
+    if not columns or cone_scale > 0.0 or (side > 1 and not np.any(beam_bound > 0)):
         return no_column_tops()
     return octree_column_tops(octree)
 
