@@ -70,3 +70,26 @@ def test_error_aware_and_adaptive_renders_are_unchanged(scene):
             assert np.array_equal(on.maps["refined"], off.maps["refined"])
         _assert_same(render_adaptive(scene, camera, base_lod=1, columns=True),
                      render_adaptive(scene, camera, base_lod=1, columns=False))
+
+
+def test_one_ray_pixels_shaded_in_batches_are_shaded_alike(scene, monkeypatch):
+    """Over colours too large for the caches, one-ray pixels are traced in batches before
+    they are shaded (``kernels.primary.SHADING_BATCH``): the same pixels, partial batches
+    included."""
+    from voxfield.kernels.primary import SHADING_BATCH, SHADING_BATCH_BYTES
+
+    colors, facing = scene.kernel_colours("albedo")
+    padded = np.zeros((SHADING_BATCH_BYTES // colors[:1].nbytes + 1, *colors.shape[1:]),
+                      colors.dtype)
+    padded[: len(colors)] = colors
+    lo, hi = scene.voxel_bounds
+    c = (lo + hi) / 2
+    # 37 × 37 pixels: chunks of 64 pixels end in partial batches.
+    camera = Camera.look_at((c[0] + 3, hi[1] + 30, c[2] + 1), tuple(c), fov_deg=70, width=37)
+    assert (37 * 37) % 64 % SHADING_BATCH != 0
+    plain = render_lod(scene, camera, lod=0)
+    monkeypatch.setattr(type(scene), "kernel_colours", lambda self, name: (padded, facing))
+    batched = render_lod(scene, camera, lod=0)
+    _assert_same(plain, batched)
+    assert np.array_equal(plain.steps, batched.steps)
+    assert plain.hit_count.sum() > 0

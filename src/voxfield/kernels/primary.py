@@ -211,6 +211,11 @@ def trace_chunk_over_columns(
     a pixel: 1.1-1.2× the packets); ``render.primary.pixel_columns`` decides."""
     inner_nodes, depth, colors, facing = view
     scratch = new_scratch(depth)
+    hits = new_shading_batch()
+    queued = 0
+    # Samples of a pixel share their colours' cache lines, as do all rays over colours that
+    # fit in the caches: those are shaded as they come.
+    batched = side == 1 and colors.nbytes + facing.nbytes > SHADING_BATCH_BYTES
     for j in range(last - first):
         pixel = pixels[first + j]
         pattern = pixel_pattern(pixel, seed) if side > 1 else 0
@@ -220,8 +225,57 @@ def trace_chunk_over_columns(
             node, level, t, normal, steps = trace_over_columns(
                 ox, oy, oz, dx, dy, dz, t_start, math.inf, inner_nodes, depth, stop_level,
                 scratch, columns)
-            add_sample(sums, tallies, j, colors, facing, depth, node, level, t, normal, steps,
-                       dx, dy, dz)
+            if not batched:
+                add_sample(sums, tallies, j, colors, facing, depth, node, level, t, normal,
+                           steps, dx, dy, dz)
+                continue
+            queue_hit(hits, queued, j, node, level, t, normal, steps, dx, dy, dz)
+            queued += 1
+            if queued == SHADING_BATCH:
+                shade_batch(hits, queued, sums, tallies, colors, facing, depth)
+                queued = 0
+    shade_batch(hits, queued, sums, tallies, colors, facing, depth)
+
+
+#: One-ray pixels traced before any is shaded: their colour loads, independent of one
+#: another, overlap in memory instead of each stalling the ray after it. On the mountain
+#: terrain (512² image, one ray a pixel) 1.06-1.10× at 2048² (colours 81 MB), but 0.94-0.97×
+#: at 512² (5 MB, in cache) and 0.93-0.95× for 16-ray pixels at 2048²; hence the threshold.
+SHADING_BATCH = 32
+SHADING_BATCH_BYTES = 32 << 20
+
+
+@njit(cache=True, nogil=True)
+def new_shading_batch():
+    """Queued hits: pixel row, node, level, normal code and steps (int64), then ``t`` and
+    the direction (float64)."""
+    return np.empty((SHADING_BATCH, 5), np.int64), np.empty((SHADING_BATCH, 4))
+
+
+@njit(cache=True, nogil=True)
+def queue_hit(hits, k: int, j: int, node: int, level: int, t: float, normal: int, steps: int,
+              dx: float, dy: float, dz: float) -> None:
+    ints, floats = hits
+    ints[k, 0] = j
+    ints[k, 1] = node
+    ints[k, 2] = level
+    ints[k, 3] = normal
+    ints[k, 4] = steps
+    floats[k, 0] = t
+    floats[k, 1] = dx
+    floats[k, 2] = dy
+    floats[k, 3] = dz
+
+
+@njit(cache=True, nogil=True)
+def shade_batch(hits, count: int, sums: np.ndarray, tallies: np.ndarray, colors: np.ndarray,
+                facing: np.ndarray, depth: int) -> None:
+    """``add_sample`` for the first ``count`` queued hits, in queue order."""
+    ints, floats = hits
+    for k in range(count):
+        add_sample(sums, tallies, ints[k, 0], colors, facing, depth, ints[k, 1], ints[k, 2],
+                   floats[k, 0], ints[k, 3], ints[k, 4], floats[k, 1], floats[k, 2],
+                   floats[k, 3])
 
 
 @njit(cache=True, nogil=True, inline="always")
