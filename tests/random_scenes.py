@@ -35,6 +35,24 @@ def overhanging_terrain(seed: int = 0, size: int = 24) -> VoxelScene:
     return VoxelScene(coords, rng.random((len(coords), 3)), name=f"ledges{seed}").dedupe()
 
 
+def hollow_shell_terrain(seed: int = 0, size: int = 32) -> VoxelScene:
+    """Steep ground two voxels thick over an empty inside, as terrains built with a fill
+    depth are: where neighbours differ by more than that, the shell has cracks a ray passes
+    through into the hollow under it. A few ledges float above it."""
+    rng = np.random.default_rng(seed)
+    x, z = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
+    ground = 8 + np.round(6 * np.sin(x / 2.5 + seed) * np.cos(z / 3.0)
+                          + rng.integers(0, 3, x.shape)).astype(int)
+    parts = [np.stack([x.ravel(), (ground - k).ravel(), z.ravel()], axis=1) for k in (1, 2)]
+    for _ in range(size // 4):
+        x0, z0 = rng.integers(0, size - 4, size=2)
+        y = int(ground[x0, z0]) + int(rng.integers(2, 6))
+        xs, zs = np.meshgrid(np.arange(x0, x0 + 3), np.arange(z0, z0 + 3), indexing="ij")
+        parts.append(np.stack([xs.ravel(), np.full(xs.size, y), zs.ravel()], axis=1))
+    coords = np.concatenate(parts)
+    return VoxelScene(coords, rng.random((len(coords), 3)), name=f"shell{seed}").dedupe()
+
+
 def octree_and_columns(scene: VoxelScene):
     """The scene's octree, its voxels' corners and their column-top pyramid."""
     from voxfield.svo import build_octree

@@ -6,7 +6,7 @@ import numpy as np
 
 from random_scenes import overhanging_terrain, random_scene
 from voxfield.svo import build_octree
-from voxfield.svo.column_tops import column_tops, octree_column_tops
+from voxfield.svo.column_tops import GAP_OPEN, column_tops, octree_column_tops
 
 
 def voxels_of(scene) -> np.ndarray:
@@ -65,6 +65,32 @@ def test_every_level_holds_the_highest_top_of_the_columns_it_covers():
             for z in range(d):
                 block = base[x * side:(x + 1) * side, z * side:(z + 1) * side]
                 assert cells[x, z] == block.max()
+
+
+def test_every_level_holds_the_gap_all_of_its_columns_leave_under_their_top_runs():
+    seen_open = seen_floor = False
+    for scene in (overhanging_terrain(seed=7, size=19), random_scene(seed=2, n=300, size=13)):
+        voxels = voxels_of(scene)
+        pyramid = column_tops(voxels)
+        w0, d0 = int(pyramid.level_width[0]), int(pyramid.level_depth[0])
+        floor = np.zeros((w0, d0), int)
+        ceiling = np.full((w0, d0), GAP_OPEN)  # an empty column: no run above its gap
+        for (x, z), (_, bottom, under) in scanned_columns(voxels).items():
+            floor[x, z], ceiling[x, z] = under, bottom
+        seen_open |= bool(np.any(ceiling == GAP_OPEN))
+        seen_floor |= bool(np.any(floor > 0))
+        for level in range(len(pyramid.level_width)):
+            w, d = int(pyramid.level_width[level]), int(pyramid.level_depth[level])
+            start = int(pyramid.level_offset[level])
+            floors = pyramid.gap_floor[start:start + w * d].reshape(w, d)
+            ceilings = pyramid.gap_ceiling[start:start + w * d].reshape(w, d)
+            side = 1 << level
+            for x in range(w):
+                for z in range(d):
+                    cells = (slice(x * side, (x + 1) * side), slice(z * side, (z + 1) * side))
+                    assert floors[x, z] == floor[cells].max()
+                    assert ceilings[x, z] == ceiling[cells].min()
+    assert seen_open and seen_floor
 
 
 def test_no_pyramid_for_no_voxels_or_a_footprint_over_the_limit():

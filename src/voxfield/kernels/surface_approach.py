@@ -154,7 +154,7 @@ def approach_surface(
     The walk starts at ``start_level`` (clamped to the pyramid): low when ``tmin`` is near
     the surface, at the top when not. ``columns`` is a ``ColumnTops``; without levels, or
     for non-finite rays, every ray is handed over at ``tmin``."""
-    tops, level_offset, level_width, level_depth, run_bottom, under_top, _ = columns
+    tops, level_offset, level_width, level_depth, run_bottom, under_top = columns[:6]
     levels = level_width.shape[0]
     if finest_level < 0 or finest_level >= levels or not (
         math.isfinite(ox) and math.isfinite(oy) and math.isfinite(oz)
@@ -234,7 +234,7 @@ def top_node_hit(
     the ray, so a falling ray above that node lands on it, and a ray inside it or (at level
     0) inside the run at ``t`` is in a node: its interval (the contract's, clipped at
     ``tmin``) starts the hit, and its entry face follows ``traversal.entry_normal``."""
-    tops, level_offset, _, level_depth, run_bottom, _, _ = columns
+    tops, level_offset, _, level_depth, run_bottom = columns[:5]
     ox, dx, ix = axis_setup(ox, dx)
     oy, dy, iy = axis_setup(oy, dy)
     oz, dz, iz = axis_setup(oz, dz)

@@ -4,14 +4,19 @@ A ray with ``dy > 0`` walks the pyramid's cells in 2D, coarse where it can: in a
 highest top it is above when it enters, it stays above every voxel until it leaves (it
 only rises), so the cell is skipped whole and the walk climbs a level; below a cell's top
 the walk descends. In a single column below its top, a ray that meets the column's top run
-of voxels is blocked; one that passes under it (an overhang, a cave, a hollow shell) is
-handed to the octree from that point on, ``UNDECIDED`` with its time.
+of voxels is blocked; one that passes under it (an overhang, a canopy, a hollow shell) and
+is above whatever lies below it crosses the column clear, and any other is handed to the
+octree from that point on, ``UNDECIDED`` with its time. Under the runs, a cell whose columns
+all leave a gap the ray stays in (above every ``under_top``, below every run bottom) is
+skipped whole as well, coarse where it can be.
 
 **Exactness.** Every time is the traversal's ``face_time`` of an integer plane, so a skipped
 cell holds no voxel whose interval (``kernels.traversal``'s contract) meets the skipped
-stretch, and a blocked verdict means a voxel's interval meets ``[0, tmax)``: the answers are
-those of ``occluded`` over the whole ray, and ``occluded`` from the hand-over time finishes
-an undecided ray with the answer the whole ray would get.
+stretch, nor does a gap or a column passed under its run (the runs above are boxes the ray
+stays below, everything else ends at or under the floor it stays above), and a blocked
+verdict means a voxel's interval meets ``[0, tmax)``: the answers are those of ``occluded``
+over the whole ray, and ``occluded`` from the hand-over time finishes an undecided ray with
+the answer the whole ray would get.
 
 **Steps.** Each cell the walk visits counts as one traversal step, as each octree node does.
 """
@@ -52,7 +57,9 @@ def rising_ray_query(
     blocks it), ``BLOCKED``, or ``UNDECIDED`` from time ``t`` on (trace ``[t, tmax)`` with
     ``occluded``). ``columns`` is a ``ColumnTops``; without levels every ray is undecided
     from 0."""
-    tops, level_offset, level_width, level_depth, run_bottom, _, _ = columns
+    tops, level_offset, level_width, level_depth, run_bottom = columns[:5]
+    gap_floor = columns.gap_floor
+    gap_ceiling = columns.gap_ceiling
     if level_width.shape[0] == 0 or not dy > MIN_RISE:
         return UNDECIDED, 0.0, 0
     ox, dx, ix = axis_setup(ox, dx)
@@ -78,12 +85,16 @@ def rising_ray_query(
         if cx < 0 or cz < 0 or cx >= level_width[level] or cz >= level_depth[level]:
             return CLEAR, t, steps  # beside the footprint and leaving it
         steps += 1
-        top = tops[level_offset[level] + cx * level_depth[level] + cz]
+        cell = level_offset[level] + cx * level_depth[level] + cz
+        top = tops[cell]
         tx = face_time((cx + ahead_x) << level, ox, ix) if dx != 0.0 else math.inf
         tz = face_time((cz + ahead_z) << level, oz, iz) if dz != 0.0 else math.inf
         t_exit = min(tx, tz)
-        if t >= face_time(top, oy, iy):
-            # Above the highest voxel of the cell's columns, and rising: skip the cell.
+        # Above the highest voxel of the cell's columns, and rising: skip the cell. So too
+        # in the gap every column of the cell leaves under its top run, all the way across.
+        if t >= face_time(top, oy, iy) or (
+                t >= face_time(gap_floor[cell], oy, iy)
+                and min(t_exit, tmax) <= face_time(gap_ceiling[cell], oy, iy)):
             if not t_exit < tmax:
                 return CLEAR, t, steps
             t = t_exit

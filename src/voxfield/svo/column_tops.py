@@ -6,7 +6,9 @@ the ground beside it. In a pyramid of column tops (a "maximum mipmap", as height
 tracers use, after Tevs, Ihrke and Seidel 2008) a rising ray that is above an area's highest
 voxel when it enters the area stays above it, so it skips the whole area in one step. The
 pyramid also keeps where each column's top run of voxels begins, so a ray that dips below a
-column's top and meets that run is known to be blocked without the octree.
+column's top and meets that run is known to be blocked without the octree, and the empty gap
+under that run per area (above the highest thing below a gap, below the lowest run bottom),
+so a ray under an area's runs (under a canopy, inside a hollow shell) skips it too.
 ``kernels.upward_rays`` walks it; both are derived from the voxels alone, so they are exact.
 
 Level 0 has one cell per column ``(x, z)`` of the voxels' footprint, ``0 <= x < width``; a
@@ -21,11 +23,14 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["ColumnTops", "MAX_COLUMNS", "column_tops", "no_column_tops", "octree_column_tops"]
+__all__ = ["GAP_OPEN", "MAX_COLUMNS", "ColumnTops", "column_tops", "no_column_tops",
+           "octree_column_tops"]
 
 #: Largest footprint (columns) given a pyramid: 2^27 columns keep it near 1 GiB. Larger
 #: worlds trace their rising rays through the octree alone, with the same results.
 MAX_COLUMNS = 1 << 27
+#: ``gap_ceiling`` of a cell with no voxel: no run above the gap.
+GAP_OPEN = 1 << 30
 
 
 class ColumnTops(NamedTuple):
@@ -40,13 +45,16 @@ class ColumnTops(NamedTuple):
     under_top: np.ndarray  # int32 (level-0 cells,): top of what lies under the run's gap, or 0
     top_node: np.ndarray  # int64 (level-0 cells,): node of each column's top voxel (-1: none);
     #                       empty when the voxels' nodes are not known
+    # Cells as in ``tops``: the gap every column of the cell has free under its top run.
+    gap_floor: np.ndarray  # int32: the highest ``under_top`` of the cell's columns
+    gap_ceiling: np.ndarray  # int32: the lowest ``run_bottom`` of its columns (empty: GAP_OPEN)
 
 
 def no_column_tops() -> ColumnTops:
     """An empty pyramid: every rising ray goes through the octree."""
     empty = np.zeros(0, np.int64)
     none = np.zeros(0, np.int32)
-    return ColumnTops(none, empty, empty, empty, none, none, empty)
+    return ColumnTops(none, empty, empty, empty, none, none, empty, none, none)
 
 
 def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
@@ -64,8 +72,12 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
         return no_column_tops()
     top, bottom, under, top_voxel = _tops_and_run_bottoms(voxels, width, depth)
     levels = [top]
+    floors = [under]
+    ceilings = [np.where(top == 0, np.int32(GAP_OPEN), bottom)]
     while levels[-1].shape != (1, 1):
         levels.append(_coarser(levels[-1]))
+        floors.append(_coarser(floors[-1]))
+        ceilings.append(_coarser(ceilings[-1], lowest=True))
     sizes = np.array([level.size for level in levels], np.int64)
     return ColumnTops(
         tops=np.concatenate([level.ravel() for level in levels]),
@@ -76,6 +88,8 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
         under_top=under.ravel(),
         top_node=(np.zeros(0, np.int64) if first_node is None else
                   np.where(top_voxel >= 0, top_voxel + first_node, -1).ravel()),
+        gap_floor=np.concatenate([f.ravel() for f in floors]),
+        gap_ceiling=np.concatenate([c.ravel() for c in ceilings]),
     )
 
 
@@ -88,12 +102,14 @@ def octree_column_tops(octree, voxels: np.ndarray | None = None) -> ColumnTops:
     return octree.derived(("column_tops",), build)
 
 
-def _coarser(level: np.ndarray) -> np.ndarray:
-    """The next level: the maximum of each 2×2 block of cells (an odd edge pads with 0)."""
+def _coarser(level: np.ndarray, lowest: bool = False) -> np.ndarray:
+    """The next level: the maximum of each 2×2 block of cells (an odd edge pads with 0), or
+    with ``lowest`` the minimum (padding with ``GAP_OPEN``)."""
     w, d = (level.shape[0] + 1) // 2, (level.shape[1] + 1) // 2
-    padded = np.zeros((2 * w, 2 * d), level.dtype)
+    padded = np.full((2 * w, 2 * d), GAP_OPEN if lowest else 0, level.dtype)
     padded[: level.shape[0], : level.shape[1]] = level
-    return padded.reshape(w, 2, d, 2).max(axis=(1, 3))
+    blocks = padded.reshape(w, 2, d, 2)
+    return blocks.min(axis=(1, 3)) if lowest else blocks.max(axis=(1, 3))
 
 
 @njit(cache=True, nogil=True)
