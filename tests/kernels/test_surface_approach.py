@@ -7,7 +7,12 @@ import math
 import numpy as np
 from numba import njit
 
-from random_scenes import octree_and_columns, overhanging_terrain, random_scene
+from random_scenes import (
+    hollow_shell_terrain,
+    octree_and_columns,
+    overhanging_terrain,
+    random_scene,
+)
 from voxfield.kernels.surface_approach import (
     HANDED_OVER,
     MISSED,
@@ -106,7 +111,7 @@ def test_hits_are_the_octree_hits_at_every_fixed_level():
     its start bound and its end, with one scratch carried from ray to ray."""
     seen_ends = np.zeros((3, 3), np.int64)
     for scene in (overhanging_terrain(seed=1), overhanging_terrain(seed=7, size=37),
-                  random_scene(seed=8, n=900, size=19)):
+                  random_scene(seed=8, n=900, size=19), hollow_shell_terrain(seed=4)):
         octree, voxels, columns = octree_and_columns(scene)
         origins, directions = any_rays(voxels, 800, seed=len(voxels))
         rng = np.random.default_rng(3)

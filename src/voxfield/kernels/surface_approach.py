@@ -6,8 +6,10 @@ reaches down into the ground beside it, so the octree walks many small nodes tha
 nothing on the ray. The pyramid answers "is the ray above everything here?" per area. The
 walk (``approach_surface``) goes through the pyramid's cells in 2D, coarse where it can: a
 cell the ray is above while it is in it (above the cell's highest top, rounded up to the
-size of the nodes the render samples) is skipped whole, and the walk climbs a level when it
-enters another parent cell; a cell it dips below descends a level. At the level of the
+size of the nodes the render samples) is skipped whole, as is a cell whose top runs it
+stays under, above everything under them (the cell's gap, rounded in to whole nodes: under
+a canopy, inside a hollow shell), and the walk climbs a level when it enters another parent
+cell; a cell it dips below descends a level. At the level of the
 sampled nodes, below the top, the walk hands the ray to the octree at the time it reached
 there (``traversal.trace_ray_from``).
 
@@ -125,21 +127,16 @@ def _cell_holding(o: float, d: float, inv: float, t: float, level: int, lo: int,
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _under_the_run(oy: float, dy: float, iy: float, t: float, t_exit: float, top: int,
-                   column: int, run_bottom, under_top) -> bool:
-    """Whether a ray that is not rising passes through a column's gap, under its top run
-    and above what lies below, for all of ``[t, t_exit)`` (an overhang it passes under).
-    Nothing below the run is not such a gap: a ray there is under a hollow shell, whose empty
-    inside the octree crosses in far fewer steps than column after column."""
-    y = _cell_holding(oy, dy, iy, t, 0, -1, top)  # -1: below 0; top: at or above it
-    if y >= top or y >= run_bottom[column]:  # (no read for a ray above the top)
-        return False
-    under = under_top[column]
-    if under == 0:
-        return False
+def _in_the_gap(oy: float, dy: float, iy: float, t: float, t_leave: float, floor: int,
+                ceiling: int) -> bool:
+    """Whether the ray stays in the gap ``[floor, ceiling)`` (under every top run of a cell,
+    above everything under them) for all of ``[t, t_leave)``: under a canopy or an overhang,
+    inside a hollow shell."""
     if dy < 0.0:
-        return t_exit <= face_time(under, oy, iy)
-    return oy >= under
+        return t >= face_time(ceiling, oy, iy) and t_leave <= face_time(floor, oy, iy)
+    if dy > 0.0:
+        return t >= face_time(floor, oy, iy) and t_leave <= face_time(ceiling, oy, iy)
+    return floor <= oy and oy < ceiling
 
 
 @njit(cache=True, nogil=True)
@@ -154,7 +151,9 @@ def approach_surface(
     The walk starts at ``start_level`` (clamped to the pyramid): low when ``tmin`` is near
     the surface, at the top when not. ``columns`` is a ``ColumnTops``; without levels, or
     for non-finite rays, every ray is handed over at ``tmin``."""
-    tops, level_offset, level_width, level_depth, run_bottom, under_top = columns[:6]
+    tops, level_offset, level_width, level_depth = columns[:4]
+    gap_floor = columns.gap_floor
+    gap_ceiling = columns.gap_ceiling
     levels = level_width.shape[0]
     if finest_level < 0 or finest_level >= levels or not (
         math.isfinite(ox) and math.isfinite(oy) and math.isfinite(oz)
@@ -201,11 +200,12 @@ def approach_surface(
             above = t >= t_top
         else:
             above = oy >= top
-        # A ray still above the top at ``t`` lands on it; one already below may pass under.
-        if not above and level == 0 and finest_level == 0 and top != 0 and dy <= 0.0 \
-                and not t < t_top:
-            above = _under_the_run(oy, dy, iy, t, t_exit, top, cx * level_depth[0] + cz,
-                                   run_bottom, under_top)
+        # Under the cell's runs, in the gap all its columns leave (node-aligned): as empty.
+        if not above and top != 0:
+            cell = level_offset[level] + cx * level_depth[level] + cz
+            above = _in_the_gap(oy, dy, iy, t, min(t_exit, t_end),
+                                (gap_floor[cell] + round_up) & ~round_up,
+                                gap_ceiling[cell] & ~round_up)
         if above or top == 0:  # (an empty cell's top is 0: no voxel, whatever the ray does)
             if not t_exit < t_end:
                 return MISSED, t, steps, -1, -1
