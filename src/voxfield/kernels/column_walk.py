@@ -45,3 +45,16 @@ def step_down(cx: int, cz: int, level: int, ox: float, dx: float, ix: float, oz:
     level -= 1
     return (2 * cx + upper_half((2 * cx + 1) << level, ox, dx, ix, t),
             2 * cz + upper_half((2 * cz + 1) << level, oz, dz, iz, t), level)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def in_the_gap(oy: float, dy: float, iy: float, t: float, t_leave: float, floor: int,
+               ceiling: int) -> bool:
+    """Whether the ray stays in the gap ``[floor, ceiling)`` (under every top run of a cell,
+    above everything under them: under a canopy or an overhang, inside a hollow shell) for
+    all of ``[t, t_leave)``."""
+    if dy < 0.0:
+        return t >= face_time(ceiling, oy, iy) and t_leave <= face_time(floor, oy, iy)
+    if dy > 0.0:
+        return t >= face_time(floor, oy, iy) and t_leave <= face_time(ceiling, oy, iy)
+    return floor <= oy and oy < ceiling

@@ -30,7 +30,7 @@ import math
 
 from numba import njit
 
-from voxfield.kernels.column_walk import step_across, step_down
+from voxfield.kernels.column_walk import in_the_gap, step_across, step_down
 from voxfield.kernels.traversal import (
     axis_setup,
     entry_normal,
@@ -126,19 +126,6 @@ def _cell_holding(o: float, d: float, inv: float, t: float, level: int, lo: int,
     return k
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _in_the_gap(oy: float, dy: float, iy: float, t: float, t_leave: float, floor: int,
-                ceiling: int) -> bool:
-    """Whether the ray stays in the gap ``[floor, ceiling)`` (under every top run of a cell,
-    above everything under them) for all of ``[t, t_leave)``: under a canopy or an overhang,
-    inside a hollow shell."""
-    if dy < 0.0:
-        return t >= face_time(ceiling, oy, iy) and t_leave <= face_time(floor, oy, iy)
-    if dy > 0.0:
-        return t >= face_time(floor, oy, iy) and t_leave <= face_time(ceiling, oy, iy)
-    return floor <= oy and oy < ceiling
-
-
 @njit(cache=True, nogil=True)
 def approach_surface(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
@@ -187,7 +174,8 @@ def approach_surface(
         if cx < 0 or cz < 0 or cx >= level_width[level] or cz >= level_depth[level]:
             return MISSED, t, steps, -1, -1  # left the footprint
         steps += 1
-        top = (tops[level_offset[level] + cx * level_depth[level] + cz] + round_up) & ~round_up
+        cell = level_offset[level] + cx * level_depth[level] + cz
+        top = (tops[cell] + round_up) & ~round_up
         tx = face_time((cx + ahead_x) << level, ox, ix) if dx != 0.0 else math.inf
         tz = face_time((cz + ahead_z) << level, oz, iz) if dz != 0.0 else math.inf
         t_exit = min(tx, tz)
@@ -202,10 +190,9 @@ def approach_surface(
             above = oy >= top
         # Under the cell's runs, in the gap all its columns leave (node-aligned): as empty.
         if not above and top != 0:
-            cell = level_offset[level] + cx * level_depth[level] + cz
-            above = _in_the_gap(oy, dy, iy, t, min(t_exit, t_end),
-                                (gap_floor[cell] + round_up) & ~round_up,
-                                gap_ceiling[cell] & ~round_up)
+            above = in_the_gap(oy, dy, iy, t, min(t_exit, t_end),
+                               (gap_floor[cell] + round_up) & ~round_up,
+                               gap_ceiling[cell] & ~round_up)
         if above or top == 0:  # (an empty cell's top is 0: no voxel, whatever the ray does)
             if not t_exit < t_end:
                 return MISSED, t, steps, -1, -1

@@ -27,7 +27,7 @@ import math
 
 from numba import njit
 
-from voxfield.kernels.column_walk import step_across, step_down
+from voxfield.kernels.column_walk import in_the_gap, step_across, step_down
 from voxfield.kernels.traversal import axis_setup, face_time, floor_float
 
 CLEAR = 0
@@ -92,9 +92,8 @@ def rising_ray_query(
         t_exit = min(tx, tz)
         # Above the highest voxel of the cell's columns, and rising: skip the cell. So too
         # in the gap every column of the cell leaves under its top run, all the way across.
-        if t >= face_time(top, oy, iy) or (
-                t >= face_time(gap_floor[cell], oy, iy)
-                and min(t_exit, tmax) <= face_time(gap_ceiling[cell], oy, iy)):
+        if t >= face_time(top, oy, iy) or in_the_gap(oy, dy, iy, t, min(t_exit, tmax),
+                                                     gap_floor[cell], gap_ceiling[cell]):
             if not t_exit < tmax:
                 return CLEAR, t, steps
             t = t_exit

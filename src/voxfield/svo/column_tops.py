@@ -42,19 +42,23 @@ class ColumnTops(NamedTuple):
     level_width: np.ndarray  # int64 (levels,): cells along x
     level_depth: np.ndarray  # int64 (levels,): cells along z
     run_bottom: np.ndarray  # int32 (level-0 cells,): lowest y of each column's top run
-    under_top: np.ndarray  # int32 (level-0 cells,): top of what lies under the run's gap, or 0
     top_node: np.ndarray  # int64 (level-0 cells,): node of each column's top voxel (-1: none);
     #                       empty when the voxels' nodes are not known
     # Cells as in ``tops``: the gap every column of the cell has free under its top run.
     gap_floor: np.ndarray  # int32: the highest ``under_top`` of the cell's columns
     gap_ceiling: np.ndarray  # int32: the lowest ``run_bottom`` of its columns (empty: GAP_OPEN)
 
+    @property
+    def under_top(self) -> np.ndarray:
+        """Per column (level-0 cell): the top of what lies under its top run's gap, or 0."""
+        return self.gap_floor[: self.run_bottom.shape[0]]
+
 
 def no_column_tops() -> ColumnTops:
     """An empty pyramid: every rising ray goes through the octree."""
     empty = np.zeros(0, np.int64)
     none = np.zeros(0, np.int32)
-    return ColumnTops(none, empty, empty, empty, none, none, empty, none, none)
+    return ColumnTops(none, empty, empty, empty, none, empty, none, none)
 
 
 def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
@@ -85,7 +89,6 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
         level_width=np.array([level.shape[0] for level in levels], np.int64),
         level_depth=np.array([level.shape[1] for level in levels], np.int64),
         run_bottom=bottom.ravel(),
-        under_top=under.ravel(),
         top_node=(np.zeros(0, np.int64) if first_node is None else
                   np.where(top_voxel >= 0, top_voxel + first_node, -1).ravel()),
         gap_floor=np.concatenate([f.ravel() for f in floors]),
