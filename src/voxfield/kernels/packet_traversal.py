@@ -27,6 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
+from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.node_descriptor import SOLID_BIT, child_index
 from voxfield.kernels.traversal import (
     MISS,
@@ -78,7 +79,7 @@ def _traceable(origins, directions, tmins, tmaxs, k: int) -> bool:
             and tmins[k] == tmins[k] and tmaxs[k] == tmaxs[k])
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def trace_packet(
     count: int, origins: np.ndarray, directions: np.ndarray, tmins: np.ndarray, tmaxs: np.ndarray,
     inner_nodes: np.ndarray, depth: int, stop_level: int, scratch,
@@ -270,7 +271,7 @@ def _child_entry(k: int, i: int, x0: int, y0: int, z0: int, size: int, exit_x: i
     return (px - ox[k]) * ix[k], (py - oy[k]) * iy[k], (pz - oz[k]) * iz[k]
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def walk_sign_group(
     n: int, flip: int, inner_nodes: np.ndarray, depth: int, stop_level: int, scratch,
     out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,

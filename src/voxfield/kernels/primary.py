@@ -8,11 +8,12 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.beam import start_distance
+from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
-from voxfield.kernels.sampling import cmj_sample, pixel_pattern
+from voxfield.kernels.sampling import cmj_sample, cmj_sample_in, cmj_strata, pixel_pattern
 from voxfield.kernels.surface_approach import trace_over_columns
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
@@ -117,13 +118,16 @@ def render_pixel_chunk(
     fixed_level = radius == 0.0 and spread == 0.0
     if fixed_level and columns.level_width.shape[0] > 0:
         trace_chunk_over_columns(cam, width, height, pixels, first, last, side, seed, view,
-                                 stop_level, beam, columns, sums, tallies)
+                                 stop_level, beam, columns, sums, tallies,
+                                 new_scratch(view.depth), new_shading_batch(),
+                                 (np.empty(side, np.int64), np.empty(side, np.int64)))
     elif side > 1 and fixed_level:
         trace_chunk_in_packets(cam, width, height, pixels, first, last, side, seed, view,
                                stop_level, beam, sums, tallies)
     else:
         trace_chunk_per_ray(cam, width, height, pixels, first, last, side, seed, view,
-                            stop_level, radius, spread, beam, sums, tallies)
+                            stop_level, radius, spread, beam, sums, tallies,
+                            new_scratch(view.depth))
     for j in range(count):
         i = first + j
         store_sums(out.color, out.depth, out.normal, out.rays, out.hits, out.steps, out.lod,
@@ -185,43 +189,57 @@ def add_sample(sums: np.ndarray, tallies: np.ndarray, j: int, colors: np.ndarray
         tallies[j, 2] = depth - level
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def trace_chunk_per_ray(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, first: int, last: int,
     side: int, seed: int, view: OctreeView, stop_level: int, radius: float, spread: float,
-    beam: BeamBounds, sums: np.ndarray, tallies: np.ndarray,
+    beam: BeamBounds, sums: np.ndarray, tallies: np.ndarray, scratch,
 ) -> None:
-    """Every sample through the scalar traversal, with the cone ``radius + spread·t``."""
-    scratch = new_scratch(view.depth)
+    """Every sample through the scalar traversal, with the cone ``radius + spread·t``
+    (``scratch``: ``traversal.new_scratch``)."""
     for j in range(last - first):
         trace_pixel(cam, width, height, pixels[first + j], side, seed, view.inner_nodes,
                     view.depth, stop_level, radius, spread, view.colors, view.facing,
                     beam.bound, beam.block, scratch, sums, tallies, j)
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def trace_chunk_over_columns(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, first: int, last: int,
     side: int, seed: int, view: OctreeView, stop_level: int, beam: BeamBounds, columns,
-    sums: np.ndarray, tallies: np.ndarray,
+    sums: np.ndarray, tallies: np.ndarray, scratch, hits, strata,
 ) -> None:
     """Every sample to ``stop_level`` through ``kernels.surface_approach``: the air in the
     column-top pyramid, then the octree where the ray reaches the surface. From a beam bound
     one ray at a time beats the packets here, supersampled or not (mountain terrain, 16 rays
-    a pixel: 1.1-1.2× the packets); ``render.primary.pixel_columns`` decides."""
+    a pixel: 1.1-1.2× the packets); ``render.primary.pixel_columns`` decides. ``scratch``
+    (``traversal.new_scratch``), ``hits`` (``new_shading_batch``) and ``strata`` (two int64
+    arrays of ``side`` slots) are the caller's.
+
+    A supersampled pixel's stratum permutations are drawn once (``sampling.cmj_strata``),
+    not again for each sample: the same sample positions, and 16-ray pixels 1.1× faster."""
+    column, row = strata
     inner_nodes, depth, colors, facing = view
-    scratch = new_scratch(depth)
-    hits = new_shading_batch()
     queued = 0
     # Samples of a pixel share their colours' cache lines, as do all rays over colours that
     # fit in the caches: those are shaded as they come.
     batched = side == 1 and colors.nbytes + facing.nbytes > SHADING_BATCH_BYTES
     for j in range(last - first):
         pixel = pixels[first + j]
-        pattern = pixel_pattern(pixel, seed) if side > 1 else 0
+        pattern = 0
+        if side > 1:
+            pattern = pixel_pattern(pixel, seed)
+            cmj_strata(side, side, pattern, column, row)
         t_start = beam_start(beam.bound, beam.block, pixel, width)
+        y_pixel = pixel // width
+        x_pixel = pixel - y_pixel * width
         for s in range(side * side):
-            ox, oy, oz, dx, dy, dz = sample_ray(cam, width, height, pixel, s, side, pattern)
+            fx, fy = 0.5, 0.5
+            if side > 1:
+                fx, fy = cmj_sample_in(s, s % side, s // side, side, side, pattern, column,
+                                       row)
+            ox, oy, oz, dx, dy, dz = camera_ray(cam, x_pixel + fx, y_pixel + fy, width,
+                                                height)
             node, level, t, normal, steps = trace_over_columns(
                 ox, oy, oz, dx, dy, dz, t_start, math.inf, inner_nodes, depth, stop_level,
                 scratch, columns)
@@ -252,7 +270,7 @@ def new_shading_batch():
     return np.empty((SHADING_BATCH, 5), np.int64), np.empty((SHADING_BATCH, 4))
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def queue_hit(hits, k: int, j: int, node: int, level: int, t: float, normal: int, steps: int,
               dx: float, dy: float, dz: float) -> None:
     ints, floats = hits
@@ -267,7 +285,7 @@ def queue_hit(hits, k: int, j: int, node: int, level: int, t: float, normal: int
     floats[k, 3] = dz
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def shade_batch(hits, count: int, sums: np.ndarray, tallies: np.ndarray, colors: np.ndarray,
                 facing: np.ndarray, depth: int) -> None:
     """``add_sample`` for the first ``count`` queued hits, in queue order."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit, prange
 
+from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.surface_approach import FROM_SURFACE, trace_over_columns
 from voxfield.kernels.traversal import new_scratch, occluded, trace_ray
@@ -26,19 +27,18 @@ def trace_rays(
     chunk = 256
     for c in prange((n + chunk - 1) // chunk):
         trace_ray_chunk(origins, directions, c * chunk, min(n, (c + 1) * chunk), tmin, tmax,
-                        inner_nodes, depth, stop_level,
-                        out_node, out_level, out_t, out_normal, out_steps, columns)
+                        inner_nodes, depth, stop_level, out_node, out_level, out_t,
+                        out_normal, out_steps, new_scratch(depth), columns)
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def trace_ray_chunk(
     origins: np.ndarray, directions: np.ndarray, first: int, last: int,
     tmin: float, tmax: float, inner_nodes: np.ndarray, depth: int, stop_level: int,
     out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
-    out_normal: np.ndarray, out_steps: np.ndarray, columns=None,
+    out_normal: np.ndarray, out_steps: np.ndarray, scratch, columns=None,
 ) -> None:
-    """Rays ``first..last-1`` of ``trace_rays``."""
-    scratch = new_scratch(depth)
+    """Rays ``first..last-1`` of ``trace_rays`` (``scratch``: ``traversal.new_scratch``)."""
     for k in range(first, last):
         if columns is None:
             node, level, t, normal, steps = trace_ray(
@@ -95,17 +95,17 @@ def occlude_rays(
     chunk = 256
     for c in prange((n + chunk - 1) // chunk):
         occlude_ray_chunk(origins, directions, c * chunk, min(n, (c + 1) * chunk), tmin, tmax,
-                          inner_nodes, depth, columns, out_blocked, out_steps)
+                          inner_nodes, depth, columns, out_blocked, out_steps,
+                          new_scratch(depth))
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def occlude_ray_chunk(
     origins: np.ndarray, directions: np.ndarray, first: int, last: int,
     tmin: float, tmax: float, inner_nodes: np.ndarray, depth: int, columns,
-    out_blocked: np.ndarray, out_steps: np.ndarray,
+    out_blocked: np.ndarray, out_steps: np.ndarray, scratch,
 ) -> None:
-    """Rays ``first..last-1`` of ``occlude_rays``."""
-    scratch = new_scratch(depth)
+    """Rays ``first..last-1`` of ``occlude_rays`` (``scratch``: ``traversal.new_scratch``)."""
     for k in range(first, last):
         verdict, start, cells = UNDECIDED, tmin, 0
         if tmin == 0.0:

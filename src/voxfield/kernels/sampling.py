@@ -9,6 +9,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from voxfield.kernels.borrowing import borrowing
+
 _U32 = 0xFFFFFFFF
 
 
@@ -87,7 +89,7 @@ def cmj_sample(s: int, m: int, n: int, p: int) -> tuple[float, float]:
     return x, y
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def cmj_strata(m: int, n: int, p: int, column: np.ndarray, row: np.ndarray) -> None:
     """The two stratum permutations of the m×n pattern ``p``, once for all its samples:
     ``cmj_sample`` permutes again for every sample, which is most of its cost when a caller

@@ -44,6 +44,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.sampling import (
@@ -142,7 +143,7 @@ def new_strata(count: int):
             np.empty(count + 1, np.int64), np.empty(count + 1, np.int64))
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def sky_visibility(
     x: int, y: int, z: int, voxel_pattern: int, faces: int, sky_rays: int,
     inner_nodes: np.ndarray, depth: int, y_top: float, columns, face_sky: np.ndarray,
@@ -239,7 +240,7 @@ def new_shadow_queue():
             np.empty(PACKET_RAYS, np.int64), np.empty(PACKET_RAYS, np.int64))
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def trace_shadow_queue(count: int, queue, inner_nodes: np.ndarray, depth: int,
                        packet_scratch, unblocked: np.ndarray, first: int,
                        out_steps: np.ndarray) -> None:

@@ -30,6 +30,7 @@ import math
 
 from numba import njit
 
+from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import in_the_gap, step_across, step_down
 from voxfield.kernels.traversal import (
     axis_setup,
@@ -126,7 +127,7 @@ def _cell_holding(o: float, d: float, inv: float, t: float, level: int, lo: int,
     return k
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def approach_surface(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
     tmin: float, tmax: float, finest_level: int, start_level: int, columns,
@@ -206,7 +207,7 @@ def approach_surface(
         return HANDED_OVER, t, steps, cx, cz
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def top_node_hit(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
     tmin: float, t: float, tmax: float, cx: int, cz: int, level: int, columns,

@@ -27,6 +27,7 @@ import math
 
 from numba import njit
 
+from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import in_the_gap, step_across, step_down
 from voxfield.kernels.traversal import axis_setup, face_time, floor_float
 
@@ -49,7 +50,7 @@ def _start_cell(o: float, d: float, inv: float) -> int:
     return k
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def rising_ray_query(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float, tmax: float, columns,
 ) -> tuple[int, float, int]:
