@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 from voxfield.atomic import atomic_path
@@ -73,7 +74,6 @@ def run(args) -> int:
         threads=args.threads, progress=not quiet, scheduler=args.scheduler,
     )
     out = Path(args.out) if args.out else default_output("lit", args.scene, ".npz")
-    written = [save_octree(lit, out)]
     details = {
         "scene": args.scene,
         "octree": str(out),
@@ -85,13 +85,18 @@ def run(args) -> int:
         "seed": args.seed,
         "cost": report.as_dict(),
     }
-    report_path = out.with_suffix(".json")
-    with atomic_path(report_path) as tmp:
-        tmp.write_text(json.dumps(details, indent=2))
-    written.append(report_path)
-    if not args.no_preview:
-        written += write_previews(lit, [s.name for s in suns], out, size=args.preview_size,
-                                  threads=args.threads)
+    # The octree file (a gigabyte on a 2048² terrain) is written by a thread while the
+    # previews render: writing is mostly the kernel copying pages, which leaves the GIL free.
+    with ThreadPoolExecutor(1) as writer:
+        saving = writer.submit(save_octree, lit, out)
+        report_path = out.with_suffix(".json")
+        with atomic_path(report_path) as tmp:
+            tmp.write_text(json.dumps(details, indent=2))
+        previews = []
+        if not args.no_preview:
+            previews = write_previews(lit, [s.name for s in suns], out, size=args.preview_size,
+                                      threads=args.threads)
+        written = [saving.result(), report_path, *previews]
     if not quiet:
         print(report.summary())
         for path in written:

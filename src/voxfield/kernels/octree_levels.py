@@ -13,16 +13,27 @@ import numpy as np
 from numba import njit, prange
 
 
-@njit(cache=True, nogil=True)
+@njit(parallel=True, cache=True, nogil=True)
 def child_corners(masks: np.ndarray, parent_corners: np.ndarray, out: np.ndarray) -> None:
     """Corners (in the child level's node units) of every child, in flat order: child octant
-    ``c`` of a parent at ``p`` sits at ``2p + (c & 1, c >> 1 & 1, c >> 2)``."""
+    ``c`` of a parent at ``p`` sits at ``2p + (c & 1, c >> 1 & 1, c >> 2)``. Parents fill
+    their runs in parallel once a prefix count places each (a 17M-voxel level took 0.9 s
+    on one core)."""
+    n = masks.shape[0]
+    starts = np.empty(n, np.int64)
     k = 0
-    for i in range(masks.shape[0]):
+    for i in range(n):
+        starts[i] = k
+        mask = np.int64(masks[i])
+        while mask:
+            mask &= mask - 1
+            k += 1
+    for i in prange(n):
         mask = masks[i]
         px = 2 * parent_corners[i, 0]
         py = 2 * parent_corners[i, 1]
         pz = 2 * parent_corners[i, 2]
+        k = starts[i]
         for octant in range(8):
             if (mask >> octant) & 1:
                 out[k, 0] = px + (octant & 1)

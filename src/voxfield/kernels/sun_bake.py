@@ -260,7 +260,7 @@ def trace_shadow_queue(count: int, queue, inner_nodes: np.ndarray, depth: int,
 def bake_block(
     first: int, last: int, coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
     sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float, columns,
+    inner_nodes: np.ndarray, depth: int, y_top: float, columns, out_rows: np.ndarray,
     out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
     out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
 ) -> None:
@@ -280,11 +280,11 @@ def bake_block(
     unblocked = np.empty((BAKE_BLOCK, 6), np.int64)
     for i in range(first, last):
         j = i - first
-        sky, out_weight[i], total_weight[j], sky_cast, steps = sky_visibility(
+        sky, out_weight[out_rows[i]], total_weight[j], sky_cast, steps = sky_visibility(
             coords[i, 0], coords[i, 1], coords[i, 2], pixel_pattern(voxel_ids[i], seed),
             faces[i], sky_rays, inner_nodes, depth, y_top, columns, face_sky, face_weight[j],
             scratch, strata)
-        out_sky[i] = sky
+        out_sky[out_rows[i]] = sky
         out_sky_rays[i] = sky_cast
         out_shadow_rays[i] = 0
         out_steps[i] = steps
@@ -358,26 +358,28 @@ def bake_block(
                 cos_theta = face_cosine(f, lx, ly, lz)
                 if ly > 0.0 and face_weight[j, f] != 0.0 and cos_theta > 0.0:
                     direct += face_weight[j, f] * cos_theta * (unblocked[j, f] / shadow_rays)
-            out_direct[sun, i] = direct / total_weight[j]
+            out_direct[sun, out_rows[i]] = direct / total_weight[j]
 
 
 @njit(parallel=True, cache=True, nogil=True)
 def bake_sun_visibility(
     coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
     sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float, columns,
+    inner_nodes: np.ndarray, depth: int, y_top: float, columns, out_rows: np.ndarray,
     out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
     out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
 ) -> None:
     """Bake the listed surface voxels: ``coords[k]`` (octree voxel units), their leaf index
-    ``voxel_ids[k]`` (seeds the sampling) and exposed-face bits ``faces[k]``; row ``k`` of
-    every output (column ``k`` of ``out_direct``, one row per sun) belongs to voxel ``k``."""
+    ``voxel_ids[k]`` (seeds the sampling) and exposed-face bits ``faces[k]``. Voxel ``k``'s
+    visibility terms go to row ``out_rows[k]`` of ``out_sky`` and ``out_weight`` (column of
+    ``out_direct``, one row per sun; float32 arrays of all voxels take them in place), its
+    ray and step counts to row ``k`` of the counters."""
     n = coords.shape[0]
     for b in prange((n + BAKE_BLOCK - 1) // BAKE_BLOCK):
         first = b * BAKE_BLOCK
         bake_block(first, min(n, first + BAKE_BLOCK), coords, voxel_ids, faces, sun_dirs,
-                   sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, columns, out_direct,
-                   out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps)
+                   sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, columns, out_rows,
+                   out_direct, out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps)
 
 
 @njit(parallel=True, cache=True, nogil=True)

@@ -32,6 +32,7 @@ from numba import njit
 
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import in_the_gap, step_across, step_down
+from voxfield.kernels.memory_hints import prefetch
 from voxfield.kernels.traversal import (
     axis_setup,
     entry_normal,
@@ -139,7 +140,7 @@ def approach_surface(
     The walk starts at ``start_level`` (clamped to the pyramid): low when ``tmin`` is near
     the surface, at the top when not. ``columns`` is a ``ColumnTops``; without levels, or
     for non-finite rays, every ray is handed over at ``tmin``."""
-    tops, level_offset, level_width, level_depth = columns[:4]
+    tops, level_offset, level_width, level_depth, run_bottom, top_node = columns[:6]
     gap_floor = columns.gap_floor
     gap_ceiling = columns.gap_ceiling
     levels = level_width.shape[0]
@@ -176,6 +177,12 @@ def approach_surface(
             return MISSED, t, steps, -1, -1  # left the footprint
         steps += 1
         cell = level_offset[level] + cx * level_depth[level] + cz
+        if level == 0:
+            # Where the walk may hand over, the column's run bottom and top voxel are read
+            # next: their misses overlap this one.
+            prefetch(run_bottom, cell)
+            if top_node.shape[0] > 0:
+                prefetch(top_node, cell)
         top = (tops[cell] + round_up) & ~round_up
         tx = face_time((cx + ahead_x) << level, ox, ix) if dx != 0.0 else math.inf
         tz = face_time((cz + ahead_z) << level, oz, iz) if dz != 0.0 else math.inf

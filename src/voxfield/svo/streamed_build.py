@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import os
 import time
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -34,6 +36,8 @@ DEFAULT_BLOCK = 256
 #: Bytes per voxel the build holds at its peak: the finished levels of every cube (3-byte
 #: colours, descriptors for ~1/4 of them) and their concatenation into the final arrays.
 PEAK_BYTES_PER_VOXEL = 16
+#: Threads that build cubes while the source delivers the next blocks.
+BUILD_THREADS = 2
 
 
 def physical_memory() -> int | None:
@@ -140,23 +144,45 @@ def build_octree_streamed(
     cubes: dict[int, _Cube] = {}
     columns = [(bx, bz) for bz in range(-(-int(extent[2]) // size))
                for bx in range(-(-int(extent[0]) // size))]
-    with progress_bar(total=len(columns), desc="octree", unit="block", enabled=progress) as bar:
+
+    def build_block(coords: np.ndarray, attributes: dict, bx: int, bz: int) -> list:
+        """The cubes of one column block, keyed by the Morton code of their position."""
+        local = coords - lo
+        cube_y = local[:, 1] >> bits
+        order = np.argsort(cube_y, kind="stable")
+        cube_y = cube_y[order]
+        splits = np.flatnonzero(np.diff(cube_y)) + 1
+        built = []
+        for part in np.split(order, splits):
+            corner = np.array([bx, int(local[part[0], 1]) >> bits, bz])
+            inside = local[part] - (corner << bits)
+            cube = _build_cube(inside, {k: attributes[k][part] for k in names}, bits, storages)
+            built.append((int(morton_encode(corner[None])[0]), cube))
+        return built
+
+    # The source delivers blocks here, in order; threads build their cubes meanwhile (NumPy
+    # sorts and arithmetic release the GIL). At most ``2 × workers`` blocks wait, so memory
+    # stays bounded; results land in block order, so the octree does not depend on timing.
+    workers = max(1, min(BUILD_THREADS, os.cpu_count() or 1))
+    with progress_bar(total=len(columns), desc="octree", unit="block", enabled=progress) as bar, \
+            ThreadPoolExecutor(workers) as pool:
+        pending: deque = deque()
+
+        def collect() -> None:
+            cubes.update(pending.popleft().result())
+            bar.update(1)
+
         for bx, bz in columns:
             coords, attributes = source.column_block(int(lo[0]) + bx * size,
                                                      int(lo[2]) + bz * size, size)
             if len(coords):
-                local = coords - lo
-                cube_y = local[:, 1] >> bits
-                order = np.argsort(cube_y, kind="stable")
-                cube_y = cube_y[order]
-                splits = np.flatnonzero(np.diff(cube_y)) + 1
-                for part in np.split(order, splits):
-                    corner = np.array([bx, int(local[part[0], 1]) >> bits, bz])
-                    inside = local[part] - (corner << bits)
-                    cube = _build_cube(inside, {k: attributes[k][part] for k in names}, bits,
-                                       storages)
-                    cubes[int(morton_encode(corner[None])[0])] = cube
-            bar.update(1)
+                pending.append(pool.submit(build_block, coords, attributes, bx, bz))
+            else:
+                bar.update(1)
+            while len(pending) > 2 * workers:
+                collect()
+        while pending:
+            collect()
     if not cubes:
         raise VoxfieldError(f"scene {source.name!r} has no voxels; nothing to build")
     return _assemble(cubes, depth, bits, names, storages, lo, hi, source.name,

@@ -1,0 +1,43 @@
+"""``prefetch``: ask the memory system for an array element a kernel will read soon.
+
+A walk that knows early which cell it will settle in can start that cell's other loads
+before it needs them, so their cache misses overlap the one it waits for instead of
+following it. The hint changes no result; where the element is cached already it costs an
+instruction.
+"""
+
+from __future__ import annotations
+
+from llvmlite import ir
+from numba import types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+__all__ = ["prefetch"]
+
+
+@intrinsic
+def prefetch(typingctx, array, index):
+    """Prefetch ``array[index]`` for reading into every cache level (LLVM's
+    ``llvm.prefetch``). No bounds check: an index outside the array prefetches nothing
+    useful and faults on nothing."""
+    if not isinstance(array, types.Array) or array.ndim != 1 or \
+            not isinstance(index, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        array_type = signature.args[0]
+        view = context.make_array(array_type)(context, builder, args[0])
+        pointer = cgutils.get_item_pointer(context, builder, array_type, view, [args[1]],
+                                           wraparound=False)
+        byte_pointer = ir.IntType(8).as_pointer()
+        int32 = ir.IntType(32)
+        hint = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.VoidType(), [byte_pointer, int32, int32, int32]),
+            "llvm.prefetch.p0")
+        # read, keep in all cache levels, data cache
+        builder.call(hint, [builder.bitcast(pointer, byte_pointer), int32(0), int32(3),
+                            int32(1)])
+        return context.get_dummy_value()
+
+    return types.void(array, index), codegen
