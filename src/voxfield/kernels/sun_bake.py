@@ -257,27 +257,32 @@ def trace_shadow_queue(count: int, queue, inner_nodes: np.ndarray, depth: int,
 
 
 @njit(cache=True, nogil=True)
+def new_block_scratch(depth: int, sky_rays: int, shadow_rays: int):
+    """What ``bake_block`` works in: traversal and packet scratch, the shadow-ray queue, the
+    sampling strata, per-voxel face terms and the shadow rays' start points."""
+    return (new_scratch(depth), new_packet_scratch(depth), new_shadow_queue(), np.empty(6),
+            new_strata(max(sky_rays, shadow_rays)), np.empty((BAKE_BLOCK, 6)),
+            np.empty(BAKE_BLOCK), np.empty((BAKE_BLOCK, 6), np.int64),
+            np.empty((BAKE_BLOCK, 6, shadow_rays, 2)))
+
+
+@borrowing
 def bake_block(
     first: int, last: int, coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
     sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
     inner_nodes: np.ndarray, depth: int, y_top: float, columns, out_rows: np.ndarray,
     out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
-    out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
+    out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray, work,
 ) -> None:
     """Bake voxels ``first..last-1`` (at most ``BAKE_BLOCK``): each voxel's sky rays one by
     one, then per sun the block's shadow rays (from the faces turned to it); those the
     column walk leaves undecided are queued and traced as any-hit packets: parallel rays from
     neighbouring voxels walk almost the same nodes, and a packet loads each node once for
-    all of them. ``columns`` is a ``svo.column_tops.ColumnTops`` (empty: octree only)."""
-    scratch = new_scratch(depth)
-    packet_scratch = new_packet_scratch(depth)
-    queue = new_shadow_queue()
+    all of them. ``columns`` is a ``svo.column_tops.ColumnTops`` (empty: octree only);
+    ``work`` is ``new_block_scratch``'s."""
+    (scratch, packet_scratch, queue, face_sky, strata, face_weight, total_weight, unblocked,
+     shadow_points) = work
     origins, directions, tmins, tmaxs, ray_voxel, ray_face = queue[:6]
-    face_sky = np.empty(6)
-    strata = new_strata(max(sky_rays, shadow_rays))
-    face_weight = np.empty((BAKE_BLOCK, 6))
-    total_weight = np.empty(BAKE_BLOCK)
-    unblocked = np.empty((BAKE_BLOCK, 6), np.int64)
     for i in range(first, last):
         j = i - first
         sky, out_weight[out_rows[i]], total_weight[j], sky_cast, steps = sky_visibility(
@@ -289,7 +294,6 @@ def bake_block(
         out_shadow_rays[i] = 0
         out_steps[i] = steps
     # Each face's shadow-ray start points serve every sun: drawn once.
-    shadow_points = np.empty((last - first, 6, shadow_rays, 2))
     m, n = pattern_shape(shadow_rays)
     for i in range(first, last):
         j = i - first
@@ -379,7 +383,8 @@ def bake_sun_visibility(
         first = b * BAKE_BLOCK
         bake_block(first, min(n, first + BAKE_BLOCK), coords, voxel_ids, faces, sun_dirs,
                    sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, columns, out_rows,
-                   out_direct, out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps)
+                   out_direct, out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps,
+                   new_block_scratch(depth, sky_rays, shadow_rays))
 
 
 @njit(parallel=True, cache=True, nogil=True)

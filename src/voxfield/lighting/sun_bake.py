@@ -251,7 +251,7 @@ def bake_sun_lighting(
         seconds=cost["seconds"],
         threads=_threads_used(threads),
         sunlit_fraction={
-            s.name: float((vis.direct[k][seen] > 0).sum() / seen_count)
+            s.name: float(np.count_nonzero((vis.direct[k] > 0) & seen) / seen_count)
             for k, s in enumerate(suns)
         },
     )

@@ -75,10 +75,14 @@ def propagate_channel(
 
 
 def fill_inner_levels(
-    octree: Octree, values: np.ndarray, leaf_weights: np.ndarray | None = None
+    octree: Octree, values: np.ndarray | list[np.ndarray],
+    leaf_weights: np.ndarray | None = None,
 ) -> None:
-    """``propagate_channel`` in place: ``values`` (``(nodes, C)`` float32) has its voxel
-    rows set, and gets every inner row from them, with no copy of the leaves."""
+    """``propagate_channel`` in place: ``values`` (``(nodes, C)`` float32, or a list of such
+    channels sharing the weights) has its voxel rows set, and gets every inner row from
+    them, with no copy of the leaves. Each level's child runs and parent weights are worked
+    out once for all the channels."""
+    channels = values if isinstance(values, list) else [values]
     depth = octree.depth
     weighted = leaf_weights is not None
     weights = np.ascontiguousarray(leaf_weights if weighted else np.zeros(0), np.float64)
@@ -88,8 +92,9 @@ def fill_inner_levels(
         children = octree.level_slice(level + 1)
         starts = first_child[parents] - int(octree.level_offsets[level + 1])
         parent_weights = np.empty(len(starts) if weighted else 0, np.float64)
-        average_children(starts, values[children], weights, weighted, values[parents],
-                         parent_weights)
+        for channel in channels:
+            average_children(starts, channel[children], weights, weighted, channel[parents],
+                             parent_weights)
         weights = parent_weights
 
 
@@ -136,8 +141,8 @@ def with_channel_block(
     attributes = dict(octree.attributes)
     if weights is not None:  # widened once for every channel
         weights = np.ascontiguousarray(weights, np.float64)
+    fill_inner_levels(octree, list(block), weights)
     for name, values in zip(names, block, strict=True):
-        fill_inner_levels(octree, values, weights)
         attributes[check_channel_name(name)] = values
     return octree.recoloured(attributes=attributes)
 
