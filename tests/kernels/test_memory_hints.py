@@ -39,3 +39,10 @@ def _prefetch_2d(values):
 def test_prefetch_takes_only_a_1d_array_and_an_integer_index():
     with pytest.raises(TypingError):
         _prefetch_2d(np.zeros((2, 2)))
+
+
+def test_in_plain_python_a_prefetch_does_nothing():
+    # NUMBA_DISABLE_JIT and the CUDA simulator run the kernels as Python.
+    values = np.arange(4)
+    assert prefetch(values, 2) is None
+    assert _gather_ahead.py_func(values.astype(float), np.array([3, 1, 0, 2]), 1) == 6.0

@@ -11,20 +11,32 @@ from __future__ import annotations
 from llvmlite import ir
 from numba import types
 from numba.core import cgutils
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
 __all__ = ["prefetch"]
 
 
-@intrinsic
-def prefetch(typingctx, array, index):
+def prefetch(array, index) -> None:
     """Prefetch ``array[index]`` for reading into every cache level (LLVM's
-    ``llvm.prefetch``). No bounds check: an index outside the array prefetches nothing
-    useful and faults on nothing."""
+    ``llvm.prefetch``) in compiled code; plain Python (``NUMBA_DISABLE_JIT``, the CUDA
+    simulator) has nothing to do. No bounds check: an index outside the array prefetches
+    nothing useful and faults on nothing."""
+
+
+@overload(prefetch, inline="always")
+def _prefetch(array, index):
     if not isinstance(array, types.Array) or array.ndim != 1 or \
             not isinstance(index, types.Integer):
         return None
 
+    def hint(array, index):
+        _llvm_prefetch(array, index)
+
+    return hint
+
+
+@intrinsic
+def _llvm_prefetch(typingctx, array, index):
     def codegen(context, builder, signature, args):
         array_type = signature.args[0]
         view = context.make_array(array_type)(context, builder, args[0])
