@@ -57,13 +57,28 @@ def test_bake_into_a_file_is_one_line(a_file, capsys):
     _one_error_line(capsys)
 
 
-def test_light_into_a_file_is_one_line_and_writes_nothing(a_file, capsys):
-    # The octree is written by a thread while the previews render: its failure, or the
-    # report's, must still end the command with one line and leave no preview behind.
-    assert main(["light", "builtin:pillars", "--times", "noon", "--sky-rays", "0",
-                 "--preview-size", "8", "--quiet", "--out", str(a_file / "lit.npz")]) == 2
+LIGHT = ["light", "builtin:pillars", "--times", "noon", "--sky-rays", "0", "--preview-size",
+         "8", "--quiet"]
+
+
+def test_light_onto_a_folder_is_one_line_and_writes_nothing(tmp_path, capsys):
+    (tmp_path / "lit.npz").mkdir()
+    assert main([*LIGHT, "--out", str(tmp_path / "lit.npz")]) == 2
     _one_error_line(capsys)
-    assert [p.name for p in a_file.parent.glob("*.png")] == [a_file.name]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["lit.npz"]
+
+
+def test_a_failed_octree_write_leaves_no_report_previews_or_temporary_file(
+        tmp_path, capsys, monkeypatch):
+    # The octree is written by a thread while the previews render: its failure must still
+    # end the command with one line, before the report or a preview is written.
+    def fail(octree, path):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr("voxfield.cli.cmd_light.write_octree_file", fail)
+    assert main([*LIGHT, "--out", str(tmp_path / "lit.npz")]) == 2
+    assert "disk is full" in _one_error_line(capsys)
+    assert list(tmp_path.iterdir()) == []
 
 
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders anyway")

@@ -7,6 +7,8 @@ import json
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
+import numpy as np
+
 from voxfield.atomic import atomic_path
 from voxfield.cli.options import (
     add_quiet,
@@ -23,7 +25,7 @@ from voxfield.render.camera import top_down_camera
 from voxfield.render.image_io import save_png
 from voxfield.render.primary import render_reference
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
-from voxfield.svo.io import save_octree
+from voxfield.svo.io import write_octree_file
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -86,17 +88,22 @@ def run(args) -> int:
         "cost": report.as_dict(),
     }
     # The octree file (a gigabyte on a 2048² terrain) is written by a thread while the
-    # previews render: writing is mostly the kernel copying pages, which leaves the GIL free.
-    with ThreadPoolExecutor(1) as writer:
-        saving = writer.submit(save_octree, lit, out)
-        report_path = out.with_suffix(".json")
-        with atomic_path(report_path) as tmp:
-            tmp.write_text(json.dumps(details, indent=2))
-        previews = []
+    # previews render in memory (writing is mostly the kernel copying pages, which leaves
+    # the GIL free). It is committed only once both succeed, and the report and previews
+    # only after it: a failure or Ctrl-C leaves none of them, nor a temporary file.
+    previews = []
+    with atomic_path(out) as octree_tmp, ThreadPoolExecutor(1) as writer:
+        saving = writer.submit(write_octree_file, lit, octree_tmp)
         if not args.no_preview:
-            previews = write_previews(lit, [s.name for s in suns], out, size=args.preview_size,
-                                      threads=args.threads)
-        written = [saving.result(), report_path, *previews]
+            previews = render_previews(lit, [s.name for s in suns], size=args.preview_size,
+                                       threads=args.threads)
+        saving.result()  # raises the save's error; leaving waits for the thread either way
+    report_path = out.with_suffix(".json")
+    with atomic_path(report_path) as tmp:
+        tmp.write_text(json.dumps(details, indent=2))
+    written = [out, report_path]
+    written += [save_png(image, out.with_name(f"{out.stem}_{name}.png"))
+                for name, image in previews]
     if not quiet:
         print(report.summary())
         for path in written:
@@ -104,13 +111,12 @@ def run(args) -> int:
     return 0
 
 
-def write_previews(octree, channels: list[str], out: Path, *, size: int,
-                   threads: int | None = None) -> list[Path]:
-    """A top-down reference render (2×2 rays per pixel) of each channel, beside ``out``."""
+def render_previews(octree, channels: list[str], *, size: int,
+                    threads: int | None = None) -> list[tuple[str, np.ndarray]]:
+    """A top-down reference render (2×2 rays per pixel) of each channel, as
+    ``(channel, image)``."""
     lo, hi = octree.voxel_bounds
     camera = top_down_camera(lo, hi, size=size)
-    paths = []
-    for name in channels:
-        result = render_reference(octree, camera, side=2, channel=name, threads=threads)
-        paths.append(save_png(result.image, out.with_name(f"{out.stem}_{name}.png")))
-    return paths
+    return [(name, render_reference(octree, camera, side=2, channel=name,
+                                    threads=threads).image) for name in channels]
+

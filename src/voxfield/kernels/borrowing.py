@@ -9,9 +9,12 @@ the closest-hit walk as much of a primary render.
 
 A helper that creates no array and keeps none past its return needs no count: its caller
 owns every array it touches. ``borrowing`` compiles it without reference counting (Numba's
-``_nrt=False``), and so are the functions it calls, whose arrays are borrowed in turn. An
-allocation anywhere below it (``np.empty``, a slice copy) fails to compile rather than leak:
-scratch comes from the caller.
+``_nrt=False``); an allocation in it (``np.empty``, a copy) fails to compile rather than
+leak, so scratch comes from the caller. The functions it calls are compiled without counting
+too only where they are inlined or compiled first from it: Numba keeps one compiled version
+per signature, so a plain ``njit`` callee already compiled elsewhere keeps its counts (and
+an allocation in it would leak). Hence the rule: a borrowing function calls, with arrays,
+only ``inline="always"`` helpers and other borrowing functions.
 """
 
 from __future__ import annotations
@@ -28,5 +31,5 @@ BORROWING_OPTIONS = {"cache": True, "nogil": True, "_nrt": False}
 def borrowing(function=None, /, **options):
     """``njit`` without reference counting, as ``@borrowing`` or ``@borrowing(...)`` with
     further Numba options."""
-    jit = njit(**BORROWING_OPTIONS, **options)
+    jit = njit(**{**BORROWING_OPTIONS, **options})
     return jit if function is None else jit(function)

@@ -44,9 +44,11 @@ def _llvm_prefetch(typingctx, array, index):
                                            wraparound=False)
         byte_pointer = ir.IntType(8).as_pointer()
         int32 = ir.IntType(32)
-        hint = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(ir.VoidType(), [byte_pointer, int32, int32, int32]),
-            "llvm.prefetch.p0")
+        # ``declare_intrinsic`` names it for the pointer type: ``.p0`` with LLVM's opaque
+        # pointers, ``.p0i8`` with typed ones (older Numba).
+        hint = builder.module.declare_intrinsic(
+            "llvm.prefetch", [byte_pointer],
+            ir.FunctionType(ir.VoidType(), [byte_pointer, int32, int32, int32]))
         # read, keep in all cache levels, data cache
         builder.call(hint, [builder.bitcast(pointer, byte_pointer), int32(0), int32(3),
                             int32(1)])

@@ -13,6 +13,7 @@ darken the coarse levels: a node's lit colour is then the colour of its visible 
 from __future__ import annotations
 
 import re
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -75,14 +76,14 @@ def propagate_channel(
 
 
 def fill_inner_levels(
-    octree: Octree, values: np.ndarray | list[np.ndarray],
+    octree: Octree, values: np.ndarray | Sequence[np.ndarray],
     leaf_weights: np.ndarray | None = None,
 ) -> None:
-    """``propagate_channel`` in place: ``values`` (``(nodes, C)`` float32, or a list of such
-    channels sharing the weights) has its voxel rows set, and gets every inner row from
-    them, with no copy of the leaves. Each level's child runs and parent weights are worked
-    out once for all the channels."""
-    channels = values if isinstance(values, list) else [values]
+    """``propagate_channel`` in place: ``values`` (``(nodes, C)`` float32, or a sequence of
+    such channels sharing the weights) has its voxel rows set, and gets every inner row
+    from them, with no copy of the leaves. Each level's child runs are worked out once for
+    all the channels."""
+    channels = [values] if isinstance(values, np.ndarray) else list(values)
     depth = octree.depth
     weighted = leaf_weights is not None
     weights = np.ascontiguousarray(leaf_weights if weighted else np.zeros(0), np.float64)

@@ -22,6 +22,14 @@ FORMAT_VERSION = 2
 def save_octree(octree: Octree, path: str | os.PathLike) -> Path:
     """Write the octree to ``path`` (temporary file, then rename)."""
     path = Path(path)
+    with atomic_path(path) as tmp:
+        write_octree_file(octree, tmp)
+    return path
+
+
+def write_octree_file(octree: Octree, path: str | os.PathLike) -> None:
+    """``save_octree``'s bytes, straight into ``path``: for a writer that commits the file
+    itself (``atomic_path``) once the rest of its outputs are ready."""
     header = {
         "format": FORMAT,
         "version": FORMAT_VERSION,
@@ -42,9 +50,8 @@ def save_octree(octree: Octree, path: str | os.PathLike) -> Path:
         arrays[f"attr_{name}"] = values
     if octree.facing is not None:
         arrays["facing"] = octree.facing
-    with atomic_path(path) as tmp, open(tmp, "wb") as f:
+    with open(path, "wb") as f:
         np.savez(f, **arrays)
-    return path
 
 
 def load_octree(path: str | os.PathLike) -> Octree:

@@ -161,8 +161,9 @@ def build_octree_streamed(
         return built
 
     # The source delivers blocks here, in order; threads build their cubes meanwhile (NumPy
-    # sorts and arithmetic release the GIL). At most ``2 × workers`` blocks wait, so memory
-    # stays bounded; results land in block order, so the octree does not depend on timing.
+    # sorts and arithmetic release the GIL). At most ``2 × workers + 1`` blocks wait, so
+    # memory stays bounded; results land in block order, so the octree does not depend on
+    # timing. On an error or Ctrl-C the waiting blocks are dropped, not built.
     workers = max(1, min(BUILD_THREADS, os.cpu_count() or 1))
     with progress_bar(total=len(columns), desc="octree", unit="block", enabled=progress) as bar, \
             ThreadPoolExecutor(workers) as pool:
@@ -172,17 +173,22 @@ def build_octree_streamed(
             cubes.update(pending.popleft().result())
             bar.update(1)
 
-        for bx, bz in columns:
-            coords, attributes = source.column_block(int(lo[0]) + bx * size,
-                                                     int(lo[2]) + bz * size, size)
-            if len(coords):
-                pending.append(pool.submit(build_block, coords, attributes, bx, bz))
-            else:
-                bar.update(1)
-            while len(pending) > 2 * workers:
+        try:
+            for bx, bz in columns:
+                coords, attributes = source.column_block(int(lo[0]) + bx * size,
+                                                         int(lo[2]) + bz * size, size)
+                if len(coords):
+                    pending.append(pool.submit(build_block, coords, attributes, bx, bz))
+                else:
+                    bar.update(1)
+                while len(pending) > 2 * workers:
+                    collect()
+            while pending:
                 collect()
-        while pending:
-            collect()
+        except BaseException:
+            for future in pending:
+                future.cancel()
+            raise
     if not cubes:
         raise VoxfieldError(f"scene {source.name!r} has no voxels; nothing to build")
     return _assemble(cubes, depth, bits, names, storages, lo, hi, source.name,
