@@ -18,20 +18,16 @@ def _scaled(values, factor, out, i):
     return out[i]
 
 
-@borrowing(cache=False)
-def _scale_borrowed(values, factor, out):
+def _scale(values, factor, out):
     total = 0.0
     for i in range(values.shape[0]):
         total += _scaled(values, factor, out, i)
     return total
 
 
-@njit(nogil=True)
-def _scale_counted(values, factor, out):
-    total = 0.0
-    for i in range(values.shape[0]):
-        total += _scaled(values, factor, out, i)
-    return total
+# The same function compiled both ways.
+_scale_borrowed = borrowing(_scale, cache=False)
+_scale_counted = njit(nogil=True)(_scale)
 
 
 @borrowing(cache=False)
