@@ -8,7 +8,14 @@ import pytest
 from numba import njit
 from numba.core.errors import TypingError
 
-from voxfield.kernels import primary, ray_batch, sun_bake, surface_approach, upward_rays
+from voxfield.kernels import (
+    error_aware,
+    primary,
+    ray_batch,
+    sun_bake,
+    surface_approach,
+    upward_rays,
+)
 from voxfield.kernels.borrowing import borrowing
 
 
@@ -66,6 +73,7 @@ def test_a_borrowing_helper_that_allocates_fails_to_compile_rather_than_leak():
     primary.trace_chunk_per_ray,
     ray_batch.trace_ray_chunk,
     ray_batch.occlude_ray_chunk,
+    error_aware.trace_error_aware_row,
 ], ids=lambda f: f.py_func.__name__)
 def test_the_per_ray_loops_of_the_hot_kernels_borrow(helper):
     # With counting, every call updates the shared arrays' headers from every thread: the

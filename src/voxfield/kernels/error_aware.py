@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.beam import start_distance
+from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.colour import node_rgb
@@ -226,8 +227,30 @@ def render_error_aware_row(
     refinement: Refinement, model: ErrorModel, beam: BeamBounds, out: PixelOutputs,
     maps: RefinementMaps, row: int, columns,
 ) -> None:
-    """One row of ``render_error_aware_rows`` (the traversal is inlined here, never straight
-    into a ``prange`` body, where Numba's parfor pass would hoist its initialisations)."""
+    """One row of ``render_error_aware_rows``: its scratch, then ``trace_error_aware_row``."""
+    trace_error_aware_row(cam, width, height, row0, seed, view, refinement, model, beam, out,
+                          maps, row, columns, new_scratch(view.depth), new_ray_queue())
+
+
+@njit(cache=True, nogil=True)
+def new_ray_queue():
+    """The pending rays of one pixel: cell, refinement, stop level, finest cell, start and
+    entry face."""
+    return (np.empty(_QUEUE, np.int64), np.empty(_QUEUE, np.int64),
+            np.empty(_QUEUE, np.int64), np.empty(_QUEUE, np.int64),
+            np.empty(_QUEUE, np.int64), np.empty(_QUEUE, np.int64),
+            np.empty(_QUEUE, np.float64), np.empty(_QUEUE, np.int64))
+
+
+@borrowing
+def trace_error_aware_row(
+    cam: np.ndarray, width: int, height: int, row0: int, seed: int, view: OctreeView,
+    refinement: Refinement, model: ErrorModel, beam: BeamBounds, out: PixelOutputs,
+    maps: RefinementMaps, row: int, columns, scratch, queue,
+) -> None:
+    """One row of ``render_error_aware_rows`` with the caller's scratch and ray queue (the
+    traversal is inlined here, never straight into a ``prange`` body, where Numba's parfor
+    pass would hoist its initialisations)."""
     inner_nodes, depth, colors, facing = view
     base_stop_level, cone_scale, max_refinements, reuse_parent = refinement
     (threshold, decay, encoding, oct_map, sh, children_sh, lighting_aware, bright_ratio,
@@ -240,15 +263,9 @@ def render_error_aware_row(
     radius, spread = pixel_cone(cam, height)
     radius *= cone_scale
     spread *= cone_scale
-    scratch = new_scratch(depth)
-    q_x = np.empty(_QUEUE, np.int64)
-    q_y = np.empty(_QUEUE, np.int64)
-    q_k = np.empty(_QUEUE, np.int64)
-    q_stop = np.empty(_QUEUE, np.int64)
-    q_fx = np.empty(_QUEUE, np.int64)  # reuse: the finest cell the ray goes through
-    q_fy = np.empty(_QUEUE, np.int64)
-    q_tmin = np.empty(_QUEUE, np.float64)  # reuse: where a continued ray resumes
-    q_normal = np.empty(_QUEUE, np.int64)
+    # q_fx, q_fy: (reuse) the finest cell the ray goes through; q_tmin: where a continued
+    # ray resumes
+    q_x, q_y, q_k, q_stop, q_fx, q_fy, q_tmin, q_normal = queue
     for col in range(width):
         pixel = row * width + col
         pattern = pixel_pattern(pixel, seed)
