@@ -13,7 +13,13 @@ from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
-from voxfield.kernels.sampling import cmj_sample, cmj_sample_in, cmj_strata, pixel_pattern
+from voxfield.kernels.sampling import (
+    cmj_sample,
+    cmj_sample_in,
+    cmj_strata,
+    new_cmj_strata,
+    pixel_pattern,
+)
 from voxfield.kernels.surface_approach import trace_over_columns
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
@@ -120,7 +126,7 @@ def render_pixel_chunk(
         trace_chunk_over_columns(cam, width, height, pixels, first, last, side, seed, view,
                                  stop_level, beam, columns, sums, tallies,
                                  new_scratch(view.depth), new_shading_batch(),
-                                 (np.empty(side, np.int64), np.empty(side, np.int64)))
+                                 new_cmj_strata(side))
     elif side > 1 and fixed_level:
         trace_chunk_in_packets(cam, width, height, pixels, first, last, side, seed, view,
                                stop_level, beam, sums, tallies)
@@ -213,8 +219,8 @@ def trace_chunk_over_columns(
     column-top pyramid, then the octree where the ray reaches the surface. From a beam bound
     one ray at a time beats the packets here, supersampled or not (mountain terrain, 16 rays
     a pixel: 1.1-1.2× the packets); ``render.primary.pixel_columns`` decides. ``scratch``
-    (``traversal.new_scratch``), ``hits`` (``new_shading_batch``) and ``strata`` (two int64
-    arrays of ``side`` slots) are the caller's.
+    (``traversal.new_scratch``), ``hits`` (``new_shading_batch``) and ``strata``
+    (``sampling.new_cmj_strata(side)``) are the caller's.
 
     A supersampled pixel's stratum permutations are drawn once (``sampling.cmj_strata``),
     not again for each sample: the same sample positions, and 16-ray pixels 1.1× faster."""

@@ -100,6 +100,12 @@ def cmj_strata(m: int, n: int, p: int, column: np.ndarray, row: np.ndarray) -> N
         row[j] = permute(j, n, (p * 0x63D83595) & _U32)
 
 
+@njit(cache=True, nogil=True)
+def new_cmj_strata(slots: int):
+    """``cmj_strata``'s two tables (columns, rows), room for ``slots`` of each."""
+    return np.empty(slots, np.int64), np.empty(slots, np.int64)
+
+
 @njit(cache=True, nogil=True, inline="always")
 def cmj_sample_in(s: int, i: int, j: int, m: int, n: int, p: int, column: np.ndarray,
                   row: np.ndarray) -> tuple[float, float]:

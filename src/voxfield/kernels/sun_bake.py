@@ -51,6 +51,7 @@ from voxfield.kernels.sampling import (
     cmj_sample_in,
     cmj_strata,
     hash_u32,
+    new_cmj_strata,
     pixel_pattern,
 )
 from voxfield.kernels.traversal import MISS, new_scratch, occluded
@@ -139,8 +140,7 @@ def next_stratum(i: int, j: int, m: int) -> tuple[int, int]:
 def new_strata(count: int):
     """Stratum tables (``sampling.cmj_strata``) for two patterns of up to ``count``
     samples: columns and rows of the first, then of the second."""
-    return (np.empty(count + 1, np.int64), np.empty(count + 1, np.int64),
-            np.empty(count + 1, np.int64), np.empty(count + 1, np.int64))
+    return new_cmj_strata(count + 1) + new_cmj_strata(count + 1)
 
 
 @borrowing
