@@ -14,10 +14,16 @@ from random_scenes import (
     random_scene,
 )
 from voxfield.kernels.traversal import new_scratch, occluded
-from voxfield.kernels.upward_rays import BLOCKED, CLEAR, UNDECIDED, rising_ray_query
+from voxfield.kernels.upward_rays import (
+    BLOCKED,
+    CLEAR,
+    UNDECIDED,
+    parallel_rays_clear,
+    rising_ray_query,
+)
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
-from voxfield.svo.column_tops import GAP_OPEN, column_tops, no_column_tops
+from voxfield.svo.column_tops import GAP_OPEN, column_tops, no_column_tops, tops_ahead
 
 
 @njit
@@ -154,3 +160,79 @@ def test_without_a_pyramid_or_a_rise_rays_go_to_the_octree_from_their_start():
                             no_column_tops()) == (UNDECIDED, 0.0, 0)
     assert rising_ray_query(3.5, 20.0, 3.5, 1.0, 1e-12, 0.0, math.inf,
                             columns) == (UNDECIDED, 0.0, 0)
+
+
+@njit
+def _parallel_answers(corners, d, ahead_offsets, columns, tops_ahead, inner, depth, y_top,
+                      out):
+    """Per corner: ``parallel_rays_clear``'s answer and steps, then how many of the rays
+    from the points ``corner + offset`` (one row of offsets per corner) the octree finds
+    blocked up to the top of the voxels."""
+    scratch = new_scratch(depth)
+    for k in range(corners.shape[0]):
+        ox, oy, oz = corners[k, 0], corners[k, 1], corners[k, 2]
+        clear, steps = parallel_rays_clear(ox, oy, oz, d[k, 0], d[k, 1], d[k, 2],
+                                           (y_top - oy) / d[k, 1], columns, tops_ahead[k])
+        blocked = 0
+        for s in range(ahead_offsets.shape[1]):
+            px = ox + ahead_offsets[k, s, 0]
+            py = oy + ahead_offsets[k, s, 1]
+            pz = oz + ahead_offsets[k, s, 2]
+            hit, _ = occluded(px, py, pz, d[k, 0], d[k, 1], d[k, 2], 0.0,
+                              (y_top - py) / d[k, 1], inner, depth, scratch)
+            blocked += 1 if hit else 0
+        out[k, 0] = 1 if clear else 0
+        out[k, 1] = steps
+        out[k, 2] = blocked
+
+
+def test_parallel_rays_called_clear_are_all_clear_for_the_octree():
+    """A face's shadow rays settled together from its rear corner: every ray from a point
+    ahead of the corner by less than one column (and no lower) is clear when the walk says
+    so, including points on the corner and a hair short of one column ahead; and the walk
+    does settle most corners on open ground."""
+    rng = np.random.default_rng(11)
+    for scene in (overhanging_terrain(seed=4, size=30), hollow_shell_terrain(seed=2),
+                  random_scene(seed=9, n=700, size=15)):
+        octree, voxels, columns = octree_and_columns(scene)
+        y_top = voxels[:, 1].max() + 1.0
+        n = 600
+        # Corners on the tops and sides of voxels, and anywhere around them.
+        corners = voxels[rng.integers(0, len(voxels), n)].astype(np.float64)
+        corners += rng.integers(0, 2, (n, 3))
+        corners[n // 2:] = rng.uniform(voxels.min(axis=0) - 2, voxels.max(axis=0) + 3,
+                                       (n - n // 2, 3))
+        d = rng.normal(size=(n, 3))
+        d[:, 1] = np.abs(d[:, 1]) * rng.choice([0.1, 0.5, 2.0], n) + 1e-3
+        d[:n // 8, 0] = 0.0  # along a grid plane: ahead counts as +x
+        d /= np.linalg.norm(d, axis=1)[:, None]
+        step_x = np.where(d[:, 0] >= 0.0, 1, -1)
+        step_z = np.where(d[:, 2] >= 0.0, 1, -1)
+        ahead = {(a, b): tops_ahead(columns, a, b) for a in (1, -1) for b in (1, -1)}
+        tops_of = np.stack([ahead[a, b] for a, b in zip(step_x, step_z, strict=True)])
+        samples = 12
+        offsets = rng.random((n, samples, 3))
+        offsets[:, 0] = 0.0  # the corner itself
+        offsets[:, 1, [0, 2]] = 1.0 - 1e-12  # just short of a column ahead
+        offsets[:, :, 1] *= rng.choice([0.0, 1.0], (n, samples))  # often at its height
+        offsets[:, :, 0] *= step_x[:, None]
+        offsets[:, :, 2] *= step_z[:, None]
+        out = np.empty((n, 3), np.int64)
+        _parallel_answers(corners, d, offsets, columns, tops_of, octree.inner_nodes,
+                          octree.depth, y_top, out)
+        clear = out[:, 0] == 1
+        assert not np.any(out[clear, 2]), "a ray called clear is blocked"
+        assert 0.2 < clear.mean() < 1.0
+        assert np.any(out[~clear, 2] > 0)
+
+
+def test_parallel_rays_are_not_settled_without_a_pyramid_or_a_rise():
+    scene = overhanging_terrain(seed=2, size=12)
+    octree = build_octree(scene)
+    columns = column_tops(octree.node_coords(octree.depth))
+    ahead = tops_ahead(columns, 1, 1)
+    assert parallel_rays_clear(3.0, 20.0, 3.0, 0.0, 1.0, 0.0, 10.0, columns, ahead)[0]
+    assert parallel_rays_clear(3.0, 20.0, 3.0, 0.0, 1.0, 0.0, 10.0, no_column_tops(),
+                               np.zeros(0, np.int32)) == (False, 0)
+    assert parallel_rays_clear(3.0, 20.0, 3.0, 1.0, 1e-12, 0.0, 10.0, columns,
+                               ahead) == (False, 0)

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from random_scenes import overhanging_terrain, random_scene
 from voxfield.svo import build_octree
-from voxfield.svo.column_tops import GAP_OPEN, column_tops, octree_column_tops
+from voxfield.svo.column_tops import GAP_OPEN, column_tops, octree_column_tops, tops_ahead
 
 
 def voxels_of(scene) -> np.ndarray:
@@ -65,6 +66,30 @@ def test_every_level_holds_the_highest_top_of_the_columns_it_covers():
             for z in range(d):
                 block = base[x * side:(x + 1) * side, z * side:(z + 1) * side]
                 assert cells[x, z] == block.max()
+
+
+@pytest.mark.parametrize("step_x, step_z", [(1, 1), (1, -1), (-1, 1), (-1, -1)])
+def test_tops_ahead_are_the_highest_of_each_cell_and_the_three_ahead_of_it(step_x, step_z):
+    voxels = voxels_of(random_scene(seed=4, n=450, size=13))
+    pyramid = column_tops(voxels)
+    ahead = tops_ahead(pyramid, step_x, step_z)
+    assert ahead.shape == pyramid.tops.shape and ahead.dtype == pyramid.tops.dtype
+    for level in range(len(pyramid.level_width)):
+        w, d = int(pyramid.level_width[level]), int(pyramid.level_depth[level])
+        start = int(pyramid.level_offset[level])
+        cells = pyramid.tops[start:start + w * d].reshape(w, d)
+        found = ahead[start:start + w * d].reshape(w, d)
+        for x in range(w):
+            for z in range(d):
+                neighbours = [cells[a, b] for a in (x, x + step_x) for b in (z, z + step_z)
+                              if 0 <= a < w and 0 <= b < d]
+                assert found[x, z] == max(neighbours)
+
+
+def test_tops_ahead_take_unit_steps_only():
+    pyramid = column_tops(voxels_of(random_scene(seed=1, n=50, size=5)))
+    with pytest.raises(ValueError, match="steps"):
+        tops_ahead(pyramid, 0, 1)
 
 
 def test_every_level_holds_the_gap_all_of_its_columns_leave_under_their_top_runs():

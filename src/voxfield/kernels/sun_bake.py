@@ -35,6 +35,13 @@ over open ground that settles most rays (clear above the terrain, or blocked by 
 voxels they dip into) in a few 2D cells; the rest go on through the octree from where the
 walk left them, with the answer the octree alone gives. A ray's steps are the pyramid cells
 it visits plus the octree nodes it enters.
+
+A face's shadow rays towards one sun are parallel and start less than a column apart: one
+walk from the face's rear corner over the tops ahead of each cell
+(``upward_rays.parallel_rays_clear``) settles all of them when it finds the corner clear,
+which on open ground most lit faces are (a 2048² desert's bake took 0.78× the steps).
+Its cells are counted once, for the face; a face it does not settle has its rays walked one
+by one after it, as before. The visibility is the same either way.
 """
 
 from __future__ import annotations
@@ -55,7 +62,12 @@ from voxfield.kernels.sampling import (
     pixel_pattern,
 )
 from voxfield.kernels.traversal import MISS, new_scratch, occluded
-from voxfield.kernels.upward_rays import BLOCKED, UNDECIDED, rising_ray_query
+from voxfield.kernels.upward_rays import (
+    BLOCKED,
+    UNDECIDED,
+    parallel_rays_clear,
+    rising_ray_query,
+)
 
 _GOLDEN = 0x9E3779B9
 _POSITION_SALT = 0x68E31DA4
@@ -147,12 +159,13 @@ def new_strata(count: int):
 def sky_visibility(
     x: int, y: int, z: int, voxel_pattern: int, faces: int, sky_rays: int,
     inner_nodes: np.ndarray, depth: int, y_top: float, columns, face_sky: np.ndarray,
-    face_weight: np.ndarray, scratch, strata,
+    face_weight: np.ndarray, scratch, strata, rays: np.ndarray,
 ) -> tuple[float, float, float, int, int]:
     """One voxel's sky rays (``faces``: bit ``f`` set for exposed face ``f``): fills its
     per-face sky visibility and weights and returns ``(sky, weight seen, weight total, rays,
     steps)``; a voxel none of whose faces sees the sky gets equal face weights, which its
-    total then sums (module docstring). ``strata`` is ``new_strata(sky_rays)``."""
+    total then sums (module docstring). ``strata`` is ``new_strata(sky_rays)``, ``rays``
+    room for a face's rays (``(sky_rays, 7)``)."""
     # A face looking down (−y) sees no sky and no sun above the horizon: it gets no rays.
     exposed = 0
     open_faces = 0
@@ -181,7 +194,10 @@ def sky_visibility(
             m, n = pattern_shape(count)
             cmj_strata(m, n, face_pattern, strata[0], strata[1])
             cmj_strata(m, n, position_pattern, strata[2], strata[3])
-            escaped = 0
+            # The face's rays are drawn first, then traced: drawing them (divisions, a
+            # square root, a sine and cosine each) runs at the units' throughput apart from
+            # the walks, whose mispredicted branches would otherwise discard it.
+            traced = 0
             i = -1  # sample s is column i, row j of the m×n patterns
             j = 0
             for s in range(count):
@@ -193,7 +209,23 @@ def sky_visibility(
                 pu, pv = face_sample(s, i, j, count, m, n, position_pattern, strata[2],
                                      strata[3])
                 ox, oy, oz = face_point(x, y, z, f, pu, pv)
-                tmax = (y_top - oy) / dy
+                rays[traced, 0] = ox
+                rays[traced, 1] = oy
+                rays[traced, 2] = oz
+                rays[traced, 3] = dx
+                rays[traced, 4] = dy
+                rays[traced, 5] = dz
+                rays[traced, 6] = (y_top - oy) / dy
+                traced += 1
+            escaped = 0
+            for r in range(traced):
+                ox = rays[r, 0]
+                oy = rays[r, 1]
+                oz = rays[r, 2]
+                dx = rays[r, 3]
+                dy = rays[r, 4]
+                dz = rays[r, 5]
+                tmax = rays[r, 6]
                 verdict, t_on, ray_steps = rising_ray_query(ox, oy, oz, dx, dy, dz, tmax,
                                                             columns)
                 blocked = verdict == BLOCKED
@@ -202,9 +234,9 @@ def sky_visibility(
                                                      inner_nodes, depth, scratch)
                     ray_steps += octree_steps
                 steps += ray_steps
-                sky_cast += 1
                 if not blocked:
                     escaped += 1
+            sky_cast += traced
             face_sky[f] = escaped / count
             face_weight[f] = face_sky[f]
             k += 1
@@ -226,6 +258,26 @@ def face_cosine(face: int, lx: float, ly: float, lz: float) -> float:
     """Cosine between face ``face``'s outward normal and the unit direction ``l``."""
     axis, sign = face_axis_sign(face)
     return sign * (lx if axis == 0 else (ly if axis == 1 else lz))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def rear_corner(x: int, y: int, z: int, face: int, lx: float, lz: float
+                ) -> tuple[float, float, float]:
+    """The corner of face ``face`` of voxel ``(x, y, z)`` that every point of the face is
+    ahead of (or level with) along ``x`` and ``z`` when travelling along ``l``, and at the
+    face's bottom: where ``upward_rays.parallel_rays_clear`` starts for its shadow rays."""
+    cx = float(x) if lx >= 0.0 else float(x + 1)
+    cy = float(y)
+    cz = float(z) if lz >= 0.0 else float(z + 1)
+    axis, sign = face_axis_sign(face)
+    plane = 1.0 if sign > 0.0 else 0.0
+    if axis == 0:
+        cx = x + plane
+    elif axis == 1:
+        cy = y + plane
+    else:
+        cz = z + plane
+    return cx, cy, cz
 
 
 @njit(cache=True, nogil=True)
@@ -263,15 +315,15 @@ def new_block_scratch(depth: int, sky_rays: int, shadow_rays: int):
     return (new_scratch(depth), new_packet_scratch(depth), new_shadow_queue(), np.empty(6),
             new_strata(max(sky_rays, shadow_rays)), np.empty((BAKE_BLOCK, 6)),
             np.empty(BAKE_BLOCK), np.empty((BAKE_BLOCK, 6), np.int64),
-            np.empty((BAKE_BLOCK, 6, shadow_rays, 2)))
+            np.empty((BAKE_BLOCK, 6, shadow_rays, 2)), np.empty((max(sky_rays, 1), 7)))
 
 
 @borrowing
 def bake_block(
     first: int, last: int, coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
     sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float, columns, out_rows: np.ndarray,
-    out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
+    inner_nodes: np.ndarray, depth: int, y_top: float, columns, sun_tops: np.ndarray,
+    out_rows: np.ndarray, out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
     out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray, work,
 ) -> None:
     """Bake voxels ``first..last-1`` (at most ``BAKE_BLOCK``): each voxel's sky rays one by
@@ -281,14 +333,14 @@ def bake_block(
     all of them. ``columns`` is a ``svo.column_tops.ColumnTops`` (empty: octree only);
     ``work`` is ``new_block_scratch``'s."""
     (scratch, packet_scratch, queue, face_sky, strata, face_weight, total_weight, unblocked,
-     shadow_points) = work
+     shadow_points, sky_ray_buffer) = work
     origins, directions, tmins, tmaxs, ray_voxel, ray_face = queue[:6]
     for i in range(first, last):
         j = i - first
         sky, out_weight[out_rows[i]], total_weight[j], sky_cast, steps = sky_visibility(
             coords[i, 0], coords[i, 1], coords[i, 2], pixel_pattern(voxel_ids[i], seed),
             faces[i], sky_rays, inner_nodes, depth, y_top, columns, face_sky, face_weight[j],
-            scratch, strata)
+            scratch, strata, sky_ray_buffer)
         out_sky[out_rows[i]] = sky
         out_sky_rays[i] = sky_cast
         out_shadow_rays[i] = 0
@@ -325,6 +377,18 @@ def bake_block(
                     if face_weight[j, f] == 0.0 or face_cosine(f, lx, ly, lz) <= 0.0:
                         continue
                     out_shadow_rays[i] += shadow_rays
+                    if sun_tops.shape[1] > 0:
+                        # All the face's rays at once, when the walk from its rear corner
+                        # settles them (most lit faces): their verdicts, fewer steps.
+                        px, py, pz = rear_corner(coords[i, 0], coords[i, 1], coords[i, 2],
+                                                 f, lx, lz)
+                        clear, beam_steps = parallel_rays_clear(
+                            px, py, pz, lx, ly, lz, (y_top - py) / ly, columns,
+                            sun_tops[sun])
+                        out_steps[i] += beam_steps
+                        if clear:
+                            unblocked[j, f] += shadow_rays
+                            continue
                     for s in range(shadow_rays):
                         ox, oy, oz = face_point(coords[i, 0], coords[i, 1], coords[i, 2], f,
                                                 shadow_points[j, f, s, 0],
@@ -369,22 +433,24 @@ def bake_block(
 def bake_sun_visibility(
     coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
     sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float, columns, out_rows: np.ndarray,
-    out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
+    inner_nodes: np.ndarray, depth: int, y_top: float, columns, sun_tops: np.ndarray,
+    out_rows: np.ndarray, out_direct: np.ndarray, out_sky: np.ndarray, out_weight: np.ndarray,
     out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray, out_steps: np.ndarray,
 ) -> None:
     """Bake the listed surface voxels: ``coords[k]`` (octree voxel units), their leaf index
     ``voxel_ids[k]`` (seeds the sampling) and exposed-face bits ``faces[k]``. Voxel ``k``'s
     visibility terms go to row ``out_rows[k]`` of ``out_sky`` and ``out_weight`` (column of
     ``out_direct``, one row per sun; float32 arrays of all voxels take them in place), its
-    ray and step counts to row ``k`` of the counters."""
+    ray and step counts to row ``k`` of the counters. ``sun_tops[s]`` is
+    ``svo.column_tops.tops_ahead`` of ``columns`` for sun ``s``'s direction (``(suns, 0)``:
+    every shadow ray walked on its own, with the same visibility)."""
     n = coords.shape[0]
     for b in prange((n + BAKE_BLOCK - 1) // BAKE_BLOCK):
         first = b * BAKE_BLOCK
         bake_block(first, min(n, first + BAKE_BLOCK), coords, voxel_ids, faces, sun_dirs,
-                   sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, columns, out_rows,
-                   out_direct, out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps,
-                   new_block_scratch(depth, sky_rays, shadow_rays))
+                   sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, columns, sun_tops,
+                   out_rows, out_direct, out_sky, out_weight, out_sky_rays, out_shadow_rays,
+                   out_steps, new_block_scratch(depth, sky_rays, shadow_rays))
 
 
 @njit(parallel=True, cache=True, nogil=True)

@@ -19,6 +19,10 @@ over the whole ray, and ``occluded`` from the hand-over time finishes an undecid
 the answer the whole ray would get.
 
 **Steps.** Each cell the walk visits counts as one traversal step, as each octree node does.
+
+``parallel_rays_clear`` answers for a bundle of parallel rays at once (a face's shadow rays
+towards one sun): the same walk for the bundle's rear corner over the tops of each cell and
+the cells just ahead of it, which is clear only when every ray of the bundle is.
 """
 
 from __future__ import annotations
@@ -50,7 +54,7 @@ def _start_cell(o: float, d: float, inv: float) -> int:
     return k
 
 
-@borrowing
+@borrowing(inline="always")
 def rising_ray_query(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float, tmax: float, columns,
 ) -> tuple[int, float, int]:
@@ -110,3 +114,61 @@ def rising_ray_query(
         if max(t, face_time(bottom, oy, iy)) < min(min(t_exit, tmax), face_time(top, oy, iy)):
             return BLOCKED, t, steps
         return UNDECIDED, t, steps
+
+
+@borrowing(inline="always")
+def parallel_rays_clear(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float, tmax: float, columns,
+    tops_ahead,
+) -> tuple[bool, int]:
+    """``(clear, steps)``: True when every ray ``p + t·d``, ``0 <= t < (y_top - p.y) / dy``,
+    is ``CLEAR``, for every ``p`` at or above ``o`` and ahead of it by less than one along
+    ``x`` and ``z`` in the direction of travel (``+`` for a zero component), with ``tmax``
+    the bound for ``o`` (``(y_top - o.y) / dy``): the shadow rays of one face towards one
+    sun, from its rear corner. False says nothing about them.
+
+    The walk is ``rising_ray_query``'s for the corner, over ``tops_ahead``
+    (``svo.column_tops.tops_ahead`` with the steps of ``d``). At a time ``t`` when the corner
+    is in a cell, each ray is in that cell or one of the three ahead of it (it is less than
+    one column ahead on each axis, every cell is at least one wide) and no lower: so the
+    corner above the highest of those four tops has every ray above what is under it, and
+    rising they stay there; the corner leaving the footprint or rising past ``tmax`` has
+    every ray past it too. Anything else (a cell the corner is not above at level 0, a start
+    beside the footprint running towards it) ends the walk unanswered."""
+    level_offset, level_width, level_depth = columns[1:4]
+    if level_width.shape[0] == 0 or not dy > MIN_RISE:
+        return False, 0
+    ox, dx, ix = axis_setup(ox, dx)
+    oz, dz, iz = axis_setup(oz, dz)
+    iy = 1.0 / dy
+    cx = _start_cell(ox, dx, ix)
+    cz = _start_cell(oz, dz, iz)
+    if (cx < 0 and dx > 0.0) or (cx >= level_width[0] and dx < 0.0) \
+            or (cz < 0 and dz > 0.0) or (cz >= level_depth[0] and dz < 0.0):
+        return False, 0
+    ahead_x = 1 if dx > 0.0 else 0
+    ahead_z = 1 if dz > 0.0 else 0
+    step_x = 1 if dx > 0.0 else -1
+    step_z = 1 if dz > 0.0 else -1
+    top_level = level_width.shape[0] - 1
+    level = 0
+    t = 0.0
+    steps = 0
+    while True:
+        if cx < 0 or cz < 0 or cx >= level_width[level] or cz >= level_depth[level]:
+            return True, steps  # beside the footprint and leaving it
+        steps += 1
+        cell = level_offset[level] + cx * level_depth[level] + cz
+        tx = face_time((cx + ahead_x) << level, ox, ix) if dx != 0.0 else math.inf
+        tz = face_time((cz + ahead_z) << level, oz, iz) if dz != 0.0 else math.inf
+        t_exit = min(tx, tz)
+        if t >= face_time(tops_ahead[cell], oy, iy):
+            if not t_exit < tmax:
+                return True, steps
+            t = t_exit
+            cx, cz, level = step_across(cx, cz, level, tx, tz, t_exit, step_x, step_z,
+                                        top_level)
+            continue
+        if level == 0:
+            return False, steps
+        cx, cz, level = step_down(cx, cz, level, ox, dx, ix, oz, dz, iz, t)

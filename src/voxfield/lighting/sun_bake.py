@@ -23,7 +23,7 @@ from voxfield.parallel import thread_count
 from voxfield.progress import progress_bar
 from voxfield.scaleout import run_tasks
 from voxfield.svo.channels import new_channel_block, with_channel_block
-from voxfield.svo.column_tops import no_column_tops, octree_column_tops
+from voxfield.svo.column_tops import no_column_tops, octree_column_tops, tops_ahead
 from voxfield.svo.lod_colours import exposed_faces
 from voxfield.svo.octree import Octree
 
@@ -146,9 +146,11 @@ def sun_visibility(
     inner, depth = octree.inner_nodes, octree.depth
     y_top = float(octree.voxel_bounds[1][1])
     tops = octree_column_tops(octree, leaves) if columns else no_column_tops()
+    sun_tops = _tops_ahead_per_sun(tops, dirs)
 
     # Everything large is shared (scattered to a cluster once); a chunk is a range of it.
-    shared = {"inner": inner, "depth": depth, "y_top": y_top, "columns": tops, "dirs": dirs,
+    shared = {"inner": inner, "depth": depth, "y_top": y_top, "columns": tops,
+              "sun_tops": sun_tops, "dirs": dirs,
               "sky_rays": sky_rays, "shadow_rays": shadow_rays, "seed": int(seed),
               "leaves": leaves, "faces": faces, "surface": surface}
     ranges = [(first, min(len(surface), first + CHUNK_VOXELS))
@@ -184,6 +186,22 @@ def sun_visibility(
     return vis, counters
 
 
+def _tops_ahead_per_sun(columns, dirs: np.ndarray) -> np.ndarray:
+    """``(suns, cells)``: per sun, the pyramid's tops ahead in its direction
+    (``svo.column_tops.tops_ahead``), with which a face's shadow rays are settled together;
+    ``(suns, 0)`` without a pyramid."""
+    if columns.level_width.shape[0] == 0 or len(dirs) == 0:
+        return np.zeros((len(dirs), 0), np.int32)
+    by_steps = {}
+    rows = []
+    for d in dirs:
+        steps = (1 if d[0] >= 0.0 else -1, 1 if d[2] >= 0.0 else -1)
+        if steps not in by_steps:
+            by_steps[steps] = tops_ahead(columns, *steps)
+        rows.append(by_steps[steps])
+    return np.stack(rows)
+
+
 def visibility_task(shared: dict, chunk: tuple[int, int], kernel_threads: int | None = None,
                     into: SunVisibility | None = None):
     """One chunk of ``sun_visibility`` as a scheduler runs it: surface voxels
@@ -208,7 +226,8 @@ def visibility_task(shared: dict, chunk: tuple[int, int], kernel_threads: int | 
         bake_sun_visibility(
             np.ascontiguousarray(corners, np.int64), ids, faces, dirs, shared["sky_rays"],
             shared["shadow_rays"], shared["seed"], shared["inner"], shared["depth"],
-            shared["y_top"], shared["columns"], rows, *out, sky_cast, shadow_cast, steps,
+            shared["y_top"], shared["columns"], shared["sun_tops"], rows, *out, sky_cast,
+            shadow_cast, steps,
         )
     counts = (int(sky_cast.sum()), int(shadow_cast.sum()), int(steps.sum()))
     return counts if into is not None else (*out, *counts)

@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit, prange
 
 __all__ = ["GAP_OPEN", "MAX_COLUMNS", "ColumnTops", "column_tops", "no_column_tops",
-           "octree_column_tops"]
+           "octree_column_tops", "tops_ahead"]
 
 #: Largest footprint (columns) given a pyramid: 2^27 columns keep it near 1 GiB. Larger
 #: worlds trace their rising rays through the octree alone, with the same results.
@@ -103,6 +103,29 @@ def octree_column_tops(octree, voxels: np.ndarray | None = None) -> ColumnTops:
         corners = octree.node_coords(octree.depth) if voxels is None else voxels
         return column_tops(corners, first_node=octree.level_slice(octree.depth).start)
     return octree.derived(("column_tops",), build)
+
+
+def tops_ahead(columns: ColumnTops, step_x: int, step_z: int) -> np.ndarray:
+    """Per cell of every level (as ``columns.tops``), the highest top of the cell and of
+    its neighbours one cell ahead along ``x`` (``step_x``: +1 or -1), along ``z`` and along
+    both: the cells parallel rays travelling that way reach from a shared rear corner
+    (``kernels.upward_rays.parallel_rays_clear``). Beyond the footprint there is nothing."""
+    if step_x not in (-1, 1) or step_z not in (-1, 1):
+        raise ValueError(f"steps must be +1 or -1, got {step_x}, {step_z}")
+    out = np.empty_like(columns.tops)
+    for level in range(columns.level_width.shape[0]):
+        first = int(columns.level_offset[level])
+        width = int(columns.level_width[level])
+        depth = int(columns.level_depth[level])
+        cells = columns.tops[first:first + width * depth].reshape(width, depth)
+        padded = np.zeros((width + 2, depth + 2), cells.dtype)
+        padded[1:-1, 1:-1] = cells
+        highest = cells.copy()
+        for ahead_x, ahead_z in ((step_x, 0), (0, step_z), (step_x, step_z)):
+            np.maximum(highest, padded[1 + ahead_x:1 + ahead_x + width,
+                                       1 + ahead_z:1 + ahead_z + depth], out=highest)
+        out[first:first + width * depth] = highest.ravel()
+    return out
 
 
 def _coarser(level: np.ndarray, lowest: bool = False) -> np.ndarray:
