@@ -114,18 +114,30 @@ def tops_ahead(columns: ColumnTops, step_x: int, step_z: int) -> np.ndarray:
         raise ValueError(f"steps must be +1 or -1, got {step_x}, {step_z}")
     out = np.empty_like(columns.tops)
     for level in range(columns.level_width.shape[0]):
-        first = int(columns.level_offset[level])
-        width = int(columns.level_width[level])
-        depth = int(columns.level_depth[level])
-        cells = columns.tops[first:first + width * depth].reshape(width, depth)
-        padded = np.zeros((width + 2, depth + 2), cells.dtype)
-        padded[1:-1, 1:-1] = cells
-        highest = cells.copy()
-        for ahead_x, ahead_z in ((step_x, 0), (0, step_z), (step_x, step_z)):
-            np.maximum(highest, padded[1 + ahead_x:1 + ahead_x + width,
-                                       1 + ahead_z:1 + ahead_z + depth], out=highest)
-        out[first:first + width * depth] = highest.ravel()
+        _highest_ahead(columns.tops, int(columns.level_offset[level]),
+                       int(columns.level_width[level]), int(columns.level_depth[level]),
+                       step_x, step_z, out)
     return out
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _highest_ahead(tops: np.ndarray, first: int, width: int, depth: int, step_x: int,
+                   step_z: int, out: np.ndarray) -> None:
+    """``tops_ahead`` of one level: its cells start at ``first``, x-major."""
+    for x in prange(width):
+        ahead_x = x + step_x
+        has_x = 0 <= ahead_x < width
+        for z in range(depth):
+            ahead_z = z + step_z
+            has_z = 0 <= ahead_z < depth
+            highest = tops[first + x * depth + z]
+            if has_x:
+                highest = max(highest, tops[first + ahead_x * depth + z])
+            if has_z:
+                highest = max(highest, tops[first + x * depth + ahead_z])
+                if has_x:
+                    highest = max(highest, tops[first + ahead_x * depth + ahead_z])
+            out[first + x * depth + z] = highest
 
 
 def _coarser(level: np.ndarray, lowest: bool = False) -> np.ndarray:
