@@ -209,23 +209,14 @@ def sky_visibility(
                 pu, pv = face_sample(s, i, j, count, m, n, position_pattern, strata[2],
                                      strata[3])
                 ox, oy, oz = face_point(x, y, z, f, pu, pv)
-                rays[traced, 0] = ox
-                rays[traced, 1] = oy
-                rays[traced, 2] = oz
-                rays[traced, 3] = dx
-                rays[traced, 4] = dy
-                rays[traced, 5] = dz
+                rays[traced, 0], rays[traced, 1], rays[traced, 2] = ox, oy, oz
+                rays[traced, 3], rays[traced, 4], rays[traced, 5] = dx, dy, dz
                 rays[traced, 6] = (y_top - oy) / dy
                 traced += 1
             escaped = 0
             for r in range(traced):
-                ox = rays[r, 0]
-                oy = rays[r, 1]
-                oz = rays[r, 2]
-                dx = rays[r, 3]
-                dy = rays[r, 4]
-                dz = rays[r, 5]
-                tmax = rays[r, 6]
+                ox, oy, oz, dx, dy, dz, tmax = (rays[r, 0], rays[r, 1], rays[r, 2], rays[r, 3],
+                                                rays[r, 4], rays[r, 5], rays[r, 6])
                 verdict, t_on, ray_steps = rising_ray_query(ox, oy, oz, dx, dy, dz, tmax,
                                                             columns)
                 blocked = verdict == BLOCKED

@@ -54,6 +54,27 @@ def _start_cell(o: float, d: float, inv: float) -> int:
     return k
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _walk_start(ox: float, dx: float, oz: float, dz: float, level_width, level_depth):
+    """Where a rising walk starts: each horizontal axis as the traversal prepares it
+    (``axis_setup``), the start cell, and whether the ray starts beside the footprint
+    running towards it (no walk from there: nothing there tells where it enters)."""
+    ox, dx, ix = axis_setup(ox, dx)
+    oz, dz, iz = axis_setup(oz, dz)
+    cx = _start_cell(ox, dx, ix)
+    cz = _start_cell(oz, dz, iz)
+    toward = ((cx < 0 and dx > 0.0) or (cx >= level_width[0] and dx < 0.0)
+              or (cz < 0 and dz > 0.0) or (cz >= level_depth[0] and dz < 0.0))
+    return ox, dx, ix, oz, dz, iz, cx, cz, toward
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _heading(d: float) -> tuple[int, int]:
+    """``(ahead, step)`` of one axis: the exit plane of cell ``c`` of side ``2^l`` is
+    ``(c + ahead) << l``, and the next cell is ``c + step``."""
+    return (1, 1) if d > 0.0 else (0, -1)
+
+
 @borrowing(inline="always")
 def rising_ray_query(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float, tmax: float, columns,
@@ -67,21 +88,15 @@ def rising_ray_query(
     gap_ceiling = columns.gap_ceiling
     if level_width.shape[0] == 0 or not dy > MIN_RISE:
         return UNDECIDED, 0.0, 0
-    ox, dx, ix = axis_setup(ox, dx)
-    oz, dz, iz = axis_setup(oz, dz)
+    ox, dx, ix, oz, dz, iz, cx, cz, toward = _walk_start(ox, dx, oz, dz, level_width,
+                                                         level_depth)
     iy = 1.0 / dy
-    cx = _start_cell(ox, dx, ix)
-    cz = _start_cell(oz, dz, iz)
     # Beside the footprint a ray is clear when it runs away from it (as every ray the walk
     # steps out of the footprint does); one that runs towards it starts in the octree.
-    if (cx < 0 and dx > 0.0) or (cx >= level_width[0] and dx < 0.0) \
-            or (cz < 0 and dz > 0.0) or (cz >= level_depth[0] and dz < 0.0):
+    if toward:
         return UNDECIDED, 0.0, 0
-    # The exit plane of cell ``c`` of side ``2^l`` is ``(c + ahead) << l``.
-    ahead_x = 1 if dx > 0.0 else 0
-    ahead_z = 1 if dz > 0.0 else 0
-    step_x = 1 if dx > 0.0 else -1
-    step_z = 1 if dz > 0.0 else -1
+    ahead_x, step_x = _heading(dx)
+    ahead_z, step_z = _heading(dz)
     top_level = level_width.shape[0] - 1
     level = 0
     t = 0.0
@@ -138,25 +153,17 @@ def parallel_rays_clear(
     level_offset, level_width, level_depth = columns[1:4]
     if level_width.shape[0] == 0 or not dy > MIN_RISE:
         return False, 0
-    ox, dx, ix = axis_setup(ox, dx)
-    oz, dz, iz = axis_setup(oz, dz)
-    iy = 1.0 / dy
-    cx = _start_cell(ox, dx, ix)
-    cz = _start_cell(oz, dz, iz)
-    if (cx < 0 and dx > 0.0) or (cx >= level_width[0] and dx < 0.0) \
-            or (cz < 0 and dz > 0.0) or (cz >= level_depth[0] and dz < 0.0):
+    ox, dx, ix, oz, dz, iz, cx, cz, toward = _walk_start(ox, dx, oz, dz, level_width,
+                                                         level_depth)
+    if toward:
         return False, 0
-    ahead_x = 1 if dx > 0.0 else 0
-    ahead_z = 1 if dz > 0.0 else 0
-    step_x = 1 if dx > 0.0 else -1
-    step_z = 1 if dz > 0.0 else -1
-    top_level = level_width.shape[0] - 1
+    iy = 1.0 / dy
+    ahead_x, step_x = _heading(dx)
+    ahead_z, step_z = _heading(dz)
     level = 0
     t = 0.0
     steps = 0
-    while True:
-        if cx < 0 or cz < 0 or cx >= level_width[level] or cz >= level_depth[level]:
-            return True, steps  # beside the footprint and leaving it
+    while 0 <= cx < level_width[level] and 0 <= cz < level_depth[level]:
         steps += 1
         cell = level_offset[level] + cx * level_depth[level] + cz
         tx = face_time((cx + ahead_x) << level, ox, ix) if dx != 0.0 else math.inf
@@ -167,8 +174,9 @@ def parallel_rays_clear(
                 return True, steps
             t = t_exit
             cx, cz, level = step_across(cx, cz, level, tx, tz, t_exit, step_x, step_z,
-                                        top_level)
+                                        level_width.shape[0] - 1)
             continue
         if level == 0:
             return False, steps
         cx, cz, level = step_down(cx, cz, level, ox, dx, ix, oz, dz, iz, t)
+    return True, steps  # beside the footprint and leaving it
