@@ -164,7 +164,7 @@ def test_a_faces_shadow_rays_settled_together_change_the_cost_not_the_visibility
                      for k, (azimuth, elevation) in enumerate(
                          [(40.0, 30.0), (130.0, 55.0), (220.0, 12.0), (310.0, 70.0),
                           (90.0, 25.0)])])
-    suns[4] = [0.0, suns[4][1], math.copysign(math.hypot(suns[4][0], suns[4][2]), 1.0)]
+    suns[4] = [0.0, suns[4][1], math.hypot(suns[4][0], suns[4][2])]  # along a grid plane
     together, together_cost = sun_visibility(octree, suns, sky_rays=2, shadow_rays=5, seed=3)
     monkeypatch.setattr(bake_module, "_tops_ahead_per_sun",
                         lambda columns, dirs: np.zeros((len(dirs), 0), np.int32))
