@@ -61,3 +61,16 @@ def octree_and_columns(scene: VoxelScene):
     octree = build_octree(scene)
     voxels = octree.node_coords(octree.depth)
     return octree, voxels, column_tops(voxels)
+
+
+def pillar_field(seed: int = 0, size: int = 80) -> VoxelScene:
+    """Low solid ground with thin pillars of every height scattered over it: a ray that
+    clears the ground around it may still meet a tall pillar far away."""
+    rng = np.random.default_rng(seed)
+    x, z = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
+    height = 1 + (rng.random(x.shape) < 0.3).astype(int)
+    pillars = rng.random(x.shape) < 0.01
+    height[pillars] = rng.integers(4, 3 * size // 4, int(pillars.sum()))
+    coords = np.array([(i, y, k) for i in range(size) for k in range(size)
+                       for y in range(int(height[i, k]))])
+    return VoxelScene(coords, rng.random((len(coords), 3)), name=f"pillars{seed}")

@@ -11,6 +11,7 @@ from random_scenes import (
     hollow_shell_terrain,
     octree_and_columns,
     overhanging_terrain,
+    pillar_field,
     random_scene,
 )
 from voxfield.kernels.traversal import new_scratch, occluded
@@ -18,12 +19,14 @@ from voxfield.kernels.upward_rays import (
     BLOCKED,
     CLEAR,
     UNDECIDED,
+    clears_horizon,
     parallel_rays_clear,
     rising_ray_query,
 )
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
 from voxfield.svo.column_tops import GAP_OPEN, column_tops, no_column_tops, tops_ahead
+from voxfield.svo.horizons import horizon_slopes, no_horizon_slopes
 
 
 @njit
@@ -236,3 +239,62 @@ def test_parallel_rays_are_not_settled_without_a_pyramid_or_a_rise():
                                np.zeros(0, np.int32)) == (False, 0)
     assert parallel_rays_clear(3.0, 20.0, 3.0, 1.0, 1e-12, 0.0, 10.0, columns,
                                ahead) == (False, 0)
+
+
+@njit
+def _horizon_answers(o, d, columns, horizons, inner, depth, out):
+    """Per ray: whether ``clears_horizon`` settles it, and whether the octree finds anything
+    on the whole ray."""
+    scratch = new_scratch(depth)
+    for k in range(o.shape[0]):
+        settled = clears_horizon(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2],
+                                 columns, horizons)
+        hit, _ = occluded(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2], 0.0,
+                          math.inf, inner, depth, scratch)
+        out[k, 0] = 1 if settled else 0
+        out[k, 1] = 1 if hit else 0
+
+
+def test_rays_steeper_than_their_columns_horizon_are_clear_for_the_octree():
+    """Rays from faces, lattice points, grid planes and anywhere around: every one the
+    horizon slope settles is clear all the way up, pillars far away included, and on open
+    ground the slopes settle many."""
+    for seed, scene in enumerate((pillar_field(seed=1), pillar_field(seed=4, size=70),
+                                  overhanging_terrain(seed=0), hollow_shell_terrain(seed=3),
+                                  random_scene(seed=6, n=900, size=17))):
+        octree, voxels, columns = octree_and_columns(scene)
+        origins, directions = rising_rays(voxels, 4000, seed=seed)
+        out = np.empty((len(origins), 2), np.int64)
+        _horizon_answers(origins, directions, columns, horizon_slopes(columns),
+                         octree.inner_nodes, octree.depth, out)
+        settled, hit = out[:, 0] == 1, out[:, 1] == 1
+        assert not np.any(hit[settled]), "a ray called clear is blocked"
+        assert settled.sum() >= 100
+        assert np.any(hit[~settled])
+
+
+def test_far_pillars_keep_flat_rays_unsettled():
+    """From the ground of a pillar field, a flat ray towards a pillar taller than it will be
+    when it gets there is never settled; a steep one from the same place is."""
+    octree, voxels, columns = octree_and_columns(pillar_field(seed=1))
+    tops = columns.tops[: columns.run_bottom.shape[0]].reshape(
+        int(columns.level_width[0]), int(columns.level_depth[0]))
+    horizons = horizon_slopes(columns)
+    starts = [(px - k, pz) for px, pz in np.argwhere(tops >= 30) for k in range(10, 20)
+              if px - k >= 0 and tops[px - k, pz] == 2
+              and tops[px - k: px - k + 4, pz: pz + 4].max() <= 2]
+    assert starts, "no open ground before a tall pillar"
+    for x, z in starts:
+        start = (x + 0.5, 2.0, z + 0.5)
+        assert not clears_horizon(*start, 1.0, 0.05, 0.0, columns, horizons)
+        assert clears_horizon(*start, 0.01, 1.0, 0.005, columns, horizons)
+
+
+def test_without_slopes_or_a_rise_the_horizon_settles_nothing():
+    scene = overhanging_terrain(seed=2, size=12)
+    columns = column_tops(build_octree(scene).node_coords(build_octree(scene).depth))
+    horizons = horizon_slopes(columns)
+    assert clears_horizon(3.5, 20.0, 3.5, 0.3, 1.0, 0.0, columns, horizons)
+    assert not clears_horizon(3.5, 20.0, 3.5, 0.3, 1.0, 0.0, columns, no_horizon_slopes())
+    assert not clears_horizon(3.5, 20.0, 3.5, 1.0, 1e-12, 0.0, columns, horizons)
+    assert not clears_horizon(-5.5, 20.0, 3.5, 1.0, 1.0, 0.0, columns, horizons)

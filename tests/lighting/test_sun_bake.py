@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-from random_scenes import overhanging_terrain, random_scene
+from random_scenes import overhanging_terrain, pillar_field, random_scene
 from ray_oracle import first_hits
 from voxfield.cli.cmd_light import register as add_light_parser
 from voxfield.errors import VoxfieldError
@@ -26,6 +26,7 @@ from voxfield.lighting import (
 from voxfield.lighting import sun_bake as bake_module
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
+from voxfield.svo.horizons import no_horizon_slopes
 from voxfield.svo.io import load_octree
 
 ALBEDO = np.array([0.5, 0.4, 0.3])
@@ -175,6 +176,24 @@ def test_a_faces_shadow_rays_settled_together_change_the_cost_not_the_visibility
     assert together_cost["traversal_steps"] < 0.9 * alone_cost["traversal_steps"]
     lit = together.direct[:, together.surface]
     assert np.all((lit > 0).mean(axis=1) > 0.2) and np.all((lit == 0).mean(axis=1) > 0.01)
+
+
+def test_sky_rays_settled_by_the_horizon_change_the_cost_not_the_visibility(monkeypatch):
+    """Sky rays steeper than their column's horizon (``svo.horizons``) are clear without a
+    walk: the visibility is that of every ray walked, in fewer steps, on ledges and caves
+    and on a pillar field whose far pillars block flat rays."""
+    suns = np.array([sun_at("a", 130.0, 35.0).direction()])
+    for scene in (overhanging_terrain(seed=6, size=40), pillar_field(seed=3, size=48)):
+        octree = build_octree(scene)
+        monkeypatch.undo()
+        settled, settled_cost = sun_visibility(octree, suns, sky_rays=24, seed=5)
+        monkeypatch.setattr(bake_module, "_horizon_slopes", lambda columns: no_horizon_slopes())
+        walked, walked_cost = sun_visibility(octree, suns, sky_rays=24, seed=5)
+        for name in ("direct", "sky", "weight", "surface"):
+            assert np.array_equal(getattr(settled, name), getattr(walked, name)), name
+        assert settled_cost["sky_rays"] == walked_cost["sky_rays"]
+        assert settled_cost["traversal_steps"] < walked_cost["traversal_steps"]
+        assert 0.0 < settled.sky[settled.surface].mean() < 1.0
 
 
 @pytest.mark.parametrize("coords", [

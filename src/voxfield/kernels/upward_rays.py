@@ -23,6 +23,9 @@ the answer the whole ray would get.
 ``parallel_rays_clear`` answers for a bundle of parallel rays at once (a face's shadow rays
 towards one sun): the same walk for the bundle's rear corner over the tops of each cell and
 the cells just ahead of it, which is clear only when every ray of the bundle is.
+
+``clears_horizon`` settles a clear ray before any walk, from its start column's horizon
+slope (``svo.horizons``): one cell read, counted as one step.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ from numba import njit
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import in_the_gap, step_across, step_down
 from voxfield.kernels.traversal import axis_setup, face_time, floor_float
+from voxfield.svo.horizons import quadrant
 
 CLEAR = 0
 BLOCKED = 1
@@ -180,3 +184,25 @@ def parallel_rays_clear(
             return False, steps
         cx, cz, level = step_down(cx, cz, level, ox, dx, ix, oz, dz, iz, t)
     return True, steps  # beside the footprint and leaving it
+
+
+@njit(cache=True, nogil=True, inline="always")
+def clears_horizon(ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+                   columns, horizons) -> bool:
+    """True when the ray ``o + t·d``, ``t >= 0``, is ``CLEAR``: it starts in a column of the
+    footprint at or above its top and rises more steeply than that column's horizon slope
+    for its heading (``svo.horizons.horizon_slopes``, empty: never). False says nothing.
+    The heading and start column are the walk's (``_walk_start``), so a component too small
+    to invert counts as zero, as it does for the octree."""
+    tops, level_offset, level_width, level_depth = columns[:4]
+    if horizons.shape[0] == 0 or not dy > MIN_RISE:
+        return False
+    ox, dx, ix, oz, dz, iz, cx, cz, toward = _walk_start(ox, dx, oz, dz, level_width,
+                                                         level_depth)
+    if not (0 <= cx < level_width[0] and 0 <= cz < level_depth[0]):
+        return False
+    cell = cx * level_depth[0] + cz
+    if tops[cell] > oy:
+        return False
+    slope = horizons[cell, quadrant(dx, dz)[0]]
+    return slope < 0.0 or dy * dy >= slope * slope * (dx * dx + dz * dz)

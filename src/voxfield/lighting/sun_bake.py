@@ -24,6 +24,7 @@ from voxfield.progress import progress_bar
 from voxfield.scaleout import run_tasks
 from voxfield.svo.channels import new_channel_block, with_channel_block
 from voxfield.svo.column_tops import no_column_tops, octree_column_tops, tops_ahead
+from voxfield.svo.horizons import horizon_slopes, no_horizon_slopes
 from voxfield.svo.lod_colours import exposed_faces
 from voxfield.svo.octree import Octree
 
@@ -119,7 +120,9 @@ def sun_visibility(
 
     The rays rise, so they first walk the column-top pyramid (``svo.column_tops``), which
     settles most of them, and only the rest go through the octree; ``columns=False`` sends
-    every ray through the octree, with the same visibility (for comparisons and tests).
+    every ray through the octree, with the same visibility (for comparisons and tests). A
+    sky ray that rises above its start column's horizon slope (``svo.horizons``) is clear
+    without either.
 
     Chunks of ``CHUNK_VOXELS`` surface voxels are independent (each voxel's rays are hashed
     from its index and ``seed``): without a ``scheduler`` they run one after another here,
@@ -147,10 +150,11 @@ def sun_visibility(
     y_top = float(octree.voxel_bounds[1][1])
     tops = octree_column_tops(octree, leaves) if columns else no_column_tops()
     sun_tops = _tops_ahead_per_sun(tops, dirs)
+    horizons = _horizon_slopes(tops) if sky_rays > 0 else no_horizon_slopes()
 
     # Everything large is shared (scattered to a cluster once); a chunk is a range of it.
     shared = {"inner": inner, "depth": depth, "y_top": y_top, "columns": tops,
-              "sun_tops": sun_tops, "dirs": dirs,
+              "sun_tops": sun_tops, "horizons": horizons, "dirs": dirs,
               "sky_rays": sky_rays, "shadow_rays": shadow_rays, "seed": int(seed),
               "leaves": leaves, "faces": faces, "surface": surface}
     ranges = [(first, min(len(surface), first + CHUNK_VOXELS))
@@ -202,6 +206,12 @@ def _tops_ahead_per_sun(columns, dirs: np.ndarray) -> np.ndarray:
     return np.stack(rows)
 
 
+def _horizon_slopes(columns) -> np.ndarray:
+    """The pyramid's horizon slopes (``svo.horizons``), with which most sky rays are settled
+    without a walk: one place the bake builds them, so a test can switch them off."""
+    return horizon_slopes(columns)
+
+
 def visibility_task(shared: dict, chunk: tuple[int, int], kernel_threads: int | None = None,
                     into: SunVisibility | None = None):
     """One chunk of ``sun_visibility`` as a scheduler runs it: surface voxels
@@ -226,8 +236,8 @@ def visibility_task(shared: dict, chunk: tuple[int, int], kernel_threads: int | 
         bake_sun_visibility(
             np.ascontiguousarray(corners, np.int64), ids, faces, dirs, shared["sky_rays"],
             shared["shadow_rays"], shared["seed"], shared["inner"], shared["depth"],
-            shared["y_top"], shared["columns"], shared["sun_tops"], rows, *out, sky_cast,
-            shadow_cast, steps,
+            shared["y_top"], shared["columns"], shared["sun_tops"], shared["horizons"], rows,
+            *out, sky_cast, shadow_cast, steps,
         )
     counts = (int(sky_cast.sum()), int(shadow_cast.sum()), int(steps.sum()))
     return counts if into is not None else (*out, *counts)

@@ -1,0 +1,76 @@
+"""Horizon slopes bound how steeply a ray must rise to clear every column ahead."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from random_scenes import octree_and_columns, overhanging_terrain, pillar_field
+from voxfield.svo.column_tops import column_tops, no_column_tops
+from voxfield.svo.horizons import NOTHING_AHEAD, RING, horizon_slopes, quadrant
+
+
+def _level0(columns) -> np.ndarray:
+    return columns.tops[: columns.run_bottom.shape[0]].reshape(
+        int(columns.level_width[0]), int(columns.level_depth[0])).astype(np.int64)
+
+
+def _steepest_ahead(tops: np.ndarray, x: int, z: int, step_x: int, step_z: int) -> float:
+    """Brute force: the largest rise over gap to any higher column ahead."""
+    xs, zs = np.meshgrid(np.arange(tops.shape[0]), np.arange(tops.shape[1]), indexing="ij")
+    ahead_x, ahead_z = (xs - x) * step_x, (zs - z) * step_z
+    ahead = (ahead_x >= 0) & (ahead_z >= 0) & (tops > tops[x, z])
+    if not ahead.any():
+        return NOTHING_AHEAD
+    gap = np.hypot(np.maximum(ahead_x[ahead] - 1, 0), np.maximum(ahead_z[ahead] - 1, 0))
+    rise = tops[ahead] - tops[x, z]
+    if np.any(gap == 0):
+        return math.inf
+    return float(np.max(rise / gap))
+
+
+@pytest.mark.parametrize("scene", [pillar_field(seed=2, size=45),
+                                   overhanging_terrain(seed=1, size=29)])
+def test_slopes_bound_the_steepest_column_ahead_from_above(scene):
+    """Every stored slope is at least the brute-force one, infinite exactly where a higher
+    column touches ahead, and no looser than the rings allow near the column."""
+    columns = octree_and_columns(scene)[2]
+    tops = _level0(columns)
+    slopes = horizon_slopes(columns)
+    assert slopes.shape == (tops.size, 4) and slopes.dtype == np.float32
+    exact_count = 0
+    for q, (step_x, step_z) in enumerate([(1, 1), (1, -1), (-1, 1), (-1, -1)]):
+        assert quadrant(float(step_x), float(step_z))[0] == q
+        for x in range(tops.shape[0]):
+            for z in range(tops.shape[1]):
+                stored = float(slopes[x * tops.shape[1] + z, q])
+                exact = _steepest_ahead(tops, x, z, step_x, step_z)
+                assert math.isinf(stored) == math.isinf(exact)
+                if exact == NOTHING_AHEAD:
+                    continue
+                assert stored >= exact
+                exact_count += math.isclose(stored, exact, rel_tol=1e-5)
+    assert exact_count > 0
+
+
+def test_a_tower_within_the_near_columns_is_bounded_exactly():
+    """Flat ground with one tower three columns ahead: the slope is its rise over the gap
+    of two columns between them."""
+    size = 12
+    voxels = [(x, 0, z) for x in range(size) for z in range(size)]
+    voxels += [(7, y, 5) for y in range(1, 9)]
+    columns = column_tops(np.array(voxels))
+    slopes = horizon_slopes(columns)
+    from_column = 4 * size + 5
+    assert 2 * RING > 3
+    assert slopes[from_column, quadrant(1.0, 1.0)[0]] == pytest.approx(8 / 2, rel=1e-5)
+    assert slopes[from_column, quadrant(-1.0, 1.0)[0]] == NOTHING_AHEAD
+    assert math.isinf(slopes[6 * size + 5, quadrant(1.0, -1.0)[0]])
+
+
+def test_no_pyramid_gives_no_slopes_and_a_bad_ring_is_refused():
+    assert horizon_slopes(no_column_tops()).shape == (0, 4)
+    with pytest.raises(ValueError, match="ring"):
+        horizon_slopes(column_tops(np.array([[0, 0, 0]])), ring=1)
