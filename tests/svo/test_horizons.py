@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from random_scenes import octree_and_columns, overhanging_terrain, pillar_field
+from voxfield.kernels.upward_rays import quadrant
 from voxfield.svo.column_tops import column_tops, no_column_tops
-from voxfield.svo.horizons import NOTHING_AHEAD, RING, horizon_slopes, quadrant
+from voxfield.svo.horizons import NOTHING_AHEAD, RING, horizon_slopes
 
 
 def _level0(columns) -> np.ndarray:

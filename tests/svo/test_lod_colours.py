@@ -258,3 +258,28 @@ def test_recoloured_copies_change_colours_only():
     assert copy.name == "renamed" and copy.descriptors is octree.descriptors
     # Tables of the colours are not carried: the copy works its own out.
     assert copy.derived(("colour_error", "color", 0.5), lambda: "again") == "again"
+
+
+def test_bucketed_srgb_encoding_is_the_midpoint_search():
+    """The bucketed encoder gives ``np.searchsorted``'s code for every value: random ones,
+    each midpoint itself and its float neighbours, the ends and beyond them."""
+    from numba import njit
+
+    from voxfield.kernels.facing_colour import _ENCODE_EDGES, encode_srgb8
+
+    @njit
+    def encode_all(values, out):
+        for k in range(values.shape[0]):
+            out[k] = encode_srgb8(values[k])
+
+    rng = np.random.default_rng(4)
+    values = np.concatenate([
+        rng.random(200_000), rng.random(20_000) * 1e-3, _ENCODE_EDGES,
+        np.nextafter(_ENCODE_EDGES, 0.0), np.nextafter(_ENCODE_EDGES, 1.0),
+        np.arange(4097) / 4096.0, [0.0, 1.0, -0.5, 1.5, 1e-300],
+    ])
+    out = np.empty(len(values), np.int64)
+    encode_all(values, out)
+    assert np.array_equal(out, np.searchsorted(_ENCODE_EDGES, values))
+    encode_all(np.array([np.nan]), out[:1])
+    assert out[0] == 255

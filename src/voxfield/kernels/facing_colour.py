@@ -32,14 +32,29 @@ from voxfield.kernels.node_descriptor import child_index
 #: Bytes per direction: sRGB red, green, blue codes, then coverage in 1/255.
 FACING_CHANNELS = 4
 _DECODE = SRGB8_TO_LINEAR.astype(np.float64)
-#: Linear value at the midpoint between consecutive sRGB codes: encoding is a search.
+#: Linear value at the midpoint between consecutive sRGB codes: a value's code is the number
+#: of midpoints below it.
 _ENCODE_EDGES = ((SRGB8_TO_LINEAR[1:].astype(np.float64) + SRGB8_TO_LINEAR[:-1]) / 2.0)
+#: Equal buckets of [0, 1], each with the number of midpoints below its lower end: encoding
+#: starts there and steps over the one or two midpoints a bucket holds, where a binary
+#: search would take eight unpredictable branches (the facing colours encode 18 a node).
+_ENCODE_BUCKETS = 4096
+_ENCODE_START = np.searchsorted(
+    _ENCODE_EDGES, np.arange(_ENCODE_BUCKETS) / _ENCODE_BUCKETS).astype(np.int64)
 
 
 @njit(cache=True, nogil=True, inline="always")
 def encode_srgb8(linear: float) -> int:
-    """Nearest 8-bit sRGB code of a linear value in [0, 1] (midpoint search)."""
-    return int(np.searchsorted(_ENCODE_EDGES, linear))
+    """Nearest 8-bit sRGB code of a linear value in [0, 1]: the number of midpoints below
+    it, as ``np.searchsorted(_ENCODE_EDGES, linear)`` counts them (NaN: 255)."""
+    if linear != linear:
+        return _ENCODE_EDGES.shape[0]
+    bucket = min(max(int(min(max(linear, 0.0), 1.0) * _ENCODE_BUCKETS), 0),
+                 _ENCODE_BUCKETS - 1)
+    code = _ENCODE_START[bucket]
+    while code < _ENCODE_EDGES.shape[0] and _ENCODE_EDGES[code] < linear:
+        code += 1
+    return code
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -37,7 +37,6 @@ from numba import njit
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import in_the_gap, step_across, step_down
 from voxfield.kernels.traversal import axis_setup, face_time, floor_float
-from voxfield.svo.horizons import quadrant
 
 CLEAR = 0
 BLOCKED = 1
@@ -77,6 +76,16 @@ def _heading(d: float) -> tuple[int, int]:
     """``(ahead, step)`` of one axis: the exit plane of cell ``c`` of side ``2^l`` is
     ``(c + ahead) << l``, and the next cell is ``c + step``."""
     return (1, 1) if d > 0.0 else (0, -1)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def quadrant(dx: float, dz: float) -> tuple[int, int, int]:
+    """``(q, step_x, step_z)`` of a heading: the column of ``svo.horizons.horizon_slopes``
+    for a ray with these horizontal components, and the steps to the columns ahead (``+1``
+    for zero, as a ray with no ``x`` motion stays in its column, which counts as ahead)."""
+    step_x = -1 if dx < 0.0 else 1
+    step_z = -1 if dz < 0.0 else 1
+    return (2 if step_x < 0 else 0) + (1 if step_z < 0 else 0), step_x, step_z
 
 
 @borrowing(inline="always")

@@ -33,7 +33,7 @@ from numba import njit, prange
 
 from voxfield.svo.column_tops import ColumnTops
 
-__all__ = ["RING", "horizon_slopes", "no_horizon_slopes", "quadrant"]
+__all__ = ["NOTHING_AHEAD", "RING", "horizon_slopes", "no_horizon_slopes"]
 
 #: Chebyshev offsets below ``RING`` at a coarse level are left to the finer levels.
 RING = 2
@@ -42,25 +42,16 @@ NOTHING_AHEAD = -1.0
 _WIDEN = 1e-6
 
 
-@njit(cache=True, nogil=True, inline="always")
-def quadrant(dx: float, dz: float) -> tuple[int, int, int]:
-    """``(q, step_x, step_z)`` of a heading: the row of ``horizon_slopes`` for a ray with
-    these horizontal components, and the steps to the columns ahead (``+1`` for zero, as a
-    ray with no ``x`` motion stays in its column, which counts as ahead)."""
-    step_x = -1 if dx < 0.0 else 1
-    step_z = -1 if dz < 0.0 else 1
-    return (2 if step_x < 0 else 0) + (1 if step_z < 0 else 0), step_x, step_z
-
-
 def no_horizon_slopes() -> np.ndarray:
     """No slopes: ``clears_horizon`` then settles nothing."""
     return np.zeros((0, 4), np.float32)
 
 
 def horizon_slopes(columns: ColumnTops, ring: int = RING) -> np.ndarray:
-    """``(columns, 4)`` float32: per level-0 cell of the pyramid and quadrant (``quadrant``),
-    an upper bound on the slope a ray starting there at or above the column's top must rise
-    with to clear everything ahead (module docstring); empty without a pyramid."""
+    """``(columns, 4)`` float32: per level-0 cell of the pyramid and quadrant
+    (``kernels.upward_rays.quadrant``), an upper bound on the slope a ray starting there at
+    or above the column's top must rise with to clear everything ahead (module docstring);
+    empty without a pyramid."""
     if columns.level_width.shape[0] == 0:
         return no_horizon_slopes()
     if ring < 2:
