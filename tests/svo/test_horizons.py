@@ -18,18 +18,19 @@ def _level0(columns) -> np.ndarray:
         int(columns.level_width[0]), int(columns.level_depth[0])).astype(np.int64)
 
 
-def _steepest_ahead(tops: np.ndarray, x: int, z: int, step_x: int, step_z: int) -> float:
-    """Brute force: the largest rise over gap to any higher column ahead."""
+def _steepest_ahead(tops: np.ndarray, step_x: int, step_z: int) -> np.ndarray:
+    """Brute force, per column: the largest rise over gap to any higher column ahead
+    (``inf`` for a touching one, ``NOTHING_AHEAD`` for none), every pair at once."""
     xs, zs = np.meshgrid(np.arange(tops.shape[0]), np.arange(tops.shape[1]), indexing="ij")
-    ahead_x, ahead_z = (xs - x) * step_x, (zs - z) * step_z
-    ahead = (ahead_x >= 0) & (ahead_z >= 0) & (tops > tops[x, z])
-    if not ahead.any():
-        return NOTHING_AHEAD
-    gap = np.hypot(np.maximum(ahead_x[ahead] - 1, 0), np.maximum(ahead_z[ahead] - 1, 0))
-    rise = tops[ahead] - tops[x, z]
-    if np.any(gap == 0):
-        return math.inf
-    return float(np.max(rise / gap))
+    xs, zs, heights = xs.ravel(), zs.ravel(), tops.ravel().astype(np.float64)
+    ahead_x = (xs[None, :] - xs[:, None]) * step_x
+    ahead_z = (zs[None, :] - zs[:, None]) * step_z
+    rise = heights[None, :] - heights[:, None]
+    counts = (ahead_x >= 0) & (ahead_z >= 0) & (rise > 0)
+    gap = np.hypot(np.maximum(ahead_x - 1, 0), np.maximum(ahead_z - 1, 0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        slope = np.where(counts, rise / gap, -np.inf).max(axis=1)
+    return np.where(np.isneginf(slope), NOTHING_AHEAD, slope)
 
 
 @pytest.mark.parametrize("scene", [pillar_field(seed=2, size=45),
@@ -44,15 +45,12 @@ def test_slopes_bound_the_steepest_column_ahead_from_above(scene):
     exact_count = 0
     for q, (step_x, step_z) in enumerate([(1, 1), (1, -1), (-1, 1), (-1, -1)]):
         assert quadrant(float(step_x), float(step_z))[0] == q
-        for x in range(tops.shape[0]):
-            for z in range(tops.shape[1]):
-                stored = float(slopes[x * tops.shape[1] + z, q])
-                exact = _steepest_ahead(tops, x, z, step_x, step_z)
-                assert math.isinf(stored) == math.isinf(exact)
-                if exact == NOTHING_AHEAD:
-                    continue
-                assert stored >= exact
-                exact_count += math.isclose(stored, exact, rel_tol=1e-5)
+        stored = slopes[:, q].astype(np.float64)
+        exact = _steepest_ahead(tops, step_x, step_z)
+        assert np.array_equal(np.isinf(stored), np.isinf(exact))
+        some = exact != NOTHING_AHEAD
+        assert np.all(stored[some] >= exact[some])
+        exact_count += np.isclose(stored, exact, rtol=1e-5)[some & np.isfinite(exact)].sum()
     assert exact_count > 0
 
 
