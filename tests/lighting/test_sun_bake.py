@@ -166,6 +166,8 @@ def test_a_faces_shadow_rays_settled_together_change_the_cost_not_the_visibility
                          [(40.0, 30.0), (130.0, 55.0), (220.0, 12.0), (310.0, 70.0),
                           (90.0, 25.0)])])
     suns[4] = [0.0, suns[4][1], math.hypot(suns[4][0], suns[4][2])]  # along a grid plane
+    # Without horizon slopes, which would settle many of the same faces first.
+    monkeypatch.setattr(bake_module, "_horizon_slopes", lambda columns: no_horizon_slopes())
     together, together_cost = sun_visibility(octree, suns, sky_rays=2, shadow_rays=5, seed=3)
     monkeypatch.setattr(bake_module, "_tops_ahead_per_sun",
                         lambda columns, dirs: np.zeros((len(dirs), 0), np.int32))
@@ -178,20 +180,27 @@ def test_a_faces_shadow_rays_settled_together_change_the_cost_not_the_visibility
     assert np.all((lit > 0).mean(axis=1) > 0.2) and np.all((lit == 0).mean(axis=1) > 0.01)
 
 
-def test_sky_rays_settled_by_the_horizon_change_the_cost_not_the_visibility(monkeypatch):
-    """Sky rays steeper than their column's horizon (``svo.horizons``) are clear without a
-    walk: the visibility is that of every ray walked, in fewer steps, on ledges and caves
-    and on a pillar field whose far pillars block flat rays."""
-    suns = np.array([sun_at("a", 130.0, 35.0).direction()])
+def test_rays_settled_by_the_horizon_change_the_cost_not_the_visibility(monkeypatch):
+    """Sky rays steeper than their column's horizon (``svo.horizons``), and a face's shadow
+    rays whose rear corner is, are clear without a walk: the visibility is that of every ray
+    walked, in fewer steps, on ledges and caves and on a pillar field whose far pillars
+    block flat rays; suns from each quarter and one along a grid plane."""
+    suns = np.array([sun_at(f"s{k}", azimuth, elevation).direction()
+                     for k, (azimuth, elevation) in enumerate(
+                         [(40.0, 30.0), (130.0, 55.0), (220.0, 12.0), (310.0, 70.0),
+                          (90.0, 25.0)])])
+    suns[4] = [0.0, suns[4][1], math.hypot(suns[4][0], suns[4][2])]  # along a grid plane
     for scene in (overhanging_terrain(seed=6, size=40), pillar_field(seed=3, size=48)):
         octree = build_octree(scene)
         monkeypatch.undo()
-        settled, settled_cost = sun_visibility(octree, suns, sky_rays=24, seed=5)
+        settled, settled_cost = sun_visibility(octree, suns, sky_rays=24, shadow_rays=5,
+                                               seed=5)
         monkeypatch.setattr(bake_module, "_horizon_slopes", lambda columns: no_horizon_slopes())
-        walked, walked_cost = sun_visibility(octree, suns, sky_rays=24, seed=5)
+        walked, walked_cost = sun_visibility(octree, suns, sky_rays=24, shadow_rays=5, seed=5)
         for name in ("direct", "sky", "weight", "surface"):
             assert np.array_equal(getattr(settled, name), getattr(walked, name)), name
         assert settled_cost["sky_rays"] == walked_cost["sky_rays"]
+        assert settled_cost["shadow_rays"] == walked_cost["shadow_rays"]
         assert settled_cost["traversal_steps"] < walked_cost["traversal_steps"]
         assert 0.0 < settled.sky[settled.surface].mean() < 1.0
 

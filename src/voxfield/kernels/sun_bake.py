@@ -38,10 +38,12 @@ it visits plus the octree nodes it enters.
 
 A sky ray that starts at or above its column's top and rises more steeply than the
 column's horizon slope for its heading (``svo.horizons``; ``upward_rays.clears_horizon``) is
-clear without a walk: one read, one step (a 2048² desert's bake took 0.82× the steps).
+clear without a walk: one read, one step. So are all of a face's shadow rays towards one sun
+when its rear corner (below) is: they all start in that corner's column, none lower. On a
+2048² desert the two took the bake from 1.59G to 1.24G steps.
 
-A face's shadow rays towards one sun are parallel and start less than a column apart: one
-walk from the face's rear corner over the tops ahead of each cell
+The other faces' shadow rays towards one sun are parallel and start less than a column
+apart: one walk from the face's rear corner over the tops ahead of each cell
 (``upward_rays.parallel_rays_clear``) settles all of them when it finds the corner clear,
 which on open ground most lit faces are (a 2048² desert's bake took 0.78× the steps).
 Its cells are counted once, for the face; a face it does not settle has its rays walked one
@@ -379,11 +381,17 @@ def bake_block(
                     if face_weight[j, f] == 0.0 or face_cosine(f, lx, ly, lz) <= 0.0:
                         continue
                     out_shadow_rays[i] += shadow_rays
+                    # Every ray of the face starts in the rear corner's column, none lower:
+                    # the corner clearing that column's horizon clears them all.
+                    px, py, pz = rear_corner(coords[i, 0], coords[i, 1], coords[i, 2], f,
+                                             lx, lz)
+                    if clears_horizon(px, py, pz, lx, ly, lz, columns, horizons):
+                        out_steps[i] += 1
+                        unblocked[j, f] += shadow_rays
+                        continue
                     if sun_tops.shape[1] > 0:
                         # All the face's rays at once, when the walk from its rear corner
                         # settles them (most lit faces): their verdicts, fewer steps.
-                        px, py, pz = rear_corner(coords[i, 0], coords[i, 1], coords[i, 2],
-                                                 f, lx, lz)
                         clear, beam_steps = parallel_rays_clear(
                             px, py, pz, lx, ly, lz, (y_top - py) / ly, columns,
                             sun_tops[sun])

@@ -24,7 +24,7 @@ from voxfield.progress import progress_bar
 from voxfield.scaleout import run_tasks
 from voxfield.svo.channels import new_channel_block, with_channel_block
 from voxfield.svo.column_tops import no_column_tops, octree_column_tops, tops_ahead
-from voxfield.svo.horizons import horizon_slopes, no_horizon_slopes
+from voxfield.svo.horizons import horizon_slopes
 from voxfield.svo.lod_colours import exposed_faces
 from voxfield.svo.octree import Octree
 
@@ -150,7 +150,7 @@ def sun_visibility(
     y_top = float(octree.voxel_bounds[1][1])
     tops = octree_column_tops(octree, leaves) if columns else no_column_tops()
     sun_tops = _tops_ahead_per_sun(tops, dirs)
-    horizons = _horizon_slopes(tops) if sky_rays > 0 else no_horizon_slopes()
+    horizons = _horizon_slopes(tops)
 
     # Everything large is shared (scattered to a cluster once); a chunk is a range of it.
     shared = {"inner": inner, "depth": depth, "y_top": y_top, "columns": tops,
