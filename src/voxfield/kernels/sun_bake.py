@@ -40,7 +40,7 @@ A sky ray that starts at or above its column's top and rises more steeply than t
 column's horizon slope for its heading (``svo.horizons``; ``upward_rays.clears_horizon``) is
 clear without a walk: one read, one step. So are all of a face's shadow rays towards one sun
 when its rear corner (below) is: they all start in that corner's column, none lower. On a
-2048² desert the two took the bake from 1.59G to 1.24G steps.
+2048² desert the two took the bake from 1.59G to 1.23G steps.
 
 The other faces' shadow rays towards one sun are parallel and start less than a column
 apart: one walk from the face's rear corner over the tops ahead of each cell
