@@ -122,7 +122,7 @@ def sun_visibility(
     settles most of them, and only the rest go through the octree; ``columns=False`` sends
     every ray through the octree, with the same visibility (for comparisons and tests). A
     sky ray that rises above its start column's horizon slope (``svo.horizons``) is clear
-    without either.
+    without either, and so are a face's shadow rays when the face's rear corner is.
 
     Chunks of ``CHUNK_VOXELS`` surface voxels are independent (each voxel's rays are hashed
     from its index and ``seed``): without a ``scheduler`` they run one after another here,
@@ -207,8 +207,9 @@ def _tops_ahead_per_sun(columns, dirs: np.ndarray) -> np.ndarray:
 
 
 def _horizon_slopes(columns) -> np.ndarray:
-    """The pyramid's horizon slopes (``svo.horizons``), with which most sky rays are settled
-    without a walk: one place the bake builds them, so a test can switch them off."""
+    """The pyramid's horizon slopes (``svo.horizons``), with which most sky rays and many
+    faces' shadow rays are settled without a walk: one place the bake builds them, so a test
+    can switch them off."""
     return horizon_slopes(columns)
 
 
