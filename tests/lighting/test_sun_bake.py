@@ -139,6 +139,26 @@ def test_shadow_rays_agree_with_a_brute_force_oracle():
         assert 0.0 < (expected > 0).mean() < 1.0  # some faces lit, some in shadow
 
 
+def _suns_each_quarter_and_on_a_grid_plane() -> np.ndarray:
+    """Five sun directions: one from each quarter of the sky, one with ``x`` exactly 0."""
+    suns = np.array([sun_at(f"s{k}", azimuth, elevation).direction()
+                     for k, (azimuth, elevation) in enumerate(
+                         [(40.0, 30.0), (130.0, 55.0), (220.0, 12.0), (310.0, 70.0),
+                          (90.0, 25.0)])])
+    suns[4] = [0.0, suns[4][1], math.hypot(suns[4][0], suns[4][2])]
+    return suns
+
+
+def _same_visibility_in_fewer_steps(fast, fast_cost, slow, slow_cost) -> None:
+    """Two bakes of the same voxels and rays: identical terms and ray counts, the first in
+    fewer traversal steps."""
+    for name in ("direct", "sky", "weight", "surface"):
+        assert np.array_equal(getattr(fast, name), getattr(slow, name)), name
+    assert fast_cost["sky_rays"] == slow_cost["sky_rays"]
+    assert fast_cost["shadow_rays"] == slow_cost["shadow_rays"]
+    assert fast_cost["traversal_steps"] < slow_cost["traversal_steps"]
+
+
 def test_rays_settled_over_column_tops_give_the_octree_bake():
     """Terrain with caves, ledges and hollows: walking the column tops first changes the
     cost, never a voxel's sky or sun visibility."""
@@ -147,11 +167,7 @@ def test_rays_settled_over_column_tops_give_the_octree_bake():
     walked, walked_cost = sun_visibility(octree, suns, sky_rays=12, shadow_rays=3, seed=1)
     plain, plain_cost = sun_visibility(octree, suns, sky_rays=12, shadow_rays=3, seed=1,
                                        columns=False)
-    for name in ("direct", "sky", "weight", "surface"):
-        assert np.array_equal(getattr(walked, name), getattr(plain, name)), name
-    assert walked_cost["sky_rays"] == plain_cost["sky_rays"]
-    assert walked_cost["shadow_rays"] == plain_cost["shadow_rays"]
-    assert walked_cost["traversal_steps"] < plain_cost["traversal_steps"]
+    _same_visibility_in_fewer_steps(walked, walked_cost, plain, plain_cost)
     assert 0.0 < walked.sky[walked.surface].mean() < 1.0
 
 
@@ -161,20 +177,14 @@ def test_a_faces_shadow_rays_settled_together_change_the_cost_not_the_visibility
     visibility the same rays walked one by one get, in fewer steps; suns from each quarter
     and one along a grid plane."""
     octree = build_octree(overhanging_terrain(seed=6, size=40))
-    suns = np.array([sun_at(f"s{k}", azimuth, elevation).direction()
-                     for k, (azimuth, elevation) in enumerate(
-                         [(40.0, 30.0), (130.0, 55.0), (220.0, 12.0), (310.0, 70.0),
-                          (90.0, 25.0)])])
-    suns[4] = [0.0, suns[4][1], math.hypot(suns[4][0], suns[4][2])]  # along a grid plane
+    suns = _suns_each_quarter_and_on_a_grid_plane()
     # Without horizon slopes, which would settle many of the same faces first.
     monkeypatch.setattr(bake_module, "_horizon_slopes", lambda columns: no_horizon_slopes())
     together, together_cost = sun_visibility(octree, suns, sky_rays=2, shadow_rays=5, seed=3)
     monkeypatch.setattr(bake_module, "_tops_ahead_per_sun",
                         lambda columns, dirs: np.zeros((len(dirs), 0), np.int32))
     alone, alone_cost = sun_visibility(octree, suns, sky_rays=2, shadow_rays=5, seed=3)
-    for name in ("direct", "sky", "weight", "surface"):
-        assert np.array_equal(getattr(together, name), getattr(alone, name)), name
-    assert together_cost["shadow_rays"] == alone_cost["shadow_rays"]
+    _same_visibility_in_fewer_steps(together, together_cost, alone, alone_cost)
     assert together_cost["traversal_steps"] < 0.9 * alone_cost["traversal_steps"]
     lit = together.direct[:, together.surface]
     assert np.all((lit > 0).mean(axis=1) > 0.2) and np.all((lit == 0).mean(axis=1) > 0.01)
@@ -185,11 +195,7 @@ def test_rays_settled_by_the_horizon_change_the_cost_not_the_visibility(monkeypa
     rays whose rear corner is, are clear without a walk: the visibility is that of every ray
     walked, in fewer steps, on ledges and caves and on a pillar field whose far pillars
     block flat rays; suns from each quarter and one along a grid plane."""
-    suns = np.array([sun_at(f"s{k}", azimuth, elevation).direction()
-                     for k, (azimuth, elevation) in enumerate(
-                         [(40.0, 30.0), (130.0, 55.0), (220.0, 12.0), (310.0, 70.0),
-                          (90.0, 25.0)])])
-    suns[4] = [0.0, suns[4][1], math.hypot(suns[4][0], suns[4][2])]  # along a grid plane
+    suns = _suns_each_quarter_and_on_a_grid_plane()
     for scene in (overhanging_terrain(seed=6, size=40), pillar_field(seed=3, size=48)):
         octree = build_octree(scene)
         monkeypatch.undo()
@@ -197,11 +203,7 @@ def test_rays_settled_by_the_horizon_change_the_cost_not_the_visibility(monkeypa
                                                seed=5)
         monkeypatch.setattr(bake_module, "_horizon_slopes", lambda columns: no_horizon_slopes())
         walked, walked_cost = sun_visibility(octree, suns, sky_rays=24, shadow_rays=5, seed=5)
-        for name in ("direct", "sky", "weight", "surface"):
-            assert np.array_equal(getattr(settled, name), getattr(walked, name)), name
-        assert settled_cost["sky_rays"] == walked_cost["sky_rays"]
-        assert settled_cost["shadow_rays"] == walked_cost["shadow_rays"]
-        assert settled_cost["traversal_steps"] < walked_cost["traversal_steps"]
+        _same_visibility_in_fewer_steps(settled, settled_cost, walked, walked_cost)
         assert 0.0 < settled.sky[settled.surface].mean() < 1.0
 
 
