@@ -18,31 +18,37 @@ def test_parent_means_equal_reduceat_bit_for_bit():
     rng = np.random.default_rng(3)
     starts, children = _runs(rng, 5000)
     values = (rng.random((children, 6)) * 7).astype(np.float32)
-    out = np.empty((len(starts), 6), np.float32)
-    average_children(starts, values, np.zeros(0), False, out, np.zeros(0))
+    out = np.empty((1, len(starts), 6), np.float32)
+    average_children(starts, values[None], np.zeros(0), False, out, np.zeros(0))
+    out = out[0]
     counts = np.diff(np.append(starts, children))
     want = (np.add.reduceat(values, starts, axis=0, dtype=np.float64)
             / counts[:, None]).astype(np.float32)
     assert np.array_equal(out.view(np.uint32), want.view(np.uint32))
 
 
-def test_weighted_parent_means_and_weight_sums():
+@pytest.mark.parametrize("weight_type", [np.float64, np.float32])
+def test_weighted_parent_means_and_weight_sums(weight_type):
+    """Two channels of a block share the weights, float32 ones read as their float64
+    widening."""
     rng = np.random.default_rng(4)
     starts, children = _runs(rng, 3000)
-    values = (rng.random((children, 3)) * 2).astype(np.float32)
-    weights = rng.random(children) * (rng.random(children) < 0.5)
-    out = np.empty((len(starts), 3), np.float32)
+    block = (rng.random((2, children, 3)) * 2).astype(np.float32)
+    weights = (rng.random(children) * (rng.random(children) < 0.5)).astype(weight_type)
+    out = np.empty((2, len(starts), 3), np.float32)
     sums = np.empty(len(starts))
-    average_children(starts, values, weights, True, out, sums)
+    average_children(starts, block, weights, True, out, sums)
     counts = np.diff(np.append(starts, children))
-    want_sums = np.add.reduceat(weights, starts)
-    plain = np.add.reduceat(values, starts, axis=0, dtype=np.float64) / counts[:, None]
-    weighted = np.add.reduceat(values * weights[:, None], starts, axis=0, dtype=np.float64)
-    seen = want_sums > 0
-    plain[seen] = weighted[seen] / want_sums[seen, None]
+    wide = weights.astype(np.float64)
+    want_sums = np.add.reduceat(wide, starts)
     assert np.array_equal(sums, want_sums)
-    assert np.array_equal(out, plain.astype(np.float32))
+    seen = want_sums > 0
     assert (~seen).any() and seen.any()  # both rules were exercised
+    for values, got in zip(block, out, strict=True):
+        plain = np.add.reduceat(values, starts, axis=0, dtype=np.float64) / counts[:, None]
+        weighted = np.add.reduceat(values * wide[:, None], starts, axis=0, dtype=np.float64)
+        plain[seen] = weighted[seen] / want_sums[seen, None]
+        assert np.array_equal(got, plain.astype(np.float32))
 
 
 def test_child_corners_follow_the_octant_bits():

@@ -57,18 +57,22 @@ def average_children(
     starts: np.ndarray, child_values: np.ndarray, child_weights: np.ndarray, weighted: bool,
     out_values: np.ndarray, out_weights: np.ndarray,
 ) -> None:
-    """Per parent, the float64 mean of its children's rows (``starts``: first child of each
-    parent, the last parent's run ending at the last child), stored in ``out_values``.
+    """Per channel ``k`` and parent, the float64 mean of its children's rows
+    ``child_values[k, first:last]`` (``starts``: first child of each parent, the last
+    parent's run ending at the last child), stored in ``out_values[k, parent]``. Channels
+    share the parents' runs and weights, so a level's weights are read and summed once for
+    all of them.
 
     With ``weighted``, a parent whose children weigh more than nothing takes their
     ``child_weights``-weighted mean instead, and ``out_weights`` gets the weights' sum.
     Sums run in float64 in the order ``add.reduceat`` adds them (``child_sum``), so results
     are the same to the bit (``np.float64`` widens each value: Numba's ``float()`` keeps a
-    float32 a float32).
+    float32 a float32), whether the weights come as float32 or float64.
     """
+    channels = child_values.shape[0]
     parents = starts.shape[0]
-    children = child_values.shape[0]
-    columns = child_values.shape[1]
+    children = child_values.shape[1]
+    columns = child_values.shape[2]
     for i in prange(parents):
         first = starts[i]
         last = starts[i + 1] if i + 1 < parents else children
@@ -76,14 +80,17 @@ def average_children(
         if weighted:
             weight = child_sum(child_weights, first, last)
             out_weights[i] = weight
-        for c in range(columns):
-            if weighted and weight > 0.0:
-                total = np.float64(child_values[first, c]) * child_weights[first]
-                for j in range(first + 1, last):
-                    total += np.float64(child_values[j, c]) * child_weights[j]
-                out_values[i, c] = total / weight
-            else:
-                total = np.float64(child_values[first, c])
-                for j in range(first + 1, last):
-                    total += np.float64(child_values[j, c])
-                out_values[i, c] = total / (last - first)
+        for k in range(channels):
+            for c in range(columns):
+                if weighted and weight > 0.0:
+                    total = np.float64(child_values[k, first, c]) * np.float64(
+                        child_weights[first])
+                    for j in range(first + 1, last):
+                        total += np.float64(child_values[k, j, c]) * np.float64(
+                            child_weights[j])
+                    out_values[k, i, c] = total / weight
+                else:
+                    total = np.float64(child_values[k, first, c])
+                    for j in range(first + 1, last):
+                        total += np.float64(child_values[k, j, c])
+                    out_values[k, i, c] = total / (last - first)

@@ -79,24 +79,36 @@ def fill_inner_levels(
     octree: Octree, values: np.ndarray | Sequence[np.ndarray],
     leaf_weights: np.ndarray | None = None,
 ) -> None:
-    """``propagate_channel`` in place: ``values`` (``(nodes, C)`` float32, or a sequence of
-    such channels sharing the weights) has its voxel rows set, and gets every inner row
-    from them, with no copy of the leaves. Each level's child runs are worked out once for
-    all the channels."""
-    channels = [values] if isinstance(values, np.ndarray) else list(values)
+    """``propagate_channel`` in place: ``values`` (one channel ``(nodes, C)`` float32, a
+    block of channels ``(K, nodes, C)`` as ``new_channel_block`` makes, or a sequence of
+    channels sharing the weights) has its voxel rows set, and gets every inner row from
+    them, with no copy of the leaves. Each level's child runs and weights are worked out
+    once for all the channels of a block."""
+    if isinstance(values, np.ndarray):
+        blocks = [values[None] if values.ndim == 2 else values]
+    else:
+        blocks = [channel[None] for channel in values]
     depth = octree.depth
     weighted = leaf_weights is not None
-    weights = np.ascontiguousarray(leaf_weights if weighted else np.zeros(0), np.float64)
+    weights = _kernel_weights(leaf_weights) if weighted else np.zeros(0)
     first_child = octree.first_child
     for level in range(depth - 1, -1, -1):
         parents = octree.level_slice(level)
         children = octree.level_slice(level + 1)
         starts = first_child[parents] - int(octree.level_offsets[level + 1])
         parent_weights = np.empty(len(starts) if weighted else 0, np.float64)
-        for channel in channels:
-            average_children(starts, channel[children], weights, weighted, channel[parents],
+        for block in blocks:
+            average_children(starts, block[:, children], weights, weighted, block[:, parents],
                              parent_weights)
         weights = parent_weights
+
+
+def _kernel_weights(weights: np.ndarray) -> np.ndarray:
+    """Leaf weights as the level kernel reads them: float32 as they are (it widens each one
+    exactly), anything else as float64."""
+    if weights.dtype == np.float32:
+        return np.ascontiguousarray(weights)
+    return np.ascontiguousarray(weights, np.float64)
 
 
 def new_channel_block(octree: Octree, count: int) -> np.ndarray:
@@ -140,9 +152,7 @@ def with_channel_block(
     ``block[k]``. Its inner rows are filled in place and the octree keeps ``block[k]``
     (views of one array: no channel is copied)."""
     attributes = dict(octree.attributes)
-    if weights is not None:  # widened once for every channel
-        weights = np.ascontiguousarray(weights, np.float64)
-    fill_inner_levels(octree, list(block), weights)
+    fill_inner_levels(octree, block, weights)
     for name, values in zip(names, block, strict=True):
         attributes[check_channel_name(name)] = values
     return octree.recoloured(attributes=attributes)
