@@ -44,7 +44,7 @@ def test_slopes_bound_the_steepest_column_ahead_from_above(scene):
     assert slopes.shape == (tops.size, 4) and slopes.dtype == np.float32
     exact_count = 0
     for q, (step_x, step_z) in enumerate([(1, 1), (1, -1), (-1, 1), (-1, -1)]):
-        assert quadrant(float(step_x), float(step_z))[0] == q
+        assert quadrant(float(step_x), float(step_z)) == q
         stored = slopes[:, q].astype(np.float64)
         exact = _steepest_ahead(tops, step_x, step_z)
         assert np.array_equal(np.isinf(stored), np.isinf(exact))
@@ -64,9 +64,9 @@ def test_a_tower_within_the_near_columns_is_bounded_exactly():
     slopes = horizon_slopes(columns)
     from_column = 4 * size + 5
     assert 2 * RING > 3
-    assert slopes[from_column, quadrant(1.0, 1.0)[0]] == pytest.approx(8 / 2, rel=1e-5)
-    assert slopes[from_column, quadrant(-1.0, 1.0)[0]] == NOTHING_AHEAD
-    assert math.isinf(slopes[6 * size + 5, quadrant(1.0, -1.0)[0]])
+    assert slopes[from_column, quadrant(1.0, 1.0)] == pytest.approx(8 / 2, rel=1e-5)
+    assert slopes[from_column, quadrant(-1.0, 1.0)] == NOTHING_AHEAD
+    assert math.isinf(slopes[6 * size + 5, quadrant(1.0, -1.0)])
 
 
 def test_no_pyramid_gives_no_slopes_and_a_bad_ring_is_refused():

@@ -79,13 +79,17 @@ def _heading(d: float) -> tuple[int, int]:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def quadrant(dx: float, dz: float) -> tuple[int, int, int]:
-    """``(q, step_x, step_z)`` of a heading: the column of ``svo.horizons.horizon_slopes``
-    for a ray with these horizontal components, and the steps to the columns ahead (``+1``
-    for zero, as a ray with no ``x`` motion stays in its column, which counts as ahead)."""
-    step_x = -1 if dx < 0.0 else 1
-    step_z = -1 if dz < 0.0 else 1
-    return (2 if step_x < 0 else 0) + (1 if step_z < 0 else 0), step_x, step_z
+def quadrant(dx: float, dz: float) -> int:
+    """The heading's column of ``svo.horizons.horizon_slopes``: ``2·(dx < 0) + (dz < 0)``.
+    A zero component counts as positive: a ray with no ``x`` motion stays in its column,
+    which counts as ahead."""
+    return (2 if dx < 0.0 else 0) + (1 if dz < 0.0 else 0)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def quadrant_steps(q: int) -> tuple[int, int]:
+    """``(step_x, step_z)`` towards the columns ahead of a heading in quadrant ``q``."""
+    return (-1 if q >= 2 else 1), (-1 if q % 2 == 1 else 1)
 
 
 @borrowing(inline="always")
@@ -203,15 +207,15 @@ def clears_horizon(ox: float, oy: float, oz: float, dx: float, dy: float, dz: fl
     for its heading (``svo.horizons.horizon_slopes``, empty: never). False says nothing.
     The heading and start column are the walk's (``_walk_start``), so a component too small
     to invert counts as zero, as it does for the octree."""
-    tops, level_offset, level_width, level_depth = columns[:4]
+    tops, level_width, level_depth = columns[0], columns[2], columns[3]
     if horizons.shape[0] == 0 or not dy > MIN_RISE:
         return False
-    ox, dx, ix, oz, dz, iz, cx, cz, toward = _walk_start(ox, dx, oz, dz, level_width,
+    ox, dx, ix, oz, dz, iz, cx, cz, _ = _walk_start(ox, dx, oz, dz, level_width,
                                                          level_depth)
     if not (0 <= cx < level_width[0] and 0 <= cz < level_depth[0]):
         return False
     cell = cx * level_depth[0] + cz
     if tops[cell] > oy:
         return False
-    slope = horizons[cell, quadrant(dx, dz)[0]]
+    slope = horizons[cell, quadrant(dx, dz)]
     return slope < 0.0 or dy * dy >= slope * slope * (dx * dx + dz * dz)

@@ -31,6 +31,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from voxfield.kernels.upward_rays import quadrant_steps
 from voxfield.svo.column_tops import ColumnTops
 
 __all__ = ["NOTHING_AHEAD", "RING", "horizon_slopes", "no_horizon_slopes"]
@@ -79,8 +80,7 @@ def _ring_tops(tops: np.ndarray, first: int, first_coarse: int, width: int, dept
         for z in range(depth):
             row = first - first_coarse + x * depth + z
             for q in range(4):
-                step_x = -1 if q >= 2 else 1
-                step_z = -1 if q % 2 == 1 else 1
+                step_x, step_z = quadrant_steps(q)
                 for k in range(ring, 2 * ring):
                     highest = 0
                     far_x = x + step_x * k
@@ -128,8 +128,7 @@ def _slopes(tops: np.ndarray, level_offset: np.ndarray, level_width: np.ndarray,
         for z in range(depth):
             base = tops[x * depth + z]
             for q in range(4):
-                step_x = -1 if q >= 2 else 1
-                step_z = -1 if q % 2 == 1 else 1
+                step_x, step_z = quadrant_steps(q)
                 steepest = 0.0
                 touching = False
                 for i in range(reach):
