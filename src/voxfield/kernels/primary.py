@@ -20,6 +20,7 @@ from voxfield.kernels.sampling import (
     new_cmj_strata,
     pixel_pattern,
 )
+from voxfield.kernels.scheduling import interleaved
 from voxfield.kernels.surface_approach import trace_over_columns
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
@@ -71,7 +72,7 @@ def store_pixel(
 def render_pixels(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
     side: int, seed: int, view: OctreeView, stop_level: int, cone_scale: float,
-    beam: BeamBounds, out: PixelOutputs, columns,
+    beam: BeamBounds, out: PixelOutputs, columns, threads: int = 1,
 ) -> None:
     """Trace the listed pixels (flat indices) with side×side samples each, in list order
     (so a list in tile order keeps neighbouring rays together); pixel ``pixels[k]`` goes to
@@ -89,7 +90,9 @@ def render_pixels(
     """
     n = pixels.shape[0]
     chunk = 64
-    for c in prange((n + chunk - 1) // chunk):
+    chunks = (n + chunk - 1) // chunk
+    for k in prange(chunks):
+        c = interleaved(k, chunks, threads)
         render_pixel_chunk(cam, width, height, pixels, out_base, c * chunk,
                            min(n, (c + 1) * chunk), side, seed, view, stop_level, cone_scale,
                            beam, out, columns)

@@ -67,6 +67,7 @@ from voxfield.kernels.sampling import (
     new_cmj_strata,
     pixel_pattern,
 )
+from voxfield.kernels.scheduling import interleaved
 from voxfield.kernels.traversal import MISS, new_scratch, occluded
 from voxfield.kernels.upward_rays import (
     BLOCKED,
@@ -446,7 +447,7 @@ def bake_sun_visibility(
     inner_nodes: np.ndarray, depth: int, y_top: float, columns, sun_tops: np.ndarray,
     horizons: np.ndarray, out_rows: np.ndarray, out_direct: np.ndarray, out_sky: np.ndarray,
     out_weight: np.ndarray, out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray,
-    out_steps: np.ndarray,
+    out_steps: np.ndarray, threads: int = 1,
 ) -> None:
     """Bake the listed surface voxels: ``coords[k]`` (octree voxel units), their leaf index
     ``voxel_ids[k]`` (seeds the sampling) and exposed-face bits ``faces[k]``. Voxel ``k``'s
@@ -455,10 +456,12 @@ def bake_sun_visibility(
     ray and step counts to row ``k`` of the counters. ``sun_tops[s]`` is
     ``svo.column_tops.tops_ahead`` of ``columns`` for sun ``s``'s direction (``(suns, 0)``:
     every shadow ray walked on its own, with the same visibility); ``horizons`` are their
-    horizon slopes (``svo.horizons``; ``(0, 4)``: every sky ray walked)."""
+    horizon slopes (``svo.horizons``; ``(0, 4)``: every sky ray walked). Blocks of voxels
+    are dealt out to the ``threads`` the loop runs on in turn (``kernels.scheduling``)."""
     n = coords.shape[0]
-    for b in prange((n + BAKE_BLOCK - 1) // BAKE_BLOCK):
-        first = b * BAKE_BLOCK
+    blocks = (n + BAKE_BLOCK - 1) // BAKE_BLOCK
+    for k in prange(blocks):
+        first = interleaved(k, blocks, threads) * BAKE_BLOCK
         bake_block(first, min(n, first + BAKE_BLOCK), coords, voxel_ids, faces, sun_dirs,
                    sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, columns, sun_tops,
                    horizons, out_rows, out_direct, out_sky, out_weight, out_sky_rays,

@@ -238,7 +238,7 @@ def visibility_task(shared: dict, chunk: tuple[int, int], kernel_threads: int | 
             np.ascontiguousarray(corners, np.int64), ids, faces, dirs, shared["sky_rays"],
             shared["shadow_rays"], shared["seed"], shared["inner"], shared["depth"],
             shared["y_top"], shared["columns"], shared["sun_tops"], shared["horizons"], rows,
-            *out, sky_cast, shadow_cast, steps,
+            *out, sky_cast, shadow_cast, steps, numba.get_num_threads(),
         )
     counts = (int(sky_cast.sum()), int(shadow_cast.sum()), int(steps.sum()))
     return counts if into is not None else (*out, *counts)

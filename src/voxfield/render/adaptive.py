@@ -12,6 +12,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 from scipy import ndimage
 
@@ -195,7 +196,8 @@ def refine_pixels(octree, camera, pixels, side, seed, colours, result, threads,
                           seed, OctreeView(octree.inner_nodes, octree.depth, *colours),
                           octree.depth, 0.0, BeamBounds(beam.bound, beam.block),
                           PixelOutputs(color, depth, normal, rays, hits, steps, lod),
-                          pixel_columns(octree, columns, side, beam.bound))
+                          pixel_columns(octree, columns, side, beam.bound),
+                          numba.get_num_threads())
     steps += beam.pixel_steps(pixels, camera.width)
     flat = {name: getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])
             for name in ("image", "depth", "normal", "ray_count", "hit_count", "steps",

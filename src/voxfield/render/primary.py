@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
@@ -97,7 +98,7 @@ def trace_image_cpu(
         out = PixelOutputs(*(b.reshape(len(pixels), *b.shape[2:])
                              for b in result.buffers(rows)))
         render_pixels(cam, w, h, pixels, rows.start * w, side, seed, view, stop_level,
-                      cone_scale, beam, out, pyramid)
+                      cone_scale, beam, out, pyramid, numba.get_num_threads())
 
     result.seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress,
                                   granule=TILE)
