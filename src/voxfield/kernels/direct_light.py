@@ -45,6 +45,7 @@ from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.error_aware import node_error
 from voxfield.kernels.primary import normal_from_code, store_pixel
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
+from voxfield.kernels.scheduling import interleaved
 from voxfield.kernels.traversal import (
     MISS,
     box_interval,
@@ -286,15 +287,18 @@ def light_sample(
 def render_direct_light_rows(
     cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
     grid_x: int, grid_y: int, scene: ShadowScene, albedo: np.ndarray, emission: np.ndarray,
-    emitters: Emitters, lod: ShadowLod, out: PixelOutputs, maps: ShadowMaps,
+    emitters: Emitters, lod: ShadowLod, out: PixelOutputs, maps: ShadowMaps, threads: int = 1,
 ) -> None:
-    """Rows ``[row0, row1)``: ``grid_x · grid_y`` samples per pixel, each a primary ray at
-    LOD 0 through a CMJ sub-pixel position and, where it hits a surface, one light sample.
+    """Rows ``[row0, row1)``, dealt out to the ``threads`` in turn (``kernels.scheduling``):
+    ``grid_x · grid_y`` samples per pixel, each a primary ray at LOD 0 through a CMJ
+    sub-pixel position and, where it hits a surface, one light sample.
 
     A primary ray that hits an emitter shows its radiance clamped to 1 (display range, so
     the light's edges anti-alias); the pixel is the mean of its samples, clamped to [0, 1].
     """
-    for row in prange(row0, row1):
+    rows = row1 - row0
+    for k in prange(rows):
+        row = row0 + interleaved(k, rows, threads)
         render_direct_light_row(cam, width, height, row0, seed, grid_x, grid_y, scene, albedo,
                                 emission, emitters, lod, out, maps, row)
 

@@ -35,6 +35,7 @@ from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.node_descriptor import descriptor_first_child
 from voxfield.kernels.primary import normal_from_code, store_pixel
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
+from voxfield.kernels.scheduling import interleaved
 from voxfield.kernels.surface_approach import trace_over_columns
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
@@ -210,13 +211,16 @@ class RefinementMaps(NamedTuple):
 def render_error_aware_rows(
     cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
     view: OctreeView, refinement: Refinement, model: ErrorModel, beam: BeamBounds,
-    out: PixelOutputs, maps: RefinementMaps, columns,
+    out: PixelOutputs, maps: RefinementMaps, columns, threads: int = 1,
 ) -> None:
-    """Trace rows ``[row0, row1)``; ``refinement.cone_scale`` > 0 picks the base LOD by pixel
+    """Trace rows ``[row0, row1)``, dealt out to the ``threads`` in turn
+    (``kernels.scheduling``); ``refinement.cone_scale`` > 0 picks the base LOD by pixel
     cone; ``model.lighting_aware`` adds the bright-flag colour error to the geometric one.
     Rays at a fixed level cross the air in the column-top pyramid ``columns`` first
     (``kernels.surface_approach``; ``no_column_tops()`` for none), as the LOD renderer's do."""
-    for row in prange(row0, row1):
+    rows = row1 - row0
+    for k in prange(rows):
+        row = row0 + interleaved(k, rows, threads)
         render_error_aware_row(cam, width, height, row0, seed, view, refinement, model, beam,
                                out, maps, row, columns)
 

@@ -40,6 +40,7 @@ from voxfield.kernels.probe_march import (
     texel_angle,
     trace_probe,
 )
+from voxfield.kernels.scheduling import interleaved
 
 #: First-probe heuristics.
 ORDER_SIGNED_DOT = 0  # max ω · S²(X - P) (thesis §4.3, §5.7)
@@ -461,13 +462,16 @@ class LightFieldOutputs(NamedTuple):
 
 @njit(cache=True, nogil=True, parallel=True)
 def trace_light_field_rays(modes: TraceModes, field: ProbeField, rays: RayBatch,
-                           out: LightFieldOutputs) -> None:
-    """Every ray, in parallel blocks; each ray's results depend only on that ray. A hit's
+                           out: LightFieldOutputs, threads: int = 1) -> None:
+    """Every ray, in parallel blocks dealt out to the ``threads`` in turn
+    (``kernels.scheduling``); each ray's results depend only on that ray. A hit's
     colour comes from ``hit_colour_probe``, read bilinearly at the hit point."""
     n = len(rays.origins)
     block = 256
     tolerance = hit_tolerance(modes.params)
-    for b in prange((n + block - 1) // block):
+    blocks = (n + block - 1) // block
+    for k in prange(blocks):
+        b = interleaved(k, blocks, threads)
         trace_block(modes, field, rays, out, tolerance, b * block, min(n, (b + 1) * block))
 
 

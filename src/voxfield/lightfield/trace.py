@@ -11,6 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
@@ -303,5 +304,6 @@ def trace_light_field(packed: PackedProbes, origins, dirs,
     with thread_count(threads):
         mk.trace_light_field_rays(
             mk.TraceModes(*modes), probe_field(packed), mk.RayBatch(o, d, lo, hi),
-            mk.LightFieldOutputs(*(getattr(out, name) for name in mk.LightFieldOutputs._fields)))
+            mk.LightFieldOutputs(*(getattr(out, name) for name in mk.LightFieldOutputs._fields)),
+            numba.get_num_threads())
     return out

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from voxfield.error_table.table import (
@@ -218,7 +219,8 @@ def render_direct_light(
                           shadow_lod_map[rows], refinements[rows])
         render_direct_light_rows(cam, w, h, rows.start, rows.stop, seed, *setup.grid,
                                  setup.scene, colors, emission, setup.emitters, setup.lod,
-                                 PixelOutputs(*result.buffers(rows)), maps)
+                                 PixelOutputs(*result.buffers(rows)), maps,
+                                 numba.get_num_threads())
 
     result.seconds = run_in_bands(h, band, label=f"direct light ({shadow_lod})",
                                   threads=threads, progress=progress)

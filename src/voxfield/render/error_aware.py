@@ -5,6 +5,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from voxfield.error_table.lighting_table import LightingErrorTable, load_lighting_error_table
@@ -176,7 +177,8 @@ def render_error_aware(
         out = PixelOutputs(*result.buffers(rows))
         maps = RefinementMaps(refined[rows], discarded[rows])
         render_error_aware_rows(cam, w, h, rows.start, rows.stop, seed, view, refinement,
-                                model, BeamBounds(beam.bound, beam.block), out, maps, pyramid)
+                                model, BeamBounds(beam.bound, beam.block), out, maps, pyramid,
+                                numba.get_num_threads())
 
     result.seconds = beam.seconds + run_in_bands(h, band, label="error-aware", threads=threads,
                                                  progress=progress)
