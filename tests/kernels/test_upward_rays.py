@@ -168,33 +168,56 @@ def test_without_a_pyramid_or_a_rise_rays_go_to_the_octree_from_their_start():
 @njit
 def _parallel_answers(corners, d, ahead_offsets, columns, tops_ahead, inner, depth, y_top,
                       out):
-    """Per corner: ``parallel_rays_clear``'s answer and steps, then how many of the rays
-    from the points ``corner + offset`` (one row of offsets per corner) the octree finds
-    blocked up to the top of the voxels."""
+    """Per corner: ``parallel_rays_clear``'s answer and steps; how many of the rays from
+    the points ``corner + offset`` (one row of offsets per corner) the octree finds blocked
+    up to the top of the voxels; how many it finds blocked before the walk's ``t_clear``;
+    how many a walk of their own resumed at ``t_clear`` (then the octree from where that
+    walk leaves them) answers otherwise than the octree over the whole ray; and whether
+    ``t_clear`` is past 0."""
     scratch = new_scratch(depth)
     for k in range(corners.shape[0]):
         ox, oy, oz = corners[k, 0], corners[k, 1], corners[k, 2]
-        clear, steps = parallel_rays_clear(ox, oy, oz, d[k, 0], d[k, 1], d[k, 2],
-                                           (y_top - oy) / d[k, 1], columns, tops_ahead[k])
+        clear, steps, t_clear = parallel_rays_clear(ox, oy, oz, d[k, 0], d[k, 1], d[k, 2],
+                                                    (y_top - oy) / d[k, 1], columns,
+                                                    tops_ahead[k])
         blocked = 0
+        early = 0
+        resumed_wrong = 0
         for s in range(ahead_offsets.shape[1]):
             px = ox + ahead_offsets[k, s, 0]
             py = oy + ahead_offsets[k, s, 1]
             pz = oz + ahead_offsets[k, s, 2]
-            hit, _ = occluded(px, py, pz, d[k, 0], d[k, 1], d[k, 2], 0.0,
-                              (y_top - py) / d[k, 1], inner, depth, scratch)
+            tmax = (y_top - py) / d[k, 1]
+            hit, _ = occluded(px, py, pz, d[k, 0], d[k, 1], d[k, 2], 0.0, tmax, inner, depth,
+                              scratch)
             blocked += 1 if hit else 0
+            if t_clear > 0.0:
+                hit_early, _ = occluded(px, py, pz, d[k, 0], d[k, 1], d[k, 2], 0.0,
+                                        min(t_clear, tmax), inner, depth, scratch)
+                early += 1 if hit_early else 0
+            verdict, t_on, _ = rising_ray_query(px, py, pz, d[k, 0], d[k, 1], d[k, 2], tmax,
+                                                columns, t_clear)
+            resumed = verdict == BLOCKED
+            if verdict == UNDECIDED:
+                resumed, _ = occluded(px, py, pz, d[k, 0], d[k, 1], d[k, 2], t_on, tmax,
+                                      inner, depth, scratch)
+            resumed_wrong += 1 if resumed != hit else 0
         out[k, 0] = 1 if clear else 0
         out[k, 1] = steps
         out[k, 2] = blocked
+        out[k, 3] = early
+        out[k, 4] = resumed_wrong
+        out[k, 5] = 1 if t_clear > 0.0 else 0
 
 
 def test_parallel_rays_called_clear_are_all_clear_for_the_octree():
     """A face's shadow rays settled together from its rear corner: every ray from a point
     ahead of the corner by less than one column (and no lower) is clear when the walk says
     so, including points on the corner and a hair short of one column ahead; and the walk
-    does settle most corners on open ground."""
+    does settle most corners on open ground. Where it does not, each ray is still clear up
+    to where it stopped, and its own walk resumed there gives the whole ray's answer."""
     rng = np.random.default_rng(11)
+    resumed = 0
     for scene in (overhanging_terrain(seed=4, size=30), hollow_shell_terrain(seed=2),
                   random_scene(seed=9, n=700, size=15)):
         octree, voxels, columns = octree_and_columns(scene)
@@ -220,13 +243,17 @@ def test_parallel_rays_called_clear_are_all_clear_for_the_octree():
         offsets[:, :, 1] *= rng.choice([0.0, 1.0], (n, samples))  # often at its height
         offsets[:, :, 0] *= step_x[:, None]
         offsets[:, :, 2] *= step_z[:, None]
-        out = np.empty((n, 3), np.int64)
+        out = np.empty((n, 6), np.int64)
         _parallel_answers(corners, d, offsets, columns, tops_of, octree.inner_nodes,
                           octree.depth, y_top, out)
         clear = out[:, 0] == 1
         assert not np.any(out[clear, 2]), "a ray called clear is blocked"
         assert 0.2 < clear.mean() < 1.0
         assert np.any(out[~clear, 2] > 0)
+        assert not np.any(out[:, 3]), "a ray is blocked before the walk's t_clear"
+        assert not np.any(out[:, 4]), "a walk resumed at t_clear answers otherwise"
+        resumed += out[~clear, 5].sum()
+    assert resumed >= 50  # walks resumed past 0 often enough to tell
 
 
 def test_parallel_rays_are_not_settled_without_a_pyramid_or_a_rise():
@@ -236,9 +263,9 @@ def test_parallel_rays_are_not_settled_without_a_pyramid_or_a_rise():
     ahead = tops_ahead(columns, 1, 1)
     assert parallel_rays_clear(3.0, 20.0, 3.0, 0.0, 1.0, 0.0, 10.0, columns, ahead)[0]
     assert parallel_rays_clear(3.0, 20.0, 3.0, 0.0, 1.0, 0.0, 10.0, no_column_tops(),
-                               np.zeros(0, np.int32)) == (False, 0)
+                               np.zeros(0, np.int32)) == (False, 0, 0.0)
     assert parallel_rays_clear(3.0, 20.0, 3.0, 1.0, 1e-12, 0.0, 10.0, columns,
-                               ahead) == (False, 0)
+                               ahead) == (False, 0, 0.0)
 
 
 @njit

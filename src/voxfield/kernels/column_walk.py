@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from voxfield.kernels.traversal import face_time
+from voxfield.kernels.traversal import face_time, floor_float
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -58,3 +58,23 @@ def in_the_gap(oy: float, dy: float, iy: float, t: float, t_leave: float, floor:
     if dy > 0.0:
         return t >= face_time(floor, oy, iy) and t_leave <= face_time(ceiling, oy, iy)
     return floor <= oy and oy < ceiling
+
+
+@njit(cache=True, nogil=True, inline="always")
+def cell_holding(o: float, d: float, inv: float, t: float, level: int, lo: int,
+                 hi: int) -> int:
+    """The cell ``[k, k + 1) << level`` of one axis that holds the ray at time ``t``, clamped
+    to ``lo..hi``: a guess from the position, settled by the contract's crossing times."""
+    guess = min(max(floor_float(o + t * d), float(lo << level)), float(((hi + 1) << level) - 1))
+    k = int(guess) >> level
+    if d > 0.0:
+        while k > lo and t < face_time(k << level, o, inv):
+            k -= 1
+        while k < hi and face_time((k + 1) << level, o, inv) <= t:
+            k += 1
+    elif d < 0.0:
+        while k < hi and t < face_time((k + 1) << level, o, inv):
+            k += 1
+        while k > lo and face_time(k << level, o, inv) <= t:
+            k -= 1
+    return k

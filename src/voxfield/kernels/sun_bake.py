@@ -390,10 +390,12 @@ def bake_block(
                         out_steps[i] += 1
                         unblocked[j, f] += shadow_rays
                         continue
+                    t_clear = 0.0
                     if sun_tops.shape[1] > 0:
                         # All the face's rays at once, when the walk from its rear corner
-                        # settles them (most lit faces): their verdicts, fewer steps.
-                        clear, beam_steps = parallel_rays_clear(
+                        # settles them (most lit faces): their verdicts, fewer steps. When
+                        # it does not, each ray is still clear until where it stopped.
+                        clear, beam_steps, t_clear = parallel_rays_clear(
                             px, py, pz, lx, ly, lz, (y_top - py) / ly, columns,
                             sun_tops[sun])
                         out_steps[i] += beam_steps
@@ -406,7 +408,7 @@ def bake_block(
                                                 shadow_points[j, f, s, 1])
                         tmax = (y_top - oy) / ly
                         verdict, t_on, ray_steps = rising_ray_query(ox, oy, oz, lx, ly, lz,
-                                                                    tmax, columns)
+                                                                    tmax, columns, t_clear)
                         out_steps[i] += ray_steps
                         if verdict != UNDECIDED:
                             if verdict != BLOCKED:

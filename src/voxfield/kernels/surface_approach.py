@@ -31,13 +31,12 @@ import math
 from numba import njit
 
 from voxfield.kernels.borrowing import borrowing
-from voxfield.kernels.column_walk import in_the_gap, step_across, step_down
+from voxfield.kernels.column_walk import cell_holding, in_the_gap, step_across, step_down
 from voxfield.kernels.memory_hints import prefetch
 from voxfield.kernels.traversal import (
     axis_setup,
     entry_normal,
     face_time,
-    floor_float,
     flush_uninvertible,
     node_at_level,
     trace_ray,
@@ -108,26 +107,6 @@ def _slab_times(o: float, d: float, inv: float, lo: int, hi: int) -> tuple[float
     return math.inf, -math.inf
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _cell_holding(o: float, d: float, inv: float, t: float, level: int, lo: int,
-                  hi: int) -> int:
-    """The cell ``[k, k + 1) << level`` of one axis that holds the ray at time ``t``, clamped
-    to ``lo..hi``: a guess from the position, settled by the contract's crossing times."""
-    guess = min(max(floor_float(o + t * d), float(lo << level)), float(((hi + 1) << level) - 1))
-    k = int(guess) >> level
-    if d > 0.0:
-        while k > lo and t < face_time(k << level, o, inv):
-            k -= 1
-        while k < hi and face_time((k + 1) << level, o, inv) <= t:
-            k += 1
-    elif d < 0.0:
-        while k < hi and t < face_time((k + 1) << level, o, inv):
-            k += 1
-        while k > lo and face_time(k << level, o, inv) <= t:
-            k -= 1
-    return k
-
-
 @borrowing
 def approach_surface(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
@@ -169,8 +148,8 @@ def approach_surface(
     round_up = (1 << finest_level) - 1
     top_level = levels - 1
     level = min(max(start_level, finest_level), top_level)
-    cx = _cell_holding(ox, dx, ix, t, level, 0, level_width[level] - 1)
-    cz = _cell_holding(oz, dz, iz, t, level, 0, level_depth[level] - 1)
+    cx = cell_holding(ox, dx, ix, t, level, 0, level_width[level] - 1)
+    cz = cell_holding(oz, dz, iz, t, level, 0, level_depth[level] - 1)
     steps = 0
     while True:
         if cx < 0 or cz < 0 or cx >= level_width[level] or cz >= level_depth[level]:
@@ -238,7 +217,7 @@ def top_node_hit(
     if dy < 0.0 and t < face_time(top << level, oy, iy):
         y = top  # not yet down to the top: the common landing, with no search for the height
     else:
-        y = _cell_holding(oy, dy, iy, t, level, -1, top)
+        y = cell_holding(oy, dy, iy, t, level, -1, top)
     if y >= top:
         if not dy < 0.0:
             return -1, math.inf, -1

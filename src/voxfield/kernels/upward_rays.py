@@ -22,7 +22,8 @@ the answer the whole ray would get.
 
 ``parallel_rays_clear`` answers for a bundle of parallel rays at once (a face's shadow rays
 towards one sun): the same walk for the bundle's rear corner over the tops of each cell and
-the cells just ahead of it, which is clear only when every ray of the bundle is.
+the cells just ahead of it, which is clear only when every ray of the bundle is. Where it
+stops unanswered every ray is still clear up to there, so each ray's own walk starts there.
 
 ``clears_horizon`` settles a clear ray before any walk, from its start column's horizon
 slope (``svo.horizons``): one cell read, counted as one step.
@@ -35,7 +36,7 @@ import math
 from numba import njit
 
 from voxfield.kernels.borrowing import borrowing
-from voxfield.kernels.column_walk import in_the_gap, step_across, step_down
+from voxfield.kernels.column_walk import cell_holding, in_the_gap, step_across, step_down
 from voxfield.kernels.traversal import axis_setup, face_time, floor_float
 
 CLEAR = 0
@@ -95,11 +96,13 @@ def quadrant_steps(q: int) -> tuple[int, int]:
 @borrowing(inline="always")
 def rising_ray_query(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float, tmax: float, columns,
+    t_clear: float = 0.0,
 ) -> tuple[int, float, int]:
     """``(verdict, t, steps)`` for the ray ``o + t·d``, ``0 <= t < tmax``: ``CLEAR`` (nothing
     blocks it), ``BLOCKED``, or ``UNDECIDED`` from time ``t`` on (trace ``[t, tmax)`` with
     ``occluded``). ``columns`` is a ``ColumnTops``; without levels every ray is undecided
-    from 0."""
+    from 0. A caller that knows ``[0, t_clear)`` clear (``parallel_rays_clear`` found it so
+    for a whole face) has the walk start there, in the column holding the ray then."""
     tops, level_offset, level_width, level_depth, run_bottom = columns[:5]
     gap_floor = columns.gap_floor
     gap_ceiling = columns.gap_ceiling
@@ -118,6 +121,12 @@ def rising_ray_query(
     level = 0
     t = 0.0
     steps = 0
+    if t_clear > 0.0:
+        if not t_clear < tmax:
+            return CLEAR, t_clear, steps
+        t = t_clear
+        cx = cell_holding(ox, dx, ix, t, 0, -1, level_width[0])
+        cz = cell_holding(oz, dz, iz, t, 0, -1, level_depth[0])
     while True:
         if cx < 0 or cz < 0 or cx >= level_width[level] or cz >= level_depth[level]:
             return CLEAR, t, steps  # beside the footprint and leaving it
@@ -152,12 +161,12 @@ def rising_ray_query(
 def parallel_rays_clear(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float, tmax: float, columns,
     tops_ahead,
-) -> tuple[bool, int]:
-    """``(clear, steps)``: True when every ray ``p + t·d``, ``0 <= t < (y_top - p.y) / dy``,
-    is ``CLEAR``, for every ``p`` at or above ``o`` and ahead of it by less than one along
-    ``x`` and ``z`` in the direction of travel (``+`` for a zero component), with ``tmax``
-    the bound for ``o`` (``(y_top - o.y) / dy``): the shadow rays of one face towards one
-    sun, from its rear corner. False says nothing about them.
+) -> tuple[bool, int, float]:
+    """``(clear, steps, t_clear)``: True when every ray ``p + t·d``,
+    ``0 <= t < (y_top - p.y) / dy``, is ``CLEAR``, for every ``p`` at or above ``o`` and ahead
+    of it by less than one along ``x`` and ``z`` in the direction of travel (``+`` for a zero
+    component), with ``tmax`` the bound for ``o`` (``(y_top - o.y) / dy``): the shadow rays
+    of one face towards one sun, from its rear corner. False says nothing about them.
 
     The walk is ``rising_ray_query``'s for the corner, over ``tops_ahead``
     (``svo.column_tops.tops_ahead`` with the steps of ``d``). At a time ``t`` when the corner
@@ -166,14 +175,16 @@ def parallel_rays_clear(
     corner above the highest of those four tops has every ray above what is under it, and
     rising they stay there; the corner leaving the footprint or rising past ``tmax`` has
     every ray past it too. Anything else (a cell the corner is not above at level 0, a start
-    beside the footprint running towards it) ends the walk unanswered."""
+    beside the footprint running towards it) ends the walk unanswered, with every ray still
+    clear over ``[0, t_clear)``, where it stopped: a ray walked on its own after it can start
+    there (``rising_ray_query``'s ``t_clear``)."""
     level_offset, level_width, level_depth = columns[1:4]
     if level_width.shape[0] == 0 or not dy > MIN_RISE:
-        return False, 0
+        return False, 0, 0.0
     ox, dx, ix, oz, dz, iz, cx, cz, toward = _walk_start(ox, dx, oz, dz, level_width,
                                                          level_depth)
     if toward:
-        return False, 0
+        return False, 0, 0.0
     iy = 1.0 / dy
     ahead_x, step_x = _heading(dx)
     ahead_z, step_z = _heading(dz)
@@ -188,15 +199,15 @@ def parallel_rays_clear(
         t_exit = min(tx, tz)
         if t >= face_time(tops_ahead[cell], oy, iy):
             if not t_exit < tmax:
-                return True, steps
+                return True, steps, t
             t = t_exit
             cx, cz, level = step_across(cx, cz, level, tx, tz, t_exit, step_x, step_z,
                                         level_width.shape[0] - 1)
             continue
         if level == 0:
-            return False, steps
+            return False, steps, t
         cx, cz, level = step_down(cx, cz, level, ox, dx, ix, oz, dz, iz, t)
-    return True, steps  # beside the footprint and leaving it
+    return True, steps, t  # beside the footprint and leaving it
 
 
 @njit(cache=True, nogil=True, inline="always")
