@@ -47,7 +47,12 @@ apart: one walk from the face's rear corner over the tops ahead of each cell
 (``upward_rays.parallel_rays_clear``) settles all of them when it finds the corner clear,
 which on open ground most lit faces are (a 2048² desert's bake took 0.78× the steps).
 Its cells are counted once, for the face; a face it does not settle has its rays walked one
-by one after it, as before. The visibility is the same either way.
+by one after it, each from where the corner's walk stopped: up to there every ray was
+above everything it passed (1.23G to 1.14G steps on the desert). The visibility is the same
+either way.
+
+Blocks of voxels are dealt out to the threads in turn (``kernels.scheduling``): a terrain's
+halves rarely cost the same.
 """
 
 from __future__ import annotations
