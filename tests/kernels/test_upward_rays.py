@@ -30,12 +30,13 @@ from voxfield.svo.horizons import horizon_slopes, no_horizon_slopes
 
 
 @njit
-def _answers(o, d, tmax, inner, depth, columns, out):
+def _answers(o, d, tmax, inner, depth, columns, out, t_clear):
     """Per ray: the pyramid's verdict, the octree over the whole ray, the octree from the
-    hand-over time on, and the cells the pyramid visited."""
+    hand-over time on, and the cells the pyramid visited; each walk starts at its ray's
+    ``t_clear`` (0: at its origin)."""
     for k in range(o.shape[0]):
         verdict, t, cells = rising_ray_query(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1],
-                                             d[k, 2], tmax[k], columns)
+                                             d[k, 2], tmax[k], columns, t_clear[k])
         whole, _ = occluded(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2], 0.0,
                             tmax[k], inner, depth, new_scratch(depth))
         rest = whole
@@ -96,7 +97,8 @@ def _verdicts(octree, voxels, columns):
                     (top - origins[:, 1]) / directions[:, 1],
                     rng.choice([math.inf, 2.0, 7.5], len(origins)))
     out = np.empty((len(origins), 4), np.int64)
-    _answers(origins, directions, tmax, octree.inner_nodes, octree.depth, columns, out)
+    _answers(origins, directions, tmax, octree.inner_nodes, octree.depth, columns, out,
+             np.zeros(len(origins)))
     verdict, whole, rest = out[:, 0], out[:, 1], out[:, 2]
     assert np.all(whole[verdict == CLEAR] == 0)
     assert np.all(whole[verdict == BLOCKED] == 1)
@@ -148,7 +150,7 @@ def test_on_a_solid_height_field_every_ray_from_the_ground_up_is_settled_by_colu
     directions[:, 1] = np.abs(directions[:, 1]) * rng.choice([0.1, 1.0], n) + 1e-6
     out = np.empty((n, 4), np.int64)
     _answers(origins, directions, np.full(n, math.inf), octree.inner_nodes, octree.depth,
-             columns, out)
+             columns, out, np.zeros(n))
     assert not np.any(out[:, 0] == UNDECIDED)
     assert np.array_equal(out[:, 0] == BLOCKED, out[:, 1] == 1)
     assert 0.1 < (out[:, 0] == BLOCKED).mean() < 0.9
@@ -167,13 +169,11 @@ def test_without_a_pyramid_or_a_rise_rays_go_to_the_octree_from_their_start():
 
 @njit
 def _parallel_answers(corners, d, ahead_offsets, columns, tops_ahead, inner, depth, y_top,
-                      out):
-    """Per corner: ``parallel_rays_clear``'s answer and steps; how many of the rays from
-    the points ``corner + offset`` (one row of offsets per corner) the octree finds blocked
-    up to the top of the voxels; how many it finds blocked before the walk's ``t_clear``;
-    how many a walk of their own resumed at ``t_clear`` (then the octree from where that
-    walk leaves them) answers otherwise than the octree over the whole ray; and whether
-    ``t_clear`` is past 0."""
+                      out, out_t):
+    """Per corner: ``parallel_rays_clear``'s answer and steps, then how many of the rays
+    from the points ``corner + offset`` (one row of offsets per corner) the octree finds
+    blocked in what the walk calls clear: up to the top of the voxels when it settles the
+    corner, else up to its ``t_clear`` (in ``out_t``)."""
     scratch = new_scratch(depth)
     for k in range(corners.shape[0]):
         ox, oy, oz = corners[k, 0], corners[k, 1], corners[k, 2]
@@ -181,33 +181,18 @@ def _parallel_answers(corners, d, ahead_offsets, columns, tops_ahead, inner, dep
                                                     (y_top - oy) / d[k, 1], columns,
                                                     tops_ahead[k])
         blocked = 0
-        early = 0
-        resumed_wrong = 0
         for s in range(ahead_offsets.shape[1]):
             px = ox + ahead_offsets[k, s, 0]
             py = oy + ahead_offsets[k, s, 1]
             pz = oz + ahead_offsets[k, s, 2]
             tmax = (y_top - py) / d[k, 1]
-            hit, _ = occluded(px, py, pz, d[k, 0], d[k, 1], d[k, 2], 0.0, tmax, inner, depth,
-                              scratch)
+            hit, _ = occluded(px, py, pz, d[k, 0], d[k, 1], d[k, 2], 0.0,
+                              tmax if clear else min(t_clear, tmax), inner, depth, scratch)
             blocked += 1 if hit else 0
-            if t_clear > 0.0:
-                hit_early, _ = occluded(px, py, pz, d[k, 0], d[k, 1], d[k, 2], 0.0,
-                                        min(t_clear, tmax), inner, depth, scratch)
-                early += 1 if hit_early else 0
-            verdict, t_on, _ = rising_ray_query(px, py, pz, d[k, 0], d[k, 1], d[k, 2], tmax,
-                                                columns, t_clear)
-            resumed = verdict == BLOCKED
-            if verdict == UNDECIDED:
-                resumed, _ = occluded(px, py, pz, d[k, 0], d[k, 1], d[k, 2], t_on, tmax,
-                                      inner, depth, scratch)
-            resumed_wrong += 1 if resumed != hit else 0
         out[k, 0] = 1 if clear else 0
         out[k, 1] = steps
         out[k, 2] = blocked
-        out[k, 3] = early
-        out[k, 4] = resumed_wrong
-        out[k, 5] = 1 if t_clear > 0.0 else 0
+        out_t[k] = t_clear
 
 
 def test_parallel_rays_called_clear_are_all_clear_for_the_octree():
@@ -243,16 +228,30 @@ def test_parallel_rays_called_clear_are_all_clear_for_the_octree():
         offsets[:, :, 1] *= rng.choice([0.0, 1.0], (n, samples))  # often at its height
         offsets[:, :, 0] *= step_x[:, None]
         offsets[:, :, 2] *= step_z[:, None]
-        out = np.empty((n, 6), np.int64)
+        out = np.empty((n, 3), np.int64)
+        t_clear = np.empty(n)
         _parallel_answers(corners, d, offsets, columns, tops_of, octree.inner_nodes,
-                          octree.depth, y_top, out)
+                          octree.depth, y_top, out, t_clear)
         clear = out[:, 0] == 1
         assert not np.any(out[clear, 2]), "a ray called clear is blocked"
+        assert not np.any(out[~clear, 2]), "a ray is blocked before the walk's t_clear"
         assert 0.2 < clear.mean() < 1.0
-        assert np.any(out[~clear, 2] > 0)
-        assert not np.any(out[:, 3]), "a ray is blocked before the walk's t_clear"
-        assert not np.any(out[:, 4]), "a walk resumed at t_clear answers otherwise"
-        resumed += out[~clear, 5].sum()
+        # Each ray of an unsettled corner walked on its own from the corner's t_clear (the
+        # octree from where that walk leaves it) gets the whole ray's answer.
+        points = (corners[:, None, :] + offsets)[~clear].reshape(-1, 3)
+        rays = np.repeat(d[~clear], samples, axis=0)
+        answers = np.empty((len(points), 4), np.int64)
+        _answers(points, rays, (y_top - points[:, 1]) / rays[:, 1], octree.inner_nodes,
+                 octree.depth, columns, answers, np.repeat(t_clear[~clear], samples))
+        resumed_blocked = np.where(answers[:, 0] == UNDECIDED, answers[:, 2] == 1,
+                                   answers[:, 0] == BLOCKED)
+        assert np.array_equal(resumed_blocked, answers[:, 1] == 1), "a resumed walk errs"
+        assert np.any(answers[:, 1] == 1)  # some rays of unsettled corners are blocked
+        from_origin = np.empty_like(answers)
+        _answers(points, rays, (y_top - points[:, 1]) / rays[:, 1], octree.inner_nodes,
+                 octree.depth, columns, from_origin, np.zeros(len(points)))
+        assert answers[:, 3].sum() < from_origin[:, 3].sum()  # the point: fewer cells
+        resumed += np.count_nonzero(t_clear[~clear] > 0.0)
     assert resumed >= 50  # walks resumed past 0 often enough to tell
 
 
@@ -289,7 +288,7 @@ def test_rays_steeper_than_their_columns_horizon_are_clear_for_the_octree():
         _settled_by_horizon(origins, directions, columns, horizon_slopes(columns), settled)
         out = np.empty((len(origins), 4), np.int64)
         _answers(origins, directions, np.full(len(origins), math.inf), octree.inner_nodes,
-                 octree.depth, columns, out)
+                 octree.depth, columns, out, np.zeros(len(origins)))
         hit = out[:, 1] == 1
         assert not np.any(hit[settled]), "a ray called clear is blocked"
         assert settled.sum() >= 100
