@@ -64,8 +64,9 @@ def test_a_borrowing_helper_that_allocates_fails_to_compile_rather_than_leak():
 
 @pytest.mark.parametrize("helper", [
     upward_rays.rising_ray_query,
-    surface_approach.approach_surface,
-    surface_approach.top_node_hit,
+    surface_approach.walk_to_surface,
+    surface_approach.walk_to_voxels,
+    surface_approach.finish_in_octree,
     sun_bake.sky_visibility,
     sun_bake.trace_shadow_queue,
     sun_bake.bake_block,

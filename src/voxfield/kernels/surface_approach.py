@@ -74,24 +74,78 @@ def trace_over_columns(
         start_level = finest
     else:
         start_level = finest + NEAR_START_LEVELS if tmin > 0.0 else depth
-    verdict, t_from, cells, cx, cz = approach_surface(ox, oy, oz, dx, dy, dz, tmin, tmax,
-                                                      finest, start_level, columns)
+    if finest == 0:
+        verdict, t_from, cells, cx, cz, y, t, normal = walk_to_voxels(
+            ox, oy, oz, dx, dy, dz, tmin, tmax, start_level, columns)
+    else:
+        verdict, t_from, cells, cx, cz, y, t, normal = walk_to_surface(
+            ox, oy, oz, dx, dy, dz, tmin, tmax, finest, start_level, columns)
     if verdict == MISSED:
         return -1, 0, math.inf, -1, cells
-    if cx >= 0:
-        y, t, normal = top_node_hit(ox, oy, oz, dx, dy, dz, tmin, t_from, tmax, cx, cz,
-                                    finest, columns)
-        if y >= 0:
-            column = cx * columns.level_depth[0] + cz
-            if finest == 0 and columns.top_node.shape[0] > 0 and y == columns.tops[column] - 1:
-                node = columns.top_node[column]  # a column's top voxel: no lookup
-            else:
-                node = node_at_level(inner_nodes, depth, stop_level, cx << finest, y << finest,
-                               cz << finest, scratch)
-            return node, stop_level, t, normal, cells + 1
-    node, level, t, normal, steps = trace_ray_from(ox, oy, oz, dx, dy, dz, tmin, t_from, tmax,
-                                                   inner_nodes, depth, stop_level, scratch)
+    if y >= 0:
+        column = cx * columns.level_depth[0] + cz
+        if finest == 0 and columns.top_node.shape[0] > 0 and y == columns.tops[column] - 1:
+            node = columns.top_node[column]  # a column's top voxel: no lookup
+        else:
+            node = node_at_level(inner_nodes, depth, stop_level, cx << finest, y << finest,
+                                 cz << finest, scratch)
+        return node, stop_level, t, normal, cells + 1
+    node, level, t, normal, steps = finish_in_octree(ox, oy, oz, dx, dy, dz, tmin, t_from,
+                                                     tmax, inner_nodes, depth, stop_level,
+                                                     scratch)
     return node, level, t, normal, cells + steps
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _walk_and_settle(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+    tmin: float, tmax: float, finest: int, start_level: int, columns,
+) -> tuple[int, float, int, int, int, int, float, int]:
+    """``approach_surface``, then ``top_node_hit`` where it handed the ray over in a cell:
+    ``(verdict, t_from, cells, cx, cz, y, t_hit, normal_code)``, ``y = -1`` unless the
+    pyramid settled the hit."""
+    verdict, t_from, cells, cx, cz = approach_surface(ox, oy, oz, dx, dy, dz, tmin, tmax,
+                                                      finest, start_level, columns)
+    y = -1
+    t = math.inf
+    normal = -1
+    if verdict != MISSED and cx >= 0:
+        y, t, normal = top_node_hit(ox, oy, oz, dx, dy, dz, tmin, t_from, tmax, cx, cz, finest,
+                                    columns)
+    return verdict, t_from, cells, cx, cz, y, t, normal
+
+
+@borrowing
+def walk_to_surface(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+    tmin: float, tmax: float, finest: int, start_level: int, columns,
+) -> tuple[int, float, int, int, int, int, float, int]:
+    """``_walk_and_settle`` for nodes of side ``2^finest``."""
+    return _walk_and_settle(ox, oy, oz, dx, dy, dz, tmin, tmax, finest, start_level, columns)
+
+
+@borrowing
+def walk_to_voxels(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+    tmin: float, tmax: float, start_level: int, columns,
+) -> tuple[int, float, int, int, int, int, float, int]:
+    """``walk_to_surface`` at LOD 0, compiled apart: with the level a constant the compiler
+    folds the rounding and shifts the walk does in every cell (2048² mountain terrain, top
+    view, 512² image: primary rays 1.06-1.07× as fast)."""
+    return _walk_and_settle(ox, oy, oz, dx, dy, dz, tmin, tmax, 0, start_level, columns)
+
+
+@borrowing
+def finish_in_octree(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+    tmin: float, t_from: float, tmax: float, inner_nodes, depth: int, stop_level: int,
+    scratch,
+) -> tuple[int, int, float, int, int]:
+    """``traversal.trace_ray_from``, compiled once rather than inlined into every caller: the
+    few rays the pyramid does not settle (7 % of a top view over the mountain terrain) pay a
+    call, and the callers compile faster."""
+    return trace_ray_from(ox, oy, oz, dx, dy, dz, tmin, t_from, tmax, inner_nodes, depth,
+                          stop_level, scratch)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -107,7 +161,7 @@ def _slab_times(o: float, d: float, inv: float, lo: int, hi: int) -> tuple[float
     return math.inf, -math.inf
 
 
-@borrowing
+@njit(cache=True, nogil=True, inline="always")
 def approach_surface(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
     tmin: float, tmax: float, finest_level: int, start_level: int, columns,
@@ -193,7 +247,7 @@ def approach_surface(
         return HANDED_OVER, t, steps, cx, cz
 
 
-@borrowing
+@njit(cache=True, nogil=True, inline="always")
 def top_node_hit(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
     tmin: float, t: float, tmax: float, cx: int, cz: int, level: int, columns,
