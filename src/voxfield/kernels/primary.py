@@ -240,6 +240,8 @@ def trace_chunk_over_columns(
             pattern = pixel_pattern(pixel, seed)
             cmj_strata(side, side, pattern, column, row)
         t_start = beam_start(beam.bound, beam.block, pixel, width)
+        if t_start == math.inf:
+            continue  # the beam showed every ray of the block misses: black, and no steps
         y_pixel = pixel // width
         x_pixel = pixel - y_pixel * width
         for s in range(side * side):
