@@ -27,11 +27,14 @@ demo: $(STAMP)
 	@echo "demo images written to out/"
 
 # The CUDA kernels run under Numba's simulator (no GPU needed; JIT off so the shared @njit
-# code runs as Python inside simulated threads), then the suite proper.
+# code runs as Python inside simulated threads), then the suite proper in TEST_WORKERS
+# processes (pytest-xdist), a test file per process at a time so that its tests share the
+# kernels it compiles; the compiled kernels go to the one cache folder both processes read.
+TEST_WORKERS ?= 2
 test: $(STAMP)
 	NUMBA_ENABLE_CUDASIM=1 NUMBA_DISABLE_JIT=1 timeout 60 $(BIN)/python -m pytest -q -m cuda \
 		-p no:cacheprovider tests/cuda
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS) --dist loadfile
 
 # Long fuzzing run (tests/fuzz with many more examples); `make test` runs a short seeded one.
 fuzz: $(STAMP)
