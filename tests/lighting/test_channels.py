@@ -7,6 +7,7 @@ import pytest
 
 from random_scenes import random_scene
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.colour import RGB9E5, from_rgb9e5, to_rgb9e5
 from voxfield.render import Camera, render_reference
 from voxfield.svo import build_octree
 from voxfield.svo.channels import (
@@ -137,3 +138,24 @@ def test_a_channel_block_is_filled_in_place(octree):
     for k, name in enumerate("ab"):
         assert np.shares_memory(lit.attributes[name], block)
         assert np.array_equal(lit.attributes[name], propagate_channel(octree, leaves[k], weights))
+
+
+def test_a_block_kept_as_rgb9e5_packs_the_float32_levels_and_survives_a_file(octree, tmp_path):
+    """Packed channels: the float32 levels (``propagate_channel``'s), each node packed once;
+    loaded back code for code."""
+    rng = np.random.default_rng(4)
+    leaves = (rng.random((2, octree.voxel_count, 3)) * 8).astype(np.float32)
+    weights = rng.random(octree.voxel_count)
+    block = new_channel_block(octree, 2)
+    block[:, octree.level_slice(octree.depth)] = leaves
+    lit = with_channel_block(octree, ["a", "b"], block, weights, RGB9E5)
+    for k, name in enumerate("ab"):
+        expected = propagate_channel(octree, leaves[k], weights)
+        assert lit.attributes[name].shape == (octree.node_count,)
+        assert np.array_equal(lit.attributes[name], to_rgb9e5(expected))
+        assert np.array_equal(lit.channel_linear(name), from_rgb9e5(to_rgb9e5(expected)))
+    loaded = load_octree(save_octree(lit, tmp_path / "packed.npz"))
+    assert np.array_equal(loaded.channel("b"), lit.channel("b"))
+    assert loaded.channel("b").dtype == np.uint32
+    with pytest.raises(VoxfieldError, match="channel storage"):
+        with_channel_block(octree, ["a"], new_channel_block(octree, 1), None, "float16")

@@ -182,8 +182,9 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--seed", type=seed_arg, default=0,
                    help=f"seed for sampling and scattering, 0..{MAX_SEED} (default 0)")
     p.add_argument("--colour-storage", choices=("srgb8", "float32"), default="srgb8",
-                   help="how a built octree keeps its albedo: 8-bit sRGB, 3 bytes a node "
-                   "(default), or float32, 12 bytes")
+                   help="how a built octree keeps its colours: compact (default; albedo as "
+                   "8-bit sRGB, 3 bytes a node, and lit colours from `voxfield light` as "
+                   "shared-exponent RGB9E5, 4 bytes) or float32, 12 bytes each")
     p.add_argument("--lod-colour", choices=LOD_COLOURS, default=DEFAULT_LOD_COLOUR,
                    help="inner-node colours: facing (default; per node the colour seen along each "
                    "axis, read by ray direction: hidden interiors never show), surface (mean of "

@@ -17,12 +17,17 @@ import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.colour import FLOAT32, RGB9E5, SRGB8, storage_of
 from voxfield.kernels.sun_bake import bake_sun_visibility, lit_colours
 from voxfield.lighting.sun import SunLight
 from voxfield.parallel import thread_count
 from voxfield.progress import progress_bar
 from voxfield.scaleout import run_tasks
-from voxfield.svo.channels import new_channel_block, with_channel_block
+from voxfield.svo.channels import (
+    check_channel_storage,
+    new_channel_block,
+    with_channel_block,
+)
 from voxfield.svo.column_tops import no_column_tops, octree_column_tops, tops_ahead
 from voxfield.svo.horizons import horizon_slopes
 from voxfield.svo.lod_colours import exposed_faces
@@ -247,6 +252,7 @@ def visibility_task(shared: dict, chunk: tuple[int, int], kernel_threads: int | 
 def bake_sun_lighting(
     octree: Octree, suns: Sequence[SunLight], *, sky_rays: int = 16, shadow_rays: int = 4,
     seed: int = 0, threads: int | None = None, progress: bool = False, scheduler=None,
+    storage: str | None = None,
 ) -> tuple[Octree, BakeReport]:
     """A new octree with one lit channel per sun, named after the sun, and the bake's cost.
 
@@ -255,8 +261,16 @@ def bake_sun_lighting(
     sun-facing face estimate sun visibility (1: one ray from the face centre). Results are
     bit-identical for any ``threads`` or ``scheduler`` (``sun_visibility``) and depend only
     on the inputs and ``seed``.
+
+    ``storage`` keeps the channels as ``rgb9e5`` (4 bytes a node, ``kernels.colour``) or
+    ``float32`` (12); by default they are as compact as the albedo: RGB9E5 beside 8-bit
+    sRGB, float32 beside float32. Coarse levels are averaged from the float32 voxels either
+    way.
     """
     suns = _check_suns(suns)
+    if storage is None:
+        storage = RGB9E5 if storage_of(octree.attributes["color"]) == SRGB8 else FLOAT32
+    check_channel_storage(storage)
     dirs = np.array([s.direction() for s in suns])
     vis, cost = sun_visibility(
         octree, dirs, sky_rays=sky_rays, shadow_rays=shadow_rays, seed=seed,
@@ -288,7 +302,8 @@ def bake_sun_lighting(
             for k, s in enumerate(suns)
         },
     )
-    return with_channel_block(octree, [s.name for s in suns], block, vis.weight), report
+    lit = with_channel_block(octree, [s.name for s in suns], block, vis.weight, storage)
+    return lit, report
 
 
 def _threads_used(threads: int | None) -> int:

@@ -18,12 +18,13 @@ from collections.abc import Sequence
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.colour import FLOAT32, HDR_STORAGES, encode_channel
 from voxfield.kernels.octree_levels import average_children
 from voxfield.svo.octree import Octree
 
 __all__ = [
-    "check_channel_name", "fill_inner_levels", "new_channel_block", "propagate_channel",
-    "with_channel", "with_channel_block", "with_channels",
+    "check_channel_name", "check_channel_storage", "fill_inner_levels", "new_channel_block",
+    "propagate_channel", "with_channel", "with_channel_block", "with_channels",
 ]
 
 #: Channel names become ``attr_NAME`` keys in octree files and file-name parts of previews.
@@ -40,6 +41,15 @@ def check_channel_name(name: str) -> str:
     if name in _RESERVED:
         raise VoxfieldError(f"channel {name!r} is the albedo; choose another name")
     return name
+
+
+def check_channel_storage(storage: str) -> str:
+    """``storage`` if channels can be kept in it (``kernels.colour.HDR_STORAGES``);
+    VoxfieldError otherwise."""
+    if storage not in HDR_STORAGES:
+        raise VoxfieldError(f"unknown channel storage {storage!r}; choose one of "
+                            f"{', '.join(HDR_STORAGES)}")
+    return storage
 
 
 def _leaf_array(octree: Octree, values, what: str, columns: int | None) -> np.ndarray:
@@ -145,16 +155,19 @@ def with_channels(
 
 
 def with_channel_block(
-    octree: Octree, names: list[str], block: np.ndarray, weights: np.ndarray | None
+    octree: Octree, names: list[str], block: np.ndarray, weights: np.ndarray | None,
+    storage: str = FLOAT32,
 ) -> Octree:
     """``with_channels`` for channels whose leaf values are already checked and in place:
     ``block`` from ``new_channel_block`` with its voxel rows set, channel ``k`` in
-    ``block[k]``. Its inner rows are filled in place and the octree keeps ``block[k]``
-    (views of one array: no channel is copied)."""
+    ``block[k]``. Its inner rows are filled in place, from the float32 leaves, and the
+    octree keeps ``block[k]`` (views of one array: no channel is copied), or each channel
+    packed as ``storage`` (``kernels.colour.HDR_STORAGES``)."""
+    check_channel_storage(storage)
     attributes = dict(octree.attributes)
     fill_inner_levels(octree, block, weights)
     for name, values in zip(names, block, strict=True):
-        attributes[check_channel_name(name)] = values
+        attributes[check_channel_name(name)] = encode_channel(values, storage)
     return octree.recoloured(attributes=attributes)
 
 

@@ -140,11 +140,11 @@ def validate_octree(octree: Octree, where: str = "octree") -> None:
             box[1] > octree.size):
         raise OctreeFormatError(f"{where}: voxel box outside the root cube")
     for name, values in octree.attributes.items():
-        if values.shape != (n, 3):
-            raise OctreeFormatError(f"{where}: attribute {name!r} has the wrong shape")
-        if values.dtype not in (np.uint8, np.float32):
+        if values.dtype not in (np.uint8, np.float32, np.uint32):
             raise OctreeFormatError(f"{where}: attribute {name!r} is {values.dtype}, not 8-bit "
-                                    "sRGB or float32")
+                                    "sRGB, float32 or RGB9E5")
+        if values.shape != ((n,) if values.dtype == np.uint32 else (n, 3)):
+            raise OctreeFormatError(f"{where}: attribute {name!r} has the wrong shape")
         if values.dtype == np.float32 and not np.all(np.isfinite(values)):
             raise OctreeFormatError(f"{where}: attribute {name!r} holds NaN or infinity")
     facing = octree.facing

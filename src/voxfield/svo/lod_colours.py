@@ -21,7 +21,7 @@ import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.colour import FLOAT32, SRGB8, decode_channel, encode_channel
+from voxfield.kernels.colour import decode_channel, encode_channel, storage_of
 from voxfield.kernels.exposure import leaf_exposure
 from voxfield.kernels.facing_colour import FACING_CHANNELS, facing_level
 from voxfield.svo.channels import propagate_channel
@@ -69,7 +69,7 @@ def surface_weighted(octree: Octree) -> Octree:
     attributes = {}
     for name, stored in octree.attributes.items():
         values = propagate_channel(octree, decode_channel(stored[leaves]), weights)
-        attributes[name] = encode_channel(values, SRGB8 if stored.dtype == np.uint8 else FLOAT32)
+        attributes[name] = encode_channel(values, storage_of(stored))
     return octree.recoloured(attributes=attributes)
 
 
