@@ -17,7 +17,6 @@ overshoots on few points).
 from __future__ import annotations
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from voxfield.errors import VoxfieldError
 
@@ -67,6 +66,10 @@ def _mean_gap(xa, ya, xb, yb, what: str, min_overlap: float) -> float:
         raise VoxfieldError(f"{what}: the two curves do not overlap")
     if hi - lo < min_overlap:
         raise VoxfieldError(f"{what}: the two curves overlap too little to compare")
+    # Imported here: scipy.interpolate takes a fifth of a second, which every command that
+    # loads the CLI would pay.
+    from scipy.interpolate import PchipInterpolator
+
     fa = PchipInterpolator(xa, ya)
     fb = PchipInterpolator(xb, yb)
     return float((fb.integrate(lo, hi) - fa.integrate(lo, hi)) / (hi - lo))
