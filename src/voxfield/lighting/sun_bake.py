@@ -35,9 +35,10 @@ from voxfield.svo.octree import Octree
 
 __all__ = ["BakeReport", "SunVisibility", "bake_sun_lighting", "sun_visibility"]
 
-#: Surface voxels per kernel call: small enough for a lively progress bar, large enough that
-#: the calls' overhead stays negligible.
-CHUNK_VOXELS = 1 << 15
+#: Surface voxels per kernel call: small enough for a lively progress bar (a call takes about
+#: 0.2 s on a 2048² desert), large enough that the calls' overhead stays small (2^15 cost
+#: the desert's kernel 4 % more, in 274 calls instead of 68).
+CHUNK_VOXELS = 1 << 17
 MAX_RAYS = 1024
 
 
