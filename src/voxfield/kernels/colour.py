@@ -7,7 +7,7 @@ traversal's colour fetches then touch a quarter of the memory). Channels that ca
 ``EXT_texture_shared_exponent``, one uint32 a node (9-bit mantissas and a 5-bit exponent
 shared by the three channels), so a 2048² terrain's four lit channels take 330 MB instead of
 a gigabyte, and an octree file a third of the bytes to write. Each channel comes back within
-``max(r, g, b) / 512`` of its value, less than one step of an 8-bit image. Emission and a
+a 511th of ``max(r, g, b)``, less than one step of an 8-bit image. Emission and a
 user's own channels stay float32. ``node_rgb`` reads every storage; Numba compiles one
 version per storage type, so a kernel never branches on it.
 """
