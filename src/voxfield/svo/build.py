@@ -10,36 +10,24 @@ import numpy as np
 from voxfield.errors import SceneTooLargeError, VoxfieldError
 from voxfield.kernels.colour import SRGB8, STORAGES, encode_channel
 from voxfield.kernels.node_descriptor import pack_descriptors
+from voxfield.kernels.octree_build import (
+    child_means,
+    group_parents,
+    has_repeats,
+    morton_codes,
+    sort_codes,
+)
 from voxfield.progress import progress_bar
 from voxfield.scene.voxel_scene import MAX_EXTENT, VoxelScene
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, apply_lod_colour, check_lod_colour
 from voxfield.svo.octree import Octree
 
-_SPREAD_MASKS = (
-    (32, 0x001F00000000FFFF),
-    (16, 0x001F0000FF0000FF),
-    (8, 0x100F00F00F00F00F),
-    (4, 0x10C30C30C30C30C3),
-    (2, 0x1249249249249249),
-)
 
-
-def _spread_bits(v: np.ndarray) -> np.ndarray:
-    """Insert two zero bits between each of the low 21 bits (vectorised)."""
-    x = v.astype(np.uint64) & np.uint64(0x1FFFFF)
-    for shift, mask in _SPREAD_MASKS:
-        x = (x | (x << np.uint64(shift))) & np.uint64(mask)
-    return x
-
-
-def morton_encode(coords: np.ndarray) -> np.ndarray:
-    """63-bit Morton codes with x in bit 0, y in bit 1, z in bit 2 of each octal digit."""
-    c = np.asarray(coords)
-    return (
-        _spread_bits(c[:, 0])
-        | (_spread_bits(c[:, 1]) << np.uint64(1))
-        | (_spread_bits(c[:, 2]) << np.uint64(2))
-    )
+def morton_encode(coords: np.ndarray, origin=(0, 0, 0)) -> np.ndarray:
+    """63-bit Morton codes of corners relative to ``origin``, with x in bit 0, y in bit 1,
+    z in bit 2 of each octal digit."""
+    return morton_codes(np.ascontiguousarray(coords, np.int64).reshape(-1, 3),
+                        np.asarray(origin, np.int64))
 
 
 def octree_depth_for(extent: np.ndarray) -> int:
@@ -52,24 +40,12 @@ def _add_parent_level(codes, level_masks, level_first, level_solid, level_attrs)
     """Group the last level's nodes under their parents (Morton code >> 3) and append the
     parent level: OR-ed child masks, first-child offsets, solid flags (all eight children
     solid) and mean attributes. Returns the parents' Morton codes."""
-    parent_codes = codes >> np.uint64(3)
-    starts = np.flatnonzero(np.diff(parent_codes)) + 1
-    starts = np.concatenate(([0], starts)).astype(np.int64)
-    counts = np.diff(np.append(starts, len(codes)))
-    octants = (codes & np.uint64(7)).astype(np.uint8)
-    octant_bits = (np.uint8(1) << octants).astype(np.uint8)
-    level_masks.append(np.bitwise_or.reduceat(octant_bits, starts).astype(np.uint8))
+    parent_codes, starts, masks, solid = group_parents(codes, level_solid[-1])
+    level_masks.append(masks)
     level_first.append(starts)
-    level_solid.append((counts == 8) & np.logical_and.reduceat(level_solid[-1], starts))
-    level_attrs.append(
-        {
-            k: (np.add.reduceat(v, starts, axis=0, dtype=np.float64) / counts[:, None]).astype(
-                np.float32
-            )
-            for k, v in level_attrs[-1].items()
-        }
-    )
-    return parent_codes[starts]
+    level_solid.append(solid)
+    level_attrs.append({k: child_means(starts, v) for k, v in level_attrs[-1].items()})
+    return parent_codes
 
 
 def build_octree(
@@ -104,11 +80,8 @@ def build_octree(
             f"{memory_limit_bytes / 2**30:.1f} GiB limit; crop or downsample the scene"
         )
     depth = octree_depth_for(extent)
-    coords = (scene.coords - lo).astype(np.int32)
-    codes = morton_encode(coords)
-    order = np.argsort(codes, kind="stable")
-    codes = codes[order]
-    if n > 1 and not np.all(codes[1:] != codes[:-1]):
+    codes, order = sort_codes(morton_encode(scene.coords, lo), 3 * depth)
+    if has_repeats(codes):
         raise VoxfieldError(f"scene {scene.name!r} holds duplicate voxels; call .dedupe() first")
 
     attributes = {"color": scene.color[order]}
@@ -117,7 +90,7 @@ def build_octree(
     for name, values in scene.channels.items():
         attributes[name] = values[order]
 
-    del coords, order
+    del order
     # Levels are gathered leaf-first, then reversed into root-first order.
     level_masks = [np.zeros(n, np.uint8)]
     level_first = [np.zeros(n, np.int64)]

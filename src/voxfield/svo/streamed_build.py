@@ -25,6 +25,7 @@ import numpy as np
 from voxfield.errors import SceneTooLargeError, VoxfieldError
 from voxfield.kernels.colour import SRGB8, STORAGES, encode_channel
 from voxfield.kernels.node_descriptor import pack_descriptors
+from voxfield.kernels.octree_build import has_repeats, sort_codes
 from voxfield.progress import progress_bar
 from voxfield.scene.voxel_scene import MAX_EXTENT, VoxelScene
 from voxfield.svo.build import _add_parent_level, morton_encode, octree_depth_for
@@ -147,16 +148,19 @@ def build_octree_streamed(
 
     def build_block(coords: np.ndarray, attributes: dict, bx: int, bz: int) -> list:
         """The cubes of one column block, keyed by the Morton code of their position."""
-        local = coords - lo
-        cube_y = local[:, 1] >> bits
-        order = np.argsort(cube_y, kind="stable")
-        cube_y = cube_y[order]
-        splits = np.flatnonzero(np.diff(cube_y)) + 1
+        cube_y = (coords[:, 1] - lo[1]) >> bits
+        if cube_y.min() == cube_y.max():  # one cube: its voxels as they came, no copy
+            parts = [(int(cube_y[0]), slice(None))]
+        else:  # (small keys: NumPy radix-sorts them)
+            key = cube_y.astype(np.uint16) if cube_y.max() < 1 << 16 else cube_y
+            order = np.argsort(key, kind="stable")
+            parts = [(int(cube_y[part[0]]), part) for part in
+                     np.split(order, np.flatnonzero(np.diff(cube_y[order])) + 1)]
         built = []
-        for part in np.split(order, splits):
-            corner = np.array([bx, int(local[part[0], 1]) >> bits, bz])
-            inside = local[part] - (corner << bits)
-            cube = _build_cube(inside, {k: attributes[k][part] for k in names}, bits, storages)
+        for cy, part in parts:
+            corner = np.array([bx, cy, bz])
+            cube = _build_cube(coords[part], {k: attributes[k][part] for k in names},
+                               lo + (corner << bits), bits, storages)
             built.append((int(morton_encode(corner[None])[0]), cube))
         return built
 
@@ -195,13 +199,12 @@ def build_octree_streamed(
                      time.perf_counter() - start)
 
 
-def _build_cube(coords: np.ndarray, attributes: dict, bits: int, storages: dict) -> _Cube:
-    """A cube's levels from its voxels (positions within the cube), as the monolithic build
-    makes them: Morton sort, then parents grouped level by level."""
-    codes = morton_encode(coords)
-    order = np.argsort(codes, kind="stable")
-    codes = codes[order]
-    if len(codes) > 1 and not np.all(codes[1:] != codes[:-1]):
+def _build_cube(coords: np.ndarray, attributes: dict, origin: np.ndarray, bits: int,
+                storages: dict) -> _Cube:
+    """A cube's levels from its voxels (scene corners, ``origin`` the cube's lowest), as the
+    monolithic build makes them: Morton sort, then parents grouped level by level."""
+    codes, order = sort_codes(morton_encode(coords, origin), 3 * bits)
+    if has_repeats(codes):
         raise VoxfieldError("the scene holds duplicate voxels; deduplicate it first")
     n = len(codes)
     level_masks = [np.zeros(n, np.uint8)]

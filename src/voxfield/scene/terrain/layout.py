@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from voxfield.errors import SceneTooLargeError, VoxfieldError
+from voxfield.kernels.terrain_columns import expand_columns
 from voxfield.scene.terrain.asset_scatter import AssetGroup, AssetVoxels, scatter_assets
 from voxfield.scene.terrain.columns import TerrainColumns, terrain_columns
 from voxfield.scene.terrain.dem import load_heightmap
@@ -148,24 +149,12 @@ class TerrainLayout:
         in row-major order, each from bottom to top."""
         top = self.cols.top[zs, xs]
         bottom = self.cols.bottom[zs, xs]
-        counts = (top - bottom + 1).astype(np.int64).ravel()
-        n = int(counts.sum())
-        rows, width = top.shape
-        # Repeats run on small dtypes and are written into the final arrays, so temporaries
-        # stay a fraction of the output (~36 bytes per voxel).
+        n = int((top - bottom + 1).sum(dtype=np.int64))
         coords = np.empty((n, 3), dtype=np.int64)
-        small = np.int16 if max(self.cols.footprint, rows) <= np.iinfo(np.int16).max else np.int32
-        zz, xx = np.divmod(np.arange(rows * width, dtype=np.int64), width)
-        coords[:, 0] = np.repeat((xx + (xs.start or 0)).astype(small), counts)
-        coords[:, 2] = np.repeat((zz + (zs.start or 0)).astype(small), counts)
-        del zz, xx
-        ends = np.cumsum(counts)
-        coords[:, 1] = np.arange(n, dtype=np.int64)
-        coords[:, 1] -= np.repeat(ends - counts - bottom.ravel(), counts)
-        surface = self.surface[zs, xs].reshape(-1, 3)
         color = np.empty((n, 3), dtype=np.float32)
-        color[:] = np.repeat(self._fill(surface), counts, axis=0)
-        color[ends - 1] = surface
+        surface = self.surface[zs, xs]
+        expand_columns(top, bottom, xs.start or 0, zs.start or 0, surface, self._fill(surface),
+                       coords, color)
         return coords, color
 
     def scene(self, max_voxels: int = MAX_TERRAIN_VOXELS) -> VoxelScene:
@@ -213,8 +202,10 @@ class TerrainLayout:
         else:
             coords, color = self._ground(zs, xs)
         keep = self._assets_in(x0, z0, size)
-        coords = np.concatenate([coords, self._extra_coords(keep)])
-        attributes = {"color": np.concatenate([color, self.extra.color[keep]])}
+        if len(keep):  # (a copy of the block's ground only where assets join it)
+            coords = np.concatenate([coords, self._extra_coords(keep)])
+            color = np.concatenate([color, self.extra.color[keep]])
+        attributes = {"color": color}
         if self.extra.emission is not None:
             emission = np.zeros((len(coords), 3), np.float32)
             emission[len(coords) - len(keep):] = self.extra.emission[keep]
