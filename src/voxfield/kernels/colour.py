@@ -14,8 +14,6 @@ version per storage type, so a kernel never branches on it.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit, prange, types
 from numba.extending import overload
@@ -95,12 +93,13 @@ def _pack_rows(linear: np.ndarray, bits: np.ndarray, out: np.ndarray) -> None:
         largest = max(r, g, b)
         exponent = max(((max(r_bits, g_bits, b_bits) >> 23) & 255) - 127,
                        -_EXPONENT_BIAS - 1) + _EXPONENT_BIAS + 1
-        if math.floor(largest * _RGB9E5_SCALE32[exponent] + np.float32(0.5)) == 512.0:
-            exponent += 1
+        # Truncating a non-negative value floors it, as a conversion LLVM vectorizes.
+        exponent += np.int64(np.uint32(largest * _RGB9E5_SCALE32[exponent] + np.float32(0.5))
+                             == 512)
         scale = _RGB9E5_SCALE32[exponent]
-        red = np.uint32(math.floor(r * scale + np.float32(0.5)))
-        green = np.uint32(math.floor(g * scale + np.float32(0.5)))
-        blue = np.uint32(math.floor(b * scale + np.float32(0.5)))
+        red = np.uint32(r * scale + np.float32(0.5))
+        green = np.uint32(g * scale + np.float32(0.5))
+        blue = np.uint32(b * scale + np.float32(0.5))
         out[i] = red | (green << 9) | (blue << 18) | (np.uint32(exponent) << 27)
 
 
