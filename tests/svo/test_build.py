@@ -55,6 +55,8 @@ def test_levels_match_brute_force_occupancy_and_means(seed):
         assert set(got) == set(expected)
         for key, col in expected.items():
             np.testing.assert_allclose(got[key], col, rtol=1e-5, atol=1e-6)
+        narrow = octree.node_coords(level, np.int32)
+        assert narrow.dtype == np.int32 and np.array_equal(narrow, coords)
 
 
 def test_child_pointers_and_masks_describe_children():

@@ -145,7 +145,7 @@ def sun_visibility(
         raise VoxfieldError("sun directions must be unit vectors")
     faces = exposed_faces(octree)
     surface = np.flatnonzero(faces)
-    leaves = octree.node_coords(octree.depth)
+    leaves = octree.node_coords(octree.depth, np.int32)
     n = octree.voxel_count
     vis = SunVisibility(
         direct=np.zeros((len(dirs), n), np.float32), sky=np.zeros(n, np.float32),
