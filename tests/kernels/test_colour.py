@@ -8,12 +8,14 @@ from numba import njit
 from voxfield.kernels.colour import (
     RGB9E5,
     RGB9E5_MAX,
+    SRGB8_THRESHOLDS,
     SRGB8_TO_LINEAR,
     decode_channel,
     encode_channel,
     from_rgb9e5,
     from_srgb8,
     node_rgb,
+    srgb8_by_formula,
     srgb_decode,
     storage_of,
     to_rgb9e5,
@@ -31,6 +33,21 @@ def test_every_8_bit_code_survives_a_decode_encode_round_trip():
     assert np.array_equal(to_srgb8(from_srgb8(codes)), codes)
     # The table is the loaders' decoding of k / 255.
     assert np.array_equal(SRGB8_TO_LINEAR, srgb_decode(np.arange(256) / 255.0))
+
+
+def test_the_table_encoder_gives_the_formulas_codes_around_every_threshold():
+    # 200 float32 steps either side of each code's first value, random values over [0, 1.5]
+    # and the special values: the table must count exactly where the formula rounds.
+    bits = SRGB8_THRESHOLDS.view(np.int32)[:, None] + np.arange(-200, 201)
+    near = bits.ravel().view(np.float32)
+    rng = np.random.default_rng(5)
+    values = np.concatenate([near, rng.random(200_000, dtype=np.float32) * np.float32(1.5),
+                             np.array([0.0, -0.0, -1.0, 1.0, np.inf, -np.inf], np.float32)])
+    assert np.array_equal(to_srgb8(values), srgb8_by_formula(values))
+    assert to_srgb8(np.array([np.nan], np.float32))[0] == 0
+    # Shapes survive, and the codes step up by one at each threshold.
+    grid = to_srgb8(SRGB8_THRESHOLDS.reshape(15, 17))
+    assert grid.shape == (15, 17) and np.array_equal(grid.ravel(), np.arange(1, 256))
 
 
 def test_kernels_read_both_storages_as_linear_rgb():
