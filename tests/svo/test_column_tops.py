@@ -74,6 +74,9 @@ def test_tops_ahead_are_the_highest_of_each_cell_and_the_three_ahead_of_it(step_
     pyramid = column_tops(voxels)
     ahead = tops_ahead(pyramid, step_x, step_z)
     assert ahead.shape == pyramid.tops.shape and ahead.dtype == pyramid.tops.dtype
+    given = np.full_like(ahead, -7)
+    assert tops_ahead(pyramid, step_x, step_z, out=given) is given
+    assert np.array_equal(given, ahead)
     for level in range(len(pyramid.level_width)):
         w, d = int(pyramid.level_width[level]), int(pyramid.level_depth[level])
         start = int(pyramid.level_offset[level])

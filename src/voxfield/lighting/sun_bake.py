@@ -202,14 +202,16 @@ def _tops_ahead_per_sun(columns, dirs: np.ndarray) -> np.ndarray:
     ``(suns, 0)`` without a pyramid."""
     if columns.level_width.shape[0] == 0 or len(dirs) == 0:
         return np.zeros((len(dirs), 0), np.int32)
-    by_steps = {}
-    rows = []
-    for d in dirs:
+    out = np.empty((len(dirs), columns.tops.shape[0]), np.int32)
+    done = {}  # steps -> the row that has them
+    for k, d in enumerate(dirs):
         steps = (1 if d[0] >= 0.0 else -1, 1 if d[2] >= 0.0 else -1)
-        if steps not in by_steps:
-            by_steps[steps] = tops_ahead(columns, *steps)
-        rows.append(by_steps[steps])
-    return np.stack(rows)
+        if steps in done:
+            out[k] = out[done[steps]]
+        else:
+            tops_ahead(columns, *steps, out=out[k])
+            done[steps] = k
+    return out
 
 
 def _horizon_slopes(columns) -> np.ndarray:

@@ -118,14 +118,17 @@ def octree_column_tops(octree, voxels: np.ndarray | None = None) -> ColumnTops:
     return octree.derived(("column_tops",), build)
 
 
-def tops_ahead(columns: ColumnTops, step_x: int, step_z: int) -> np.ndarray:
+def tops_ahead(columns: ColumnTops, step_x: int, step_z: int,
+               out: np.ndarray | None = None) -> np.ndarray:
     """Per cell of every level (as ``columns.tops``), the highest top of the cell and of
     its neighbours one cell ahead along ``x`` (``step_x``: +1 or -1), along ``z`` and along
     both: the cells parallel rays travelling that way reach from a shared rear corner
-    (``kernels.upward_rays.parallel_rays_clear``). Beyond the footprint there is nothing."""
+    (``kernels.upward_rays.parallel_rays_clear``). Beyond the footprint there is nothing.
+    ``out``, an int32 array shaped like ``columns.tops``, takes them instead of a new one."""
     if step_x not in (-1, 1) or step_z not in (-1, 1):
         raise ValueError(f"steps must be +1 or -1, got {step_x}, {step_z}")
-    out = np.empty_like(columns.tops)
+    if out is None:
+        out = np.empty_like(columns.tops)
     for level in range(columns.level_width.shape[0]):
         _highest_ahead(columns.tops, int(columns.level_offset[level]),
                        int(columns.level_width[level]), int(columns.level_depth[level]),
