@@ -16,8 +16,10 @@ def _runs(rng, parents):
 
 def test_parent_means_equal_reduceat_bit_for_bit():
     rng = np.random.default_rng(3)
-    starts, children = _runs(rng, 5000)
-    values = (rng.random((children, 6)) * 7).astype(np.float32)
+    starts, children = _runs(rng, 100_000)
+    # Magnitudes 60 decades apart: float64 sums then depend on their order.
+    values = (rng.random((children, 6)) * 10.0 ** rng.integers(-30, 30, (children, 6))
+              ).astype(np.float32)
     out = np.empty((1, len(starts), 6), np.float32)
     average_children(starts, values[None], np.zeros(0), False, out, np.zeros(0))
     out = out[0]
@@ -32,8 +34,9 @@ def test_weighted_parent_means_and_weight_sums(weight_type):
     """Two channels of a block share the weights, float32 ones read as their float64
     widening."""
     rng = np.random.default_rng(4)
-    starts, children = _runs(rng, 3000)
-    block = (rng.random((2, children, 3)) * 2).astype(np.float32)
+    starts, children = _runs(rng, 100_000)
+    block = (rng.random((2, children, 3)) * 10.0 ** rng.integers(-30, 30, (2, children, 3))
+             ).astype(np.float32)
     weights = (rng.random(children) * (rng.random(children) < 0.5)).astype(weight_type)
     out = np.empty((2, len(starts), 3), np.float32)
     sums = np.empty(len(starts))

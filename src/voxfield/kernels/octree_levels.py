@@ -45,8 +45,8 @@ def child_corners(masks: np.ndarray, parent_corners: np.ndarray, out: np.ndarray
 @njit(cache=True, nogil=True, inline="always")
 def child_sum(values: np.ndarray, first: int, last: int) -> float:
     """``values[first:last]`` summed as NumPy's 1-D ``add.reduceat`` sums a run: the first
-    value plus the others' running sum, for bit-identical weight sums."""
-    rest = 0.0
+    value plus the others' running sum (started at -0.0), for bit-identical weight sums."""
+    rest = -0.0
     for j in range(first + 1, last):
         rest += values[j]
     return values[first] + rest
@@ -82,15 +82,16 @@ def average_children(
             out_weights[i] = weight
         for k in range(channels):
             for c in range(columns):
+                # The first child plus the running sum of the others, as in child_sum.
+                rest = -0.0
                 if weighted and weight > 0.0:
-                    total = np.float64(child_values[k, first, c]) * np.float64(
-                        child_weights[first])
                     for j in range(first + 1, last):
-                        total += np.float64(child_values[k, j, c]) * np.float64(
+                        rest += np.float64(child_values[k, j, c]) * np.float64(
                             child_weights[j])
-                    out_values[k, i, c] = total / weight
+                    out_values[k, i, c] = (np.float64(child_values[k, first, c]) * np.float64(
+                        child_weights[first]) + rest) / weight
                 else:
-                    total = np.float64(child_values[k, first, c])
                     for j in range(first + 1, last):
-                        total += np.float64(child_values[k, j, c])
-                    out_values[k, i, c] = total / (last - first)
+                        rest += np.float64(child_values[k, j, c])
+                    out_values[k, i, c] = (np.float64(child_values[k, first, c]) + rest) / (
+                        last - first)
