@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from random_scenes import overhanging_terrain, random_scene
+from voxfield.kernels.column_walk import TOP_RUN_NODES
 from voxfield.svo import build_octree
 from voxfield.svo.column_tops import GAP_OPEN, column_tops, octree_column_tops, tops_ahead
 
@@ -128,17 +129,34 @@ def test_no_pyramid_for_no_voxels_or_a_footprint_over_the_limit():
     assert len(column_tops(voxels[:0]).level_width) == 0
 
 
-def test_an_octrees_pyramid_keeps_each_columns_top_voxel_node():
+def test_an_octrees_pyramid_keeps_the_nodes_of_each_columns_top_run():
     octree = build_octree(overhanging_terrain(seed=6))
     pyramid = octree_column_tops(octree)
     width, depth = int(pyramid.level_width[0]), int(pyramid.level_depth[0])
-    tops = pyramid.tops[:width * depth]
+    tops = pyramid.tops[:width * depth].astype(np.int64)
+    bottoms = pyramid.run_bottom.astype(np.int64)
     coords = octree.all_node_coords()
-    levels = octree.node_level(np.maximum(pyramid.top_node, 0))
+    nodes = pyramid.top_nodes.reshape(width * depth, TOP_RUN_NODES)
+    assert pyramid.top_nodes.dtype == np.int32
     x, z = np.divmod(np.arange(width * depth), depth)
     filled = tops > 0
-    assert np.all(pyramid.top_node[~filled] == -1) and filled.sum() > 100
-    assert np.all(levels[filled] == octree.depth)
-    np.testing.assert_array_equal(coords[pyramid.top_node[filled]],
-                                  np.column_stack([x, tops - 1, z])[filled])
-    assert len(column_tops(octree.node_coords(octree.depth)).top_node) == 0  # nodes unknown
+    assert filled.sum() > 100
+    runs_seen = np.zeros(TOP_RUN_NODES, bool)
+    for k in range(TOP_RUN_NODES):
+        y = tops - 1 - k
+        kept = filled & (y >= bottoms)  # voxel k under the top is in the top run
+        runs_seen[k] = kept.any()
+        assert np.all(nodes[~kept, k] == -1)
+        assert np.all(octree.node_level(nodes[kept, k]) == octree.depth)
+        np.testing.assert_array_equal(coords[nodes[kept, k]],
+                                      np.column_stack([x, y, z])[kept])
+    assert runs_seen.all() and (nodes[filled, -1] == -1).any()  # short runs end early
+    assert len(column_tops(octree.node_coords(octree.depth)).top_nodes) == 0  # nodes unknown
+
+
+def test_no_top_run_nodes_past_int32():
+    voxels = voxels_of(random_scene(seed=2, n=60, size=6))
+    first = 2**31 - 1 - len(voxels)  # the last voxel's node is the largest int32 but one
+    kept = column_tops(voxels, first_node=first).top_nodes
+    assert len(kept) > 0 and kept.max() <= 2**31 - 2 and kept[kept >= 0].min() >= first
+    assert len(column_tops(voxels, first_node=2**31 - len(voxels) + 1).top_nodes) == 0

@@ -9,6 +9,13 @@ from numba import njit
 
 from voxfield.kernels.traversal import face_time, floor_float
 
+#: Nodes the pyramid keeps per column (``ColumnTops.top_nodes``): those of its top run's
+#: highest voxels, top down, one 16-byte record. A primary ray the pyramid lands on a
+#: column's side hits one of them without an octree lookup: on the 2048² mountain terrain
+#: 98 % of such hits are within 4 voxels of the top (73 % the voxel under the top one), and
+#: a lookup from the octree's root costs those rays a chain of cache misses.
+TOP_RUN_NODES = 4
+
 
 @njit(cache=True, nogil=True, inline="always")
 def upper_half(mid_plane: int, o: float, d: float, inv: float, t: float) -> int:

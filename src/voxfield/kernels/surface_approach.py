@@ -31,7 +31,13 @@ import math
 from numba import njit
 
 from voxfield.kernels.borrowing import borrowing
-from voxfield.kernels.column_walk import cell_holding, in_the_gap, step_across, step_down
+from voxfield.kernels.column_walk import (
+    TOP_RUN_NODES,
+    cell_holding,
+    in_the_gap,
+    step_across,
+    step_down,
+)
 from voxfield.kernels.memory_hints import prefetch
 from voxfield.kernels.traversal import (
     axis_setup,
@@ -83,10 +89,10 @@ def trace_over_columns(
     if verdict == MISSED:
         return -1, 0, math.inf, -1, cells
     if y >= 0:
-        column = cx * columns.level_depth[0] + cz
-        if finest == 0 and columns.top_node.shape[0] > 0 and y == columns.tops[column] - 1:
-            node = columns.top_node[column]  # a column's top voxel: no lookup
-        else:
+        node = -1
+        if finest == 0:
+            node = top_run_node(columns, cx * columns.level_depth[0] + cz, y)
+        if node < 0:
             node = node_at_level(inner_nodes, depth, stop_level, cx << finest, y << finest,
                                  cz << finest, scratch)
         return node, stop_level, t, normal, cells + 1
@@ -94,6 +100,16 @@ def trace_over_columns(
                                                      tmax, inner_nodes, depth, stop_level,
                                                      scratch)
     return node, level, t, normal, cells + steps
+
+
+@njit(cache=True, nogil=True, inline="always")
+def top_run_node(columns, column: int, y: int) -> int:
+    """The node of voxel ``y`` of a column's top run when the pyramid keeps it
+    (``ColumnTops.top_nodes``: the run's highest voxels), else -1: the octree looks it up."""
+    below = columns.tops[column] - 1 - y
+    if columns.top_nodes.shape[0] == 0 or below < 0 or below >= TOP_RUN_NODES:
+        return -1
+    return columns.top_nodes[column * TOP_RUN_NODES + below]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -173,7 +189,7 @@ def approach_surface(
     The walk starts at ``start_level`` (clamped to the pyramid): low when ``tmin`` is near
     the surface, at the top when not. ``columns`` is a ``ColumnTops``; without levels, or
     for non-finite rays, every ray is handed over at ``tmin``."""
-    tops, level_offset, level_width, level_depth, run_bottom, top_node = columns[:6]
+    tops, level_offset, level_width, level_depth, run_bottom, top_nodes = columns[:6]
     gap_floor = columns.gap_floor
     gap_ceiling = columns.gap_ceiling
     levels = level_width.shape[0]
@@ -211,11 +227,11 @@ def approach_surface(
         steps += 1
         cell = level_offset[level] + cx * level_depth[level] + cz
         if level == 0:
-            # Where the walk may hand over, the column's run bottom and top voxel are read
-            # next: their misses overlap this one.
+            # Where the walk may hand over, the column's run bottom and top-run nodes are
+            # read next: their misses overlap this one.
             prefetch(run_bottom, cell)
-            if top_node.shape[0] > 0:
-                prefetch(top_node, cell)
+            if top_nodes.shape[0] > 0:
+                prefetch(top_nodes, cell * TOP_RUN_NODES)
         top = (tops[cell] + round_up) & ~round_up
         tx = face_time((cx + ahead_x) << level, ox, ix) if dx != 0.0 else math.inf
         tz = face_time((cz + ahead_z) << level, oz, iz) if dz != 0.0 else math.inf

@@ -23,8 +23,10 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-__all__ = ["GAP_OPEN", "MAX_COLUMNS", "ColumnTops", "column_tops", "no_column_tops",
-           "octree_column_tops", "tops_ahead"]
+from voxfield.kernels.column_walk import TOP_RUN_NODES
+
+__all__ = ["GAP_OPEN", "MAX_COLUMNS", "TOP_RUN_NODES", "ColumnTops", "column_tops",
+           "no_column_tops", "octree_column_tops", "tops_ahead"]
 
 #: Largest footprint (columns) given a pyramid: 2^27 columns keep it near 1 GiB. Larger
 #: worlds trace their rising rays through the octree alone, with the same results.
@@ -42,8 +44,10 @@ class ColumnTops(NamedTuple):
     level_width: np.ndarray  # int64 (levels,): cells along x
     level_depth: np.ndarray  # int64 (levels,): cells along z
     run_bottom: np.ndarray  # int32 (level-0 cells,): lowest y of each column's top run
-    top_node: np.ndarray  # int64 (level-0 cells,): node of each column's top voxel (-1: none);
-    #                       empty when the voxels' nodes are not known
+    top_nodes: np.ndarray  # int32 (level-0 cells × TOP_RUN_NODES,): per column, the nodes of
+    #                        its top run's highest voxels, top down (-1 past the run's bottom
+    #                        or in an empty column); empty when the voxels' nodes are not
+    #                        known or exceed int32
     # Cells as in ``tops``: the gap every column of the cell has free under its top run.
     gap_floor: np.ndarray  # int32: the highest ``under_top`` of the cell's columns
     gap_ceiling: np.ndarray  # int32: the lowest ``run_bottom`` of its columns (empty: GAP_OPEN)
@@ -58,7 +62,7 @@ def no_column_tops() -> ColumnTops:
     """An empty pyramid: every rising ray goes through the octree."""
     empty = np.zeros(0, np.int64)
     none = np.zeros(0, np.int32)
-    return ColumnTops(none, empty, empty, empty, none, empty, none, none)
+    return ColumnTops(none, empty, empty, empty, none, none, none, none)
 
 
 def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
@@ -66,8 +70,9 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
     """The pyramid of the voxels with corners ``voxels`` (``(n, 3)`` integer, octree units),
     or ``no_column_tops()`` when there are none or the footprint exceeds ``max_columns``.
     ``first_node``: the node index of ``voxels[0]``, the others following in order (an
-    octree's leaves, ``Octree.level_slice(depth)``), so each column's top voxel keeps its
-    node; None leaves ``top_node`` empty."""
+    octree's leaves, ``Octree.level_slice(depth)``), so each column's top run keeps the
+    nodes of its highest voxels; None (or node indices past int32) leaves ``top_nodes``
+    empty."""
     if len(voxels) == 0:
         return no_column_tops()
     width = int(voxels[:, 0].max()) + 1
@@ -86,8 +91,10 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
     gap_floor = np.empty_like(tops)
     gap_ceiling = np.empty_like(tops)
     bottom = np.empty(width * depth, np.int32)
-    top_voxel = np.empty(width * depth, np.int64)
-    _tops_and_run_bottoms(voxels, width, depth, tops, bottom, gap_floor, top_voxel)
+    with_nodes = first_node is not None and first_node + len(voxels) <= np.iinfo(np.int32).max
+    top_nodes = np.empty(width * depth * TOP_RUN_NODES if with_nodes else 0, np.int32)
+    _tops_and_run_bottoms(voxels, width, depth, tops, bottom, gap_floor, top_nodes,
+                          first_node if with_nodes else 0)
     _open_ceilings(tops, bottom, gap_ceiling)
     for level in range(1, len(shapes)):
         w, d = shapes[level - 1]
@@ -95,15 +102,13 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
         _coarser(tops, source, w, d, target, False)
         _coarser(gap_floor, source, w, d, target, False)
         _coarser(gap_ceiling, source, w, d, target, True)
-    if first_node is not None:
-        top_voxel[top_voxel >= 0] += first_node
     return ColumnTops(
         tops=tops,
         level_offset=offsets,
         level_width=np.array([w for w, _ in shapes], np.int64),
         level_depth=np.array([d for _, d in shapes], np.int64),
         run_bottom=bottom,
-        top_node=np.zeros(0, np.int64) if first_node is None else top_voxel,
+        top_nodes=top_nodes,
         gap_floor=gap_floor,
         gap_ceiling=gap_ceiling,
     )
@@ -203,10 +208,11 @@ def _column_heights(voxels: np.ndarray, width: int, depth: int):
 @njit(cache=True, nogil=True)
 def _column_block(first: int, last: int, depth: int, starts: np.ndarray, heights: np.ndarray,
                   index: np.ndarray, top: np.ndarray, bottom: np.ndarray, under: np.ndarray,
-                  top_voxel: np.ndarray) -> None:
-    """Tops, top-run bottoms, tops under the runs and top voxels of the columns
-    ``x = first..last-1`` (every ``z``)."""
-    present = np.zeros(0, np.bool_)  # per column: is there a voxel at y = lowest + index?
+                  top_nodes: np.ndarray, first_node: int) -> None:
+    """Tops, top-run bottoms, tops under the runs and top-run nodes (when ``top_nodes`` has
+    room for them) of the columns ``x = first..last-1`` (every ``z``)."""
+    present = np.zeros(0, np.int64)  # per y above the column's lowest: its voxel's slot + 1
+    with_nodes = top_nodes.shape[0] > 0
     for x in range(first, last):
         for z in range(depth):
             c = x * depth + z
@@ -215,46 +221,51 @@ def _column_block(first: int, last: int, depth: int, starts: np.ndarray, heights
                 continue
             low = heights[begin]
             high = heights[begin]
-            highest = begin
             for k in range(begin + 1, end):
                 low = min(low, heights[k])
-                if heights[k] > high:
-                    high = heights[k]
-                    highest = k
+                high = max(high, heights[k])
             if present.shape[0] < high - low + 1:
-                present = np.zeros(high - low + 1, np.bool_)
+                present = np.zeros(high - low + 1, np.int64)
             for k in range(begin, end):
-                present[heights[k] - low] = True
+                present[heights[k] - low] = k + 1
             run = high
-            while run > low and present[run - 1 - low]:
+            while run > low and present[run - 1 - low] > 0:
                 run -= 1
             below = run - 1  # the highest voxel under the gap below the run, if any
-            while below >= low and not present[below - low]:
+            while below >= low and present[below - low] == 0:
                 below -= 1
+            if with_nodes:
+                for k in range(TOP_RUN_NODES):
+                    y = high - k
+                    if y >= run:
+                        top_nodes[c * TOP_RUN_NODES + k] = first_node + index[
+                            present[y - low] - 1]
             for k in range(begin, end):
-                present[heights[k] - low] = False
+                present[heights[k] - low] = 0
             top[c] = high + 1
             bottom[c] = run
             under[c] = below + 1 if below >= low else 0
-            top_voxel[c] = index[highest]
 
 
 @njit(cache=True, nogil=True, parallel=True)
 def _tops_and_run_bottoms(voxels: np.ndarray, width: int, depth: int, top: np.ndarray,
-                          bottom: np.ndarray, under: np.ndarray, top_voxel: np.ndarray) -> None:
+                          bottom: np.ndarray, under: np.ndarray, top_nodes: np.ndarray,
+                          first_node: int) -> None:
     """Per column (the first ``width × depth`` entries, x-major), the top (highest voxel's
     ``y`` + 1, 0 when empty), the lowest ``y`` of the unbroken run of voxels that ends there
     (0 when empty), the top of the highest voxel under the gap below that run (0 when none)
-    and the index of the highest voxel (-1 when empty)."""
+    and, when ``top_nodes`` is not empty, ``first_node`` plus the indices of the run's
+    highest voxels (``ColumnTops.top_nodes``)."""
     starts, heights, index = _column_heights(voxels, width, depth)
     columns = width * depth
     for c in prange(columns):
         top[c] = 0
         bottom[c] = 0
         under[c] = 0
-        top_voxel[c] = -1
+    for i in prange(top_nodes.shape[0]):
+        top_nodes[i] = -1
     blocks = 64
     per_block = (width + blocks - 1) // blocks
     for b in prange(blocks):
         _column_block(min(width, b * per_block), min(width, (b + 1) * per_block), depth,
-                      starts, heights, index, top, bottom, under, top_voxel)
+                      starts, heights, index, top, bottom, under, top_nodes, first_node)
