@@ -78,7 +78,7 @@ def test_mixed_signs_and_broken_rays_in_one_packet():
     assert len(signs) == 8
 
 
-def test_supersampled_renders_go_through_packets_from_their_beam_bounds():
+def test_supersampled_renders_go_through_packets_from_their_beam_bounds(shared_data):
     """Reference pixels through the octree alone are traced in packets, each ray from its
     pixel block's beam bound: the step map equals the scalar loop's steps over each pixel's
     rays started there (plus the beam pass's share), and the image equals that of rays

@@ -151,7 +151,7 @@ def test_crop_fit_uses_the_centred_square_window():
     assert wide.metres_per_voxel == (1.0, 2.0)  # stretched: 2 m of ground per voxel in x
 
 
-def test_ground_laid_out_in_bands_equals_one_go(monkeypatch):
+def test_ground_laid_out_in_bands_equals_one_go(monkeypatch, shared_data):
     """``TerrainLayout.scene`` lays the ground out in bands of rows (so Ctrl-C is heard);
     the voxels, their order and colours are those of a single pass."""
     from voxfield.scene.terrain import layout
