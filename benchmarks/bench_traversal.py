@@ -13,6 +13,9 @@ same CMJ samples the voxfield renderers trace. voxfield is timed in its renderer
 shade and include their beam pass; Embree's ``cast_rays`` returns t, ids, barycentrics and
 normals. Compile time is excluded (a tiny warm-up render), each figure is the best of
 ``--repeats`` runs, and the two tracers alternate run by run, so a busy machine slows both.
+The paired column divides Embree's seconds by voxfield's round by round (the two ran back
+to back) and gives their median and range: on a shared machine whose speed drifts by tens of
+percent over minutes, the ratio of the two bests can pair a fast moment with a slow one.
 
 Rows:
 - primary rays, beam on (the default) and off (every ray starts at the camera), each with the
@@ -54,6 +57,7 @@ import resource
 import sys
 import time
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
@@ -160,15 +164,39 @@ def warm_up() -> None:
     occluded(tiny, o, d)
 
 
+class Timed(NamedTuple):
+    best: float  # seconds, the best round
+    result: object  # the last round's
+    rounds: list  # seconds of every round, in order
+
+
 def best_of(repeats: int, fns: dict) -> dict:
-    """Best seconds and last result of each ``fn() -> (seconds, result)``, alternating."""
-    best = {k: math.inf for k in fns}
+    """Each ``fn() -> (seconds, result)`` run ``repeats`` times, the functions taking turns
+    within each round, as ``Timed``."""
+    rounds = {k: [] for k in fns}
     last = {}
     for _ in range(repeats):
         for k, fn in fns.items():
             seconds, last[k] = fn()
-            best[k] = min(best[k], seconds)
-    return {k: (best[k], last[k]) for k in fns}
+            rounds[k].append(seconds)
+    return {k: Timed(min(rounds[k]), last[k], rounds[k]) for k in fns}
+
+
+def paired_ratios(row: dict, ours: Timed, peer: Timed) -> None:
+    """The peer's seconds over ours round by round: the two ran back to back, so the
+    machine's drift over minutes (10-40 % here) cancels, where the ratio of two bests can
+    pair a fast moment of one with a slow one of the other."""
+    ratios = np.array(peer.rounds) / np.array(ours.rounds)
+    row["paired_median"] = float(np.median(ratios))
+    row["paired_min"] = float(ratios.min())
+    row["paired_max"] = float(ratios.max())
+
+
+def paired_cell(row: dict) -> str:
+    if "paired_median" not in row:
+        return ""
+    return (f"{row['paired_median']:.2f} ({row['paired_min']:.2f}–"
+            f"{row['paired_max']:.2f})")
 
 
 def build_embree(o3d, octree, stats: SceneStats, args):
@@ -239,7 +267,7 @@ def run_view(o3d, embree, octree, stats: SceneStats, view: str, side: int, args)
         fns["embree"] = cast
     timed = best_of(args.repeats, fns)
     for beam, columns in configs:
-        seconds, res = timed[beam, columns]
+        seconds, res, _ = timed[beam, columns]
         row = {
             "view": view, "spp": side * side, "beam": beam, "columns": columns,
             "rays": res.total_rays,
@@ -248,12 +276,13 @@ def run_view(o3d, embree, octree, stats: SceneStats, view: str, side: int, args)
             "hit_frac": res.hit_count.sum() / res.total_rays,
         }
         if embree is not None:
-            row["emb_mrays"] = len(rays32) / timed["embree"][0] / 1e6
+            row["emb_mrays"] = len(rays32) / timed["embree"].best / 1e6
             row["ratio"] = row["vox_mrays"] / row["emb_mrays"]
+            paired_ratios(row, timed[beam, columns], timed["embree"])
         stats.rows.append(row)
         print(f"  {stats.name} {view} {side * side} rays/px: {fmt_row(row)}", file=sys.stderr)
     if embree is not None:
-        agreement(octree, rays32, timed["embree"][1].astype(np.float64),
+        agreement(octree, rays32, timed["embree"].result.astype(np.float64),
                   stats.rows[-len(configs)], args)
 
 
@@ -350,7 +379,7 @@ def run_secondary(o3d, embree, octree, stats: SceneStats, args) -> None:
     names = {"any": "any-hit", "any_columns": "any-hit, column walk", "closest": "closest hit",
              "closest_columns": "closest hit, column walk"}
     for kind, query in names.items():
-        seconds, res = timed[kind]
+        seconds, res, _ = timed[kind]
         closest_hit = kind.startswith("closest")
         blocked = res.hit if closest_hit else res.blocked
         row = {"query": query, "rays": n,
@@ -358,9 +387,10 @@ def run_secondary(o3d, embree, octree, stats: SceneStats, args) -> None:
                "blocked": blocked.mean()}
         if embree is not None:
             peer = "closest" if closest_hit else "any"
-            e_seconds, e_out = timed["emb_" + peer]
+            e_seconds, e_out, _ = timed["emb_" + peer]
             row["emb_mrays"] = n / e_seconds / 1e6
             row["ratio"] = row["vox_mrays"] / row["emb_mrays"]
+            paired_ratios(row, timed[kind], timed["emb_" + peer])
             e_blocked = np.isfinite(e_out) if closest_hit else e_out
             row["agree"] = float((blocked == e_blocked).mean())
         stats.secondary.append(row)
@@ -464,8 +494,8 @@ def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args
     head = ["scene", "view", "rays/px", "beam", "columns", "rays", "voxfield Mrays/s",
             "steps/ray", "hit %"]
     if peer:
-        head += ["Embree Mrays/s", "voxfield/Embree", "hit/miss agree",
-                 "only vox / only Embree", "median |Δt|"]
+        head += ["Embree Mrays/s", "voxfield/Embree", "paired rounds: median (range)",
+                 "hit/miss agree", "only vox / only Embree", "median |Δt|"]
     rows = []
     for s in all_stats:
         for r in s.rows:
@@ -478,7 +508,8 @@ def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args
                      f"{r['rays']:,}", num(r["vox_mrays"], ".2f"),
                      num(r["steps_per_ray"], ".1f"), num(100 * r["hit_frac"], ".1f")]
             if peer:
-                cells += [num(r.get("emb_mrays"), ".2f"), num(r.get("ratio"), ".2f")]
+                cells += [num(r.get("emb_mrays"), ".2f"), num(r.get("ratio"), ".2f"),
+                          paired_cell(r)]
                 if "agree" in r:
                     cells += [f"{100 * r['agree']:.4f} %", f"{r['only_vox']} / {r['only_emb']}",
                               num(r["dt_median"], ".2g")]
@@ -491,7 +522,8 @@ def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args
           "random voxel tops)\n")
     head = ["scene", "query", "voxfield Mrays/s", "steps/ray", "blocked %"]
     if peer:
-        head += ["Embree Mrays/s", "voxfield/Embree", "agree"]
+        head += ["Embree Mrays/s", "voxfield/Embree", "paired rounds: median (range)",
+                 "agree"]
     rows = []
     for s in all_stats:
         for r in s.secondary:
@@ -499,7 +531,7 @@ def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args
                      num(r["steps_per_ray"], ".1f"), num(100 * r["blocked"], ".1f")]
             if peer:
                 cells += [num(r.get("emb_mrays"), ".2f"), num(r.get("ratio"), ".2f"),
-                          f"{100 * r['agree']:.3f} %"]
+                          paired_cell(r), f"{100 * r['agree']:.3f} %"]
             rows.append(cells)
     table(head, rows)
     print("\nEmbree: `test_occlusions` for any-hit, `cast_rays` for closest hit; the same "
