@@ -118,7 +118,8 @@ def octree_column_tops(octree, voxels: np.ndarray | None = None) -> ColumnTops:
     """The pyramid of an octree's voxels, worked out once per structure (``Octree.derived``);
     ``voxels``, the octree's leaf corners, saves working them out again."""
     def build() -> ColumnTops:
-        corners = octree.node_coords(octree.depth) if voxels is None else voxels
+        # int32 corners: half the memory of int64 (4.2 GB less on an 8192² terrain's leaves).
+        corners = octree.node_coords(octree.depth, np.int32) if voxels is None else voxels
         return column_tops(corners, first_node=octree.level_slice(octree.depth).start)
     return octree.derived(("column_tops",), build)
 
