@@ -93,8 +93,10 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
     bottom = np.empty(width * depth, np.int32)
     with_nodes = first_node is not None and first_node + len(voxels) <= np.iinfo(np.int32).max
     top_nodes = np.empty(width * depth * TOP_RUN_NODES if with_nodes else 0, np.int32)
+    # Each voxel's slot in the column sort: int32 below 2^31 voxels (1.4 GB less at 8192²).
+    slots = np.empty(len(voxels), np.int32 if len(voxels) < 2**31 else np.int64)
     _tops_and_run_bottoms(voxels, width, depth, tops, bottom, gap_floor, top_nodes,
-                          first_node if with_nodes else 0)
+                          first_node if with_nodes else 0, slots)
     _open_ceilings(tops, bottom, gap_ceiling)
     for level in range(1, len(shapes)):
         w, d = shapes[level - 1]
@@ -187,9 +189,9 @@ def _open_ceilings(tops: np.ndarray, bottom: np.ndarray, gap_ceiling: np.ndarray
 
 
 @njit(cache=True, nogil=True)
-def _column_heights(voxels: np.ndarray, width: int, depth: int):
-    """Each voxel's ``y`` bucketed by column (counting sort): per-column start offsets, the
-    heights and the voxels' indices."""
+def _column_heights(voxels: np.ndarray, width: int, depth: int, index: np.ndarray):
+    """Each voxel's ``y`` bucketed by column (counting sort): per-column start offsets and
+    the heights, with the voxels' indices written to ``index``."""
     starts = np.zeros(width * depth + 1, np.int64)
     for i in range(voxels.shape[0]):
         starts[voxels[i, 0] * depth + voxels[i, 2] + 1] += 1
@@ -197,13 +199,12 @@ def _column_heights(voxels: np.ndarray, width: int, depth: int):
         starts[c + 1] += starts[c]
     fill = starts[:-1].copy()
     heights = np.empty(voxels.shape[0], np.int32)
-    index = np.empty(voxels.shape[0], np.int64)
     for i in range(voxels.shape[0]):
         c = voxels[i, 0] * depth + voxels[i, 2]
         heights[fill[c]] = voxels[i, 1]
         index[fill[c]] = i
         fill[c] += 1
-    return starts, heights, index
+    return starts, heights
 
 
 @njit(cache=True, nogil=True)
@@ -251,13 +252,13 @@ def _column_block(first: int, last: int, depth: int, starts: np.ndarray, heights
 @njit(cache=True, nogil=True, parallel=True)
 def _tops_and_run_bottoms(voxels: np.ndarray, width: int, depth: int, top: np.ndarray,
                           bottom: np.ndarray, under: np.ndarray, top_nodes: np.ndarray,
-                          first_node: int) -> None:
+                          first_node: int, index: np.ndarray) -> None:
     """Per column (the first ``width × depth`` entries, x-major), the top (highest voxel's
     ``y`` + 1, 0 when empty), the lowest ``y`` of the unbroken run of voxels that ends there
     (0 when empty), the top of the highest voxel under the gap below that run (0 when none)
     and, when ``top_nodes`` is not empty, ``first_node`` plus the indices of the run's
-    highest voxels (``ColumnTops.top_nodes``)."""
-    starts, heights, index = _column_heights(voxels, width, depth)
+    highest voxels (``ColumnTops.top_nodes``). ``index``: scratch, one entry per voxel."""
+    starts, heights = _column_heights(voxels, width, depth, index)
     columns = width * depth
     for c in prange(columns):
         top[c] = 0
