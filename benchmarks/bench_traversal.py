@@ -267,7 +267,7 @@ def run_view(o3d, embree, octree, stats: SceneStats, view: str, side: int, args)
         fns["embree"] = cast
     timed = best_of(args.repeats, fns)
     for beam, columns in configs:
-        seconds, res, _ = timed[beam, columns]
+        seconds, res = timed[beam, columns].best, timed[beam, columns].result
         row = {
             "view": view, "spp": side * side, "beam": beam, "columns": columns,
             "rays": res.total_rays,
@@ -379,7 +379,7 @@ def run_secondary(o3d, embree, octree, stats: SceneStats, args) -> None:
     names = {"any": "any-hit", "any_columns": "any-hit, column walk", "closest": "closest hit",
              "closest_columns": "closest hit, column walk"}
     for kind, query in names.items():
-        seconds, res, _ = timed[kind]
+        seconds, res = timed[kind].best, timed[kind].result
         closest_hit = kind.startswith("closest")
         blocked = res.hit if closest_hit else res.blocked
         row = {"query": query, "rays": n,
@@ -387,10 +387,11 @@ def run_secondary(o3d, embree, octree, stats: SceneStats, args) -> None:
                "blocked": blocked.mean()}
         if embree is not None:
             peer = "closest" if closest_hit else "any"
-            e_seconds, e_out, _ = timed["emb_" + peer]
-            row["emb_mrays"] = n / e_seconds / 1e6
+            embree_timed = timed["emb_" + peer]
+            e_out = embree_timed.result
+            row["emb_mrays"] = n / embree_timed.best / 1e6
             row["ratio"] = row["vox_mrays"] / row["emb_mrays"]
-            paired_ratios(row, timed[kind], timed["emb_" + peer])
+            paired_ratios(row, timed[kind], embree_timed)
             e_blocked = np.isfinite(e_out) if closest_hit else e_out
             row["agree"] = float((blocked == e_blocked).mean())
         stats.secondary.append(row)

@@ -93,10 +93,11 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
     bottom = np.empty(width * depth, np.int32)
     with_nodes = first_node is not None and first_node + len(voxels) <= np.iinfo(np.int32).max
     top_nodes = np.empty(width * depth * TOP_RUN_NODES if with_nodes else 0, np.int32)
-    # Each voxel's slot in the column sort: int32 below 2^31 voxels (1.4 GB less at 8192²).
-    slots = np.empty(len(voxels), np.int32 if len(voxels) < 2**31 else np.int64)
+    # Scratch for the column sort: the voxel each sorted slot holds, int32 below 2^31
+    # voxels (1.4 GB less at 8192²).
+    index = np.empty(len(voxels), np.int32 if len(voxels) < 2**31 else np.int64)
     _tops_and_run_bottoms(voxels, width, depth, tops, bottom, gap_floor, top_nodes,
-                          first_node if with_nodes else 0, slots)
+                          first_node if with_nodes else 0, index)
     _open_ceilings(tops, bottom, gap_ceiling)
     for level in range(1, len(shapes)):
         w, d = shapes[level - 1]
