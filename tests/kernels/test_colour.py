@@ -2,12 +2,16 @@
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 from numba import njit
 
+from voxfield.kernels.bundles import octree_view
 from voxfield.kernels.colour import (
+    FLOAT32,
     RGB9E5,
     RGB9E5_MAX,
+    SRGB8,
     SRGB8_THRESHOLDS,
     SRGB8_TO_LINEAR,
     decode_channel,
@@ -18,9 +22,12 @@ from voxfield.kernels.colour import (
     srgb8_by_formula,
     srgb_decode,
     storage_of,
+    stored_bytes,
+    stored_colours,
     to_rgb9e5,
     to_srgb8,
 )
+from voxfield.kernels.facing_colour import NO_FACING
 
 
 @njit
@@ -112,3 +119,27 @@ def test_kernels_read_rgb9e5_as_its_decoding():
         assert np.array_equal(np.array(_read(codes, node), np.float32), decoded[node])
     assert storage_of(codes) == RGB9E5
     assert np.array_equal(encode_channel(decoded, RGB9E5), to_rgb9e5(decoded))
+
+
+def test_stored_colours_read_as_the_array_they_hold_in_one_kernel_type():
+    """The render kernels take a channel as ``StoredColours`` so that one compiled kernel
+    serves every storage: each storage reads as its own array does, and all three views of
+    an octree have the same Numba type."""
+    linear = np.random.default_rng(8).random((120, 3), dtype=np.float32)
+    stored = {storage: encode_channel(linear, storage) for storage in (SRGB8, RGB9E5, FLOAT32)}
+    views = {}
+    for storage, array in stored.items():
+        bundle = stored_colours(array)
+        assert bundle.stored is array
+        assert stored_bytes_of(bundle) == array.nbytes
+        for node in range(len(array)):
+            assert _read(bundle, node) == _read(array, node), (storage, node)
+            assert node_rgb(bundle, node) == node_rgb(array, node)  # the Python fallback
+        views[storage] = octree_view(np.zeros(1, np.int64), 1, array, NO_FACING)
+    kinds = {numba.typeof(view) for view in views.values()}
+    assert len(kinds) == 1, kinds
+
+
+@njit
+def stored_bytes_of(colors):
+    return stored_bytes(colors)

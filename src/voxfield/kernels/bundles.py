@@ -11,16 +11,36 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
+
+from voxfield.kernels.colour import StoredColours, stored_colours
 
 
 class OctreeView(NamedTuple):
-    """What a traversal reads of an octree: packed descriptors, depth, one colour channel and
-    its directional colours (``kernels.facing_colour``; empty when it has none)."""
+    """What a traversal reads of an octree: packed descriptors, depth, one colour channel
+    (the three arrays of a ``kernels.colour.StoredColours``, kept flat because a ``prange``
+    body cannot take a tuple inside a tuple; ``view_colours`` joins them) and its directional
+    colours (``kernels.facing_colour``; empty when it has none)."""
 
     inner_nodes: np.ndarray
     depth: int
-    colors: np.ndarray
+    srgb8: np.ndarray
+    rgb9e5: np.ndarray
+    linear: np.ndarray
     facing: np.ndarray
+
+
+def octree_view(inner_nodes: np.ndarray, depth: int, stored: np.ndarray,
+                facing: np.ndarray) -> OctreeView:
+    """The view of an octree with the channel ``stored`` (as ``Octree.kernel_colours`` gives
+    it, in any storage): one kernel type whatever the storage."""
+    return OctreeView(inner_nodes, depth, *stored_colours(stored), facing)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def view_colours(view: OctreeView) -> StoredColours:
+    """The view's colour channel, as ``kernels.colour.node_rgb`` reads it."""
+    return StoredColours(view.srgb8, view.rgb9e5, view.linear)
 
 
 class BeamBounds(NamedTuple):

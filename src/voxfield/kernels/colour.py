@@ -8,11 +8,17 @@ traversal's colour fetches then touch a quarter of the memory). Channels that ca
 shared by the three channels), so a 2048² terrain's four lit channels take 330 MB instead of
 a gigabyte, and an octree file a third of the bytes to write. Each channel comes back within
 a 511th of ``max(r, g, b)``, less than one step of an 8-bit image. Emission and a
-user's own channels stay float32. ``node_rgb`` reads every storage; Numba compiles one
-version per storage type, so a kernel never branches on it.
+user's own channels stay float32. ``node_rgb`` reads every storage.
+
+The render kernels take a channel as ``StoredColours``: every storage in one Numba type, so
+each of them compiles once for all three, where a plain array made Numba compile each
+kernel again per storage (the primary-ray and error-aware kernels, a minute or more each).
+Reading a colour then costs one branch, the same way for every node of a render.
 """
 
 from __future__ import annotations
+
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, prange, types
@@ -206,14 +212,65 @@ def storage_of(stored: np.ndarray) -> str:
     return FLOAT32
 
 
+class StoredColours(NamedTuple):
+    """A stored channel as the render kernels take it: the array of its storage, the other
+    two empty (``stored_colours``)."""
+
+    srgb8: np.ndarray  # uint8 (nodes, 3)
+    rgb9e5: np.ndarray  # uint32 (nodes,)
+    linear: np.ndarray  # float32 (nodes, 3)
+
+    @property
+    def stored(self) -> np.ndarray:
+        """The channel as stored."""
+        if len(self.srgb8):
+            return self.srgb8
+        return self.rgb9e5 if len(self.rgb9e5) else self.linear
+
+
+_NO_SRGB8 = np.zeros((0, 3), np.uint8)
+_NO_RGB9E5 = np.zeros(0, np.uint32)
+_NO_LINEAR = np.zeros((0, 3), np.float32)
+
+
+def stored_colours(stored: np.ndarray) -> StoredColours:
+    """A stored channel (``encode_channel``'s output) as ``StoredColours``."""
+    storage = storage_of(stored)
+    if storage == SRGB8:
+        return StoredColours(np.ascontiguousarray(stored), _NO_RGB9E5, _NO_LINEAR)
+    if storage == RGB9E5:
+        return StoredColours(_NO_SRGB8, np.ascontiguousarray(stored), _NO_LINEAR)
+    return StoredColours(_NO_SRGB8, _NO_RGB9E5, np.ascontiguousarray(stored, np.float32))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def stored_bytes(colors: StoredColours) -> int:
+    """Bytes of the channel a ``StoredColours`` holds."""
+    return colors.srgb8.nbytes + colors.rgb9e5.nbytes + colors.linear.nbytes
+
+
 def node_rgb(colors, node):
-    """Linear ``(r, g, b)`` of ``node`` in a stored channel (Python fallback)."""
+    """Linear ``(r, g, b)`` of ``node`` in a stored channel or ``StoredColours`` (Python
+    fallback)."""
+    if isinstance(colors, StoredColours):
+        colors = colors.stored
     rgb = decode_channel(colors[node : node + 1])[0]
     return float(rgb[0]), float(rgb[1]), float(rgb[2])
 
 
 @overload(node_rgb, inline="always")
 def _node_rgb(colors, node):
+    if isinstance(colors, types.BaseNamedTuple) and colors.instance_class is StoredColours:
+
+        def read_stored(colors, node):
+            if colors.srgb8.shape[0] > 0:
+                return node_rgb(colors.srgb8, node)
+            if colors.rgb9e5.shape[0] > 0:
+                return node_rgb(colors.rgb9e5, node)
+            return node_rgb(colors.linear, node)
+
+        return read_stored
+
     if isinstance(colors, types.Array) and colors.dtype == types.uint8:
         table = SRGB8_TO_LINEAR.astype(np.float64)
 

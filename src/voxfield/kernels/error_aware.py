@@ -27,7 +27,7 @@ from numba import njit, prange
 
 from voxfield.kernels.beam import start_distance
 from voxfield.kernels.borrowing import borrowing
-from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
+from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs, view_colours
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.error_lookup import colour_error, oct_error, sh_error, sh_evaluate
@@ -255,7 +255,8 @@ def trace_error_aware_row(
     """One row of ``render_error_aware_rows`` with the caller's scratch and ray queue (the
     traversal is inlined here, never straight into a ``prange`` body, where Numba's parfor
     pass would hoist its initialisations)."""
-    inner_nodes, depth, colors, facing = view
+    inner_nodes, depth, facing = view.inner_nodes, view.depth, view.facing
+    colors = view_colours(view)
     base_stop_level, cone_scale, max_refinements, reuse_parent = refinement
     (threshold, decay, encoding, oct_map, sh, children_sh, lighting_aware, bright_ratio,
      light_map, class_of, symmetry_of, symmetries, colour_weight, colour_error,

@@ -9,8 +9,9 @@ from numba import njit, prange
 
 from voxfield.kernels.beam import start_distance
 from voxfield.kernels.borrowing import borrowing
-from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
+from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs, view_colours
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
+from voxfield.kernels.colour import stored_bytes
 from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.sampling import (
@@ -176,7 +177,7 @@ def beam_start(beam_bound: np.ndarray, block: int, pixel: int, width: int) -> fl
 
 
 @njit(cache=True, nogil=True, inline="always")
-def add_sample(sums: np.ndarray, tallies: np.ndarray, j: int, colors: np.ndarray,
+def add_sample(sums: np.ndarray, tallies: np.ndarray, j: int, colors,
                facing: np.ndarray, depth: int, node: int, level: int, t: float, normal: int,
                steps: int, dx: float, dy: float, dz: float) -> None:
     """Add one traced sample to pixel ``j``'s sums: colour and normal of a hit, its depth,
@@ -208,7 +209,7 @@ def trace_chunk_per_ray(
     (``scratch``: ``traversal.new_scratch``)."""
     for j in range(last - first):
         trace_pixel(cam, width, height, pixels[first + j], side, seed, view.inner_nodes,
-                    view.depth, stop_level, radius, spread, view.colors, view.facing,
+                    view.depth, stop_level, radius, spread, view_colours(view), view.facing,
                     beam.bound, beam.block, scratch, sums, tallies, j)
 
 
@@ -228,11 +229,12 @@ def trace_chunk_over_columns(
     A supersampled pixel's stratum permutations are drawn once (``sampling.cmj_strata``),
     not again for each sample: the same sample positions, and 16-ray pixels 1.1× faster."""
     column, row = strata
-    inner_nodes, depth, colors, facing = view
+    inner_nodes, depth, facing = view.inner_nodes, view.depth, view.facing
+    colors = view_colours(view)
     queued = 0
     # Samples of a pixel share their colours' cache lines, as do all rays over colours that
     # fit in the caches: those are shaded as they come.
-    batched = side == 1 and colors.nbytes + facing.nbytes > SHADING_BATCH_BYTES
+    batched = side == 1 and stored_bytes(colors) + facing.nbytes > SHADING_BATCH_BYTES
     for j in range(last - first):
         pixel = pixels[first + j]
         pattern = 0
@@ -297,7 +299,7 @@ def queue_hit(hits, k: int, j: int, node: int, level: int, t: float, normal: int
 
 
 @borrowing
-def shade_batch(hits, count: int, sums: np.ndarray, tallies: np.ndarray, colors: np.ndarray,
+def shade_batch(hits, count: int, sums: np.ndarray, tallies: np.ndarray, colors,
                 facing: np.ndarray, depth: int) -> None:
     """``add_sample`` for the first ``count`` queued hits, in queue order."""
     ints, floats = hits
@@ -311,7 +313,7 @@ def shade_batch(hits, count: int, sums: np.ndarray, tallies: np.ndarray, colors:
 def trace_pixel(
     cam: np.ndarray, width: int, height: int, pixel: int, side: int, seed: int,
     inner_nodes: np.ndarray, depth: int, stop_level: int, radius: float, spread: float,
-    colors: np.ndarray, facing: np.ndarray, beam_bound: np.ndarray, block: int, scratch,
+    colors, facing: np.ndarray, beam_bound: np.ndarray, block: int, scratch,
     sums: np.ndarray, tallies: np.ndarray, j: int,
 ) -> None:
     """All ``side²`` samples of one pixel through ``trace_ray``, added to row ``j`` of the
@@ -337,7 +339,8 @@ def trace_chunk_in_packets(
 ) -> None:
     """Every sample to ``stop_level``, 64 consecutive samples (in pixel, then sample order)
     per packet."""
-    inner_nodes, depth, colors, facing = view
+    inner_nodes, depth, facing = view.inner_nodes, view.depth, view.facing
+    colors = view_colours(view)
     scratch = new_packet_scratch(depth)
     origins = np.empty((PACKET_RAYS, 3))
     directions = np.empty((PACKET_RAYS, 3))

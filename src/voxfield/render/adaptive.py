@@ -17,7 +17,7 @@ import numpy as np
 from scipy import ndimage
 
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
+from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import thread_count
 from voxfield.render.beam import primary_beam
@@ -193,7 +193,7 @@ def refine_pixels(octree, camera, pixels, side, seed, colours, result, threads,
         lod = np.empty(n, np.int8)
         with thread_count(threads):
             render_pixels(camera.params, camera.width, camera.height, pixels, -1, side,
-                          seed, OctreeView(octree.inner_nodes, octree.depth, *colours),
+                          seed, octree_view(octree.inner_nodes, octree.depth, *colours),
                           octree.depth, 0.0, BeamBounds(beam.bound, beam.block),
                           PixelOutputs(color, depth, normal, rays, hits, steps, lod),
                           pixel_columns(octree, columns, side, beam.bound),

@@ -17,7 +17,7 @@ from voxfield.error_table.table import (
     load_error_table,
 )
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
+from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.colour import decode_channel
 from voxfield.kernels.error_aware import (
     ENCODING_OCT,
@@ -151,7 +151,7 @@ def render_error_aware(
     refined = np.empty((h, w), np.int32)
     discarded = np.empty((h, w), np.int32)
     stop_level = octree.depth - (0 if base_lod is None else base_lod)
-    view = OctreeView(octree.inner_nodes, octree.depth, colors, facing)
+    view = octree_view(octree.inner_nodes, octree.depth, colors, facing)
     refinement = Refinement(stop_level, cone_scale if base_lod is None else 0.0,
                             max_refinements, bool(reuse_parent))
     model = ErrorModel(

@@ -9,7 +9,7 @@ import numba
 import numpy as np
 
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs
+from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import run_in_bands, thread_count
 from voxfield.render.beam import primary_beam
@@ -88,7 +88,7 @@ def trace_image_cpu(
     h, w = camera.height, camera.width
     cam = camera.params
     result = RenderResult.allocate(h, w)
-    view = OctreeView(octree.inner_nodes, octree.depth, colors, facing)
+    view = octree_view(octree.inner_nodes, octree.depth, colors, facing)
     beam = BeamBounds(beam_bound, block)
     pyramid = pixel_columns(octree, columns, side, beam_bound, cone_scale)
     order = tile_order(h, w)
