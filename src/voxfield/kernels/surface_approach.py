@@ -73,8 +73,8 @@ def trace_over_columns(
     (``top_node_hit``). Without a pyramid (``no_column_tops()``) it is ``trace_ray``."""
     stop_level = min(stop_level, depth)
     if columns.level_width.shape[0] == 0 or stop_level <= 0:
-        return trace_ray(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth, stop_level,
-                         0.0, 0.0, scratch)
+        return trace_in_octree(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth,
+                               stop_level, scratch)
     finest = depth - stop_level
     if start == FROM_SURFACE:
         start_level = finest
@@ -149,6 +149,17 @@ def walk_to_voxels(
     folds the rounding and shifts the walk does in every cell (2048² mountain terrain, top
     view, 512² image: primary rays 1.06-1.07× as fast)."""
     return _walk_and_settle(ox, oy, oz, dx, dy, dz, tmin, tmax, 0, start_level, columns)
+
+
+@borrowing
+def trace_in_octree(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+    tmin: float, tmax: float, inner_nodes, depth: int, stop_level: int, scratch,
+) -> tuple[int, int, float, int, int]:
+    """``traversal.trace_ray`` at a fixed level, for callers without a pyramid: compiled
+    once rather than inlined into every caller of ``trace_over_columns`` beside its walk."""
+    return trace_ray(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth, stop_level, 0.0,
+                     0.0, scratch)
 
 
 @borrowing
