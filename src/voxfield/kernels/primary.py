@@ -69,7 +69,6 @@ def store_pixel(
         out_lod[i] = -1
 
 
-@njit(parallel=True, cache=True, nogil=True)
 def render_pixels(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
     side: int, seed: int, view: OctreeView, stop_level: int, cone_scale: float,
@@ -88,57 +87,111 @@ def render_pixels(
     (``svo.column_tops``; ``no_column_tops()`` for none), rays at a fixed level first skip
     the air above the surface in it (``kernels.surface_approach``): the same hits, and steps
     that count its cells.
+
+    Every traversal gives the same hits and steps; which is faster depends on the rays.
+    Supersampled rays that stop at a fixed level without a pyramid go through the packet
+    traversal (``kernels.packet_traversal``) 64 at a time, in pixel and sample order, each
+    from its beam bound: on the mountain terrain, 16 rays a pixel with the beam on,
+    1.25-1.45× the scalar loop's restarts (top views at 2048² and 512², oblique at 512²) and
+    0.95× on the 2048² oblique view. With one ray per pixel over fine voxels packets lose
+    (measured in ``benchmarks/bench_traversal.py``). Each traversal has a kernel of its own,
+    chosen here, so that a render compiles only the one it runs (a first render at LOD 0
+    compiled all three, 2 minutes on two cores).
     """
-    n = pixels.shape[0]
-    chunk = 64
-    chunks = (n + chunk - 1) // chunk
-    for k in prange(chunks):
-        c = interleaved(k, chunks, threads)
-        render_pixel_chunk(cam, width, height, pixels, out_base, c * chunk,
-                           min(n, (c + 1) * chunk), side, seed, view, stop_level, cone_scale,
-                           beam, out, columns)
-
-
-@njit(cache=True, nogil=True)
-def render_pixel_chunk(
-    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
-    first: int, last: int, side: int, seed: int, view: OctreeView, stop_level: int,
-    cone_scale: float, beam: BeamBounds, out: PixelOutputs, columns,
-) -> None:
-    """Pixels ``first..last-1`` of ``render_pixels``: one thread's serial share.
-
-    Both traversals give the same hits and steps; which is faster depends on the rays.
-    Supersampled rays that stop at a fixed level go through the packet traversal
-    (``kernels.packet_traversal``) 64 at a time, in pixel and sample order, each from its
-    beam bound: on the mountain terrain, 16 rays a pixel with the beam on, 1.25-1.45× the
-    scalar loop's restarts (top views at 2048² and 512², oblique at 512²) and 0.95× on the
-    2048² oblique view. With one ray per pixel over fine voxels packets lose (measured in
-    ``benchmarks/bench_traversal.py``). The traversal is inlined here, never straight into a
-    ``prange`` body: Numba's parfor pass hoists the inlined loop's constant initialisations
-    out of the parallel loop.
-    """
-    spp = side * side
     radius, spread = pixel_cone(cam, height)
-    radius *= cone_scale / side
-    spread *= cone_scale / side
-    count = last - first
-    sums = np.zeros((count, 7))  # r, g, b, normal x, y, z, depth sum
-    tallies = np.zeros((count, 3), np.int64)  # hits, steps, finest LOD
-    tallies[:, 2] = 127
-    fixed_level = radius == 0.0 and spread == 0.0
+    fixed_level = radius * (cone_scale / side) == 0.0 and spread * (cone_scale / side) == 0.0
+    common = (cam, width, height, pixels, out_base, side, seed, view, stop_level)
     if fixed_level and columns.level_width.shape[0] > 0:
+        render_pixels_over_columns(*common, beam, out, columns, threads)
+    elif fixed_level and side > 1:
+        render_pixels_in_packets(*common, beam, out, threads)
+    else:
+        render_pixels_per_ray(*common, cone_scale, beam, out, threads)
+
+
+#: Pixels a thread traces at a time: one 8×8 tile of ``render.primary.tile_order``. The
+#: kernels below call a chunk function per tile and never inline a traversal into their
+#: ``prange`` bodies: Numba's parfor pass would hoist the inlined loop's constant
+#: initialisations out of the parallel loop.
+PIXEL_CHUNK = 64
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def render_pixels_over_columns(
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
+    side: int, seed: int, view: OctreeView, stop_level: int, beam: BeamBounds,
+    out: PixelOutputs, columns, threads: int,
+) -> None:
+    """``render_pixels`` through the column-top pyramid (``trace_chunk_over_columns``)."""
+    n = pixels.shape[0]
+    chunks = (n + PIXEL_CHUNK - 1) // PIXEL_CHUNK
+    for k in prange(chunks):
+        first = interleaved(k, chunks, threads) * PIXEL_CHUNK
+        last = min(n, first + PIXEL_CHUNK)
+        sums, tallies = new_pixel_sums(last - first)
         trace_chunk_over_columns(cam, width, height, pixels, first, last, side, seed, view,
                                  stop_level, beam, columns, sums, tallies,
                                  new_scratch(view.depth), new_shading_batch(),
                                  new_cmj_strata(side))
-    elif side > 1 and fixed_level:
+        store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def render_pixels_in_packets(
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
+    side: int, seed: int, view: OctreeView, stop_level: int, beam: BeamBounds,
+    out: PixelOutputs, threads: int,
+) -> None:
+    """``render_pixels`` in packets of 64 rays (``trace_chunk_in_packets``)."""
+    n = pixels.shape[0]
+    chunks = (n + PIXEL_CHUNK - 1) // PIXEL_CHUNK
+    for k in prange(chunks):
+        first = interleaved(k, chunks, threads) * PIXEL_CHUNK
+        last = min(n, first + PIXEL_CHUNK)
+        sums, tallies = new_pixel_sums(last - first)
         trace_chunk_in_packets(cam, width, height, pixels, first, last, side, seed, view,
                                stop_level, beam, sums, tallies)
-    else:
+        store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def render_pixels_per_ray(
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
+    side: int, seed: int, view: OctreeView, stop_level: int, cone_scale: float,
+    beam: BeamBounds, out: PixelOutputs, threads: int,
+) -> None:
+    """``render_pixels`` one ray at a time through the octree, each with its pixel's cone
+    (``trace_chunk_per_ray``)."""
+    n = pixels.shape[0]
+    chunks = (n + PIXEL_CHUNK - 1) // PIXEL_CHUNK
+    radius, spread = pixel_cone(cam, height)
+    radius *= cone_scale / side
+    spread *= cone_scale / side
+    for k in prange(chunks):
+        first = interleaved(k, chunks, threads) * PIXEL_CHUNK
+        last = min(n, first + PIXEL_CHUNK)
+        sums, tallies = new_pixel_sums(last - first)
         trace_chunk_per_ray(cam, width, height, pixels, first, last, side, seed, view,
                             stop_level, radius, spread, beam, sums, tallies,
                             new_scratch(view.depth))
-    for j in range(count):
+        store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
+
+
+@njit(cache=True, nogil=True)
+def new_pixel_sums(count: int) -> tuple[np.ndarray, np.ndarray]:
+    """Zeroed sums for ``count`` pixels in ``add_sample``'s layout: r, g, b, normal x, y, z
+    and depth sum; hits, steps and finest LOD (127 until a hit lowers it)."""
+    sums = np.zeros((count, 7))
+    tallies = np.zeros((count, 3), np.int64)
+    tallies[:, 2] = 127
+    return sums, tallies
+
+
+@njit(cache=True, nogil=True)
+def store_chunk(out: PixelOutputs, pixels: np.ndarray, out_base: int, first: int, last: int,
+                sums: np.ndarray, tallies: np.ndarray, spp: int) -> None:
+    """Pixels ``first..last-1``'s sums into the outputs (``render_pixels``'s indexing)."""
+    for j in range(last - first):
         i = first + j
         store_sums(out.color, out.depth, out.normal, out.rays, out.hits, out.steps, out.lod,
                    i if out_base < 0 else pixels[i] - out_base, sums, tallies, j, spp)
