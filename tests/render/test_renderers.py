@@ -117,3 +117,34 @@ def test_tile_order_visits_each_pixel_once_tile_by_tile_in_quads(height, width):
     for quad in range(0, TILE * TILE, 4):
         qr, qc = r[quad:quad + 4], c[quad:quad + 4]
         assert qr.max() - qr.min() == 1 and qc.max() - qc.min() == 1
+
+
+@pytest.mark.parametrize("lod, side, columns, runs", [
+    (0, 1, True, "render_pixels_over_columns"),  # a fixed level with the pyramid
+    (0, 4, False, "render_pixels_in_packets"),  # supersampled, a fixed level, no pyramid
+    (0, 1, False, "render_pixels_per_ray"),
+    (None, 1, True, "render_pixels_per_ray"),  # cone LOD: each ray's node size grows
+])
+def test_a_render_runs_only_the_kernel_of_its_traversal(pillar_octree, monkeypatch, lod, side,
+                                                        columns, runs):
+    """Each traversal has a kernel of its own so that a render compiles only what it runs:
+    the others are never called, and the image is the one the chosen kernel draws."""
+    from voxfield.kernels import primary
+
+    kernels = ("render_pixels_over_columns", "render_pixels_in_packets",
+               "render_pixels_per_ray")
+    calls = []
+
+    def spy(name, real):
+        def counted(*args):
+            calls.append(name)
+            return real(*args)
+        return counted
+
+    for name in kernels:
+        monkeypatch.setattr(primary, name, spy(name, getattr(primary, name)))
+    lo, hi = pillar_octree.voxel_bounds
+    cam = orbit_camera(lo, hi, size=24)
+    result = render_lod(pillar_octree, cam, lod=lod, side=side, columns=columns)
+    assert set(calls) == {runs}
+    assert result.hit_count.sum() > 0
