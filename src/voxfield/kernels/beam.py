@@ -28,14 +28,16 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.camera_rays import OCTAHEDRAL, ORTHOGRAPHIC, camera_ray
 from voxfield.kernels.node_descriptor import child_index
+from voxfield.kernels.scheduling import interleaved
 
 #: Relative and absolute slack of every bound (rounding of the dilation and of times).
 _SLACK = 1e-9
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def block_cone(
     cam: np.ndarray, width: int, height: int, x0: float, y0: float, x1: float, y1: float,
 ) -> tuple[float, float, float, float, float, float, float, float, bool]:
@@ -81,7 +83,7 @@ def new_beam_stack(depth: int):
     return np.empty(cap, np.int64), np.empty(cap, np.int64), np.empty((cap, 3), np.int64)
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def beam_distance(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
     rho: float, kappa: float, tmin: float, tmax: float,
@@ -158,36 +160,61 @@ def start_distance(bound: float) -> float:
     return max(bound - 1e-7 * (1.0 + abs(bound)), 0.0)
 
 
+#: Blocks a thread searches one after another with one stack: a row's neighbours.
+BEAM_CHUNK = 16
+
+
 @njit(parallel=True, cache=True, nogil=True)
 def beam_map(
     cam: np.ndarray, width: int, height: int, block: int,
     inner_nodes: np.ndarray, depth: int, stop_level: int,
     cone_radius: float, cone_spread: float, wanted: np.ndarray,
     parent_bound: np.ndarray, parent_block: int,
-    out_bound: np.ndarray, out_steps: np.ndarray,
+    out_bound: np.ndarray, out_steps: np.ndarray, threads: int = 1,
 ) -> None:
     """Beam bound of every wanted ``block``×``block`` pixel block (``out_bound[by, bx]``,
     0 where the camera allows no bound or the block is not wanted) and its search steps.
 
     The search starts at the bound of the ``parent_block``-sized block holding the block
     (``parent_bound``; a 1×1 array of 0 for none), so finer beams only search the shell
-    their parent left.
+    their parent left. The ``threads`` (``numba.get_num_threads()``) take runs of
+    ``BEAM_CHUNK`` blocks in turn, so that the sky at the top of an image is not one thread's
+    share (an oblique view's pass: 1.5× as fast on two cores).
     """
     blocks_x = out_bound.shape[1]
-    for b in prange(out_bound.shape[0] * blocks_x):
+    blocks = out_bound.shape[0] * blocks_x
+    chunks = (blocks + BEAM_CHUNK - 1) // BEAM_CHUNK
+    for k in prange(chunks):
+        first = interleaved(k, chunks, threads) * BEAM_CHUNK
+        beam_chunk(cam, width, height, block, first, min(blocks, first + BEAM_CHUNK),
+                   inner_nodes, depth, stop_level, cone_radius, cone_spread, wanted,
+                   parent_bound, parent_block, out_bound, out_steps, new_beam_stack(depth))
+
+
+@borrowing
+def beam_chunk(
+    cam: np.ndarray, width: int, height: int, block: int, first: int, last: int,
+    inner_nodes: np.ndarray, depth: int, stop_level: int,
+    cone_radius: float, cone_spread: float, wanted: np.ndarray,
+    parent_bound: np.ndarray, parent_block: int,
+    out_bound: np.ndarray, out_steps: np.ndarray, stack,
+) -> None:
+    """Blocks ``first..last-1`` (row-major) of ``beam_map``, with the caller's stack."""
+    blocks_x = out_bound.shape[1]
+    for b in range(first, last):
         by = b // blocks_x
         bx = b - by * blocks_x
         tmin = parent_bound[(by * block) // parent_block, (bx * block) // parent_block]
         beam_block(cam, width, height, block, bx, by, inner_nodes, depth, stop_level,
-                   cone_radius, cone_spread, wanted, tmin, out_bound, out_steps)
+                   cone_radius, cone_spread, wanted, tmin, out_bound, out_steps, stack)
 
 
-@njit(cache=True, nogil=True)
+@borrowing
 def beam_block(
     cam: np.ndarray, width: int, height: int, block: int, bx: int, by: int,
     inner_nodes: np.ndarray, depth: int, stop_level: int,
     cone_radius: float, cone_spread: float, wanted: np.ndarray, tmin: float,
-    out_bound: np.ndarray, out_steps: np.ndarray,
+    out_bound: np.ndarray, out_steps: np.ndarray, stack,
 ) -> None:
     out_bound[by, bx] = tmin
     out_steps[by, bx] = 0
@@ -202,6 +229,6 @@ def beam_block(
         return
     bound, steps = beam_distance(ox, oy, oz, dx, dy, dz, rho, kappa, tmin, math.inf,
                                  inner_nodes, depth, stop_level, cone_radius, cone_spread,
-                                 new_beam_stack(depth))
+                                 stack)
     out_bound[by, bx] = bound
     out_steps[by, bx] = steps

@@ -10,6 +10,7 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass, field
 
+import numba
 import numpy as np
 
 from voxfield.kernels.beam import beam_map
@@ -102,7 +103,7 @@ def plan_beam(
         steps = np.empty(shape, np.int64)
         beam_map(camera.params, camera.width, camera.height, block, octree.inner_nodes,
                  octree.depth, stop_level, float(cone_radius), float(cone_spread), wanted,
-                 beam.bound, beam.block, bound, steps)
+                 beam.bound, beam.block, bound, steps, numba.get_num_threads())
         beam.bound = bound
         beam.block = block
         beam.steps.append((block, steps))
