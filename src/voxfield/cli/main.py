@@ -28,6 +28,7 @@ from voxfield.cli import (
 )
 from voxfield.cli.options import QUIET_HELP
 from voxfield.errors import VoxfieldError
+from voxfield.progress import compile_notice
 
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
@@ -91,7 +92,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     args.quiet = getattr(args, "quiet", False)
     try:
-        code = args.func(args)
+        with compile_notice(enabled=not args.quiet and sys.stderr.isatty()):
+            code = args.func(args)
         sys.stdout.flush()  # a closed pipe shows here, not at exit
         return code
     except VoxfieldError as exc:

@@ -90,6 +90,12 @@ def plan_beam(
     stop at ``stop_level`` or where a node is no larger than
     ``cone_radius + cone_spread · t``; one pass per block side in ``blocks``."""
     beam = no_beam(camera)
+    threads = numba.get_num_threads()
+    # No blocks: compiles (or loads) the kernel outside the timing, as ``run_in_bands`` does
+    # for a render's (a first render reported its rays at a hundredth of their speed).
+    beam_map(camera.params, camera.width, camera.height, 1, octree.inner_nodes, octree.depth,
+             stop_level, float(cone_radius), float(cone_spread), np.zeros((0, 0), bool),
+             beam.bound, beam.block, np.empty((0, 0)), np.empty((0, 0), np.int64), threads)
     start = time.perf_counter()
     for block in blocks:
         shape = blocks_of(camera, block)
@@ -103,7 +109,7 @@ def plan_beam(
         steps = np.empty(shape, np.int64)
         beam_map(camera.params, camera.width, camera.height, block, octree.inner_nodes,
                  octree.depth, stop_level, float(cone_radius), float(cone_spread), wanted,
-                 beam.bound, beam.block, bound, steps, numba.get_num_threads())
+                 beam.bound, beam.block, bound, steps, threads)
         beam.bound = bound
         beam.block = block
         beam.steps.append((block, steps))
