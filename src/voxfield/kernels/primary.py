@@ -123,12 +123,8 @@ def render_pixels_over_columns(
     out: PixelOutputs, columns, threads: int,
 ) -> None:
     """``render_pixels`` through the column-top pyramid (``trace_chunk_over_columns``)."""
-    n = pixels.shape[0]
-    chunks = (n + PIXEL_CHUNK - 1) // PIXEL_CHUNK
-    for k in prange(chunks):
-        first = interleaved(k, chunks, threads) * PIXEL_CHUNK
-        last = min(n, first + PIXEL_CHUNK)
-        sums, tallies = new_pixel_sums(last - first)
+    for k in prange(pixel_chunks(pixels.shape[0])):
+        first, last, sums, tallies = pixel_chunk(k, pixels.shape[0], threads)
         trace_chunk_over_columns(cam, width, height, pixels, first, last, side, seed, view,
                                  stop_level, beam, columns, sums, tallies,
                                  new_scratch(view.depth), new_shading_batch(),
@@ -143,12 +139,8 @@ def render_pixels_in_packets(
     out: PixelOutputs, threads: int,
 ) -> None:
     """``render_pixels`` in packets of 64 rays (``trace_chunk_in_packets``)."""
-    n = pixels.shape[0]
-    chunks = (n + PIXEL_CHUNK - 1) // PIXEL_CHUNK
-    for k in prange(chunks):
-        first = interleaved(k, chunks, threads) * PIXEL_CHUNK
-        last = min(n, first + PIXEL_CHUNK)
-        sums, tallies = new_pixel_sums(last - first)
+    for k in prange(pixel_chunks(pixels.shape[0])):
+        first, last, sums, tallies = pixel_chunk(k, pixels.shape[0], threads)
         trace_chunk_in_packets(cam, width, height, pixels, first, last, side, seed, view,
                                stop_level, beam, sums, tallies)
         store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
@@ -162,15 +154,11 @@ def render_pixels_per_ray(
 ) -> None:
     """``render_pixels`` one ray at a time through the octree, each with its pixel's cone
     (``trace_chunk_per_ray``)."""
-    n = pixels.shape[0]
-    chunks = (n + PIXEL_CHUNK - 1) // PIXEL_CHUNK
     radius, spread = pixel_cone(cam, height)
     radius *= cone_scale / side
     spread *= cone_scale / side
-    for k in prange(chunks):
-        first = interleaved(k, chunks, threads) * PIXEL_CHUNK
-        last = min(n, first + PIXEL_CHUNK)
-        sums, tallies = new_pixel_sums(last - first)
+    for k in prange(pixel_chunks(pixels.shape[0])):
+        first, last, sums, tallies = pixel_chunk(k, pixels.shape[0], threads)
         trace_chunk_per_ray(cam, width, height, pixels, first, last, side, seed, view,
                             stop_level, radius, spread, beam, sums, tallies,
                             new_scratch(view.depth))
@@ -178,13 +166,22 @@ def render_pixels_per_ray(
 
 
 @njit(cache=True, nogil=True)
-def new_pixel_sums(count: int) -> tuple[np.ndarray, np.ndarray]:
-    """Zeroed sums for ``count`` pixels in ``add_sample``'s layout: r, g, b, normal x, y, z
-    and depth sum; hits, steps and finest LOD (127 until a hit lowers it)."""
-    sums = np.zeros((count, 7))
-    tallies = np.zeros((count, 3), np.int64)
+def pixel_chunks(n: int) -> int:
+    return (n + PIXEL_CHUNK - 1) // PIXEL_CHUNK
+
+
+@njit(cache=True, nogil=True)
+def pixel_chunk(k: int, n: int, threads: int):
+    """The ``k``-th chunk of a ``prange`` over ``pixel_chunks(n)``, the ``threads`` taking
+    tiles in turn: its pixels ``first..last-1`` and their zeroed sums in ``add_sample``'s
+    layout (r, g, b, normal x, y, z, depth sum; hits, steps, finest LOD: 127 until a hit
+    lowers it)."""
+    first = interleaved(k, pixel_chunks(n), threads) * PIXEL_CHUNK
+    last = min(n, first + PIXEL_CHUNK)
+    sums = np.zeros((last - first, 7))
+    tallies = np.zeros((last - first, 3), np.int64)
     tallies[:, 2] = 127
-    return sums, tallies
+    return first, last, sums, tallies
 
 
 @njit(cache=True, nogil=True)
