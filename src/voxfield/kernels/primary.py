@@ -21,7 +21,7 @@ from voxfield.kernels.sampling import (
     new_cmj_strata,
     pixel_pattern,
 )
-from voxfield.kernels.scheduling import interleaved
+from voxfield.kernels.scheduling import interleaved_run
 from voxfield.kernels.surface_approach import trace_over_columns
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
@@ -99,14 +99,16 @@ def render_pixels(
     compiled all three, 2 minutes on two cores).
     """
     radius, spread = pixel_cone(cam, height)
-    fixed_level = radius * (cone_scale / side) == 0.0 and spread * (cone_scale / side) == 0.0
+    radius *= cone_scale / side
+    spread *= cone_scale / side
+    fixed_level = radius == 0.0 and spread == 0.0
     common = (cam, width, height, pixels, out_base, side, seed, view, stop_level)
     if fixed_level and columns.level_width.shape[0] > 0:
         render_pixels_over_columns(*common, beam, out, columns, threads)
     elif fixed_level and side > 1:
         render_pixels_in_packets(*common, beam, out, threads)
     else:
-        render_pixels_per_ray(*common, cone_scale, beam, out, threads)
+        render_pixels_per_ray(*common, radius, spread, beam, out, threads)
 
 
 #: Pixels a thread traces at a time: one 8×8 tile of ``render.primary.tile_order``. The
@@ -149,14 +151,11 @@ def render_pixels_in_packets(
 @njit(parallel=True, cache=True, nogil=True)
 def render_pixels_per_ray(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
-    side: int, seed: int, view: OctreeView, stop_level: int, cone_scale: float,
+    side: int, seed: int, view: OctreeView, stop_level: int, radius: float, spread: float,
     beam: BeamBounds, out: PixelOutputs, threads: int,
 ) -> None:
-    """``render_pixels`` one ray at a time through the octree, each with its pixel's cone
-    (``trace_chunk_per_ray``)."""
-    radius, spread = pixel_cone(cam, height)
-    radius *= cone_scale / side
-    spread *= cone_scale / side
+    """``render_pixels`` one ray at a time through the octree, each with the sub-sample cone
+    ``radius + spread·t`` (``trace_chunk_per_ray``)."""
     for k in prange(pixel_chunks(pixels.shape[0])):
         first, last, sums, tallies = pixel_chunk(k, pixels.shape[0], threads)
         trace_chunk_per_ray(cam, width, height, pixels, first, last, side, seed, view,
@@ -176,8 +175,7 @@ def pixel_chunk(k: int, n: int, threads: int):
     tiles in turn: its pixels ``first..last-1`` and their zeroed sums in ``add_sample``'s
     layout (r, g, b, normal x, y, z, depth sum; hits, steps, finest LOD: 127 until a hit
     lowers it)."""
-    first = interleaved(k, pixel_chunks(n), threads) * PIXEL_CHUNK
-    last = min(n, first + PIXEL_CHUNK)
+    first, last = interleaved_run(k, n, PIXEL_CHUNK, threads)
     sums = np.zeros((last - first, 7))
     tallies = np.zeros((last - first, 3), np.int64)
     tallies[:, 2] = 127

@@ -38,3 +38,12 @@ def interleaved(k: int, n: int, parts: int) -> int:
             return rank * parts + residue
         rank -= count
         residue += 1
+
+
+@njit(cache=True, nogil=True)
+def interleaved_run(k: int, n: int, size: int, parts: int) -> tuple[int, int]:
+    """Items ``first..last-1`` of the ``k``-th iteration of a ``prange`` over the
+    ``ceil(n / size)`` runs of ``size`` items, the runs dealt to ``parts`` threads in turn
+    (``interleaved``)."""
+    first = interleaved(k, (n + size - 1) // size, parts) * size
+    return first, min(n, first + size)

@@ -45,7 +45,6 @@ from voxfield.kernels.traversal import (
     face_time,
     flush_uninvertible,
     node_at_level,
-    trace_ray,
     trace_ray_from,
 )
 
@@ -73,8 +72,8 @@ def trace_over_columns(
     (``top_node_hit``). Without a pyramid (``no_column_tops()``) it is ``trace_ray``."""
     stop_level = min(stop_level, depth)
     if columns.level_width.shape[0] == 0 or stop_level <= 0:
-        return trace_in_octree(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth,
-                               stop_level, scratch)
+        return finish_in_octree(ox, oy, oz, dx, dy, dz, tmin, tmin, tmax, inner_nodes, depth,
+                                stop_level, scratch)
     finest = depth - stop_level
     if start == FROM_SURFACE:
         start_level = finest
@@ -152,17 +151,6 @@ def walk_to_voxels(
 
 
 @borrowing
-def trace_in_octree(
-    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
-    tmin: float, tmax: float, inner_nodes, depth: int, stop_level: int, scratch,
-) -> tuple[int, int, float, int, int]:
-    """``traversal.trace_ray`` at a fixed level, for callers without a pyramid: compiled
-    once rather than inlined into every caller of ``trace_over_columns`` beside its walk."""
-    return trace_ray(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth, stop_level, 0.0,
-                     0.0, scratch)
-
-
-@borrowing
 def finish_in_octree(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
     tmin: float, t_from: float, tmax: float, inner_nodes, depth: int, stop_level: int,
@@ -170,7 +158,8 @@ def finish_in_octree(
 ) -> tuple[int, int, float, int, int]:
     """``traversal.trace_ray_from``, compiled once rather than inlined into every caller: the
     few rays the pyramid does not settle (7 % of a top view over the mountain terrain) pay a
-    call, and the callers compile faster."""
+    call, and the callers compile faster. From ``t_from = tmin`` it is ``trace_ray`` at a
+    fixed level, the answer without a pyramid."""
     return trace_ray_from(ox, oy, oz, dx, dy, dz, tmin, t_from, tmax, inner_nodes, depth,
                           stop_level, scratch)
 
