@@ -101,7 +101,7 @@ def trace_image_cpu(
                       cone_scale, beam, out, pyramid, numba.get_num_threads())
 
     result.seconds = run_in_bands(h, band, label=label, threads=threads, progress=progress,
-                                  granule=TILE)
+                                  granule=TILE, rays_per_row=w * side * side)
     return result
 
 

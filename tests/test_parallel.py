@@ -1,0 +1,42 @@
+"""``parallel.run_in_bands``: every row once, in order, in bands of whole tiles that hold
+enough rays to be worth a kernel call."""
+
+import pytest
+
+from voxfield.parallel import BAND_RAYS, band_rows, run_in_bands
+
+
+def _bands(height: int, granule: int, rays_per_row: int) -> list[slice]:
+    seen = []
+    run_in_bands(height, seen.append, label="test", threads=1, progress=False,
+                 granule=granule, rays_per_row=rays_per_row)
+    return seen
+
+
+@pytest.mark.parametrize("height", [1, 7, 8, 100, 512, 4096])
+@pytest.mark.parametrize("granule", [1, 8])
+@pytest.mark.parametrize("rays_per_row", [0, 1, 512, 512 * 16, BAND_RAYS * 2])
+def test_every_row_once_in_order_in_whole_tiles(height, granule, rays_per_row):
+    bands = _bands(height, granule, rays_per_row)
+    assert bands[0] == slice(0, 0)  # the kernel loads outside the timing
+    rows = [r for band in bands[1:] for r in range(band.start, band.stop)]
+    assert rows == list(range(height))
+    for band in bands[1:-1]:
+        assert (band.stop - band.start) % granule == 0
+
+
+def test_a_small_image_is_one_call_and_a_large_one_is_cut_by_rays():
+    # 512² at one ray a pixel: 2^18 rays, a quarter of a band's worth.
+    assert len(_bands(512, 8, 512)) - 1 == 1
+    # 16 rays a pixel: 2^22 rays, four bands of 2^20.
+    bands = _bands(512, 8, 512 * 16)[1:]
+    assert len(bands) == 4
+    assert all((b.stop - b.start) * 512 * 16 >= BAND_RAYS for b in bands)
+
+
+def test_without_a_ray_count_bands_are_a_sixteenth_of_the_image():
+    assert band_rows(512, 8) == 32
+    assert band_rows(4096, 8) == 64
+    assert band_rows(20, 8) == 8
+    # A row that alone exceeds the budget keeps the sixteenth.
+    assert band_rows(512, 8, BAND_RAYS * 4) == 32
