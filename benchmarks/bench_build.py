@@ -15,6 +15,10 @@ import time
 
 import numpy as np
 
+from voxfield.cli.exits import report_failures
+from voxfield.cli.options import int_at_least, int_between
+from voxfield.scene.terrain import MAX_FOOTPRINT
+
 
 def synthetic_terrain(footprint: int, depth_fill: int):
     """Rolling hills with every column filled ``depth_fill`` voxels down (no files needed)."""
@@ -71,8 +75,9 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="synthetic",
                         help="'synthetic' or any scene description (e.g. terrain:mountain)")
-    parser.add_argument("--footprint", type=int, default=2048)
-    parser.add_argument("--fill", type=int, default=5, help="synthetic: voxels per column")
+    parser.add_argument("--footprint", type=int_between(2, MAX_FOOTPRINT), default=2048)
+    parser.add_argument("--fill", type=int_at_least(1), default=5,
+                        help="synthetic: voxels per column")
     parser.add_argument("--lod-colour", default="mean", choices=("mean", "surface", "facing"),
                         help="coarse-colour rule (default mean: the structure alone; facing "
                         "adds 24 bytes per inner node and its own pass)")
@@ -91,4 +96,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(report_failures("bench_build", main))

@@ -15,6 +15,8 @@ import numba
 import numpy as np
 from numba import njit, prange
 
+from voxfield.cli.exits import report_failures
+from voxfield.cli.options import int_at_least
 from voxfield.error_table.directions import fibonacci_directions
 from voxfield.error_table.table import raycast_errors
 from voxfield.kernels.error_raycast import (
@@ -51,9 +53,9 @@ def per_mask_passes(directions, samples):
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--directions", type=int, default=1024)
-    parser.add_argument("--resolution", type=int, default=512)
-    parser.add_argument("--peer-directions", type=int, default=2)
+    parser.add_argument("--directions", type=int_at_least(2), default=1024)
+    parser.add_argument("--resolution", type=int_at_least(1), default=512)
+    parser.add_argument("--peer-directions", type=int_at_least(1), default=2)
     args = parser.parse_args()
     dirs = fibonacci_directions(args.directions)
     raycast_errors(dirs[:2], 8, 0)  # compile outside the timing
@@ -78,4 +80,4 @@ def main() -> None:
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(report_failures("bench_error_table", main))

@@ -27,6 +27,10 @@ import time
 
 import numpy as np
 
+from voxfield.cli.exits import report_failures
+from voxfield.cli.options import int_at_least, int_between
+from voxfield.scene.terrain import MAX_FOOTPRINT
+
 
 def camera(octree, view: str, width: int, height: int):
     from voxfield.render.camera import oblique_camera, top_down_camera
@@ -201,22 +205,24 @@ def check_probe_ptx(cuda) -> None:
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--recipe", default="mountain")
-    parser.add_argument("--footprint", type=int, nargs="+", default=[2048])
+    count = int_at_least(1)
+    parser.add_argument("--footprint", type=int_between(2, MAX_FOOTPRINT), nargs="+",
+                        default=[2048])
     parser.add_argument("--views", nargs="+", choices=("top", "oblique"),
                         default=["top", "oblique"])
-    parser.add_argument("--spp-side", type=int, nargs="+", default=[1, 4])
-    parser.add_argument("--width", type=int, default=1920)
-    parser.add_argument("--height", type=int, default=1080)
-    parser.add_argument("--repeats", type=int, default=5)
-    parser.add_argument("--cpu-repeats", type=int, default=1)
-    parser.add_argument("--threads", type=int, default=None, help="CPU threads (default all)")
+    parser.add_argument("--spp-side", type=int_between(1, 16), nargs="+", default=[1, 4])
+    parser.add_argument("--width", type=count, default=1920)
+    parser.add_argument("--height", type=count, default=1080)
+    parser.add_argument("--repeats", type=count, default=5)
+    parser.add_argument("--cpu-repeats", type=count, default=1)
+    parser.add_argument("--threads", type=count, default=None, help="CPU threads (default all)")
     parser.add_argument("--probe-grid", default="surface:8x8@24",
                         help="probe layer of the light-field rows (default surface:8x8@24)")
-    parser.add_argument("--probe-resolution", type=int, default=256)
+    parser.add_argument("--probe-resolution", type=count, default=256)
     parser.add_argument("--check-ptx", action="store_true")
     args = parser.parse_args(argv)
     return check_ptx() if args.check_ptx else run(args)
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(report_failures("bench_gpu", main))

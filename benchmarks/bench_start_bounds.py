@@ -159,4 +159,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from voxfield.cli.exits import report_failures
+
+    raise SystemExit(report_failures("bench_start_bounds", main))

@@ -595,23 +595,29 @@ def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args
 
 
 def main(argv=None) -> int:
+    from voxfield.cli.options import int_at_least, int_between
+    from voxfield.scene.terrain import MAX_FOOTPRINT
+    from voxfield.scene.terrain.recipes import RECIPES
+
+    count = int_at_least(1)
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    p.add_argument("--recipe", default="mountain",
+    p.add_argument("--recipe", default="mountain", choices=list(RECIPES),
                    help="terrain recipe (real DEM) from voxfield.scene.terrain (default mountain)")
-    p.add_argument("--footprint", type=int, nargs="+", default=[2048, 512],
+    p.add_argument("--footprint", type=int_between(2, MAX_FOOTPRINT), nargs="+",
+                   default=[2048, 512],
                    help="terrain footprints (columns per side) to run (default 2048 512)")
     p.add_argument("--views", nargs="+", default=["top", "oblique"], choices=["top", "oblique"])
-    p.add_argument("--spp-side", type=int, nargs="+", default=[1, 4],
+    p.add_argument("--spp-side", type=int_between(1, 16), nargs="+", default=[1, 4],
                    help="rays per pixel side: 1 = LOD renderer, >1 = reference (default 1 4)")
-    p.add_argument("--size", type=int, default=512, help="image side in pixels (default 512)")
-    p.add_argument("--repeats", type=int, default=3, help="timed runs per figure (best counts)")
-    p.add_argument("--threads", type=int, default=2, help="threads for both tracers (default 2)")
+    p.add_argument("--size", type=count, default=512, help="image side in pixels (default 512)")
+    p.add_argument("--repeats", type=count, default=3, help="timed runs per figure (best counts)")
+    p.add_argument("--threads", type=count, default=2, help="threads for both tracers (default 2)")
     p.add_argument("--seed", type=int, default=0, help="terrain asset scattering seed")
-    p.add_argument("--secondary-rays", type=int, default=1_000_000,
+    p.add_argument("--secondary-rays", type=count, default=1_000_000,
                    help="incoherent secondary rays per scene (default 1,000,000)")
     p.add_argument("--no-colour", action="store_true",
                    help="skip the colour-storage quality rows")
-    p.add_argument("--big", type=int, default=None, metavar="N",
+    p.add_argument("--big", type=int_between(2, MAX_FOOTPRINT), default=None, metavar="N",
                    help="also stream-build and render an N² world (e.g. 8192)")
     p.add_argument("--no-face-count", action="store_true",
                    help="with --big: skip counting its exposed faces for the Embree estimate")
@@ -656,4 +662,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main(argv=None))
+    from voxfield.cli.exits import report_failures
+
+    raise SystemExit(report_failures("bench_traversal", main))

@@ -6,8 +6,6 @@ Bad input prints one line, ``voxfield: error: ...``, and exits with status 2.
 from __future__ import annotations
 
 import argparse
-import errno
-import os
 import re
 import sys
 import warnings
@@ -26,12 +24,11 @@ from voxfield.cli import (
     cmd_study,
     cmd_sweep,
 )
+from voxfield.cli.exits import EXIT_INTERRUPTED, EXIT_USAGE, report_failures
 from voxfield.cli.options import QUIET_HELP
-from voxfield.errors import VoxfieldError
 from voxfield.progress import compile_notice
 
-EXIT_USAGE = 2
-EXIT_INTERRUPTED = 130
+__all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "build_parser", "main"]
 
 #: Command groups in the order ``voxfield --help`` lists them.
 COMMAND_GROUPS = (
@@ -91,37 +88,9 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"argument {token[:-3]}: expected a value, got '--'")
     args = parser.parse_args(argv)
     args.quiet = getattr(args, "quiet", False)
-    try:
+
+    def run() -> int:
         with compile_notice(enabled=not args.quiet and sys.stderr.isatty()):
-            code = args.func(args)
-        sys.stdout.flush()  # a closed pipe shows here, not at exit
-        return code
-    except VoxfieldError as exc:
-        print(f"voxfield: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except BrokenPipeError:
-        # The reader went away (``voxfield scenes | head -1``): say so once, quietly.
-        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - Python would flush into the pipe
-        print("voxfield: error: output closed early (broken pipe)", file=sys.stderr)
-        return EXIT_USAGE
-    except OSError as exc:
-        print(f"voxfield: error: {os_error_text(exc)}", file=sys.stderr)
-        return EXIT_USAGE
-    except KeyboardInterrupt:
-        print("voxfield: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+            return args.func(args)
 
-
-def os_error_text(exc: OSError) -> str:
-    """An operating-system error in the user's terms: the path and what went wrong."""
-    reason = {
-        errno.ENAMETOOLONG: "the file name is too long",
-        errno.EISDIR: "it is a folder, not a file",
-        errno.ENOTDIR: "a part of the path is a file, not a folder",
-        errno.EEXIST: "a part of the path is a file, not a folder",
-        errno.EROFS: "the file system is read-only",
-        errno.EACCES: "permission denied",
-        errno.ENOSPC: "the disk is full",
-    }.get(exc.errno, exc.strerror or str(exc))
-    where = exc.filename if exc.filename is not None else "a file"
-    return f"cannot use {where}: {reason}"
+    return report_failures("voxfield", run)

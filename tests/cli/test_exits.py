@@ -1,0 +1,68 @@
+"""``cli.exits.report_failures``: how the command and the benchmark scripts end when
+something goes wrong (one line and a status, never a traceback)."""
+
+import errno
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from voxfield.cli.exits import EXIT_INTERRUPTED, EXIT_USAGE, report_failures
+from voxfield.errors import VoxfieldError
+
+BENCHMARKS = Path(__file__).parents[2] / "benchmarks"
+
+
+def _raise(exc):
+    def command():
+        raise exc
+    return command
+
+
+def test_a_status_passes_through_and_none_is_success():
+    assert report_failures("x", lambda: 3) == 3
+    assert report_failures("x", lambda: None) == 0
+
+
+@pytest.mark.parametrize(("exc", "status", "line"), [
+    (VoxfieldError("footprint must be between 2 and 16384"), EXIT_USAGE,
+     "x: error: footprint must be between 2 and 16384"),
+    (PermissionError(errno.EACCES, "Permission denied", "/out/a.png"), EXIT_USAGE,
+     "x: error: cannot use /out/a.png: permission denied"),
+    (KeyboardInterrupt(), EXIT_INTERRUPTED, "x: interrupted"),
+])
+def test_failures_are_one_line_and_a_status(exc, status, line, capsys):
+    assert report_failures("x", _raise(exc)) == status
+    assert capsys.readouterr().err.splitlines() == [line]
+
+
+def test_a_programming_error_is_not_hidden():
+    with pytest.raises(ZeroDivisionError):
+        report_failures("x", lambda: 1 // 0)
+
+
+@pytest.mark.parametrize(("script", "argv", "message"), [
+    ("bench_traversal.py", ["--repeats", "0"], "argument --repeats: expected 1 or more"),
+    ("bench_traversal.py", ["--footprint", "1"], "argument --footprint: expected 2 or more"),
+    ("bench_traversal.py", ["--spp-side", "17"], "argument --spp-side: expected at most 16"),
+    ("bench_gpu.py", ["--threads", "0"], "argument --threads: expected 1 or more"),
+    ("bench_build.py", ["--fill", "0"], "argument --fill: expected 1 or more"),
+    ("bench_error_table.py", ["--directions", "1"], "argument --directions: expected 2 or more"),
+])
+def test_benchmarks_refuse_impossible_options(script, argv, message):
+    proc = subprocess.run([sys.executable, str(BENCHMARKS / script), *argv],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == EXIT_USAGE
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.splitlines()[-1] == f"{script}: error: {message}, got '{argv[-1]}'"
+
+
+def test_a_benchmark_reports_bad_input_found_late_in_one_line():
+    """An unknown recipe is found when the scene is built, past argument parsing."""
+    proc = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "bench_start_bounds.py"), "--recipe", "nowhere"],
+        capture_output=True, text=True, timeout=300)
+    assert proc.returncode == EXIT_USAGE
+    assert len(proc.stderr.splitlines()) == 1
+    assert proc.stderr.startswith("bench_start_bounds: error: unknown terrain recipe 'nowhere'")
