@@ -30,8 +30,9 @@ def thread_count(threads: int | None):
 
 #: Rays a band holds at least when its caller says how many a row casts: each band is a
 #: kernel call whose threads meet at its end, and a render of a 512² image in 16 bands took
-#: 1.03-1.06× the time of one call (mountain terrain, one ray a pixel). 2^20 rays are a
-#: tenth of a second or more, often enough for a progress bar and for Ctrl-C.
+#: 0.97-1.11× the time of one call, 1.05× typically (mountain terrain, one ray a pixel,
+#: medians of alternating runs). 2^20 rays take a tenth of a second or more, often enough
+#: for a progress bar and for Ctrl-C.
 BAND_RAYS = 1 << 20
 
 
