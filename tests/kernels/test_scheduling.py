@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from numba import njit, prange
 
-from voxfield.kernels.scheduling import interleaved
+from voxfield.kernels.scheduling import interleaved, interleaved_run, run_count
 
 
 def _order(n: int, parts: int) -> np.ndarray:
@@ -48,3 +48,14 @@ def test_inside_prange_with_an_unsigned_index():
     out = np.zeros(1000, np.int64)
     _visit(1000, numba.get_num_threads(), out)
     assert np.all(out == 1)
+
+
+@pytest.mark.parametrize("parts", [1, 2, 3])
+@pytest.mark.parametrize(("n", "size"), [(0, 4), (1, 4), (63, 64), (64, 64), (65, 64), (1000, 16)])
+def test_runs_cover_every_item_once_in_whole_runs(n, size, parts):
+    seen = np.zeros(n, np.int64)
+    for k in range(run_count(n, size)):
+        first, last = interleaved_run(k, n, size, parts)
+        assert first % size == 0 and 0 < last - first <= size
+        seen[first:last] += 1
+    assert np.all(seen == 1)

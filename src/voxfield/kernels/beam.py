@@ -31,7 +31,7 @@ from numba import njit, prange
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.camera_rays import OCTAHEDRAL, ORTHOGRAPHIC, camera_ray
 from voxfield.kernels.node_descriptor import child_index
-from voxfield.kernels.scheduling import interleaved_run
+from voxfield.kernels.scheduling import interleaved_run, run_count
 
 #: Relative and absolute slack of every bound (rounding of the dilation and of times).
 _SLACK = 1e-9
@@ -183,7 +183,7 @@ def beam_map(
     """
     blocks_x = out_bound.shape[1]
     blocks = out_bound.shape[0] * blocks_x
-    for k in prange((blocks + BEAM_CHUNK - 1) // BEAM_CHUNK):
+    for k in prange(run_count(blocks, BEAM_CHUNK)):
         first, last = interleaved_run(k, blocks, BEAM_CHUNK, threads)
         beam_chunk(cam, width, height, block, first, last,
                    inner_nodes, depth, stop_level, cone_radius, cone_spread, wanted,

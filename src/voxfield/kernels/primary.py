@@ -21,7 +21,7 @@ from voxfield.kernels.sampling import (
     new_cmj_strata,
     pixel_pattern,
 )
-from voxfield.kernels.scheduling import interleaved_run
+from voxfield.kernels.scheduling import interleaved_run, run_count
 from voxfield.kernels.surface_approach import trace_over_columns
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
@@ -125,7 +125,7 @@ def render_pixels_over_columns(
     out: PixelOutputs, columns, threads: int,
 ) -> None:
     """``render_pixels`` through the column-top pyramid (``trace_chunk_over_columns``)."""
-    for k in prange(pixel_chunks(pixels.shape[0])):
+    for k in prange(run_count(pixels.shape[0], PIXEL_CHUNK)):
         first, last, sums, tallies = pixel_chunk(k, pixels.shape[0], threads)
         trace_chunk_over_columns(cam, width, height, pixels, first, last, side, seed, view,
                                  stop_level, beam, columns, sums, tallies,
@@ -141,7 +141,7 @@ def render_pixels_in_packets(
     out: PixelOutputs, threads: int,
 ) -> None:
     """``render_pixels`` in packets of 64 rays (``trace_chunk_in_packets``)."""
-    for k in prange(pixel_chunks(pixels.shape[0])):
+    for k in prange(run_count(pixels.shape[0], PIXEL_CHUNK)):
         first, last, sums, tallies = pixel_chunk(k, pixels.shape[0], threads)
         trace_chunk_in_packets(cam, width, height, pixels, first, last, side, seed, view,
                                stop_level, beam, sums, tallies)
@@ -156,7 +156,7 @@ def render_pixels_per_ray(
 ) -> None:
     """``render_pixels`` one ray at a time through the octree, each with the sub-sample cone
     ``radius + spread·t`` (``trace_chunk_per_ray``)."""
-    for k in prange(pixel_chunks(pixels.shape[0])):
+    for k in prange(run_count(pixels.shape[0], PIXEL_CHUNK)):
         first, last, sums, tallies = pixel_chunk(k, pixels.shape[0], threads)
         trace_chunk_per_ray(cam, width, height, pixels, first, last, side, seed, view,
                             stop_level, radius, spread, beam, sums, tallies,
@@ -165,13 +165,8 @@ def render_pixels_per_ray(
 
 
 @njit(cache=True, nogil=True)
-def pixel_chunks(n: int) -> int:
-    return (n + PIXEL_CHUNK - 1) // PIXEL_CHUNK
-
-
-@njit(cache=True, nogil=True)
 def pixel_chunk(k: int, n: int, threads: int):
-    """The ``k``-th chunk of a ``prange`` over ``pixel_chunks(n)``, the ``threads`` taking
+    """The ``k``-th chunk of a ``prange`` over ``run_count(n, PIXEL_CHUNK)``, the ``threads`` taking
     tiles in turn: its pixels ``first..last-1`` and their zeroed sums in ``add_sample``'s
     layout (r, g, b, normal x, y, z, depth sum; hits, steps, finest LOD: 127 until a hit
     lowers it)."""

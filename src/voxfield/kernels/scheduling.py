@@ -41,9 +41,16 @@ def interleaved(k: int, n: int, parts: int) -> int:
 
 
 @njit(cache=True, nogil=True)
+def run_count(n: int, size: int) -> int:
+    """How many runs of ``size`` items cover ``n`` items: the length of the ``prange`` whose
+    iterations ``interleaved_run`` maps to runs."""
+    return (n + size - 1) // size
+
+
+@njit(cache=True, nogil=True)
 def interleaved_run(k: int, n: int, size: int, parts: int) -> tuple[int, int]:
     """Items ``first..last-1`` of the ``k``-th iteration of a ``prange`` over the
-    ``ceil(n / size)`` runs of ``size`` items, the runs dealt to ``parts`` threads in turn
-    (``interleaved``)."""
-    first = interleaved(k, (n + size - 1) // size, parts) * size
+    ``run_count(n, size)`` runs of ``size`` items, the runs dealt to ``parts`` threads in
+    turn (``interleaved``)."""
+    first = interleaved(k, run_count(n, size), parts) * size
     return first, min(n, first + size)

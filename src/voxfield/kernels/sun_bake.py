@@ -72,7 +72,7 @@ from voxfield.kernels.sampling import (
     new_cmj_strata,
     pixel_pattern,
 )
-from voxfield.kernels.scheduling import interleaved
+from voxfield.kernels.scheduling import interleaved_run, run_count
 from voxfield.kernels.traversal import MISS, new_scratch, occluded
 from voxfield.kernels.upward_rays import (
     BLOCKED,
@@ -495,10 +495,9 @@ def bake_sun_visibility(
     horizon slopes (``svo.horizons``; ``(0, 4)``: every sky ray walked). Blocks of voxels
     are dealt out to the ``threads`` the loop runs on in turn (``kernels.scheduling``)."""
     n = coords.shape[0]
-    blocks = (n + BAKE_BLOCK - 1) // BAKE_BLOCK
-    for k in prange(blocks):
-        first = interleaved(k, blocks, threads) * BAKE_BLOCK
-        bake_block(first, min(n, first + BAKE_BLOCK), coords, voxel_ids, faces, sun_dirs,
+    for k in prange(run_count(n, BAKE_BLOCK)):
+        first, last = interleaved_run(k, n, BAKE_BLOCK, threads)
+        bake_block(first, last, coords, voxel_ids, faces, sun_dirs,
                    sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, columns, sun_tops,
                    horizons, out_rows, out_direct, out_sky, out_weight, out_sky_rays,
                    out_shadow_rays, out_steps, new_block_scratch(depth, sky_rays, shadow_rays))
