@@ -16,8 +16,9 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "voxfield"
 
 #: Lowest first. A module may import its own layer and the layers before it, never after.
 LAYERS = (
-    ("base", ("voxfield", "voxfield.errors", "voxfield.atomic", "voxfield.progress",
-              "voxfield.data", "voxfield.parallel", "voxfield.fingerprint")),
+    ("base", ("voxfield", "voxfield.errors", "voxfield.checks", "voxfield.atomic",
+              "voxfield.progress", "voxfield.data", "voxfield.parallel",
+              "voxfield.fingerprint")),
     ("kernels", ("voxfield.kernels",)),
     ("error tables", ("voxfield.error_table",)),
     ("scenes", ("voxfield.scene",)),

@@ -378,6 +378,10 @@ def test_bad_bake_input_is_refused():
         bake_sun_lighting(floor, [noon], sky_rays=-1)
     with pytest.raises(VoxfieldError, match="shadow rays"):
         bake_sun_lighting(floor, [noon], shadow_rays=0)
+    with pytest.raises(VoxfieldError, match="sky rays"):
+        bake_sun_lighting(floor, [noon], sky_rays=2.5)
+    with pytest.raises(VoxfieldError, match="seed"):
+        bake_sun_lighting(floor, [noon], seed=2**32)
     with pytest.raises(VoxfieldError, match="thread count"):
         bake_sun_lighting(floor, [noon], threads=0)
 

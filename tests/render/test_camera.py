@@ -70,8 +70,13 @@ def test_top_down_camera_spans_the_map_at_ground_level():
         lambda: Camera.look_at((0, 0, 0), (0, 1, 0), up=(0, 1, 0)),
         lambda: Camera.look_at((0, 0, 0), (0, 0, 1), fov_deg=0),
         lambda: Camera.look_at((0, 0, 0), (0, 0, 1), width=0),
+        lambda: Camera.look_at((0, 0, 0), (0, 0, 1), width=16.5),  # once silently 16
+        lambda: Camera.look_at((0, 0, 0), (0, 0, 1), width=True),  # once a 1-pixel image
+        lambda: Camera.look_at((0, 0, 0), (0, 0, 1), width=8, height=16385),
         lambda: Camera.orthographic((0, 0, 0), (0, 0, 1), view_height=-1),
         lambda: Camera.cube_face((0, 0, 0), "+w"),
+        lambda: Camera.cube_face((0, 0, 0), "+x", size=0),
+        lambda: Camera.octahedral((0, 0, 0), resolution=8.5),
     ],
 )
 def test_invalid_cameras_raise_camera_error(make):

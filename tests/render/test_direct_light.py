@@ -229,6 +229,9 @@ def test_counters_add_up(box):
     [
         ({"shadow_lod": "cone"}, "unknown shadow LOD"),
         ({"light_samples": 0}, "light samples"),
+        ({"light_samples": 2.5}, "light samples must be an integer"),  # once 2 samples
+        ({"seed": 0.5}, "seed must be an integer"),
+        ({"max_refinements": 1.5}, "refinements"),
         ({"lod_distance": 0.0}, "LOD distance"),
         ({"lod_distance": float("nan")}, "LOD distance"),
         ({"threshold": float("nan")}, "threshold"),

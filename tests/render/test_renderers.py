@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 import pytest
 
 from random_scenes import random_scene
 from voxfield.errors import VoxfieldError
-from voxfield.render import Camera, orbit_camera, render, render_lod, render_reference
+from voxfield.render import Camera, orbit_camera, ray_query, render, render_lod, render_reference
+from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import TILE, tile_order
 from voxfield.scene.builtin import pillars
 from voxfield.scene.voxel_scene import VoxelScene
@@ -100,6 +103,51 @@ def test_bad_renderer_options_raise(pillar_octree):
         render_lod(pillar_octree, cam, lod=99)
     with pytest.raises(VoxfieldError, match="no channel"):
         render_reference(pillar_octree, cam, channel="sunset")
+
+
+@pytest.mark.parametrize(("call", "message"), [
+    (lambda o, c: render_lod(o, c, lod=1.5), "LOD must be an integer"),
+    (lambda o, c: render_lod(o, c, lod=True), "LOD must be an integer"),
+    (lambda o, c: render_lod(o, c, lod=None, cone_scale=math.inf), "cone scale must be a finite"),
+    (lambda o, c: render_lod(o, c, lod=None, cone_scale=math.nan), "cone scale must be a finite"),
+    (lambda o, c: render_lod(o, c, lod=None, cone_scale=-1.0), "positive cone scale"),
+    (lambda o, c: render_reference(o, c, side=2.5), "samples per pixel side must be an integer"),
+    (lambda o, c: render_reference(o, c, side=True), "samples per pixel side must be an integer"),
+    (lambda o, c: render_reference(o, c, side=2, seed=1.5), "seed must be an integer"),
+    (lambda o, c: render_reference(o, c, side=2, seed=-1), "seed must be an integer"),
+    (lambda o, c: render_reference(o, c, side=2, seed=2**32), "seed must be an integer"),
+    (lambda o, c: render_error_aware(o, c, seed=0.5), "seed must be an integer"),
+    (lambda o, c: render_error_aware(o, c, max_refinements=1.5), "refinements must be"),
+    (lambda o, c: render_error_aware(o, c, base_lod=1.0), "base LOD must be an integer"),
+    (lambda o, c: ray_query.trace(o, [[1, 40, 1]], [[0, -1, 0]], lod=0.5), "LOD must be"),
+    (lambda o, c: ray_query.trace(o, [[1, 40, 1]], [[0, -1, 0]], tmin=math.nan), "tmin must"),
+    (lambda o, c: ray_query.occluded(o, [[1, 40, 1]], [[0, -1, 0]], tmax=math.nan), "tmax"),
+    (lambda o, c: ray_query.occluded(o, [[1, 40, 1]], [[0, -1, 0]], tmin="0"), "tmin must"),
+])
+def test_entry_points_refuse_numbers_a_kernel_cannot_take(pillar_octree, call, message):
+    # Before, a float LOD, side or seed failed in Numba's type inference with pages of
+    # text, and a NaN bound made every ray a miss without a word.
+    cam = orbit_camera(*pillar_octree.voxel_bounds, size=8)
+    with pytest.raises(VoxfieldError, match=message):
+        call(pillar_octree, cam)
+
+
+def test_numpy_integers_and_floats_render_as_python_ones(pillar_octree):
+    cam = orbit_camera(*pillar_octree.voxel_bounds, size=16)
+    a = render_reference(pillar_octree, cam, side=np.int64(2), seed=np.uint32(3))
+    b = render_reference(pillar_octree, cam, side=2, seed=3)
+    assert np.array_equal(a.image, b.image) and np.array_equal(a.steps, b.steps)
+    rays = ([[1.5, 40.0, 1.5]], [[0.1, -1.0, 0.2]])
+    hit = ray_query.trace(pillar_octree, *rays, lod=np.int8(1), tmin=np.float32(0.5))
+    same = ray_query.trace(pillar_octree, *rays, lod=1, tmin=0.5)
+    assert hit.node[0] == same.node[0] and hit.t[0] == same.t[0]
+
+
+def test_an_empty_segment_misses(pillar_octree):
+    rays = ([[1.5, 40.0, 1.5]], [[0.0, -1.0, 0.0]])
+    assert ray_query.trace(pillar_octree, *rays).hit[0]
+    assert not ray_query.trace(pillar_octree, *rays, tmin=5.0, tmax=1.0).hit[0]
+    assert not ray_query.occluded(pillar_octree, *rays, tmin=5.0, tmax=5.0).blocked[0]
 
 
 @pytest.mark.parametrize(("height", "width"), [(16, 24), (13, 10)])

@@ -15,9 +15,10 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.checks import MAX_SEED
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import COLOUR_PROBES, EPSILON_MODES, LightFieldOptions
-from voxfield.render.camera import CAMERA_PRESETS, Camera, preset_camera
+from voxfield.render.camera import CAMERA_PRESETS, MAX_IMAGE_SIDE, Camera, preset_camera
 from voxfield.render.framing import content_box
 from voxfield.render.registry import RENDERERS
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
@@ -115,13 +116,12 @@ def fov_arg(text: str) -> float:
     return value
 
 
-#: Seeds feed 32-bit hashes: larger values would silently wrap, so they are refused.
-MAX_SEED = 2**32 - 1
+#: Seeds feed 32-bit hashes (``checks.MAX_SEED``): larger values would silently wrap, so
+#: they are refused.
 seed_arg = int_between(0, MAX_SEED, "seeds are 32-bit")
-#: Size bounds, from memory and time on a workstation: a mesh voxelized at N voxels a side
-#: keeps about 6·N² surface voxels (16 bytes each while building), an image N² pixels.
+#: Size bound, from memory and time on a workstation: a mesh voxelized at N voxels a side
+#: keeps about 6·N² surface voxels (16 bytes each while building). Images: the camera's own.
 MAX_MESH_RESOLUTION = 8192
-MAX_IMAGE_SIZE = 16384
 
 
 def float_list(text: str) -> tuple[float, ...]:
@@ -206,8 +206,8 @@ def add_view_options(p: argparse.ArgumentParser, size: int = 512) -> None:
     p.add_argument("--target", type=vector_arg, default=None, metavar="X,Y,Z")
     p.add_argument("--fov", type=fov_arg, default=None,
                    help="vertical field of view in degrees, between 0 and 180")
-    p.add_argument("--size", type=int_between(1, MAX_IMAGE_SIZE, "pixels a side"),
-                   default=size, help=f"image width = height, 1..{MAX_IMAGE_SIZE} "
+    p.add_argument("--size", type=int_between(1, MAX_IMAGE_SIDE, "pixels a side"),
+                   default=size, help=f"image width = height, 1..{MAX_IMAGE_SIDE} "
                    f"(default {size})")
     add_quiet(p)
 

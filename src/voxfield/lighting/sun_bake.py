@@ -16,6 +16,7 @@ from dataclasses import asdict, dataclass, field
 import numba
 import numpy as np
 
+from voxfield.checks import integer_in, seed_value
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.colour import FLOAT32, RGB9E5, SRGB8, storage_of
 from voxfield.kernels.sun_bake import bake_sun_visibility, lit_colours
@@ -95,14 +96,6 @@ class BakeReport:
         )
 
 
-def _check_count(value, what: str, low: int) -> int:
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise VoxfieldError(f"{what} must be an integer, got {value!r}")
-    if not low <= value <= MAX_RAYS:
-        raise VoxfieldError(f"{what} must be in {low}..{MAX_RAYS}, got {value}")
-    return int(value)
-
-
 def _check_suns(suns: Sequence[SunLight]) -> list[SunLight]:
     suns = list(suns)
     if not suns:
@@ -134,10 +127,9 @@ def sun_visibility(
     from its index and ``seed``): without a ``scheduler`` they run one after another here,
     each on every core; with one (``voxfield.scaleout``) they run as tasks, the octree's
     descriptors shared, and merge by voxel index, so the result is bit-identical."""
-    sky_rays = _check_count(sky_rays, "sky rays per voxel", 0)
-    shadow_rays = _check_count(shadow_rays, "shadow rays per face", 1)
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)):
-        raise VoxfieldError(f"seed must be an integer, got {seed!r}")
+    sky_rays = integer_in(sky_rays, "sky rays per voxel", 0, MAX_RAYS)
+    shadow_rays = integer_in(shadow_rays, "shadow rays per face", 1, MAX_RAYS)
+    seed = seed_value(seed)
     dirs = np.asarray(sun_dirs, np.float64)
     if dirs.ndim != 2 or dirs.shape[1] != 3 or not np.all(np.isfinite(dirs)):
         raise VoxfieldError(f"sun directions must be finite suns×3 vectors, got {dirs.shape}")

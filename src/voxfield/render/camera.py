@@ -6,7 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from voxfield.errors import CameraError
+from voxfield.checks import integer_in
+from voxfield.errors import CameraError, VoxfieldError
 from voxfield.kernels.camera_rays import OCTAHEDRAL, ORTHOGRAPHIC, PINHOLE, camera_ray_arrays
 
 #: Cube-map faces in the OpenGL/DirectX order and orientation: (name, forward, up).
@@ -30,11 +31,18 @@ def _vector(value, what: str) -> np.ndarray:
     return v
 
 
+#: Largest image side, for the library's cameras and the command line alike.
+MAX_IMAGE_SIDE = 16384
+
+
 def _image_size(width, height) -> tuple[int, int]:
+    """Whole pixels in 1..MAX_IMAGE_SIDE (a 16.5-pixel image would silently become 16)."""
     height = width if height is None else height
-    if not (1 <= int(width) <= 16384 and 1 <= int(height) <= 16384):
-        raise CameraError(f"image size {width}×{height} is outside 1..16384")
-    return int(width), int(height)
+    try:
+        return (integer_in(width, "image width", 1, MAX_IMAGE_SIDE),
+                integer_in(height, "image height", 1, MAX_IMAGE_SIDE))
+    except VoxfieldError as exc:
+        raise CameraError(str(exc)) from None
 
 
 def _basis(forward, up) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -99,12 +107,13 @@ class Camera:
         half_h = float(view_height) / 2.0
         return cls(
             ORTHOGRAPHIC, _vector(center, "center"), f, r, u,
-            half_h * width / height, half_h, int(width), int(height),
+            half_h * width / height, half_h, width, height,
         )
 
     @classmethod
     def cube_face(cls, position, face: str, size: int = 128) -> Camera:
         """One 90° face of a cube map centred at ``position`` (faces named +x, -x, ...)."""
+        size, _ = _image_size(size, size)
         for name, forward, up in CUBE_FACES:
             if name == face:
                 f, r, u = _basis(forward, up)
@@ -116,7 +125,7 @@ class Camera:
     def octahedral(cls, position, resolution: int = 64) -> Camera:
         """A light probe at ``position``: an R×R octahedral map of every direction; pixel
         (row, col) is texel (v, u) of ``kernels.octahedral`` (y up)."""
-        resolution = int(resolution)
+        resolution, _ = _image_size(resolution, resolution)
         f, r, u = _basis((0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
         return cls(OCTAHEDRAL, _vector(position, "probe position"), f, r, u, 1.0, 1.0,
                    resolution, resolution)

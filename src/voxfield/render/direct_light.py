@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from voxfield.checks import integer_in, seed_value
 from voxfield.error_table.table import (
     ENCODINGS,
     THESIS_DECAY,
@@ -141,17 +142,15 @@ def _setup(
         raise VoxfieldError(
             f"unknown shadow LOD {shadow_lod!r}; choose one of {', '.join(SHADOW_MODES)}"
         )
-    if not 1 <= int(light_samples) <= 4096:
-        raise VoxfieldError(f"light samples must be in 1..4096, got {light_samples}")
+    light_samples = integer_in(light_samples, "light samples", 1, 4096)
+    seed = seed_value(seed)
     if not (np.isfinite(lod_distance) and lod_distance > 0):
         raise VoxfieldError(f"the LOD distance must be a positive number, got {lod_distance}")
     if np.isnan(threshold) or not (np.isfinite(decay) and decay >= 0):
         raise VoxfieldError("threshold must be a number (inf: never refine) and decay >= 0")
-    if max_refinements is not None and not 0 <= max_refinements <= octree.depth:
-        raise VoxfieldError(
-            f"refinements must be between 0 and the octree depth {octree.depth}, "
-            f"got {max_refinements}"
-        )
+    if max_refinements is not None:
+        max_refinements = integer_in(max_refinements, "refinements (at most the octree's depth)",
+                                     0, octree.depth)
     table = load_error_table() if table is None else table
     encoding = encoding or table.default_encoding
     if encoding not in ENCODINGS:

@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from voxfield.checks import integer_in, seed_value
 from voxfield.error_table.lighting_table import LightingErrorTable, load_lighting_error_table
 from voxfield.error_table.table import (
     ENCODINGS,
@@ -33,6 +34,7 @@ from voxfield.parallel import run_in_bands, thread_count
 from voxfield.render.adaptive import luminance, refine_by_variance
 from voxfield.render.beam import primary_beam
 from voxfield.render.camera import Camera
+from voxfield.render.primary import cone_scale_value
 from voxfield.render.result import RenderResult
 from voxfield.svo.column_tops import no_column_tops, octree_column_tops
 from voxfield.svo.lod_colours import exposed_face_weights
@@ -129,10 +131,10 @@ def render_error_aware(
     encoding = encoding or table.default_encoding
     if encoding not in ENCODINGS:
         raise VoxfieldError(f"unknown encoding {encoding!r}; choose one of {ENCODINGS}")
-    if not 0 <= max_refinements <= MAX_REFINEMENTS:
-        raise VoxfieldError(f"refinements must be between 0 and {MAX_REFINEMENTS}")
-    if base_lod is not None and not 0 <= base_lod <= octree.depth:
-        raise VoxfieldError(f"base LOD must be between 0 and {octree.depth}, got {base_lod}")
+    max_refinements = integer_in(max_refinements, "refinements", 0, MAX_REFINEMENTS)
+    if base_lod is not None:
+        base_lod = integer_in(base_lod, "base LOD", 0, octree.depth)
+    seed = seed_value(seed)
     if np.isnan(threshold) or not (np.isfinite(decay) and decay >= 0):
         raise VoxfieldError("threshold must be a number (inf: never refine) and decay >= 0")
     if lighting_aware and not (np.isfinite(bright_ratio) and bright_ratio >= 0):
@@ -142,8 +144,8 @@ def render_error_aware(
     if colour_variance is not None and not (np.isfinite(colour_variance)
                                             and colour_variance > 0):
         raise VoxfieldError(f"colour variance normalisation must be > 0, got {colour_variance}")
-    if base_lod is None and not cone_scale > 0:
-        raise VoxfieldError("cone LOD selection needs a positive cone scale")
+    if base_lod is None:
+        cone_scale = cone_scale_value(cone_scale)
     colors, facing = octree.kernel_colours(channel)
     light = _lighting_arrays(lighting_table, lighting_aware)
     h, w = camera.height, camera.width

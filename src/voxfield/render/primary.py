@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
+from voxfield.checks import integer_in, real_number, seed_value
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
@@ -57,8 +58,8 @@ def trace_image(
     ``device="cuda"`` traces the pixels on a GPU (``render.device``), with the same image
     and the octree's steps alone.
     """
-    if side < 1 or side > 16:
-        raise VoxfieldError(f"samples per pixel side must be in 1..16, got {side}")
+    side = integer_in(side, "samples per pixel side", 1, 16)
+    seed = seed_value(seed)
     check_device(device)
     with thread_count(threads):
         bounds = primary_beam(octree, camera, stop_level=stop_level, cone_scale=cone_scale,
@@ -140,6 +141,14 @@ def _tile_order(height: int, width: int) -> np.ndarray:
     return np.argsort(key, kind="stable")
 
 
+def cone_scale_value(cone_scale) -> float:
+    """A cone LOD's node size per pixel footprint: a finite number above 0."""
+    scale = real_number(cone_scale, "cone scale")
+    if not scale > 0.0:
+        raise VoxfieldError(f"cone LOD selection needs a positive cone scale, got {cone_scale}")
+    return scale
+
+
 def render_reference(
     octree: Octree, camera: Camera, *, side: int = ReferenceOptions.side, seed: int = 0,
     channel: str = "albedo",
@@ -172,10 +181,10 @@ def render_lod(
     ``beam=False`` starts every ray at the camera (same image, more steps); ``columns``
     crosses the air in the column-top pyramid first at a fixed LOD (``trace_image``; same
     image); ``device`` is ``"cpu"`` or ``"cuda"`` (same image)."""
-    if lod is not None and not 0 <= lod <= octree.depth:
-        raise VoxfieldError(f"LOD must be between 0 and {octree.depth} for this octree, got {lod}")
-    if lod is None and not cone_scale > 0.0:
-        raise VoxfieldError("cone LOD selection needs a positive cone scale")
+    if lod is not None:
+        lod = integer_in(lod, "LOD", 0, octree.depth)
+    else:
+        cone_scale = cone_scale_value(cone_scale)
     stop_level = octree.depth if lod is None else octree.depth - lod
     result = trace_image(
         octree, camera, side=side, stop_level=stop_level,

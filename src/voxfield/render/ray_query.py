@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from voxfield.checks import integer_in, real_number
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.ray_batch import occlude_rays, trace_rays
 from voxfield.parallel import thread_count
@@ -45,8 +46,8 @@ def trace(
     the steps then count the pyramid's cells.
     """
     o, d = _checked_rays(origins, directions)
-    if not 0 <= lod <= octree.depth:
-        raise VoxfieldError(f"LOD must be between 0 and {octree.depth} for this octree, got {lod}")
+    lod = integer_in(lod, "LOD", 0, octree.depth)
+    tmin, tmax = _checked_interval(tmin, tmax)
     n = len(o)
     hits = RayHits(
         node=np.empty(n, np.int64), level=np.empty(n, np.int64), t=np.empty(n),
@@ -54,7 +55,7 @@ def trace(
     )
     with thread_count(threads):
         trace_rays(
-            o, d, float(tmin), float(tmax), octree.inner_nodes, octree.depth, octree.depth - lod,
+            o, d, tmin, tmax, octree.inner_nodes, octree.depth, octree.depth - lod,
             hits.node, hits.level, hits.t, hits.normal_code, hits.steps,
             octree_column_tops(octree) if columns else None,
         )
@@ -83,13 +84,20 @@ def occluded(
     the same verdicts, usually far fewer steps, and the steps then count pyramid cells too.
     """
     o, d = _checked_rays(origins, directions)
+    tmin, tmax = _checked_interval(tmin, tmax)
     n = len(o)
     result = Occlusions(blocked=np.empty(n, bool), steps=np.empty(n, np.int64))
     pyramid = octree_column_tops(octree) if columns else no_column_tops()
     with thread_count(threads):
-        occlude_rays(o, d, float(tmin), float(tmax), octree.inner_nodes, octree.depth,
+        occlude_rays(o, d, tmin, tmax, octree.inner_nodes, octree.depth,
                      pyramid, result.blocked, result.steps)
     return result
+
+
+def _checked_interval(tmin, tmax) -> tuple[float, float]:
+    """The segment's ends: ``tmin`` finite, ``tmax`` any number but NaN (an empty segment,
+    ``tmax <= tmin``, misses, as in Embree); a NaN would turn every ray into a miss."""
+    return real_number(tmin, "tmin"), real_number(tmax, "tmax", finite=False)
 
 
 def _checked_rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:

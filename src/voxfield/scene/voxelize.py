@@ -22,13 +22,13 @@ would most plausibly see.
 
 from __future__ import annotations
 
-import operator
 from dataclasses import dataclass
 
 import numba
 import numpy as np
 from numba import njit, prange
 
+from voxfield.checks import integer_in
 from voxfield.errors import SceneTooLargeError, VoxfieldError
 from voxfield.scene.mesh import TriangleMesh
 from voxfield.scene.voxel_scene import MAX_EXTENT, VoxelScene
@@ -64,8 +64,8 @@ def place_mesh(mesh: TriangleMesh, resolution: int = 512, *, padding: int = 0) -
     side in exactly ``resolution``). ``padding`` empty voxels are added before the mesh on every
     axis and after it in ``shape``.
     """
-    resolution = _whole(resolution, "resolution", 1)
-    padding = _whole(padding, "padding", 0)
+    resolution = integer_in(resolution, "resolution", 1)
+    padding = integer_in(padding, "padding", 0)
     if resolution + 2 * padding > min(MAX_EXTENT, 1 << 20):
         raise SceneTooLargeError(
             f"resolution {resolution} with padding {padding} exceeds the largest grid "
@@ -87,16 +87,6 @@ def place_mesh(mesh: TriangleMesh, resolution: int = 512, *, padding: int = 0) -
     offset = padding + 0.5 * slack - lo * scale
     shape = tuple(int(n) + 2 * padding for n in count)
     return GridPlacement(scale=scale, offset=offset, shape=shape)
-
-
-def _whole(value, what: str, least: int) -> int:
-    try:
-        n = operator.index(value)
-    except TypeError:
-        n = None
-    if n is None or isinstance(value, bool) or n < least:
-        raise VoxfieldError(f"{what} must be an integer ≥ {least}, got {value!r}")
-    return n
 
 
 def voxelize_mesh(mesh: TriangleMesh, resolution: int = 512, *, padding: int = 0) -> VoxelScene:

@@ -1,0 +1,51 @@
+"""Checks of the numbers the library's entry points take, in one wording.
+
+A kernel compiled for an ``int`` and handed ``1.5`` fails deep in Numba's type inference
+with pages of text (and a bool or a NumPy integer would compile a second copy), and a NaN
+bound turns every ray into a miss without a word. The renderers and ray queries check their
+arguments here first, so bad input is one ``VoxfieldError`` line (exit 2 on the command
+line).
+"""
+
+from __future__ import annotations
+
+import math
+import numbers
+import operator
+
+from voxfield.errors import VoxfieldError
+
+__all__ = ["MAX_SEED", "integer_in", "real_number", "seed_value"]
+
+#: Seeds are hashed as 32-bit words: 0..MAX_SEED.
+MAX_SEED = 2**32 - 1
+
+
+def integer_in(value, what: str, low: int, high: int | None = None) -> int:
+    """``value`` as an ``int`` when it is an integer (Python or NumPy, not a bool) in
+    ``low..high`` (no upper end for ``None``)."""
+    try:
+        n = None if isinstance(value, bool) else operator.index(value)
+    except TypeError:
+        n = None
+    if n is None or n < low or (high is not None and n > high):
+        limits = f"≥ {low}" if high is None else f"in {low}..{high}"
+        raise VoxfieldError(f"{what} must be an integer {limits}, got {value!r}")
+    return n
+
+
+def real_number(value, what: str, *, finite: bool = True) -> float:
+    """``value`` as a ``float`` when it is a real number (not a bool, not NaN); infinities
+    only where ``finite`` is false."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise VoxfieldError(f"{what} must be a number, got {value!r}")
+    x = float(value)
+    if math.isnan(x) or (finite and math.isinf(x)):
+        kind = "finite number" if finite else "number (not NaN)"
+        raise VoxfieldError(f"{what} must be a {kind}, got {value!r}")
+    return x
+
+
+def seed_value(value) -> int:
+    """A sampling seed: an integer in ``0..MAX_SEED``."""
+    return integer_in(value, "seed", 0, MAX_SEED)

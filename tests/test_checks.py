@@ -1,0 +1,62 @@
+"""The library's argument checks: what they accept, what they refuse, and in what words."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from voxfield.checks import MAX_SEED, integer_in, real_number, seed_value
+from voxfield.errors import VoxfieldError
+
+
+@pytest.mark.parametrize("value", [0, 3, 7, np.int64(5), np.uint8(7), np.int32(0)])
+def test_integers_in_range_come_back_as_python_ints(value):
+    got = integer_in(value, "count", 0, 7)
+    assert got == int(value) and type(got) is int
+
+
+@pytest.mark.parametrize("value", [True, False, 2.0, 2.5, np.float64(3.0), "3", None, [3]])
+def test_anything_but_an_integer_is_refused(value):
+    with pytest.raises(VoxfieldError, match=r"^count must be an integer in 0\.\.7, got "):
+        integer_in(value, "count", 0, 7)
+
+
+@pytest.mark.parametrize(("value", "low", "high"), [(-1, 0, 7), (8, 0, 7), (0, 1, None)])
+def test_integers_outside_the_range_are_refused(value, low, high):
+    limits = f"≥ {low}" if high is None else f"in {low}..{high}"
+    with pytest.raises(VoxfieldError, match=f"must be an integer {limits}, got {value}$"):
+        integer_in(value, "count", low, high)
+
+
+def test_no_upper_end_takes_any_large_integer():
+    assert integer_in(10**30, "count", 1) == 10**30
+
+
+@pytest.mark.parametrize("value", [0, -2.5, 1e300, np.float32(0.25), np.int16(3)])
+def test_real_numbers_come_back_as_floats(value):
+    got = real_number(value, "scale")
+    assert got == float(value) and type(got) is float
+
+
+@pytest.mark.parametrize("value", [True, "1", None, 1j])
+def test_non_numbers_are_refused(value):
+    with pytest.raises(VoxfieldError, match="^scale must be a number, got "):
+        real_number(value, "scale")
+
+
+def test_nan_is_always_refused_and_infinity_only_where_asked():
+    for finite in (True, False):
+        with pytest.raises(VoxfieldError, match="scale must be a"):
+            real_number(math.nan, "scale", finite=finite)
+    with pytest.raises(VoxfieldError, match="finite number"):
+        real_number(math.inf, "scale")
+    assert real_number(-math.inf, "scale", finite=False) == -math.inf
+
+
+def test_seeds_are_32_bit_words():
+    assert seed_value(0) == 0 and seed_value(MAX_SEED) == MAX_SEED == 2**32 - 1
+    for bad in (-1, MAX_SEED + 1, 1.0):
+        with pytest.raises(VoxfieldError, match="seed must be an integer in 0..4294967295"):
+            seed_value(bad)
