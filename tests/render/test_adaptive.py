@@ -3,7 +3,9 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
+from voxfield.errors import VoxfieldError
 from voxfield.render import Camera
 from voxfield.render.adaptive import (
     CLASS_SIDE,
@@ -52,3 +54,36 @@ def test_refined_pixels_add_rays_by_class():
     assert (classes == 2).any() and (classes == 0).any()
     # Flat regions away from edges keep their single ray.
     assert result.ray_count[16, 2] == 1
+
+
+def _stripes():
+    x, z = np.meshgrid(np.arange(32), np.arange(32), indexing="ij")
+    coords = np.stack([x.ravel(), np.zeros(x.size, int), z.ravel()], 1)
+    color = np.repeat(((x.ravel() // 4) % 2)[:, None], 3, axis=1).astype(float)
+    cam = Camera.orthographic((16, 5, 16), (0, -1, 0), (0, 0, -1), view_height=32, width=32)
+    return build_octree(VoxelScene(coords, color)), cam
+
+
+def test_iterations_past_the_last_change_change_nothing():
+    # A pixel's class only rises and tops out at 2, so the refinement settles; the loop stops
+    # there, and a large count returns what a few do.
+    octree, cam = _stripes()
+    few = render_adaptive(octree, cam, base_lod=0, iterations=3)
+    many = render_adaptive(octree, cam, base_lod=0, iterations=1000)
+    for name in ("image", "ray_count", "steps"):
+        assert np.array_equal(getattr(few, name), getattr(many, name)), name
+    for name in ("variance", "refinement_class"):
+        assert np.array_equal(few.maps[name], many.maps[name]), name
+
+
+@pytest.mark.parametrize(("options", "message"), [
+    ({"iterations": 1.5}, "iterations must be an integer"),
+    ({"iterations": True}, "iterations must be an integer"),
+    ({"iterations": -1}, "iterations must be an integer ≥ 0"),
+    ({"variance_normalisation": "1"}, "variance normalisation must be a number"),
+    ({"variance_normalisation": 0.0}, "must be positive"),
+])
+def test_bad_options_are_refused(options, message):
+    octree, cam = _stripes()
+    with pytest.raises(VoxfieldError, match=message):
+        render_adaptive(octree, cam, base_lod=0, **options)

@@ -16,6 +16,7 @@ import numba
 import numpy as np
 from scipy import ndimage
 
+from voxfield.checks import integer_in, real_number
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
@@ -134,9 +135,8 @@ def render_adaptive(
     first pass and the refinements on a GPU (the variance and the beam bounds stay on the
     CPU), with the same image. ``columns``: as ``render_lod``'s."""
     check_device(device)
-    if iterations < 0:
-        raise VoxfieldError("iterations must be zero or more")
-    if not variance_normalisation > 0:
+    iterations = integer_in(iterations, "iterations", 0)
+    if not real_number(variance_normalisation, "variance normalisation", finite=False) > 0:
         raise VoxfieldError("the variance normalisation must be positive")
     first = render_lod(octree, camera, lod=base_lod, seed=seed, channel=channel,
                        threads=threads, progress=progress, device=device, columns=columns)
@@ -153,12 +153,16 @@ def render_adaptive(
     for _ in range(iterations):
         variance = window_variance(luminance(result.image), valid) / variance_normalisation
         wanted = refinement_classes(variance, valid)
+        refined = 0
         for cls in (1, 2):
             todo = np.flatnonzero((wanted == cls) & (current < cls))
             if len(todo):
                 refine_pixels(octree, camera, todo, CLASS_SIDE[cls], seed, (colors, facing),
                               result, threads, device, channel, columns)
                 current.reshape(-1)[todo] = cls
+                refined += len(todo)
+        if not refined:
+            break  # the image is unchanged, so every further iteration would be this one
     result.seconds = first.seconds + time.perf_counter() - start
     result.maps["variance"] = variance
     result.maps["refinement_class"] = np.where(valid, current, -1).astype(np.int8)
