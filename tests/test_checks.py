@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from voxfield.checks import MAX_SEED, integer_in, real_number, seed_value
+from voxfield.checks import MAX_SEED, integer_in, ray_arrays, real_number, seed_value
 from voxfield.errors import VoxfieldError
 
 
@@ -60,3 +60,24 @@ def test_seeds_are_32_bit_words():
     for bad in (-1, MAX_SEED + 1, 1.0):
         with pytest.raises(VoxfieldError, match="seed must be an integer in 0..4294967295"):
             seed_value(bad)
+
+
+def test_rays_come_back_as_contiguous_float64_arrays():
+    o, d = ray_arrays([[0, 1, 2]], np.asfortranarray(np.array([[1, 0, 0]], np.int32)))
+    for a in (o, d):
+        assert a.dtype == np.float64 and a.flags.c_contiguous and a.shape == (1, 3)
+    assert d.tolist() == [[1.0, 0.0, 0.0]]
+    # A tiny direction is a direction: the traversal flushes what it cannot invert.
+    assert ray_arrays([[0, 0, 0]], [[1e-200, 0, 0]])[1][0, 0] == 1e-200
+
+
+@pytest.mark.parametrize(("origins", "directions", "message"), [
+    ([[0, 0, 0]], [[0, 0, 0]], "zero vector"),
+    ([[0, 0, math.inf]], [[1, 0, 0]], "NaN or infinity"),
+    ([[0, 0, 0]], [[math.nan, 1, 0]], "NaN or infinity"),
+    ([[0, 0]], [[1, 0]], "N×3"),
+    ([[0, 0, 0], [1, 1, 1]], [[1, 0, 0]], "N×3"),
+])
+def test_bad_rays_are_refused(origins, directions, message):
+    with pytest.raises(VoxfieldError, match=message):
+        ray_arrays(origins, directions)

@@ -13,9 +13,11 @@ import math
 import numbers
 import operator
 
+import numpy as np
+
 from voxfield.errors import VoxfieldError
 
-__all__ = ["MAX_SEED", "integer_in", "real_number", "seed_value"]
+__all__ = ["MAX_SEED", "integer_in", "ray_arrays", "real_number", "seed_value"]
 
 #: Seeds are hashed as 32-bit words: 0..MAX_SEED.
 MAX_SEED = 2**32 - 1
@@ -44,6 +46,20 @@ def real_number(value, what: str, *, finite: bool = True) -> float:
         kind = "finite number" if finite else "number (not NaN)"
         raise VoxfieldError(f"{what} must be a {kind}, got {value!r}")
     return x
+
+
+def ray_arrays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
+    """Rays as two contiguous float64 N×3 arrays, every component finite and no direction
+    the zero vector (it has no crossing times)."""
+    o = np.ascontiguousarray(origins, dtype=np.float64)
+    d = np.ascontiguousarray(directions, dtype=np.float64)
+    if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
+        raise VoxfieldError(f"origins and directions must both be N×3, got {o.shape}, {d.shape}")
+    if not (np.isfinite(o).all() and np.isfinite(d).all()):
+        raise VoxfieldError("ray origins or directions hold NaN or infinity")
+    if np.any(~d.any(axis=1)):
+        raise VoxfieldError("a ray direction is the zero vector")
+    return o, d
 
 
 def seed_value(value) -> int:

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from lf_helpers import CORNELL_PROBE, one_probe
 
+from voxfield.errors import VoxfieldError
 from voxfield.kernels.octahedral import oct_decode, texel_directions
 from voxfield.kernels.probe_march import EPS_ADAPTIVE, epsilon_at, piece_setup, piece_t
 from voxfield.lightfield import HIT, MISS, UNKNOWN, LightFieldOptions, trace_single
@@ -239,3 +240,16 @@ def test_hierarchical_and_dda_agree_whatever_the_front_epsilon(cornell, cornell_
                         LightFieldOptions(marcher="hierarchical", **options))
     assert np.array_equal(dda.kind, hier.kind)
     np.testing.assert_allclose(hier.t, dda.t, rtol=0, atol=1e-9)
+
+
+@pytest.mark.parametrize(("origins", "dirs", "bounds", "message"), [
+    ([[1.0, 2.0, 3.0]], [[0.0, 0.0, 0.0]], {}, "zero vector"),
+    ([[1.0, 2.0, 3.0]], [[1e-200, 0.0, 0.0]], {}, "too short to normalise"),  # squares to 0
+    ([[1.0, 2.0, math.nan]], [[1.0, 0.0, 0.0]], {}, "NaN or infinity"),
+    ([[1.0, 2.0]], [[1.0, 0.0]], {}, "N×3"),
+    ([[1.0, 2.0, 3.0]], [[1.0, 0.0, 0.0]], {"tmin": math.nan}, "tmin must be finite"),
+    ([[1.0, 2.0, 3.0]], [[1.0, 0.0, 0.0]], {"tmax": math.nan}, "tmax not NaN"),
+])
+def test_bad_rays_are_refused(cornell_probe64, origins, dirs, bounds, message):
+    with pytest.raises(VoxfieldError, match=message):
+        trace_single(cornell_probe64, 0, origins, dirs, **bounds)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from voxfield.checks import ray_arrays
 from voxfield.errors import VoxfieldError
 from voxfield.kernels import probe_march as pm
 from voxfield.kernels import probe_multi as mk
@@ -221,15 +222,10 @@ class LightFieldHits:
 
 
 def _rays(origins, dirs, tmin, tmax):
-    o = np.ascontiguousarray(origins, np.float64)
-    d = np.array(dirs, np.float64)
-    if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
-        raise VoxfieldError(f"origins and directions must both be N×3, got {o.shape}, {d.shape}")
-    if not (np.isfinite(o).all() and np.isfinite(d).all()):
-        raise VoxfieldError("ray origins or directions hold NaN or infinity")
+    o, d = ray_arrays(origins, dirs)
     length = np.linalg.norm(d, axis=1)
-    if np.any(length == 0):
-        raise VoxfieldError("a ray direction is the zero vector")
+    if not np.all(length > 0):  # (1e-200, 0, 0) squares to zero
+        raise VoxfieldError("a ray direction is too short to normalise")
     d = np.ascontiguousarray(d / length[:, None])
     n = len(o)
     lo = np.ascontiguousarray(np.broadcast_to(np.asarray(tmin, np.float64), (n,)))

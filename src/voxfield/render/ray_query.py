@@ -7,8 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from voxfield.checks import integer_in, real_number
-from voxfield.errors import VoxfieldError
+from voxfield.checks import integer_in, ray_arrays, real_number
 from voxfield.kernels.ray_batch import occlude_rays, trace_rays
 from voxfield.parallel import thread_count
 from voxfield.svo.column_tops import no_column_tops, octree_column_tops
@@ -45,7 +44,7 @@ def trace(
     (``kernels.surface_approach``): the same hits, faster for rays that leave a surface;
     the steps then count the pyramid's cells.
     """
-    o, d = _checked_rays(origins, directions)
+    o, d = ray_arrays(origins, directions)
     lod = integer_in(lod, "LOD", 0, octree.depth)
     tmin, tmax = _checked_interval(tmin, tmax)
     n = len(o)
@@ -83,7 +82,7 @@ def occluded(
     pyramid first (``svo.column_tops``, worked out once per octree), as the sun bake's do:
     the same verdicts, usually far fewer steps, and the steps then count pyramid cells too.
     """
-    o, d = _checked_rays(origins, directions)
+    o, d = ray_arrays(origins, directions)
     tmin, tmax = _checked_interval(tmin, tmax)
     n = len(o)
     result = Occlusions(blocked=np.empty(n, bool), steps=np.empty(n, np.int64))
@@ -99,14 +98,3 @@ def _checked_interval(tmin, tmax) -> tuple[float, float]:
     ``tmax <= tmin``, misses, as in Embree); a NaN would turn every ray into a miss."""
     return real_number(tmin, "tmin"), real_number(tmax, "tmax", finite=False)
 
-
-def _checked_rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
-    o = np.ascontiguousarray(origins, dtype=np.float64)
-    d = np.ascontiguousarray(directions, dtype=np.float64)
-    if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
-        raise VoxfieldError(f"origins and directions must both be N×3, got {o.shape}, {d.shape}")
-    if not (np.isfinite(o).all() and np.isfinite(d).all()):
-        raise VoxfieldError("ray origins or directions hold NaN or infinity")
-    if np.any(~d.any(axis=1)):
-        raise VoxfieldError("a ray direction is the zero vector")
-    return o, d
