@@ -7,7 +7,15 @@ import math
 import numpy as np
 import pytest
 
-from voxfield.checks import MAX_SEED, integer_in, ray_arrays, real_number, seed_value
+from voxfield.checks import (
+    MAX_SEED,
+    integer_in,
+    is_integer,
+    is_real,
+    ray_arrays,
+    real_number,
+    seed_value,
+)
 from voxfield.errors import VoxfieldError
 
 
@@ -81,3 +89,10 @@ def test_rays_come_back_as_contiguous_float64_arrays():
 def test_bad_rays_are_refused(origins, directions, message):
     with pytest.raises(VoxfieldError, match=message):
         ray_arrays(origins, directions)
+
+
+def test_the_predicates_tell_bools_from_numbers():
+    assert all(is_integer(v) for v in (0, -3, np.int8(1), np.uint64(2**63)))
+    assert not any(is_integer(v) for v in (True, np.bool_(True), 1.0, "1", None))
+    assert all(is_real(v) for v in (0, 1.5, math.nan, -math.inf, np.float16(2), np.int32(1)))
+    assert not any(is_real(v) for v in (False, np.bool_(False), "1.5", None, 1j))

@@ -11,35 +11,41 @@ from __future__ import annotations
 
 import math
 import numbers
-import operator
 
 import numpy as np
 
 from voxfield.errors import VoxfieldError
 
-__all__ = ["MAX_SEED", "integer_in", "ray_arrays", "real_number", "seed_value"]
+__all__ = ["MAX_SEED", "integer_in", "is_integer", "is_real", "ray_arrays", "real_number",
+           "seed_value"]
 
 #: Seeds are hashed as 32-bit words: 0..MAX_SEED.
 MAX_SEED = 2**32 - 1
 
 
+def is_integer(value) -> bool:
+    """A Python or NumPy integer, not a bool (``True`` is an ``int`` to Python)."""
+    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
+
+
+def is_real(value) -> bool:
+    """A Python or NumPy real number (NaN and infinities included), not a bool."""
+    return isinstance(value, numbers.Real) and not isinstance(value, (bool, np.bool_))
+
+
 def integer_in(value, what: str, low: int, high: int | None = None) -> int:
-    """``value`` as an ``int`` when it is an integer (Python or NumPy, not a bool) in
-    ``low..high`` (no upper end for ``None``)."""
-    try:
-        n = None if isinstance(value, bool) else operator.index(value)
-    except TypeError:
-        n = None
-    if n is None or n < low or (high is not None and n > high):
+    """``value`` as an ``int`` when it is an integer (``is_integer``) in ``low..high`` (no
+    upper end for ``None``)."""
+    if not is_integer(value) or value < low or (high is not None and value > high):
         limits = f"≥ {low}" if high is None else f"in {low}..{high}"
         raise VoxfieldError(f"{what} must be an integer {limits}, got {value!r}")
-    return n
+    return int(value)
 
 
 def real_number(value, what: str, *, finite: bool = True) -> float:
-    """``value`` as a ``float`` when it is a real number (not a bool, not NaN); infinities
+    """``value`` as a ``float`` when it is a real number (``is_real``), not NaN; infinities
     only where ``finite`` is false."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+    if not is_real(value):
         raise VoxfieldError(f"{what} must be a number, got {value!r}")
     x = float(value)
     if math.isnan(x) or (finite and math.isinf(x)):

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from voxfield.checks import ray_arrays
+from voxfield.checks import is_integer, is_real, ray_arrays
 from voxfield.errors import VoxfieldError
 from voxfield.kernels import probe_march as pm
 from voxfield.kernels import probe_multi as mk
@@ -114,13 +114,12 @@ class LightFieldOptions:
                                 f"{', '.join(COLOUR_FILTERS)}")
         if not (_finite(self.step) and self.step > 0):
             raise VoxfieldError(f"the march step must be a positive distance, got {self.step!r}")
-        if not isinstance(self.max_steps, (int, np.integer)) or self.max_steps < 1:
+        if not is_integer(self.max_steps) or self.max_steps < 1:
             raise VoxfieldError(f"max_steps must be an integer >= 1, got {self.max_steps!r}")
         if not (_finite(self.epsilon_value) and self.epsilon_value >= 0):
             raise VoxfieldError(f"epsilon_value must be a distance >= 0, got "
                                 f"{self.epsilon_value!r}")
-        if not (isinstance(self.epsilon_front, (int, float, np.integer, np.floating))
-                and not isinstance(self.epsilon_front, bool) and self.epsilon_front >= 0):
+        if not (is_real(self.epsilon_front) and self.epsilon_front >= 0):
             raise VoxfieldError(f"epsilon_front must be a number of texels >= 0 (inf: no cap), "
                                 f"got {self.epsilon_front!r}")
         if not (_finite(self.refine_window) and self.refine_window >= 0):
@@ -147,8 +146,7 @@ class LightFieldOptions:
 
 
 def _finite(value) -> bool:
-    return (isinstance(value, (int, float, np.integer, np.floating))
-            and not isinstance(value, bool) and math.isfinite(value))
+    return is_real(value) and math.isfinite(value)
 
 
 @dataclass

@@ -25,6 +25,7 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
+from voxfield.checks import is_integer, is_real
 from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.octahedral import decode_normals_snorm16, encode_normals_snorm16
@@ -70,7 +71,7 @@ class BakeOptions:
 
     def __post_init__(self) -> None:
         r = self.resolution
-        if not _is_int(r) or not MIN_RESOLUTION <= r <= MAX_RESOLUTION or r % 2:
+        if not is_integer(r) or not MIN_RESOLUTION <= r <= MAX_RESOLUTION or r % 2:
             raise VoxfieldError(
                 f"probe resolution must be an even integer in {MIN_RESOLUTION}..{MAX_RESOLUTION}"
                 f" (a power of two for exact mip halvings), got {r!r}")
@@ -79,21 +80,21 @@ class BakeOptions:
                                 f"{', '.join(BAKE_RENDERERS)}")
         if not isinstance(self.channel, str) or not self.channel:
             raise VoxfieldError(f"channel must be a colour channel name, got {self.channel!r}")
-        if not _is_int(self.samples) or not 1 <= self.samples <= 16:
+        if not is_integer(self.samples) or not 1 <= self.samples <= 16:
             raise VoxfieldError(f"samples (rays per texel side) must be in 1..16, "
                                 f"got {self.samples!r}")
-        if self.lod is not None and (not _is_int(self.lod) or self.lod < 0):
+        if self.lod is not None and (not is_integer(self.lod) or self.lod < 0):
             raise VoxfieldError(f"lod must be None (texel-footprint cone) or an integer >= 0, "
                                 f"got {self.lod!r}")
-        if not (_is_number(self.cone_scale) and math.isfinite(self.cone_scale)
+        if not (is_real(self.cone_scale) and math.isfinite(self.cone_scale)
                 and self.cone_scale > 0):
             raise VoxfieldError(f"cone scale must be a positive number, got {self.cone_scale!r}")
-        if not _is_number(self.threshold) or math.isnan(self.threshold):
+        if not is_real(self.threshold) or math.isnan(self.threshold):
             raise VoxfieldError(f"threshold must be a number (inf: never refine, negative: "
                                 f"always), got {self.threshold!r}")
-        if not (_is_number(self.decay) and math.isfinite(self.decay) and self.decay >= 0):
+        if not (is_real(self.decay) and math.isfinite(self.decay) and self.decay >= 0):
             raise VoxfieldError(f"decay must be a finite number >= 0, got {self.decay!r}")
-        if not _is_int(self.seed) or self.seed < 0:
+        if not is_integer(self.seed) or self.seed < 0:
             raise VoxfieldError(f"seed must be an integer >= 0, got {self.seed!r}")
 
     @property
@@ -125,15 +126,6 @@ class BakeOptions:
         return cls(**values)
 
 
-def _is_int(value) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, (bool, np.bool_))
-
-
-def _is_number(value) -> bool:
-    return (isinstance(value, (int, float, np.integer, np.floating))
-            and not isinstance(value, (bool, np.bool_)))
-
-
 @dataclass(frozen=True)
 class BakeCost:
     """What baking one probe cost, per pass. ``radiance_*`` is the chosen renderer;
@@ -156,7 +148,7 @@ class BakeCost:
         values = {}
         for name in COST_FIELDS:
             value = record[name]
-            if not _is_number(value) or not math.isfinite(value) or not 0 <= value < 2**53:
+            if not is_real(value) or not math.isfinite(value) or not 0 <= value < 2**53:
                 raise ValueError(f"{name} is {value!r}, not a non-negative number")
             if not name.endswith("seconds"):
                 if value != int(value):

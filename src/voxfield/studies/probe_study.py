@@ -33,6 +33,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.checks import is_integer
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.accuracy import depth_agreement, perfect_trace_image
 from voxfield.lightfield.packed import PackedProbes
@@ -204,7 +205,7 @@ def _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, mar
     if count_resolution is None:
         capped = [r for r in resolutions if r <= COUNT_RESOLUTION_CAP]
         count_resolution = max(capped) if capped else resolutions[0]
-    elif not (isinstance(count_resolution, (int, np.integer))
+    elif not (is_integer(count_resolution)
               and MIN_RESOLUTION <= count_resolution <= MAX_RESOLUTION):
         raise VoxfieldError(f"count resolution must be a map side in {MIN_RESOLUTION}.."
                             f"{MAX_RESOLUTION}, got {count_resolution!r}")
@@ -220,7 +221,7 @@ def _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, mar
         for v in values:
             if v not in known:
                 raise VoxfieldError(f"unknown {name} {v!r}; choose from {', '.join(known)}")
-    if not isinstance(timing_repeats, (int, np.integer)) or timing_repeats < 1:
+    if not is_integer(timing_repeats) or timing_repeats < 1:
         raise VoxfieldError(f"timing repeats must be an integer >= 1, got {timing_repeats!r}")
     return {"grid": grid_spec(grid_counts), "resolutions": resolutions,
             "probe_counts": tuple(dict.fromkeys(specs)), "orderings": tuple(orderings),
@@ -253,7 +254,7 @@ def _grid_counts(value) -> tuple[int, int, int]:
     """Probes per axis from ``(nx, ny, nz)``, ``"NXxNYxNZ"`` or a single ``n`` (n per axis)."""
     if isinstance(value, str):
         return parse_counts(value)
-    if isinstance(value, (int, np.integer)):
+    if is_integer(value):
         value = (value,) * 3
     counts = _positive_ints(value, "probe counts")
     if len(counts) != 3:

@@ -9,11 +9,11 @@ world and heights run along +y, so north is −z and east is +x; the lowest voxe
 from __future__ import annotations
 
 import math
-import numbers
 from dataclasses import dataclass
 
 import numpy as np
 
+from voxfield.checks import is_integer, is_real
 from voxfield.errors import VoxfieldError
 from voxfield.scene.terrain.dem import Heightmap, load_heightmap
 from voxfield.scene.terrain.resample import fill_voids, resample
@@ -64,7 +64,7 @@ class TerrainColumns:
 
 def check_footprint(footprint) -> int:
     """``footprint`` as an int: an integer number of columns in 2..MAX_FOOTPRINT."""
-    if isinstance(footprint, bool) or not isinstance(footprint, (int, np.integer)):
+    if not is_integer(footprint):
         raise VoxfieldError(f"footprint must be an integer number of columns, got {footprint!r}")
     if not 2 <= footprint <= MAX_FOOTPRINT:
         raise VoxfieldError(
@@ -109,13 +109,9 @@ def terrain_columns(
     DEM instead of stretching a non-square one.
     """
     footprint = check_footprint(footprint)
-    if (
-        isinstance(fill_depth, bool)
-        or not isinstance(fill_depth, (int, np.integer))
-        or fill_depth < 0
-    ):
+    if not is_integer(fill_depth) or fill_depth < 0:
         raise VoxfieldError(f"fill_depth must be a non-negative integer, got {fill_depth!r}")
-    real = isinstance(vertical_scale, numbers.Real) and not isinstance(vertical_scale, bool)
+    real = is_real(vertical_scale)
     if not (real and math.isfinite(vertical_scale) and vertical_scale > 0):
         raise VoxfieldError(f"vertical_scale must be a positive number, got {vertical_scale!r}")
     if fit not in ("stretch", "crop"):
