@@ -267,7 +267,7 @@ def test_snorm16_normals_round_trip():
     {"resolution": 64.0}, {"resolution": True}, {"renderer": "cubemap"}, {"samples": 0},
     {"samples": 17}, {"lod": -1}, {"lod": 1.5}, {"cone_scale": 0.0},
     {"cone_scale": float("nan")}, {"threshold": float("nan")}, {"threshold": "high"},
-    {"decay": -0.1}, {"seed": -1}, {"channel": ""},
+    {"decay": -0.1}, {"seed": -1}, {"seed": 2**32}, {"seed": True}, {"channel": ""},
 ])
 def test_bad_options_raise(bad):
     with pytest.raises(VoxfieldError):
@@ -291,6 +291,8 @@ def test_bad_bake_input_raises(box_octree):
                   np.zeros((4, 4, 2), np.int16), None)
     with pytest.raises(VoxfieldError):
         bake_cube_faces(box_octree, PROBE, 0, BakeOptions(resolution=8))
+    with pytest.raises(VoxfieldError, match="cube face size must be an integer"):
+        bake_cube_faces(box_octree, PROBE, 2.5, BakeOptions(resolution=8))
 
 
 def _check_real_bake(octree, probes: ProbeSet, r: int, min_covered: float):

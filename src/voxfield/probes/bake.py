@@ -17,11 +17,11 @@ import threading
 
 import numpy as np
 
-from voxfield.checks import is_integer
+from voxfield.checks import integer_in
 from voxfield.errors import VoxfieldError
 from voxfield.probes.probe_set import BakeCost, BakeOptions, ProbeMaps, ProbeSet, encode_normals
 from voxfield.progress import progress_bar
-from voxfield.render.camera import Camera, cube_cameras
+from voxfield.render.camera import MAX_IMAGE_SIDE, Camera, cube_cameras
 from voxfield.render.primary import render_lod
 from voxfield.render.registry import render, renderer_options
 from voxfield.render.result import RenderResult
@@ -110,8 +110,7 @@ def bake_cube_faces(octree: Octree, position, size: int, options: BakeOptions, *
     filtering, and the pixel cone picks each face's LOD just as the texel cone does for the
     map. Distance is radial (the probe thesis's r_P), not the camera's z-depth."""
     _check(octree, options)
-    if not is_integer(size) or not 1 <= size <= 16384:
-        raise VoxfieldError(f"cube face size must be an integer in 1..16384, got {size!r}")
+    size = integer_in(size, "cube face size", 1, MAX_IMAGE_SIDE)
     radiance = np.empty((6, size, size, 3), np.float16)
     distance = np.empty((6, size, size), np.float32)
     for k, camera in enumerate(cube_cameras(position, int(size))):

@@ -25,7 +25,7 @@ from dataclasses import asdict, dataclass, fields
 
 import numpy as np
 
-from voxfield.checks import is_integer, is_real
+from voxfield.checks import is_integer, is_real, seed_value
 from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.octahedral import decode_normals_snorm16, encode_normals_snorm16
@@ -94,8 +94,7 @@ class BakeOptions:
                                 f"always), got {self.threshold!r}")
         if not (is_real(self.decay) and math.isfinite(self.decay) and self.decay >= 0):
             raise VoxfieldError(f"decay must be a finite number >= 0, got {self.decay!r}")
-        if not is_integer(self.seed) or self.seed < 0:
-            raise VoxfieldError(f"seed must be an integer >= 0, got {self.seed!r}")
+        seed_value(self.seed)  # the renderers' seeds: 32-bit words
 
     @property
     def texels(self) -> int:
