@@ -97,4 +97,3 @@ def _checked_interval(tmin, tmax) -> tuple[float, float]:
     """The segment's ends: ``tmin`` finite, ``tmax`` any number but NaN (an empty segment,
     ``tmax <= tmin``, misses, as in Embree); a NaN would turn every ray into a miss."""
     return real_number(tmin, "tmin"), real_number(tmax, "tmax", finite=False)
-
