@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 
 from voxfield.errors import DataNotFoundError, SceneFormatError, VoxfieldError
-from voxfield.scene.builtin import BUILTIN_SCENES, builtin_scene, menger
+from voxfield.scene.builtin import BUILTIN_SCENES, builtin_scene, cornell, menger, pillars, sphere
 from voxfield.scene.loaders import load_scene
 from voxfield.scene.npz_io import load_scene_npz, save_scene
+from voxfield.scene.shadow_box import shadow_box
 from voxfield.scene.voxel_scene import VoxelScene, compose, linear_to_srgb, srgb_to_linear
 
 
@@ -65,6 +66,21 @@ def test_every_builtin_builds_a_nonempty_scene():
         assert len(scene) > 0 and len(scene.dedupe()) == len(scene)
     with pytest.raises(VoxfieldError, match="choose one of"):
         builtin_scene("nope")
+
+
+# pillars(32.5) was a NumPy broadcasting error, menger(2.0) a TypeError, sphere(True) empty.
+@pytest.mark.parametrize(("make", "message"), [
+    (lambda: pillars(32.5), "pillars scene's size must be an integer ≥ 8"),
+    (lambda: pillars(4), "pillars scene's size must be an integer ≥ 8"),
+    (lambda: menger(2.0), "menger level must be an integer in 1..5"),
+    (lambda: menger(6), "menger level must be an integer in 1..5"),
+    (lambda: sphere(True), "sphere radius must be an integer ≥ 1"),
+    (lambda: cornell(16.0), "Cornell box's size must be an integer ≥ 8"),
+    (lambda: shadow_box(256.0), "multiple of 32"),
+])
+def test_builtin_sizes_must_be_whole(make, message):
+    with pytest.raises(VoxfieldError, match=message):
+        make()
 
 
 def test_scene_npz_round_trip_and_loader_dispatch(tmp_path):

@@ -6,6 +6,7 @@ from collections.abc import Callable
 
 import numpy as np
 
+from voxfield.checks import integer_in
 from voxfield.errors import VoxfieldError
 from voxfield.scene.shadow_box import shadow_box
 from voxfield.scene.voxel_scene import VoxelScene
@@ -13,8 +14,7 @@ from voxfield.scene.voxel_scene import VoxelScene
 
 def pillars(size: int = 64) -> VoxelScene:
     """Rolling heightfield with a ring of pillars and a floating bar: depth, thin parts, colour."""
-    if size < 8:
-        raise VoxfieldError("the pillars scene needs a size of at least 8")
+    size = integer_in(size, "the pillars scene's size", 8)
     x, z = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
     s = size / 64.0
     height = (6 * s + 4 * s * np.sin(x / (7 * s)) + 3 * s * np.cos(z / (9 * s))).astype(np.int64)
@@ -42,8 +42,7 @@ def pillars(size: int = 64) -> VoxelScene:
 
 def menger(level: int = 3) -> VoxelScene:
     """Menger sponge: holes at every scale, the worst case for LOD (high variance everywhere)."""
-    if not 1 <= level <= 5:
-        raise VoxfieldError("menger level must be between 1 and 5")
+    level = integer_in(level, "menger level", 1, 5)
     size = 3**level
     idx = np.arange(size)
     x, y, z = np.meshgrid(idx, idx, idx, indexing="ij")
@@ -59,8 +58,7 @@ def menger(level: int = 3) -> VoxelScene:
 
 def sphere(radius: int = 20) -> VoxelScene:
     """A solid sphere with a latitude colour band: smooth silhouettes and curved normals."""
-    if radius < 1:
-        raise VoxfieldError("sphere radius must be at least 1")
+    radius = integer_in(radius, "sphere radius", 1)
     idx = np.arange(-radius, radius)
     x, y, z = np.meshgrid(idx, idx, idx, indexing="ij")
     d2 = (x + 0.5) ** 2 + (y + 0.5) ** 2 + (z + 0.5) ** 2
@@ -73,8 +71,7 @@ def sphere(radius: int = 20) -> VoxelScene:
 
 def cornell(size: int = 32) -> VoxelScene:
     """A voxel Cornell box (red left, green right, white elsewhere, emissive ceiling patch)."""
-    if size < 8:
-        raise VoxfieldError("the Cornell box needs a size of at least 8")
+    size = integer_in(size, "the Cornell box's size", 8)
     n = size
     idx = np.arange(n)
     x, y, z = np.meshgrid(idx, idx, idx, indexing="ij")

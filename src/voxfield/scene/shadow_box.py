@@ -25,6 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from voxfield.checks import is_integer
 from voxfield.errors import VoxfieldError
 from voxfield.scene.voxel_scene import VoxelScene
 
@@ -78,7 +79,7 @@ class ShadowBoxLayout:
 
 def shadow_box_layout(floor_size: int = 256) -> ShadowBoxLayout:
     """The layout of ``shadow_box(floor_size)``."""
-    if floor_size < 2 * BOX_SIZE or floor_size % 32:
+    if not is_integer(floor_size) or floor_size < 2 * BOX_SIZE or floor_size % 32:
         raise VoxfieldError(
             f"the shadow box needs a floor size that is a multiple of 32 and at least "
             f"{2 * BOX_SIZE}, got {floor_size}"
