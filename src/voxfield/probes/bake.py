@@ -113,7 +113,7 @@ def bake_cube_faces(octree: Octree, position, size: int, options: BakeOptions, *
     size = integer_in(size, "cube face size", 1, MAX_IMAGE_SIDE)
     radiance = np.empty((6, size, size, 3), np.float16)
     distance = np.empty((6, size, size), np.float32)
-    for k, camera in enumerate(cube_cameras(position, int(size))):
+    for k, camera in enumerate(cube_cameras(position, size)):
         colour, geometry = _passes(octree, camera, options, threads)
         radiance[k] = colour.image
         distance[k] = geometry.depth

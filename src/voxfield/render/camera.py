@@ -94,7 +94,7 @@ class Camera:
         eye = _vector(eye, "eye")
         f, r, u = _basis(_vector(target, "target") - eye, up)
         half_h = float(np.tan(np.radians(fov_deg) / 2.0))
-        return cls(PINHOLE, eye, f, r, u, half_h * width / height, half_h, int(width), int(height))
+        return cls(PINHOLE, eye, f, r, u, half_h * width / height, half_h, width, height)
 
     @classmethod
     def orthographic(
