@@ -13,7 +13,7 @@ from voxfield.errors import VoxfieldError
 from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import run_in_bands, thread_count
-from voxfield.render.beam import primary_beam
+from voxfield.render.beam import primary_beam, raster_beam
 from voxfield.render.camera import Camera
 from voxfield.render.device import check_device, trace_image_cuda
 from voxfield.render.result import RenderResult
@@ -52,9 +52,12 @@ def trace_image(
     """Trace ``side²`` rays per pixel; the shared engine of the reference and LOD renderers.
 
     ``beam`` starts the rays of each pixel block at its beam bound (``render.beam``): the
-    same image, fewer steps. ``columns`` lets rays at a fixed level (no cone) cross the air
-    in the octree's column-top pyramid first (``kernels.surface_approach``; built once per
-    structure): the same image, in less time; the steps then count the pyramid's cells.
+    same image, fewer steps. One ray a pixel at a fixed level over the column-top pyramid
+    starts each ray at its pixel's bound from the pyramid drawn into the image instead
+    (``render.beam.raster_beam``), where the camera allows it. ``columns`` lets rays at a
+    fixed level (no cone) cross the air in the octree's column-top pyramid first
+    (``kernels.surface_approach``; built once per structure): the same image, in less time;
+    the steps then count the pyramid's cells.
     ``device="cuda"`` traces the pixels on a GPU (``render.device``), with the same image
     and the octree's steps alone.
     """
@@ -62,8 +65,13 @@ def trace_image(
     seed = seed_value(seed)
     check_device(device)
     with thread_count(threads):
-        bounds = primary_beam(octree, camera, stop_level=stop_level, cone_scale=cone_scale,
-                              side=side, enabled=beam)
+        bounds = None
+        if beam and device == "cpu" and side == 1 and cone_scale == 0.0 and columns:
+            bounds = raster_beam(camera, octree_column_tops(octree), stop_level=stop_level,
+                                 depth=octree.depth)
+        if bounds is None:
+            bounds = primary_beam(octree, camera, stop_level=stop_level,
+                                  cone_scale=cone_scale, side=side, enabled=beam)
     if device == "cuda":
         result = trace_image_cuda(
             octree, camera, side=side, stop_level=stop_level, cone_scale=cone_scale,

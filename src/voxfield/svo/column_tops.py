@@ -51,6 +51,9 @@ class ColumnTops(NamedTuple):
     # Cells as in ``tops``: the gap every column of the cell has free under its top run.
     gap_floor: np.ndarray  # int32: the highest ``under_top`` of the cell's columns
     gap_ceiling: np.ndarray  # int32: the lowest ``run_bottom`` of its columns (empty: GAP_OPEN)
+    # Cells as in ``tops``: the lowest voxel's ``y`` among the cell's columns (empty:
+    # GAP_OPEN), so that every voxel of a cell lies in ``[floors, tops)``.
+    floors: np.ndarray  # int32
 
     @property
     def under_top(self) -> np.ndarray:
@@ -62,7 +65,7 @@ def no_column_tops() -> ColumnTops:
     """An empty pyramid: every rising ray goes through the octree."""
     empty = np.zeros(0, np.int64)
     none = np.zeros(0, np.int32)
-    return ColumnTops(none, empty, empty, empty, none, none, none, none)
+    return ColumnTops(none, empty, empty, empty, none, none, none, none, none)
 
 
 def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
@@ -90,13 +93,14 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
     tops = np.empty(int(sizes.sum()), np.int32)
     gap_floor = np.empty_like(tops)
     gap_ceiling = np.empty_like(tops)
+    floors = np.empty_like(tops)
     bottom = np.empty(width * depth, np.int32)
     with_nodes = first_node is not None and first_node + len(voxels) <= np.iinfo(np.int32).max
     top_nodes = np.empty(width * depth * TOP_RUN_NODES if with_nodes else 0, np.int32)
     # Scratch for the column sort: the voxel each sorted slot holds, int32 below 2^31
     # voxels (1.4 GB less at 8192²).
     index = np.empty(len(voxels), np.int32 if len(voxels) < 2**31 else np.int64)
-    _tops_and_run_bottoms(voxels, width, depth, tops, bottom, gap_floor, top_nodes,
+    _tops_and_run_bottoms(voxels, width, depth, tops, bottom, gap_floor, floors, top_nodes,
                           first_node if with_nodes else 0, index)
     _open_ceilings(tops, bottom, gap_ceiling)
     for level in range(1, len(shapes)):
@@ -105,6 +109,7 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
         _coarser(tops, source, w, d, target, False)
         _coarser(gap_floor, source, w, d, target, False)
         _coarser(gap_ceiling, source, w, d, target, True)
+        _coarser(floors, source, w, d, target, True)
     return ColumnTops(
         tops=tops,
         level_offset=offsets,
@@ -114,6 +119,7 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
         top_nodes=top_nodes,
         gap_floor=gap_floor,
         gap_ceiling=gap_ceiling,
+        floors=floors,
     )
 
 
@@ -211,9 +217,9 @@ def _column_heights(voxels: np.ndarray, width: int, depth: int, index: np.ndarra
 @njit(cache=True, nogil=True)
 def _column_block(first: int, last: int, depth: int, starts: np.ndarray, heights: np.ndarray,
                   index: np.ndarray, top: np.ndarray, bottom: np.ndarray, under: np.ndarray,
-                  top_nodes: np.ndarray, first_node: int) -> None:
-    """Tops, top-run bottoms, tops under the runs and top-run nodes (when ``top_nodes`` has
-    room for them) of the columns ``x = first..last-1`` (every ``z``)."""
+                  lowest: np.ndarray, top_nodes: np.ndarray, first_node: int) -> None:
+    """Tops, top-run bottoms, tops under the runs, lowest voxels and top-run nodes (when
+    ``top_nodes`` has room for them) of the columns ``x = first..last-1`` (every ``z``)."""
     present = np.zeros(0, np.int64)  # per y above the column's lowest: its voxel's slot + 1
     with_nodes = top_nodes.shape[0] > 0
     for x in range(first, last):
@@ -248,27 +254,31 @@ def _column_block(first: int, last: int, depth: int, starts: np.ndarray, heights
             top[c] = high + 1
             bottom[c] = run
             under[c] = below + 1 if below >= low else 0
+            lowest[c] = low
 
 
 @njit(cache=True, nogil=True, parallel=True)
 def _tops_and_run_bottoms(voxels: np.ndarray, width: int, depth: int, top: np.ndarray,
-                          bottom: np.ndarray, under: np.ndarray, top_nodes: np.ndarray,
-                          first_node: int, index: np.ndarray) -> None:
+                          bottom: np.ndarray, under: np.ndarray, lowest: np.ndarray,
+                          top_nodes: np.ndarray, first_node: int, index: np.ndarray) -> None:
     """Per column (the first ``width × depth`` entries, x-major), the top (highest voxel's
     ``y`` + 1, 0 when empty), the lowest ``y`` of the unbroken run of voxels that ends there
-    (0 when empty), the top of the highest voxel under the gap below that run (0 when none)
-    and, when ``top_nodes`` is not empty, ``first_node`` plus the indices of the run's
-    highest voxels (``ColumnTops.top_nodes``). ``index``: scratch, one entry per voxel."""
+    (0 when empty), the top of the highest voxel under the gap below that run (0 when none),
+    the lowest voxel's ``y`` (``GAP_OPEN`` when empty) and, when ``top_nodes`` is not empty,
+    ``first_node`` plus the indices of the run's highest voxels (``ColumnTops.top_nodes``).
+    ``index``: scratch, one entry per voxel."""
     starts, heights = _column_heights(voxels, width, depth, index)
     columns = width * depth
     for c in prange(columns):
         top[c] = 0
         bottom[c] = 0
         under[c] = 0
+        lowest[c] = GAP_OPEN
     for i in prange(top_nodes.shape[0]):
         top_nodes[i] = -1
     blocks = 64
     per_block = (width + blocks - 1) // blocks
     for b in prange(blocks):
         _column_block(min(width, b * per_block), min(width, (b + 1) * per_block), depth,
-                      starts, heights, index, top, bottom, under, top_nodes, first_node)
+                      starts, heights, index, top, bottom, under, lowest, top_nodes,
+                      first_node)
