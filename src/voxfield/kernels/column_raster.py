@@ -45,7 +45,8 @@ def draw_cell_boxes(
     """Draw the ``cells_x × cells_z`` cells of one pyramid level (``tops`` and ``floors``
     from ``first``, x-major, side ``2^level``) into ``nearest`` (``(parts, height, width)``,
     filled with ``inf``): part ``p`` draws the cell rows ``p, p + parts, ...`` into
-    ``nearest[p]`` and counts them in ``drawn[p]``. Heights round out to nodes of side
+    ``nearest[p]`` and counts them in ``drawn[p]`` (-1 where it met a box across the eye
+    plane). Heights round out to nodes of side
     ``2^node_level``. ``to_camera`` maps ``point - eye`` to ``(s, s·a, s·b)``, a point on
     the ray through image-plane position ``(a, b)``. False when a box reaches the eye plane
     (no bound: the caller must not use ``nearest``)."""
@@ -54,10 +55,14 @@ def draw_cell_boxes(
     y_scale = 1.0 / cam[14]
     side = float(1 << level)
     node = 1 << node_level
-    ok = np.ones(parts, np.bool_)
+    # The corners' camera coordinates are one corner's plus the box's edges: those along x
+    # and z are the same for every cell.
+    sx, ax, bx = to_camera[0, 0] * side, to_camera[1, 0] * side, to_camera[2, 0] * side
+    sz, az, bz = to_camera[0, 2] * side, to_camera[1, 2] * side, to_camera[2, 2] * side
     for p in prange(parts):
         out = nearest[p]
         count = 0
+        across = False
         for cx in range(p, cells_x, parts):  # the rows dealt out in turn
             x0 = float(cx << level)
             x1 = float((cx + 1) << level)
@@ -70,15 +75,12 @@ def draw_cell_boxes(
                 y0 = float(floors[first + cx * cells_z + cz] & ~(node - 1))
                 z0 = float(cz << level)
                 z1 = float((cz + 1) << level)
-                # The corners' camera coordinates: one corner's, plus the box's edges.
                 vx = x0 - ex
                 vy = y0 - ey
                 vz = z0 - ez
                 s0 = to_camera[0, 0] * vx + to_camera[0, 1] * vy + to_camera[0, 2] * vz
                 a0 = to_camera[1, 0] * vx + to_camera[1, 1] * vy + to_camera[1, 2] * vz
                 b0 = to_camera[2, 0] * vx + to_camera[2, 1] * vy + to_camera[2, 2] * vz
-                sx, ax, bx = to_camera[0, 0] * side, to_camera[1, 0] * side, to_camera[2, 0] * side
-                sz, az, bz = to_camera[0, 2] * side, to_camera[1, 2] * side, to_camera[2, 2] * side
                 rise = y1 - y0
                 sy, ay, by = to_camera[0, 1] * rise, to_camera[1, 1] * rise, to_camera[2, 1] * rise
                 lo_x = math.inf
@@ -115,7 +117,7 @@ def draw_cell_boxes(
                 if behind == 8:
                     continue  # wholly behind the eye: no ray reaches it
                 if behind > 0:
-                    ok[p] = False
+                    across = True
                     break
                 col0 = max(int(math.ceil(lo_x - 0.5 - PIXEL_MARGIN)), 0)
                 col1 = min(int(math.floor(hi_x - 0.5 + PIXEL_MARGIN)), width - 1)
@@ -128,10 +130,7 @@ def draw_cell_boxes(
                     for col in range(col0, col1 + 1):
                         if d < out[row, col]:
                             out[row, col] = d
-            if not ok[p]:
+            if across:
                 break
-        drawn[p] = count
-    for p in range(parts):
-        if not ok[p]:
-            return False
-    return True
+        drawn[p] = -1 if across else count
+    return drawn.min() >= 0

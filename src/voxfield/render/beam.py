@@ -149,8 +149,8 @@ def raster_beam(camera: Camera, columns, *, stop_level: int, depth: int) -> Beam
     pinhole, or a cell box across the eye plane (a camera among the columns).
 
     It draws the finest level with a cell per ``RASTER_CELL_PIXELS`` pixels or fewer, not
-    finer than the sampled nodes. Its steps are the cells
-    drawn, shared out over the image like one beam block's."""
+    finer than the sampled nodes. Its steps are the cells drawn, shared out over the image
+    like one beam block's."""
     levels = columns.level_width.shape[0]
     node_level = depth - min(stop_level, depth)
     if levels == 0 or camera.kind != PINHOLE or node_level >= levels:
