@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from random_scenes import hollow_shell_terrain, overhanging_terrain, random_scene
-from voxfield.render import Camera, orbit_camera, render_lod
+from voxfield.render import Camera, orbit_camera, render_lod, render_reference
 from voxfield.render.beam import raster_beam
 from voxfield.render.ray_query import trace
 from voxfield.svo import build_octree
@@ -28,28 +28,49 @@ def pinhole_cameras(octree):
 
 
 @pytest.mark.parametrize("scene", SCENES, ids=["random", "overhangs", "hollow"])
-def test_bound_never_passes_a_hit(scene):
-    """Brute force: every pixel's centre ray traced from the eye hits no earlier than its
-    bound; a pixel without a bound (inf) misses."""
+@pytest.mark.parametrize("side", [1, 3])
+def test_bound_never_passes_a_hit(scene, side):
+    """Brute force: every ray of a pixel (its centre's, or each of its ``side``×``side``
+    sub-samples') traced from the eye hits no earlier than the pixel's bound; a pixel
+    without a bound (inf) has no ray that hits."""
     octree = build_octree(scene)
     columns = octree_column_tops(octree)
     for cam in pinhole_cameras(octree):
         for lod in (0, 1):
             stop = octree.depth - lod
-            beam = raster_beam(cam, columns, stop_level=stop, depth=octree.depth)
+            beam = raster_beam(cam, columns, stop_level=stop, depth=octree.depth, side=side)
             assert beam is not None and beam.block == 1
-            origins, directions = cam.rays(side=1, seed=0)
+            origins, directions = cam.rays(side=side, seed=7)
             hits = trace(octree, origins, directions, lod=lod)
-            bound = beam.bound.ravel()
+            bound = np.repeat(beam.bound.ravel(), side * side)  # the rays are pixel-major
             assert np.all(bound[hits.hit] <= hits.t[hits.hit])
             assert not np.any(np.isinf(bound) & hits.hit)
             assert np.any(np.isfinite(bound))
             assert beam.total_steps > 0
 
 
+def test_supersampled_bound_covers_the_whole_pixel():
+    """The centre ray's bound may pass an off-centre ray's hit (which is why supersampled
+    pixels get a bound of their own): over a terrain of steps, some pixel's centre bound lies
+    beyond the hit of one of its corner-near rays, and the whole-pixel bound never does."""
+    octree = build_octree(overhanging_terrain(1))
+    columns = octree_column_tops(octree)
+    passed = 0
+    for cam in pinhole_cameras(octree):
+        centre = raster_beam(cam, columns, stop_level=octree.depth, depth=octree.depth)
+        whole = raster_beam(cam, columns, stop_level=octree.depth, depth=octree.depth, side=4)
+        origins, directions = cam.rays(side=4, seed=3)
+        hits = trace(octree, origins, directions)
+        t = np.where(hits.hit, hits.t, np.inf).reshape(-1, 16)
+        passed += int(np.sum(centre.bound.ravel() > t.min(axis=1)))
+        assert np.all(whole.bound.ravel() <= t.min(axis=1))
+    assert passed > 0
+
+
 @pytest.mark.parametrize("scene", SCENES[1:], ids=["overhangs", "hollow"])
 def test_render_is_unchanged(scene):
-    """A render started from the drawn bounds equals one from the camera, pixel for pixel."""
+    """A render started from the drawn bounds equals one from the camera, pixel for pixel,
+    with one ray a pixel or several."""
     octree = build_octree(scene)
     for cam in pinhole_cameras(octree):
         for lod in (0, 1):
@@ -57,6 +78,10 @@ def test_render_is_unchanged(scene):
             off = render_lod(octree, cam, lod=lod, beam=False)
             for name in SAME:
                 assert np.array_equal(getattr(on, name), getattr(off, name)), name
+        on = render_reference(octree, cam, side=3, beam=True)
+        off = render_reference(octree, cam, side=3, beam=False)
+        for name in SAME:
+            assert np.array_equal(getattr(on, name), getattr(off, name)), name
 
 
 def test_camera_among_the_columns_falls_back():

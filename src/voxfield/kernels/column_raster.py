@@ -40,13 +40,15 @@ def box_distance(ex: float, ey: float, ez: float, x0: float, x1: float, y0: floa
 def draw_cell_boxes(
     cam: np.ndarray, to_camera: np.ndarray, width: int, height: int, tops: np.ndarray,
     floors: np.ndarray, first: int, cells_x: int, cells_z: int, level: int, node_level: int,
-    parts: int, nearest: np.ndarray, drawn: np.ndarray,
+    reach: float, parts: int, nearest: np.ndarray, drawn: np.ndarray,
 ) -> bool:
     """Draw the ``cells_x × cells_z`` cells of one pyramid level (``tops`` and ``floors``
     from ``first``, x-major, side ``2^level``) into ``nearest`` (``(parts, height, width)``,
     filled with ``inf``): part ``p`` draws the cell rows ``p, p + parts, ...`` into
     ``nearest[p]`` and counts them in ``drawn[p]`` (-1 where it met a box across the eye
-    plane). Heights round out to nodes of side
+    plane). A pixel is covered where a point within ``reach`` pixels of its centre (along
+    each image axis) lies in a box's rectangle: 0 bounds the ray through the centre, 0.5
+    every ray through the pixel (its sub-samples). Heights round out to nodes of side
     ``2^node_level``. ``to_camera`` maps ``point - eye`` to ``(s, s·a, s·b)``, a point on
     the ray through image-plane position ``(a, b)``. False when a box reaches the eye plane
     (no bound: the caller must not use ``nearest``)."""
@@ -55,6 +57,7 @@ def draw_cell_boxes(
     y_scale = 1.0 / cam[14]
     side = float(1 << level)
     node = 1 << node_level
+    widen = reach + PIXEL_MARGIN
     # The corners' camera coordinates are one corner's plus the box's edges: those along x
     # and z are the same for every cell.
     sx, ax, bx = to_camera[0, 0] * side, to_camera[1, 0] * side, to_camera[2, 0] * side
@@ -119,10 +122,10 @@ def draw_cell_boxes(
                 if behind > 0:
                     across = True
                     break
-                col0 = max(int(math.ceil(lo_x - 0.5 - PIXEL_MARGIN)), 0)
-                col1 = min(int(math.floor(hi_x - 0.5 + PIXEL_MARGIN)), width - 1)
-                row0 = max(int(math.ceil(lo_y - 0.5 - PIXEL_MARGIN)), 0)
-                row1 = min(int(math.floor(hi_y - 0.5 + PIXEL_MARGIN)), height - 1)
+                col0 = max(int(math.ceil(lo_x - 0.5 - widen)), 0)
+                col1 = min(int(math.floor(hi_x - 0.5 + widen)), width - 1)
+                row0 = max(int(math.ceil(lo_y - 0.5 - widen)), 0)
+                row1 = min(int(math.floor(hi_y - 0.5 + widen)), height - 1)
                 if col0 > col1 or row0 > row1:
                     continue
                 d = box_distance(ex, ey, ez, x0, x1, y0, y1, z0, z1)

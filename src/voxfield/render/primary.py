@@ -52,8 +52,8 @@ def trace_image(
     """Trace ``side²`` rays per pixel; the shared engine of the reference and LOD renderers.
 
     ``beam`` starts the rays of each pixel block at its beam bound (``render.beam``): the
-    same image, fewer steps. One ray a pixel at a fixed level over the column-top pyramid
-    starts each ray at its pixel's bound from the pyramid drawn into the image instead
+    same image, fewer steps. Rays at a fixed level over the column-top pyramid start at
+    their pixel's bound from the pyramid drawn into the image instead
     (``render.beam.raster_beam``), where the camera allows it. ``columns`` lets rays at a
     fixed level (no cone) cross the air in the octree's column-top pyramid first
     (``kernels.surface_approach``; built once per structure): the same image, in less time;
@@ -66,9 +66,9 @@ def trace_image(
     check_device(device)
     with thread_count(threads):
         bounds = None
-        if beam and device == "cpu" and side == 1 and cone_scale == 0.0 and columns:
+        if beam and device == "cpu" and cone_scale == 0.0 and columns:
             bounds = raster_beam(camera, octree_column_tops(octree), stop_level=stop_level,
-                                 depth=octree.depth)
+                                 depth=octree.depth, side=side)
         if bounds is None:
             bounds = primary_beam(octree, camera, stop_level=stop_level,
                                   cone_scale=cone_scale, side=side, enabled=beam)
