@@ -3,12 +3,13 @@
 Every voxel of a pyramid cell lies in the cell's box: its footprint, from the lowest voxel's
 ``y`` (``ColumnTops.floors``) to the cell's top. A pixel's ray that hits a voxel enters that
 box first, so its hit distance is at least the distance from the eye to the box; and the
-hit point projects onto the pixel's centre, which therefore lies inside the box's projected
-corners. Drawing every cell's box as its screen rectangle, each pixel keeping the nearest
-box distance it is covered by, gives every pixel a start no later than its hit, and
-``inf`` to pixels no box covers (their rays miss). A per-block beam bound
-(``kernels.beam``) is as far from a ray's hit as the highest ground in the block; this one
-as far as the highest ground under the pixel's cell.
+hit point projects onto the ray's image position (the pixel's centre, or a sub-sample's
+point in the pixel), which therefore lies inside the box's projected corners. Drawing every
+cell's box as its screen rectangle, each pixel keeping the nearest box distance among the
+rectangles that hold its centre (or, for sub-samples, meet the pixel), gives every ray a
+start no later than its hit, and ``inf`` to pixels no box covers (their rays miss). A
+per-block beam bound (``kernels.beam``) is as far from a ray's hit as the highest ground in
+the block; this one as far as the highest ground under the pixel's cell.
 
 Only a pinhole camera with every box in front of its eye plane is drawn: a box across that
 plane has no bounded projection, and the caller falls back to the beam.
