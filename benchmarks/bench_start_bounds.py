@@ -24,15 +24,15 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import sys
 import time
 
 import numpy as np
 
-os.environ.setdefault(
-    "NUMBA_CACHE_DIR", os.path.join(os.path.dirname(__file__), "..", ".numba_cache")
-)
+# First, so that Numba's kernel cache is the folder voxfield keys on its source digest (or
+# the caller's NUMBA_CACHE_DIR): a fixed folder would keep kernels compiled against another
+# file's old code after an edit.
+import voxfield  # noqa: F401
 
 MARGINS = (16.0, 4.0, 1.0)
 BEAM_CHAINS = ((8,), (8, 4), (8, 4, 2), (8, 4, 2, 1))
