@@ -125,7 +125,9 @@ def render_error_aware(
     whose image variance asks for more rays are re-rendered as the adaptive renderer does
     (``adaptive.refine_by_variance``; their earlier rays count as spent).
     ``columns`` lets rays at a fixed level cross the air in the column-top pyramid first, as
-    ``render_lod``'s do (same image; steps count its cells).
+    ``render_lod``'s do (same image; steps count its cells); with a fixed base LOD the
+    pixels then start at their bound from the pyramid drawn into the image
+    (``render.beam.raster_beam``), else at the block beam's.
     """
     table = load_error_table() if table is None else table
     encoding = encoding or table.default_encoding
