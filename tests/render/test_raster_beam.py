@@ -17,6 +17,11 @@ SAME = ("image", "depth", "normal", "ray_count", "hit_count", "finest_lod")
 SCENES = [random_scene(3, n=500, size=20), overhanging_terrain(1), hollow_shell_terrain(2)]
 
 
+def assert_same(a, b):
+    for name in SAME:
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+
+
 def pinhole_cameras(octree):
     lo, hi = octree.voxel_bounds
     centre = (np.asarray(lo) + np.asarray(hi)) / 2.0
@@ -38,7 +43,8 @@ def test_bound_never_passes_a_hit(scene, side):
     for cam in pinhole_cameras(octree):
         for lod in (0, 1):
             stop = octree.depth - lod
-            beam = raster_beam(cam, columns, stop_level=stop, depth=octree.depth, side=side)
+            beam = raster_beam(cam, columns, stop_level=stop, depth=octree.depth,
+                               whole_pixel=side > 1)
             assert beam is not None and beam.block == 1
             origins, directions = cam.rays(side=side, seed=7)
             hits = trace(octree, origins, directions, lod=lod)
@@ -58,7 +64,8 @@ def test_supersampled_bound_covers_the_whole_pixel():
     passed = 0
     for cam in pinhole_cameras(octree):
         centre = raster_beam(cam, columns, stop_level=octree.depth, depth=octree.depth)
-        whole = raster_beam(cam, columns, stop_level=octree.depth, depth=octree.depth, side=4)
+        whole = raster_beam(cam, columns, stop_level=octree.depth, depth=octree.depth,
+                            whole_pixel=True)
         origins, directions = cam.rays(side=4, seed=3)
         hits = trace(octree, origins, directions)
         t = np.where(hits.hit, hits.t, np.inf).reshape(-1, 16)
@@ -74,14 +81,10 @@ def test_render_is_unchanged(scene):
     octree = build_octree(scene)
     for cam in pinhole_cameras(octree):
         for lod in (0, 1):
-            on = render_lod(octree, cam, lod=lod, beam=True)
-            off = render_lod(octree, cam, lod=lod, beam=False)
-            for name in SAME:
-                assert np.array_equal(getattr(on, name), getattr(off, name)), name
-        on = render_reference(octree, cam, side=3, beam=True)
-        off = render_reference(octree, cam, side=3, beam=False)
-        for name in SAME:
-            assert np.array_equal(getattr(on, name), getattr(off, name)), name
+            assert_same(render_lod(octree, cam, lod=lod, beam=True),
+                        render_lod(octree, cam, lod=lod, beam=False))
+        assert_same(render_reference(octree, cam, side=3, beam=True),
+                    render_reference(octree, cam, side=3, beam=False))
 
 
 def test_camera_among_the_columns_falls_back():

@@ -147,24 +147,24 @@ RASTER_CELL_PIXELS_SUPERSAMPLED = 1
 
 
 def raster_beam(camera: Camera, columns, *, stop_level: int, depth: int,
-                side: int = 1) -> Beam | None:
+                whole_pixel: bool = False) -> Beam | None:
     """Per-pixel start bounds from the column-top pyramid drawn into the image
-    (``kernels.column_raster``), for the ``side``×``side`` rays of each pixel at the fixed
-    level ``stop_level`` of an octree of ``depth`` levels, or None where it cannot draw
-    them: no pyramid, a camera other than a pinhole, or a cell box across the eye plane (a
-    camera among the columns).
+    (``kernels.column_raster``), for rays at the fixed level ``stop_level`` of an octree of
+    ``depth`` levels, or None where it cannot draw them: no pyramid, a camera other than a
+    pinhole, or a cell box across the eye plane (a camera among the columns).
 
-    One ray a pixel is bounded where it goes, through the pixel's centre; a supersampled
-    pixel's bound holds for every ray through it. It draws the finest level with a cell per
-    ``RASTER_CELL_PIXELS`` pixels or fewer (``RASTER_CELL_PIXELS_SUPERSAMPLED``), not finer
-    than the sampled nodes. Its steps are the cells drawn, shared out over the image like
+    The bound holds for the ray through the pixel's centre, or with ``whole_pixel`` for
+    every ray through the pixel (supersampled pixels, refined ones). It draws the finest
+    level with a cell per ``RASTER_CELL_PIXELS`` pixels or fewer
+    (``RASTER_CELL_PIXELS_SUPERSAMPLED`` for whole pixels), not finer than the sampled
+    nodes. Its steps are the cells drawn, shared out over the image like
     one beam block's."""
     levels = columns.level_width.shape[0]
     node_level = depth - min(stop_level, depth)
     if levels == 0 or camera.kind != PINHOLE or node_level >= levels:
         return None
     pixels = camera.width * camera.height
-    cell_pixels = RASTER_CELL_PIXELS if side == 1 else RASTER_CELL_PIXELS_SUPERSAMPLED
+    cell_pixels = RASTER_CELL_PIXELS_SUPERSAMPLED if whole_pixel else RASTER_CELL_PIXELS
     level = node_level
     while (level + 1 < levels
            and columns.level_width[level] * columns.level_depth[level] * cell_pixels > pixels):
@@ -182,7 +182,7 @@ def raster_beam(camera: Camera, columns, *, stop_level: int, depth: int,
     ok = draw_cell_boxes(cam, to_camera, camera.width, camera.height, columns.tops,
                          columns.floors, int(columns.level_offset[level]),
                          int(columns.level_width[level]), int(columns.level_depth[level]),
-                         level, node_level, 0.0 if side == 1 else 0.5, parts, nearest, drawn)
+                         level, node_level, 0.5 if whole_pixel else 0.0, parts, nearest, drawn)
     if not ok:
         return None
     bound = nearest.min(axis=0) if parts > 1 else nearest[0]

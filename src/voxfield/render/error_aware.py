@@ -177,9 +177,9 @@ def render_error_aware(
         beam = None
         if base_lod is not None:
             # A pixel's rays go anywhere in it (refinements, reused cells) and stop at the base
-            # level or finer, inside the base-level boxes: the supersampled raster bound.
+            # level or finer, inside the base-level boxes.
             beam = raster_beam(camera, pyramid, stop_level=stop_level, depth=octree.depth,
-                               side=2)
+                               whole_pixel=True)
         if beam is None:
             beam = primary_beam(octree, camera, stop_level=stop_level,
                                 cone_scale=cone_scale if base_lod is None else 0.0)

@@ -68,7 +68,7 @@ def trace_image(
         bounds = None
         if beam and device == "cpu" and cone_scale == 0.0 and columns:
             bounds = raster_beam(camera, octree_column_tops(octree), stop_level=stop_level,
-                                 depth=octree.depth, side=side)
+                                 depth=octree.depth, whole_pixel=side > 1)
         if bounds is None:
             bounds = primary_beam(octree, camera, stop_level=stop_level,
                                   cone_scale=cone_scale, side=side, enabled=beam)
