@@ -25,7 +25,7 @@ from voxfield.kernels.upward_rays import (
 )
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
-from voxfield.svo.column_tops import GAP_OPEN, column_tops, no_column_tops, tops_ahead
+from voxfield.svo.column_tops import column_tops, gap_open, no_column_tops, tops_ahead
 from voxfield.svo.horizons import horizon_slopes, no_horizon_slopes
 
 
@@ -119,7 +119,7 @@ def test_rays_under_the_runs_cross_the_gaps_in_the_pyramid():
     and the answers are still the octree's."""
     for seed in (3, 8):
         octree, voxels, columns = octree_and_columns(hollow_shell_terrain(seed=seed))
-        no_gaps = columns._replace(gap_floor=np.full_like(columns.gap_floor, GAP_OPEN),
+        no_gaps = columns._replace(gap_floor=np.full_like(columns.gap_floor, gap_open(columns)),
                                    gap_ceiling=np.zeros_like(columns.gap_ceiling))
         with_gaps = _verdicts(octree, voxels, columns)
         without = _verdicts(octree, voxels, no_gaps)

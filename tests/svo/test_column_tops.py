@@ -8,7 +8,7 @@ import pytest
 from random_scenes import overhanging_terrain, random_scene
 from voxfield.kernels.column_walk import TOP_RUN_NODES
 from voxfield.svo import build_octree
-from voxfield.svo.column_tops import GAP_OPEN, column_tops, octree_column_tops, tops_ahead
+from voxfield.svo.column_tops import column_tops, gap_open, octree_column_tops, tops_ahead
 
 
 def voxels_of(scene) -> np.ndarray:
@@ -103,10 +103,10 @@ def test_every_level_holds_the_gap_all_of_its_columns_leave_under_their_top_runs
         pyramid = column_tops(voxels)
         w0, d0 = int(pyramid.level_width[0]), int(pyramid.level_depth[0])
         floor = np.zeros((w0, d0), int)
-        ceiling = np.full((w0, d0), GAP_OPEN)  # an empty column: no run above its gap
+        ceiling = np.full((w0, d0), gap_open(pyramid))  # an empty column: no run above its gap
         for (x, z), (_, bottom, under) in scanned_columns(voxels).items():
             floor[x, z], ceiling[x, z] = under, bottom
-        seen_open |= bool(np.any(ceiling == GAP_OPEN))
+        seen_open |= bool(np.any(ceiling == gap_open(pyramid)))
         seen_floor |= bool(np.any(floor > 0))
         for level in range(len(pyramid.level_width)):
             w, d = int(pyramid.level_width[level]), int(pyramid.level_depth[level])
