@@ -23,7 +23,7 @@ from voxfield.kernels.surface_approach import (
 from voxfield.kernels.traversal import new_scratch, trace_ray
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
-from voxfield.svo.column_tops import column_tops, no_column_tops
+from voxfield.svo.column_tops import GAP_OPEN, column_tops, gap_open, no_column_tops
 
 #: How a ray ended in the walk: missed, settled by the pyramid (a column's top run, a cell's
 #: top node), or finished by the octree.
@@ -129,6 +129,38 @@ def test_hits_are_the_octree_hits_at_every_fixed_level():
             assert (out[:, 0] < 0).sum() > n // 10
             seen_ends[lod] += np.bincount(ends, minlength=3)
     assert np.all(seen_ends > 100), seen_ends  # the walk ends all three ways at every level
+
+
+def widened(columns):
+    """The pyramid with int32 heights, as worlds over 32,767 voxels high keep them."""
+    assert columns.tops.dtype == np.int16
+    open16 = gap_open(columns)
+
+    def wide(heights):
+        return np.where(heights == open16, GAP_OPEN, heights).astype(np.int32)
+
+    return columns._replace(tops=wide(columns.tops), run_bottom=wide(columns.run_bottom),
+                            gap_floor=wide(columns.gap_floor),
+                            gap_ceiling=wide(columns.gap_ceiling), floors=wide(columns.floors))
+
+
+def test_int16_and_int32_heights_walk_alike():
+    """The kernels read either height type (int16 below 32,767 voxels high): the same hits,
+    times, steps and endings, through the gaps of a hollow shell too."""
+    for scene in (overhanging_terrain(seed=5), hollow_shell_terrain(seed=6)):
+        octree, voxels, columns = octree_and_columns(scene)
+        origins, directions = any_rays(voxels, 400, seed=11)
+        n = len(origins)
+        tmin = np.where(np.arange(n) % 2 == 0, 0.0, 3.0)
+        tmax = np.full(n, math.inf)
+        for lod in (0, 1):
+            narrow = _compare(octree, columns, origins, directions, tmin, tmax,
+                              octree.depth - lod)
+            wide = _compare(octree, widened(columns), origins, directions, tmin, tmax,
+                            octree.depth - lod)
+            for a, b in zip(narrow, wide, strict=True):
+                np.testing.assert_array_equal(a, b)
+            assert np.any(narrow[2] == _TOP_NODE) and np.any(narrow[2] == _OCTREE)
 
 
 def test_no_pyramid_is_the_octree_alone():

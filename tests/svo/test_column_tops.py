@@ -8,7 +8,14 @@ import pytest
 from random_scenes import overhanging_terrain, random_scene
 from voxfield.kernels.column_walk import TOP_RUN_NODES
 from voxfield.svo import build_octree
-from voxfield.svo.column_tops import column_tops, gap_open, octree_column_tops, tops_ahead
+from voxfield.svo.column_tops import (
+    GAP_OPEN,
+    GAP_OPEN_16,
+    column_tops,
+    gap_open,
+    octree_column_tops,
+    tops_ahead,
+)
 
 
 def voxels_of(scene) -> np.ndarray:
@@ -120,6 +127,29 @@ def test_every_level_holds_the_gap_all_of_its_columns_leave_under_their_top_runs
                     assert floors[x, z] == floor[cells].max()
                     assert ceilings[x, z] == ceiling[cells].min()
     assert seen_open and seen_floor
+
+
+def test_heights_are_int16_below_32767_voxels_high_and_int32_above():
+    """A top of 32,767 would be the empty cell's ceiling in int16: such worlds keep int32,
+    with the same pyramid; lower ones int16."""
+    low = np.array([[0, 3, 0], [0, 4, 0], [2, GAP_OPEN_16 - 2, 1]], np.int32)
+    high = low + np.array([0, 1, 0], np.int32)  # the highest top reaches 32,767
+    narrow, wide = column_tops(low), column_tops(high)
+    assert narrow.tops.dtype == np.int16 and gap_open(narrow) == GAP_OPEN_16
+    assert wide.tops.dtype == np.int32 and gap_open(wide) == GAP_OPEN
+    assert int(narrow.tops.max()) == GAP_OPEN_16 - 1 and int(wide.tops.max()) == GAP_OPEN_16
+    for pyramid in (narrow, wide):
+        for heights in (pyramid.tops, pyramid.run_bottom, pyramid.gap_floor,
+                        pyramid.gap_ceiling, pyramid.floors):
+            assert heights.dtype == pyramid.tops.dtype
+        # Column (1, 0) is empty: open above, nothing in it; (0, 0) has the run 3..4.
+        assert pyramid.gap_ceiling[1 * 2 + 0] == gap_open(pyramid)
+        assert pyramid.floors[1 * 2 + 0] == gap_open(pyramid)
+        assert pyramid.tops[0] - (1 if pyramid is wide else 0) == 5
+    floors = narrow.floors.astype(np.int64)
+    shifted = wide.floors.astype(np.int64) - 1
+    assert np.array_equal(np.where(floors == GAP_OPEN_16, GAP_OPEN, floors),
+                          np.where(shifted == GAP_OPEN - 1, GAP_OPEN, shifted))
 
 
 def test_no_pyramid_for_no_voxels_or_a_footprint_over_the_limit():
