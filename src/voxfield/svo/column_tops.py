@@ -25,8 +25,9 @@ from numba import njit, prange
 
 from voxfield.kernels.column_walk import TOP_RUN_NODES
 
-__all__ = ["GAP_OPEN", "MAX_COLUMNS", "TOP_RUN_NODES", "ColumnTops", "column_tops",
-           "gap_open", "height_type", "no_column_tops", "octree_column_tops", "tops_ahead"]
+__all__ = ["GAP_OPEN", "GAP_OPEN_16", "MAX_COLUMNS", "TOP_RUN_NODES", "ColumnTops",
+           "column_tops", "gap_open", "height_type", "no_column_tops", "octree_column_tops",
+           "tops_ahead"]
 
 #: Largest footprint (columns) given a pyramid: 2^27 columns keep it near 1 GiB. Larger
 #: worlds trace their rising rays through the octree alone, with the same results.
