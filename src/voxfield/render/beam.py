@@ -190,3 +190,19 @@ def raster_beam(camera: Camera, columns, *, stop_level: int, depth: int,
     whole = max(camera.width, camera.height)
     beam.steps.append((whole, np.array([[int(drawn.sum())]], np.int64)))
     return beam
+
+
+def pixel_start_bounds(octree: Octree, camera: Camera, columns, *, stop_level: int,
+                       cone_scale: float = 0.0, side: int = 1, whole_pixel: bool = False,
+                       enabled: bool = True) -> Beam:
+    """Where each pixel's rays start, the one choice the primary renderers share: rays at a
+    fixed level (no cone) at their pixel's bound from the pyramid ``columns`` drawn into
+    the image (``raster_beam``, ``whole_pixel`` as there), where it can be drawn; else at
+    their block's beam bound (``primary_beam``)."""
+    if enabled and cone_scale == 0.0:
+        bounds = raster_beam(camera, columns, stop_level=stop_level, depth=octree.depth,
+                             whole_pixel=whole_pixel)
+        if bounds is not None:
+            return bounds
+    return primary_beam(octree, camera, stop_level=stop_level, cone_scale=cone_scale,
+                        side=side, enabled=enabled)

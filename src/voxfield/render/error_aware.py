@@ -32,7 +32,7 @@ from voxfield.kernels.error_aware import (
 from voxfield.kernels.neighbour_context import same_shape_neighbours
 from voxfield.parallel import run_in_bands, thread_count
 from voxfield.render.adaptive import luminance, refine_by_variance
-from voxfield.render.beam import primary_beam, raster_beam
+from voxfield.render.beam import pixel_start_bounds
 from voxfield.render.camera import Camera
 from voxfield.render.primary import cone_scale_value
 from voxfield.render.result import RenderResult
@@ -174,15 +174,11 @@ def render_error_aware(
     cam = camera.params
     pyramid = octree_column_tops(octree) if columns else no_column_tops()
     with thread_count(threads):
-        beam = None
-        if base_lod is not None:
-            # A pixel's rays go anywhere in it (refinements, reused cells) and stop at the base
-            # level or finer, inside the base-level boxes.
-            beam = raster_beam(camera, pyramid, stop_level=stop_level, depth=octree.depth,
-                               whole_pixel=True)
-        if beam is None:
-            beam = primary_beam(octree, camera, stop_level=stop_level,
-                                cone_scale=cone_scale if base_lod is None else 0.0)
+        # A pixel's rays go anywhere in it (refinements, reused cells) and, with a fixed
+        # base LOD, stop at the base level or finer, inside the base-level boxes.
+        beam = pixel_start_bounds(octree, camera, pyramid, stop_level=stop_level,
+                                  cone_scale=cone_scale if base_lod is None else 0.0,
+                                  whole_pixel=True)
 
     def band(rows: slice) -> None:
         out = PixelOutputs(*result.buffers(rows))

@@ -13,7 +13,7 @@ from voxfield.errors import VoxfieldError
 from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import run_in_bands, thread_count
-from voxfield.render.beam import primary_beam, raster_beam
+from voxfield.render.beam import pixel_start_bounds
 from voxfield.render.camera import Camera
 from voxfield.render.device import check_device, trace_image_cuda
 from voxfield.render.result import RenderResult
@@ -64,14 +64,12 @@ def trace_image(
     side = integer_in(side, "samples per pixel side", 1, 16)
     seed = seed_value(seed)
     check_device(device)
+    drawn = beam and device == "cpu" and cone_scale == 0.0 and columns
     with thread_count(threads):
-        bounds = None
-        if beam and device == "cpu" and cone_scale == 0.0 and columns:
-            bounds = raster_beam(camera, octree_column_tops(octree), stop_level=stop_level,
-                                 depth=octree.depth, whole_pixel=side > 1)
-        if bounds is None:
-            bounds = primary_beam(octree, camera, stop_level=stop_level,
-                                  cone_scale=cone_scale, side=side, enabled=beam)
+        bounds = pixel_start_bounds(
+            octree, camera, octree_column_tops(octree) if drawn else no_column_tops(),
+            stop_level=stop_level, cone_scale=cone_scale, side=side, whole_pixel=side > 1,
+            enabled=beam)
     if device == "cuda":
         result = trace_image_cuda(
             octree, camera, side=side, stop_level=stop_level, cone_scale=cone_scale,
