@@ -72,24 +72,39 @@ def test_error_aware_and_adaptive_renders_are_unchanged(scene):
                      render_adaptive(scene, camera, base_lod=1, columns=False))
 
 
-def test_one_ray_pixels_shaded_in_batches_are_shaded_alike(scene, monkeypatch):
-    """Over colours too large for the caches, one-ray pixels are traced in batches before
-    they are shaded (``kernels.primary.SHADING_BATCH``): the same pixels, partial batches
-    included."""
-    from voxfield.kernels.primary import SHADING_BATCH, SHADING_BATCH_BYTES
+def test_rays_traced_in_batches_step_as_each_ray_alone(scene):
+    """A render walks its rays in batches (``kernels.primary.RAY_BATCH``) before it settles
+    and shades them: the same pixels as the octree alone, partial batches and batches across
+    pixels included, and every pixel's steps those of its rays traced one by one
+    (``trace_over_columns`` from the pixel's start bound) plus its share of the bound's."""
+    from voxfield.kernels.primary import RAY_BATCH
+    from voxfield.kernels.surface_approach import trace_over_columns
+    from voxfield.kernels.traversal import new_scratch
+    from voxfield.render.beam import pixel_start_bounds
+    from voxfield.svo.column_tops import octree_column_tops
 
-    colors, facing = scene.kernel_colours("albedo")
-    padded = np.zeros((SHADING_BATCH_BYTES // colors[:1].nbytes + 1, *colors.shape[1:]),
-                      colors.dtype)
-    padded[: len(colors)] = colors
     lo, hi = scene.voxel_bounds
     c = (lo + hi) / 2
-    # 37 × 37 pixels: chunks of 64 pixels end in partial batches.
+    # 37 × 37 pixels: chunks of 64 pixels end in partial batches; 9 rays a pixel straddle
+    # batches.
     camera = Camera.look_at((c[0] + 3, hi[1] + 30, c[2] + 1), tuple(c), fov_deg=70, width=37)
-    assert (37 * 37) % 64 % SHADING_BATCH != 0
-    plain = render_lod(scene, camera, lod=0)
-    monkeypatch.setattr(type(scene), "kernel_colours", lambda self, name: (padded, facing))
-    batched = render_lod(scene, camera, lod=0)
-    _assert_same(plain, batched)
-    assert np.array_equal(plain.steps, batched.steps)
-    assert plain.hit_count.sum() > 0
+    assert (37 * 37) % 64 % RAY_BATCH != 0 and RAY_BATCH % 9 != 0
+    for lod in (0, 1):
+        on = render_lod(scene, camera, lod=lod, columns=True)
+        _assert_same(on, render_lod(scene, camera, lod=lod, columns=False))
+        stop_level = scene.depth - lod
+        columns = octree_column_tops(scene)
+        bounds = pixel_start_bounds(scene, camera, columns, stop_level=stop_level)
+        assert bounds.block == 1  # the raster's bound, one per pixel
+        origins, directions = camera.rays(side=1)
+        starts = bounds.bound.reshape(-1)
+        scratch = new_scratch(scene.depth)
+        alone = np.zeros(len(starts), np.int64)
+        for k in np.flatnonzero(starts < np.inf):
+            alone[k] = trace_over_columns(*origins[k], *directions[k], starts[k], np.inf,
+                                          scene.inner_nodes, scene.depth, stop_level,
+                                          scratch, columns)[4]
+        drawn = bounds.image_steps(camera.height, camera.width).reshape(-1)
+        assert np.array_equal(on.steps.reshape(-1), alone + drawn)
+    _assert_same(render_reference(scene, camera, side=3, seed=2, columns=True),
+                 render_reference(scene, camera, side=3, seed=2, columns=False))

@@ -24,6 +24,8 @@ import numpy as np
 from numba import njit, prange, types
 from numba.extending import overload
 
+from voxfield.kernels.memory_hints import prefetch
+
 #: Storage of a colour channel: 8-bit sRGB (decoded exactly as the loaders decode 8-bit
 #: inputs) or float32 linear.
 SRGB8 = "srgb8"
@@ -247,6 +249,17 @@ def stored_colours(stored: np.ndarray) -> StoredColours:
 def stored_bytes(colors: StoredColours) -> int:
     """Bytes of the channel a ``StoredColours`` holds."""
     return colors.srgb8.nbytes + colors.rgb9e5.nbytes + colors.linear.nbytes
+
+
+@njit(cache=True, nogil=True, inline="always")
+def prefetch_stored(colors: StoredColours, node: int) -> None:
+    """Start loading ``node``'s stored colour (``memory_hints.prefetch``)."""
+    if colors.srgb8.shape[0] > 0:
+        prefetch(colors.srgb8, (node, 0))
+    elif colors.rgb9e5.shape[0] > 0:
+        prefetch(colors.rgb9e5, node)
+    else:
+        prefetch(colors.linear, (node, 0))
 
 
 def node_rgb(colors, node):

@@ -26,7 +26,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from voxfield.kernels.colour import SRGB8_TO_LINEAR, node_rgb
+from voxfield.kernels.colour import SRGB8_TO_LINEAR, node_rgb, prefetch_stored
+from voxfield.kernels.memory_hints import prefetch
 from voxfield.kernels.node_descriptor import child_index
 
 #: Bytes per direction: sRGB red, green, blue codes, then coverage in 1/255.
@@ -171,6 +172,14 @@ def seen_rgb(colors, facing, node: int, dx: float, dy: float, dz: float):
         if weight > 0.0:
             return r, g, b
     return node_rgb(colors, node)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def prefetch_seen(colors, facing, node: int) -> None:
+    """Start loading what ``seen_rgb`` will read for ``node``."""
+    if node < facing.shape[0]:
+        prefetch(facing, (node, 0, 0))
+    prefetch_stored(colors, node)
 
 
 #: The ``facing`` argument of octrees without directional colours.

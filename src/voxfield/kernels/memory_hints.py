@@ -19,14 +19,20 @@ __all__ = ["prefetch"]
 def prefetch(array, index) -> None:
     """Prefetch ``array[index]`` for reading into every cache level (LLVM's
     ``llvm.prefetch``) in compiled code; plain Python (``NUMBA_DISABLE_JIT``, the CUDA
-    simulator) has nothing to do. No bounds check: an index outside the array prefetches
+    simulator) has nothing to do. ``index`` is an integer for a 1-D array, else a tuple of
+    one integer per dimension. No bounds check: an index outside the array prefetches
     nothing useful and faults on nothing."""
 
 
 @overload(prefetch, inline="always")
 def _prefetch(array, index):
-    if not isinstance(array, types.Array) or array.ndim != 1 or \
-            not isinstance(index, types.Integer):
+    if not isinstance(array, types.Array):
+        return None
+    if isinstance(index, types.Integer):
+        if array.ndim != 1:
+            return None
+    elif not (isinstance(index, types.UniTuple) and index.count == array.ndim
+              and isinstance(index.dtype, types.Integer)):
         return None
 
     def hint(array, index):
@@ -40,7 +46,10 @@ def _llvm_prefetch(typingctx, array, index):
     def codegen(context, builder, signature, args):
         array_type = signature.args[0]
         view = context.make_array(array_type)(context, builder, args[0])
-        pointer = cgutils.get_item_pointer(context, builder, array_type, view, [args[1]],
+        index_type = signature.args[1]
+        indices = (cgutils.unpack_tuple(builder, args[1], index_type.count)
+                   if isinstance(index_type, types.UniTuple) else [args[1]])
+        pointer = cgutils.get_item_pointer(context, builder, array_type, view, indices,
                                            wraparound=False)
         byte_pointer = ir.IntType(8).as_pointer()
         int32 = ir.IntType(32)

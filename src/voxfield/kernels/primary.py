@@ -11,8 +11,7 @@ from voxfield.kernels.beam import start_distance
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs, view_colours
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
-from voxfield.kernels.colour import stored_bytes
-from voxfield.kernels.facing_colour import seen_rgb
+from voxfield.kernels.facing_colour import prefetch_seen, seen_rgb
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.sampling import (
     cmj_sample,
@@ -22,7 +21,7 @@ from voxfield.kernels.sampling import (
     pixel_pattern,
 )
 from voxfield.kernels.scheduling import interleaved_run, run_count
-from voxfield.kernels.surface_approach import trace_over_columns
+from voxfield.kernels.surface_approach import settle_walk, walk_over_columns
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
 
@@ -129,7 +128,7 @@ def render_pixels_over_columns(
         first, last, sums, tallies = pixel_chunk(k, pixels.shape[0], threads)
         trace_chunk_over_columns(cam, width, height, pixels, first, last, side, seed, view,
                                  stop_level, beam, columns, sums, tallies,
-                                 new_scratch(view.depth), new_shading_batch(),
+                                 new_scratch(view.depth), new_ray_batch(),
                                  new_cmj_strata(side))
         store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
 
@@ -260,24 +259,21 @@ def trace_chunk_per_ray(
 def trace_chunk_over_columns(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, first: int, last: int,
     side: int, seed: int, view: OctreeView, stop_level: int, beam: BeamBounds, columns,
-    sums: np.ndarray, tallies: np.ndarray, scratch, hits, strata,
+    sums: np.ndarray, tallies: np.ndarray, scratch, batch, strata,
 ) -> None:
     """Every sample to ``stop_level`` through ``kernels.surface_approach``: the air in the
-    column-top pyramid, then the octree where the ray reaches the surface. From a beam bound
-    one ray at a time beats the packets here, supersampled or not (mountain terrain, 16 rays
-    a pixel: 1.1-1.2× the packets); ``render.primary.pixel_columns`` decides. ``scratch``
-    (``traversal.new_scratch``), ``hits`` (``new_shading_batch``) and ``strata``
+    column-top pyramid, then the octree where the ray reaches the surface, ``RAY_BATCH``
+    rays at a time (``trace_ray_batch``). From a beam bound one ray at a time beats the
+    packets here, supersampled or not (mountain terrain, 16 rays a pixel: 1.1-1.2× the
+    packets); ``render.primary.pixel_columns`` decides. ``scratch``
+    (``traversal.new_scratch``), ``batch`` (``new_ray_batch``) and ``strata``
     (``sampling.new_cmj_strata(side)``) are the caller's.
 
     A supersampled pixel's stratum permutations are drawn once (``sampling.cmj_strata``),
     not again for each sample: the same sample positions, and 16-ray pixels 1.1× faster."""
     column, row = strata
-    inner_nodes, depth, facing = view.inner_nodes, view.depth, view.facing
-    colors = view_colours(view)
+    rays, pixel_rows = batch[0], batch[1]
     queued = 0
-    # Samples of a pixel share their colours' cache lines, as do all rays over colours that
-    # fit in the caches: those are shaded as they come.
-    batched = side == 1 and stored_bytes(colors) + facing.nbytes > SHADING_BATCH_BYTES
     for j in range(last - first):
         pixel = pixels[first + j]
         pattern = 0
@@ -296,34 +292,73 @@ def trace_chunk_over_columns(
                                        row)
             ox, oy, oz, dx, dy, dz = camera_ray(cam, x_pixel + fx, y_pixel + fy, width,
                                                 height)
-            node, level, t, normal, steps = trace_over_columns(
-                ox, oy, oz, dx, dy, dz, t_start, math.inf, inner_nodes, depth, stop_level,
-                scratch, columns)
-            if not batched:
-                add_sample(sums, tallies, j, colors, facing, depth, node, level, t, normal,
-                           steps, dx, dy, dz)
-                continue
-            queue_hit(hits, queued, j, node, level, t, normal, steps, dx, dy, dz)
+            rays[queued, 0] = ox
+            rays[queued, 1] = oy
+            rays[queued, 2] = oz
+            rays[queued, 3] = dx
+            rays[queued, 4] = dy
+            rays[queued, 5] = dz
+            rays[queued, 6] = t_start
+            pixel_rows[queued] = j
             queued += 1
-            if queued == SHADING_BATCH:
-                shade_batch(hits, queued, sums, tallies, colors, facing, depth)
+            if queued == RAY_BATCH:
+                trace_ray_batch(batch, queued, view, stop_level, scratch, columns, sums,
+                                tallies)
                 queued = 0
-    shade_batch(hits, queued, sums, tallies, colors, facing, depth)
+    trace_ray_batch(batch, queued, view, stop_level, scratch, columns, sums, tallies)
 
 
-#: One-ray pixels traced before any is shaded: their colour loads, independent of one
-#: another, overlap in memory instead of each stalling the ray after it. On the mountain
-#: terrain (512² image, one ray a pixel) 1.06-1.10× at 2048² (colours 81 MB), but 0.94-0.97×
-#: at 512² (5 MB, in cache) and 0.93-0.95× for 16-ray pixels at 2048²; hence the threshold.
-SHADING_BATCH = 32
-SHADING_BATCH_BYTES = 32 << 20
+#: Rays a chunk queues before it traces them (``trace_ray_batch``).
+RAY_BATCH = 32
 
 
 @njit(cache=True, nogil=True)
-def new_shading_batch():
-    """Queued hits: pixel row, node, level, normal code and steps (int64), then ``t`` and
-    the direction (float64)."""
-    return np.empty((SHADING_BATCH, 5), np.int64), np.empty((SHADING_BATCH, 4))
+def new_ray_batch():
+    """``trace_ray_batch``'s queue: the rays (origin, direction, ``tmin``) and their pixel
+    rows; their walks (verdict, cells, cell x, z, y, normal code; ``t_from``, ``t``); their
+    hits (``queue_hit``'s two arrays)."""
+    return (np.empty((RAY_BATCH, 7)), np.empty(RAY_BATCH, np.int64),
+            np.empty((RAY_BATCH, 6), np.int64), np.empty((RAY_BATCH, 2)),
+            np.empty((RAY_BATCH, 5), np.int64), np.empty((RAY_BATCH, 4)))
+
+
+@borrowing
+def trace_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratch, columns,
+                    sums: np.ndarray, tallies: np.ndarray) -> None:
+    """Trace the first ``count`` queued rays into their pixels' sums in three passes: walk
+    every ray through the pyramid, settle every walk (``surface_approach.settle_walk``),
+    shade every hit. A walk prefetches the line of the column it stops in, and a settled
+    hit its colour, so each pass finds the last one's loads done: a batch's cache misses
+    overlap instead of each stalling its ray (mountain terrain, one and 16 rays a pixel,
+    2048² and 512², top and 45° views: 1.04-1.15× as fast as tracing and shading each ray
+    in turn)."""
+    rays, pixel_rows, walk_ints, walk_times = batch[0], batch[1], batch[2], batch[3]
+    hits = (batch[4], batch[5])
+    inner_nodes, depth, facing = view.inner_nodes, view.depth, view.facing
+    colors = view_colours(view)
+    for k in range(count):
+        verdict, t_from, cells, cx, cz, y, t, normal = walk_over_columns(
+            rays[k, 0], rays[k, 1], rays[k, 2], rays[k, 3], rays[k, 4], rays[k, 5],
+            rays[k, 6], math.inf, depth, stop_level, columns)
+        walk_ints[k, 0] = verdict
+        walk_ints[k, 1] = cells
+        walk_ints[k, 2] = cx
+        walk_ints[k, 3] = cz
+        walk_ints[k, 4] = y
+        walk_ints[k, 5] = normal
+        walk_times[k, 0] = t_from
+        walk_times[k, 1] = t
+    for k in range(count):
+        walk = (walk_ints[k, 0], walk_times[k, 0], walk_ints[k, 1], walk_ints[k, 2],
+                walk_ints[k, 3], walk_ints[k, 4], walk_times[k, 1], walk_ints[k, 5])
+        dx, dy, dz = rays[k, 3], rays[k, 4], rays[k, 5]
+        node, level, t, normal, steps = settle_walk(
+            rays[k, 0], rays[k, 1], rays[k, 2], dx, dy, dz, rays[k, 6], math.inf,
+            inner_nodes, depth, stop_level, scratch, columns, walk)
+        if node >= 0:
+            prefetch_seen(colors, facing, node)
+        queue_hit(hits, k, pixel_rows[k], node, level, t, normal, steps, dx, dy, dz)
+    shade_batch(hits, count, sums, tallies, colors, facing, depth)
 
 
 @borrowing

@@ -70,25 +70,53 @@ def trace_over_columns(
     """``traversal.trace_ray`` at the fixed level ``stop_level`` (no cone), through the air in
     the column-top pyramid first: the same node, time and entry face; the steps count the
     pyramid's cells, then the octree's nodes, or one node for a node the pyramid settles
-    (``top_node_hit``). Without a pyramid (``no_column_tops()``) it is ``trace_ray``."""
+    (``top_node_hit``). Without a pyramid (``no_column_tops()``) it is ``trace_ray``.
+
+    It is ``walk_over_columns`` then ``settle_walk``; a caller with many rays may walk a
+    batch of them before it settles any, so that the loads of the settling (the column's
+    top-run nodes, prefetched by the walk) overlap instead of each stalling its ray."""
+    walk = walk_over_columns(ox, oy, oz, dx, dy, dz, tmin, tmax, depth, stop_level, columns,
+                             start)
+    return settle_walk(ox, oy, oz, dx, dy, dz, tmin, tmax, inner_nodes, depth, stop_level,
+                       scratch, columns, walk)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def walk_over_columns(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+    tmin: float, tmax: float, depth: int, stop_level: int, columns,
+    start: int = FROM_CAMERA,
+) -> tuple[int, float, int, int, int, int, float, int]:
+    """The pyramid's part of ``trace_over_columns``: ``(verdict, t_from, cells, cx, cz, y,
+    t_hit, normal_code)`` as ``walk_to_surface`` gives them, for ``settle_walk``. Without a
+    pyramid (or at the root) it hands the ray over at ``tmin``, having walked no cell."""
     stop_level = min(stop_level, depth)
     if columns.level_width.shape[0] == 0 or stop_level <= 0:
-        return finish_in_octree(ox, oy, oz, dx, dy, dz, tmin, tmin, tmax, inner_nodes, depth,
-                                stop_level, scratch)
+        return HANDED_OVER, tmin, 0, -1, -1, -1, math.inf, -1
     finest = depth - stop_level
     if start == FROM_SURFACE:
         start_level = finest
     else:
         start_level = finest + NEAR_START_LEVELS if tmin > 0.0 else depth
     if finest == 0:
-        verdict, t_from, cells, cx, cz, y, t, normal = walk_to_voxels(
-            ox, oy, oz, dx, dy, dz, tmin, tmax, start_level, columns)
-    else:
-        verdict, t_from, cells, cx, cz, y, t, normal = walk_to_surface(
-            ox, oy, oz, dx, dy, dz, tmin, tmax, finest, start_level, columns)
+        return walk_to_voxels(ox, oy, oz, dx, dy, dz, tmin, tmax, start_level, columns)
+    return walk_to_surface(ox, oy, oz, dx, dy, dz, tmin, tmax, finest, start_level, columns)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def settle_walk(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+    tmin: float, tmax: float, inner_nodes, depth: int, stop_level: int, scratch, columns,
+    walk,
+) -> tuple[int, int, float, int, int]:
+    """``trace_over_columns``'s answer from its ``walk_over_columns``: the node the pyramid
+    landed on, or the octree's from the hand-over."""
+    verdict, t_from, cells, cx, cz, y, t, normal = walk
     if verdict == MISSED:
         return -1, 0, math.inf, -1, cells
+    stop_level = min(stop_level, depth)
     if y >= 0:
+        finest = depth - stop_level
         node = -1
         if finest == 0:
             node = top_run_node(columns, cx * columns.level_depth[0] + cz, y)
