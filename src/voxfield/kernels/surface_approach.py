@@ -275,6 +275,12 @@ def approach_surface(
             prefetch(run_bottom, cell)
             if has_top_nodes:
                 prefetch(top_nodes, cell * np.uint64(TOP_RUN_NODES))
+        # The cell's gap, read when the ray is below its top, loads beside its top, and so
+        # does the top of the next cell along x (cells along z share lines): 1.01-1.04× as
+        # fast (2048² mountain terrain, whole renders).
+        prefetch(gap_floor, cell)
+        prefetch(gap_ceiling, cell)
+        prefetch(tops, cell + np.uint64(depth) if step_x > 0 else cell - np.uint64(depth))
         top = (tops[cell] + round_up) & ~round_up
         tx = face_time((cx + ahead_x) << level, ox, ix)
         tz = face_time((cz + ahead_z) << level, oz, iz)
