@@ -272,7 +272,6 @@ def trace_chunk_over_columns(
     A supersampled pixel's stratum permutations are drawn once (``sampling.cmj_strata``),
     not again for each sample: the same sample positions, and 16-ray pixels 1.1× faster."""
     column, row = strata
-    rays, pixel_rows = batch[0], batch[1]
     queued = 0
     for j in range(last - first):
         pixel = pixels[first + j]
@@ -292,14 +291,7 @@ def trace_chunk_over_columns(
                                        row)
             ox, oy, oz, dx, dy, dz = camera_ray(cam, x_pixel + fx, y_pixel + fy, width,
                                                 height)
-            rays[queued, 0] = ox
-            rays[queued, 1] = oy
-            rays[queued, 2] = oz
-            rays[queued, 3] = dx
-            rays[queued, 4] = dy
-            rays[queued, 5] = dz
-            rays[queued, 6] = t_start
-            pixel_rows[queued] = j
+            queue_ray(batch, queued, j, ox, oy, oz, dx, dy, dz, t_start)
             queued += 1
             if queued == RAY_BATCH:
                 trace_ray_batch(batch, queued, view, stop_level, scratch, columns, sums,
@@ -320,6 +312,21 @@ def new_ray_batch():
     return (np.empty((RAY_BATCH, 7)), np.empty(RAY_BATCH, np.int64),
             np.empty((RAY_BATCH, 6), np.int64), np.empty((RAY_BATCH, 2)),
             np.empty((RAY_BATCH, 5), np.int64), np.empty((RAY_BATCH, 4)))
+
+
+@borrowing
+def queue_ray(batch, k: int, j: int, ox: float, oy: float, oz: float, dx: float, dy: float,
+              dz: float, tmin: float) -> None:
+    """Queue the ray ``o + t·d`` from ``tmin`` of pixel row ``j`` at ``k``."""
+    rays, pixel_rows = batch[0], batch[1]
+    rays[k, 0] = ox
+    rays[k, 1] = oy
+    rays[k, 2] = oz
+    rays[k, 3] = dx
+    rays[k, 4] = dy
+    rays[k, 5] = dz
+    rays[k, 6] = tmin
+    pixel_rows[k] = j
 
 
 @borrowing
