@@ -1,11 +1,18 @@
-"""``kernels.scheduling.interleaved``: a permutation whose even split deals items in turn."""
+"""``kernels.scheduling``: ``interleaved``, a permutation whose even split deals items in
+turn, and ``claim_run``, a queue the threads take runs from as they are free."""
 
 import numba
 import numpy as np
 import pytest
 from numba import njit, prange
 
-from voxfield.kernels.scheduling import interleaved, interleaved_run, run_count
+from voxfield.kernels.scheduling import (
+    claim_run,
+    interleaved,
+    interleaved_run,
+    new_run_queue,
+    run_count,
+)
 
 
 def _order(n: int, parts: int) -> np.ndarray:
@@ -59,3 +66,44 @@ def test_runs_cover_every_item_once_in_whole_runs(n, size, parts):
         assert first % size == 0 and 0 < last - first <= size
         seen[first:last] += 1
     assert np.all(seen == 1)
+
+
+def test_claims_come_in_order_from_zero():
+    queue = new_run_queue()
+    assert [claim_run(queue) for _ in range(5)] == [0, 1, 2, 3, 4]
+
+
+@njit(parallel=True)
+def _claim_all(runs: int, workers: int, quitter: int, claimed: np.ndarray,
+               taker: np.ndarray) -> None:
+    """Workers claim runs until none is left; worker ``quitter`` stops after its first."""
+    queue = new_run_queue()
+    for worker in prange(workers):
+        while True:
+            k = claim_run(queue)
+            if k >= runs:
+                break
+            claimed[k] += 1
+            taker[k] = worker
+            if worker == quitter:
+                break
+
+
+@pytest.mark.parametrize("workers", [1, 2, 3, 8])
+@pytest.mark.parametrize("runs", [0, 1, 7, 1000])
+def test_parallel_workers_claim_every_run_once(runs, workers):
+    claimed = np.zeros(runs, np.int64)
+    taker = np.full(runs, -1, np.int64)
+    _claim_all(runs, workers, -1, claimed, taker)
+    assert np.all(claimed == 1)
+
+
+def test_runs_a_worker_leaves_go_to_the_others():
+    """No run belongs to a thread in advance: a worker that stops early (a thread the machine
+    slows down) leaves the rest of the work to the others, where a fixed deal loses its share."""
+    runs = 1000
+    claimed = np.zeros(runs, np.int64)
+    taker = np.full(runs, -1, np.int64)
+    _claim_all(runs, 4, 0, claimed, taker)
+    assert np.all(claimed == 1)
+    assert np.count_nonzero(taker == 0) <= 1

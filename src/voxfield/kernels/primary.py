@@ -20,7 +20,7 @@ from voxfield.kernels.sampling import (
     new_cmj_strata,
     pixel_pattern,
 )
-from voxfield.kernels.scheduling import interleaved_run, run_count
+from voxfield.kernels.scheduling import claim_run, new_run_queue
 from voxfield.kernels.surface_approach import settle_walk, walk_over_columns
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
@@ -111,9 +111,9 @@ def render_pixels(
 
 
 #: Pixels a thread traces at a time: one 8×8 tile of ``render.primary.tile_order``. The
-#: kernels below call a chunk function per tile and never inline a traversal into their
-#: ``prange`` bodies: Numba's parfor pass would hoist the inlined loop's constant
-#: initialisations out of the parallel loop.
+#: kernels below call one function per thread and never inline a traversal or an
+#: allocation into their ``prange`` bodies: Numba's parfor pass would hoist the inlined
+#: loop's constant initialisations, or the buffers, out of the parallel loop, shared.
 PIXEL_CHUNK = 64
 
 
@@ -124,13 +124,10 @@ def render_pixels_over_columns(
     out: PixelOutputs, columns, threads: int,
 ) -> None:
     """``render_pixels`` through the column-top pyramid (``trace_chunk_over_columns``)."""
-    for k in prange(run_count(pixels.shape[0], PIXEL_CHUNK)):
-        first, last, sums, tallies = pixel_chunk(k, pixels.shape[0], threads)
-        trace_chunk_over_columns(cam, width, height, pixels, first, last, side, seed, view,
-                                 stop_level, beam, columns, sums, tallies,
-                                 new_scratch(view.depth), new_ray_batch(),
-                                 new_cmj_strata(side))
-        store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
+    queue = new_run_queue()
+    for _ in prange(threads):
+        render_chunks_over_columns(cam, width, height, pixels, out_base, side, seed, view,
+                                   stop_level, beam, out, columns, queue)
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -140,11 +137,10 @@ def render_pixels_in_packets(
     out: PixelOutputs, threads: int,
 ) -> None:
     """``render_pixels`` in packets of 64 rays (``trace_chunk_in_packets``)."""
-    for k in prange(run_count(pixels.shape[0], PIXEL_CHUNK)):
-        first, last, sums, tallies = pixel_chunk(k, pixels.shape[0], threads)
-        trace_chunk_in_packets(cam, width, height, pixels, first, last, side, seed, view,
-                               stop_level, beam, sums, tallies)
-        store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
+    queue = new_run_queue()
+    for _ in prange(threads):
+        render_chunks_in_packets(cam, width, height, pixels, out_base, side, seed, view,
+                                 stop_level, beam, out, queue)
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -155,25 +151,87 @@ def render_pixels_per_ray(
 ) -> None:
     """``render_pixels`` one ray at a time through the octree, each with the sub-sample cone
     ``radius + spread·t`` (``trace_chunk_per_ray``)."""
-    for k in prange(run_count(pixels.shape[0], PIXEL_CHUNK)):
-        first, last, sums, tallies = pixel_chunk(k, pixels.shape[0], threads)
-        trace_chunk_per_ray(cam, width, height, pixels, first, last, side, seed, view,
-                            stop_level, radius, spread, beam, sums, tallies,
-                            new_scratch(view.depth))
+    queue = new_run_queue()
+    for _ in prange(threads):
+        render_chunks_per_ray(cam, width, height, pixels, out_base, side, seed, view,
+                              stop_level, radius, spread, beam, out, queue)
+
+
+# One thread's share of a render: chunks of PIXEL_CHUNK pixels claimed from the render's
+# queue (``scheduling.claim_run``) until none is left, each traced into the thread's own
+# sums and stored. A chunk's pixels come out the same whichever thread takes it.
+
+
+@njit(cache=True, nogil=True)
+def render_chunks_over_columns(
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
+    side: int, seed: int, view: OctreeView, stop_level: int, beam: BeamBounds,
+    out: PixelOutputs, columns, queue: np.ndarray,
+) -> None:
+    sums, tallies = new_chunk_sums()
+    scratch, batch, strata = new_scratch(view.depth), new_ray_batch(), new_cmj_strata(side)
+    while True:
+        first, last = claim_chunk(queue, pixels.shape[0], sums, tallies)
+        if first == last:
+            return
+        trace_chunk_over_columns(cam, width, height, pixels, first, last, side, seed, view,
+                                 stop_level, beam, columns, sums, tallies, scratch, batch,
+                                 strata)
         store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
 
 
 @njit(cache=True, nogil=True)
-def pixel_chunk(k: int, n: int, threads: int):
-    """The ``k``-th chunk of a ``prange`` over ``run_count(n, PIXEL_CHUNK)``, the ``threads`` taking
-    tiles in turn: its pixels ``first..last-1`` and their zeroed sums in ``add_sample``'s
-    layout (r, g, b, normal x, y, z, depth sum; hits, steps, finest LOD: 127 until a hit
-    lowers it)."""
-    first, last = interleaved_run(k, n, PIXEL_CHUNK, threads)
-    sums = np.zeros((last - first, 7))
-    tallies = np.zeros((last - first, 3), np.int64)
+def render_chunks_in_packets(
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
+    side: int, seed: int, view: OctreeView, stop_level: int, beam: BeamBounds,
+    out: PixelOutputs, queue: np.ndarray,
+) -> None:
+    sums, tallies = new_chunk_sums()
+    while True:
+        first, last = claim_chunk(queue, pixels.shape[0], sums, tallies)
+        if first == last:
+            return
+        trace_chunk_in_packets(cam, width, height, pixels, first, last, side, seed, view,
+                               stop_level, beam, sums, tallies)
+        store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
+
+
+@njit(cache=True, nogil=True)
+def render_chunks_per_ray(
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
+    side: int, seed: int, view: OctreeView, stop_level: int, radius: float, spread: float,
+    beam: BeamBounds, out: PixelOutputs, queue: np.ndarray,
+) -> None:
+    sums, tallies = new_chunk_sums()
+    scratch = new_scratch(view.depth)
+    while True:
+        first, last = claim_chunk(queue, pixels.shape[0], sums, tallies)
+        if first == last:
+            return
+        trace_chunk_per_ray(cam, width, height, pixels, first, last, side, seed, view,
+                            stop_level, radius, spread, beam, sums, tallies, scratch)
+        store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
+
+
+@njit(cache=True, nogil=True)
+def new_chunk_sums() -> tuple[np.ndarray, np.ndarray]:
+    """A chunk's per-pixel sums in ``add_sample``'s layout: r, g, b, normal x, y, z, depth
+    sum; hits, steps, finest LOD."""
+    return np.empty((PIXEL_CHUNK, 7)), np.empty((PIXEL_CHUNK, 3), np.int64)
+
+
+@njit(cache=True, nogil=True)
+def claim_chunk(queue: np.ndarray, n: int, sums: np.ndarray,
+                tallies: np.ndarray) -> tuple[int, int]:
+    """The next unclaimed chunk of the ``n`` pixels, ``first..last-1`` (equal when none is
+    left), its sums zeroed (the finest LOD 127 until a hit lowers it)."""
+    first = min(claim_run(queue) * PIXEL_CHUNK, n)
+    last = min(n, first + PIXEL_CHUNK)
+    sums[:] = 0.0
+    tallies[:, 0] = 0
+    tallies[:, 1] = 0
     tallies[:, 2] = 127
-    return first, last, sums, tallies
+    return first, last
 
 
 @njit(cache=True, nogil=True)

@@ -1,4 +1,4 @@
-"""Dealing a parallel loop's items out to the threads in turn.
+"""Sharing a parallel loop's items out among the threads: dealt in turn, or claimed.
 
 Numba's ``prange`` gives each thread one contiguous run of the iterations, whatever
 ``numba.set_parallel_chunksize`` says (with the OpenMP layer a loop whose first half costs
@@ -9,6 +9,10 @@ then idles while the other finishes. A loop that maps its ``prange`` index throu
 instead: each thread's share samples the whole range, so the threads finish together, and
 neighbouring items still run side by side on the two threads, sharing the cache.
 
+A loop whose threads each claim runs from a shared queue (``claim_run``) instead shares
+the work as the threads are free: a thread that the machine slows down (another process on
+its core) leaves its runs to the others. Renders take their pixel chunks that way.
+
 Which thread runs an item never changes what the item computes: results stay the same for
 any thread count.
 """
@@ -16,7 +20,8 @@ any thread count.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.extending import intrinsic
 
 
 @njit(cache=True, nogil=True)
@@ -54,3 +59,29 @@ def interleaved_run(k: int, n: int, size: int, parts: int) -> tuple[int, int]:
     turn (``interleaved``)."""
     first = interleaved(k, run_count(n, size), parts) * size
     return first, min(n, first + size)
+
+
+@njit(cache=True, nogil=True)
+def new_run_queue() -> np.ndarray:
+    """A queue of runs for ``claim_run``: the next unclaimed run, from 0."""
+    return np.zeros(1, np.int64)
+
+
+@intrinsic
+def _fetch_add(typingctx, counter, amount):
+    """``counter[0] += amount`` in one atomic step, giving the value before."""
+    def codegen(context, builder, signature, args):
+        data = context.make_array(signature.args[0])(context, builder, args[0]).data
+        return builder.atomic_rmw("add", data, args[1], "monotonic")
+
+    return types.int64(counter, types.int64), codegen
+
+
+@njit(cache=True, nogil=True)
+def claim_run(queue: np.ndarray) -> int:
+    """The next run of ``queue`` (``new_run_queue``) nobody has claimed, for this thread
+    alone: threads that claim runs until they pass the last share the work as they are
+    free, one run at a time, so a thread slowed by the machine (another process on its
+    core) leaves its runs to the others instead of holding up the loop's end, which a fixed
+    deal (``interleaved``) cannot do."""
+    return _fetch_add(queue, np.int64(1))
