@@ -72,7 +72,7 @@ from voxfield.kernels.sampling import (
     new_cmj_strata,
     pixel_pattern,
 )
-from voxfield.kernels.scheduling import interleaved_run, run_count
+from voxfield.kernels.scheduling import claim_run, new_run_queue
 from voxfield.kernels.traversal import MISS, new_scratch, occluded
 from voxfield.kernels.upward_rays import (
     BLOCKED,
@@ -493,14 +493,37 @@ def bake_sun_visibility(
     ``svo.column_tops.tops_ahead`` of ``columns`` for sun ``s``'s direction (``(suns, 0)``:
     every shadow ray walked on its own, with the same visibility); ``horizons`` are their
     horizon slopes (``svo.horizons``; ``(0, 4)``: every sky ray walked). Blocks of voxels
-    are dealt out to the ``threads`` the loop runs on in turn (``kernels.scheduling``)."""
+    are claimed by the ``threads`` the loop runs on as they are free
+    (``kernels.scheduling.claim_run``)."""
+    queue = new_run_queue()
+    for _ in prange(threads):
+        bake_blocks(queue, coords, voxel_ids, faces, sun_dirs, sky_rays, shadow_rays, seed,
+                    inner_nodes, depth, y_top, columns, sun_tops, horizons, out_rows,
+                    out_direct, out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps)
+
+
+@njit(cache=True, nogil=True)
+def bake_blocks(
+    queue: np.ndarray, coords: np.ndarray, voxel_ids: np.ndarray, faces: np.ndarray,
+    sun_dirs: np.ndarray, sky_rays: int, shadow_rays: int, seed: int,
+    inner_nodes: np.ndarray, depth: int, y_top: float, columns, sun_tops: np.ndarray,
+    horizons: np.ndarray, out_rows: np.ndarray, out_direct: np.ndarray, out_sky: np.ndarray,
+    out_weight: np.ndarray, out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray,
+    out_steps: np.ndarray,
+) -> None:
+    """One thread's share of ``bake_sun_visibility``: blocks claimed from ``queue`` until none
+    is left, baked in the thread's own scratch."""
+    work = new_block_scratch(depth, sky_rays, shadow_rays)
     n = coords.shape[0]
-    for k in prange(run_count(n, BAKE_BLOCK)):
-        first, last = interleaved_run(k, n, BAKE_BLOCK, threads)
-        bake_block(first, last, coords, voxel_ids, faces, sun_dirs,
-                   sky_rays, shadow_rays, seed, inner_nodes, depth, y_top, columns, sun_tops,
-                   horizons, out_rows, out_direct, out_sky, out_weight, out_sky_rays,
-                   out_shadow_rays, out_steps, new_block_scratch(depth, sky_rays, shadow_rays))
+    while True:
+        first = min(claim_run(queue) * BAKE_BLOCK, n)
+        last = min(n, first + BAKE_BLOCK)
+        if first == last:
+            return
+        bake_block(first, last, coords, voxel_ids, faces, sun_dirs, sky_rays, shadow_rays,
+                   seed, inner_nodes, depth, y_top, columns, sun_tops, horizons, out_rows,
+                   out_direct, out_sky, out_weight, out_sky_rays, out_shadow_rays, out_steps,
+                   work)
 
 
 @njit(parallel=True, cache=True, nogil=True)
