@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numba
 import numpy as np
 from numba import njit, prange
 
@@ -71,7 +72,7 @@ def store_pixel(
 def render_pixels(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
     side: int, seed: int, view: OctreeView, stop_level: int, cone_scale: float,
-    beam: BeamBounds, out: PixelOutputs, columns, threads: int = 1,
+    beam: BeamBounds, out: PixelOutputs, columns, threads: int | None = None,
 ) -> None:
     """Trace the listed pixels (flat indices) with side×side samples each, in list order
     (so a list in tile order keeps neighbouring rays together); pixel ``pixels[k]`` goes to
@@ -96,7 +97,12 @@ def render_pixels(
     (measured in ``benchmarks/bench_traversal.py``). Each traversal has a kernel of its own,
     chosen here, so that a render compiles only the one it runs (a first render at LOD 0
     compiled all three, 2 minutes on two cores).
+
+    Every thread Numba runs on (or ``threads`` workers, if more) claims chunks of
+    ``PIXEL_CHUNK`` pixels until none is left; the output does not depend on which traces
+    what.
     """
+    threads = max(threads or 1, numba.get_num_threads())
     radius, spread = pixel_cone(cam, height)
     radius *= cone_scale / side
     spread *= cone_scale / side

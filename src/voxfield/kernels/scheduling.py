@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit, types
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
 
 @njit(cache=True, nogil=True)
@@ -67,14 +67,26 @@ def new_run_queue() -> np.ndarray:
     return np.zeros(1, np.int64)
 
 
+def fetch_add(counter: np.ndarray, amount: int) -> int:
+    """``counter[0] += amount``, giving the value before: in one atomic step in compiled code
+    (``_atomic_fetch_add``); this plain form serves runs with the JIT off."""
+    before = int(counter[0])
+    counter[0] += amount
+    return before
+
+
 @intrinsic
-def _fetch_add(typingctx, counter, amount):
-    """``counter[0] += amount`` in one atomic step, giving the value before."""
+def _atomic_fetch_add(typingctx, counter, amount):
     def codegen(context, builder, signature, args):
         data = context.make_array(signature.args[0])(context, builder, args[0]).data
         return builder.atomic_rmw("add", data, args[1], "monotonic")
 
     return types.int64(counter, types.int64), codegen
+
+
+@overload(fetch_add)
+def _compiled_fetch_add(counter, amount):
+    return lambda counter, amount: _atomic_fetch_add(counter, amount)
 
 
 @njit(cache=True, nogil=True)
@@ -84,4 +96,4 @@ def claim_run(queue: np.ndarray) -> int:
     free, one run at a time, so a thread slowed by the machine (another process on its
     core) leaves its runs to the others instead of holding up the loop's end, which a fixed
     deal (``interleaved``) cannot do."""
-    return _fetch_add(queue, np.int64(1))
+    return fetch_add(queue, np.int64(1))

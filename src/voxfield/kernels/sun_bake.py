@@ -493,8 +493,8 @@ def bake_sun_visibility(
     ``svo.column_tops.tops_ahead`` of ``columns`` for sun ``s``'s direction (``(suns, 0)``:
     every shadow ray walked on its own, with the same visibility); ``horizons`` are their
     horizon slopes (``svo.horizons``; ``(0, 4)``: every sky ray walked). Blocks of voxels
-    are claimed by the ``threads`` the loop runs on as they are free
-    (``kernels.scheduling.claim_run``)."""
+    are claimed by ``threads`` workers as they are free (``kernels.scheduling.claim_run``):
+    pass ``numba.get_num_threads()``, as one worker keeps one thread."""
     queue = new_run_queue()
     for _ in prange(threads):
         bake_blocks(queue, coords, voxel_ids, faces, sun_dirs, sky_rays, shadow_rays, seed,
