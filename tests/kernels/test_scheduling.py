@@ -7,6 +7,7 @@ import pytest
 from numba import njit, prange
 
 from voxfield.kernels.scheduling import (
+    claim_items,
     claim_run,
     interleaved,
     interleaved_run,
@@ -107,3 +108,8 @@ def test_runs_a_worker_leaves_go_to_the_others():
     _claim_all(runs, 4, 0, claimed, taker)
     assert np.all(claimed == 1)
     assert np.count_nonzero(taker == 0) <= 1
+
+
+def test_claimed_items_come_in_whole_runs_and_end_empty():
+    queue = new_run_queue()
+    assert [claim_items(queue, 10, 4) for _ in range(4)] == [(0, 4), (4, 8), (8, 10), (10, 10)]

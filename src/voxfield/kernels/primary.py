@@ -21,7 +21,7 @@ from voxfield.kernels.sampling import (
     new_cmj_strata,
     pixel_pattern,
 )
-from voxfield.kernels.scheduling import claim_run, new_run_queue
+from voxfield.kernels.scheduling import claim_items, new_run_queue
 from voxfield.kernels.surface_approach import settle_walk, walk_over_columns
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
@@ -231,8 +231,7 @@ def claim_chunk(queue: np.ndarray, n: int, sums: np.ndarray,
                 tallies: np.ndarray) -> tuple[int, int]:
     """The next unclaimed chunk of the ``n`` pixels, ``first..last-1`` (equal when none is
     left), its sums zeroed (the finest LOD 127 until a hit lowers it)."""
-    first = min(claim_run(queue) * PIXEL_CHUNK, n)
-    last = min(n, first + PIXEL_CHUNK)
+    first, last = claim_items(queue, n, PIXEL_CHUNK)
     sums[:] = 0.0
     tallies[:, 0] = 0
     tallies[:, 1] = 0

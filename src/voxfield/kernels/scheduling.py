@@ -97,3 +97,11 @@ def claim_run(queue: np.ndarray) -> int:
     core) leaves its runs to the others instead of holding up the loop's end, which a fixed
     deal (``interleaved``) cannot do."""
     return fetch_add(queue, np.int64(1))
+
+
+@njit(cache=True, nogil=True)
+def claim_items(queue: np.ndarray, n: int, size: int) -> tuple[int, int]:
+    """Items ``first..last-1`` of the next unclaimed run of ``size`` of the ``n`` items
+    (``claim_run``); ``first == last`` once none is left."""
+    first = min(claim_run(queue) * size, n)
+    return first, min(n, first + size)

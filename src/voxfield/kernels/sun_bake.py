@@ -72,7 +72,7 @@ from voxfield.kernels.sampling import (
     new_cmj_strata,
     pixel_pattern,
 )
-from voxfield.kernels.scheduling import claim_run, new_run_queue
+from voxfield.kernels.scheduling import claim_items, new_run_queue
 from voxfield.kernels.traversal import MISS, new_scratch, occluded
 from voxfield.kernels.upward_rays import (
     BLOCKED,
@@ -516,8 +516,7 @@ def bake_blocks(
     work = new_block_scratch(depth, sky_rays, shadow_rays)
     n = coords.shape[0]
     while True:
-        first = min(claim_run(queue) * BAKE_BLOCK, n)
-        last = min(n, first + BAKE_BLOCK)
+        first, last = claim_items(queue, n, BAKE_BLOCK)
         if first == last:
             return
         bake_block(first, last, coords, voxel_ids, faces, sun_dirs, sky_rays, shadow_rays,
