@@ -215,3 +215,45 @@ def test_ray_queries_through_the_pyramid_are_the_octree_hits():
                 assert np.array_equal(getattr(walked, name), getattr(alone, name)), name
             assert np.array_equal(walked.t, alone.t)
             assert np.any(walked.steps != alone.steps)  # the walk was taken
+
+
+@njit
+def _walks(o, d, tmin, finest, start_level, columns, patience, ends, times, cells):
+    for k in range(o.shape[0]):
+        verdict, t, steps, cx, cz = approach_surface(
+            o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2], tmin[k], math.inf, finest,
+            start_level, columns, patience)
+        ends[k, 0] = verdict
+        ends[k, 1] = cx
+        ends[k, 2] = cz
+        times[k] = t
+        cells[k] = steps
+
+
+def test_climb_patience_changes_the_route_not_the_answer():
+    """However many cells a walk skips before it climbs (``CLIMB_PATIENCE``), it hands every
+    ray over at the same time in the same cell, or misses it alike: a cell it skips whole
+    holds no cell of a finer level it could not skip. Only the cells it visits differ."""
+    from voxfield.kernels.surface_approach import CLIMB_PATIENCE
+
+    for scene in (overhanging_terrain(seed=3, size=41), hollow_shell_terrain(seed=2)):
+        octree, voxels, columns = octree_and_columns(scene)
+        origins, directions = any_rays(voxels, 600, seed=4)
+        n = len(origins)
+        tmin = np.random.default_rng(6).uniform(0.0, 20.0, n)
+        for finest in (0, 1):
+            walks = []
+            for patience in (0, 1, CLIMB_PATIENCE, 64):
+                ends = np.zeros((n, 3), np.int64)
+                times = np.zeros(n)
+                cells = np.zeros(n, np.int64)
+                _walks(origins, directions, tmin, finest, finest + 2, columns, patience, ends,
+                       times, cells)
+                walks.append((ends, times, cells))
+            eager = walks[0]
+            handed_over = eager[0][:, 0] == HANDED_OVER  # (a miss's time is where it gave up)
+            for ends, times, _ in walks[1:]:
+                np.testing.assert_array_equal(ends, eager[0])
+                assert np.array_equal(times[handed_over], eager[1][handed_over])
+            assert np.any(walks[-1][2] != eager[2])  # patience took other routes
+            assert np.any(eager[0][:, 0] == HANDED_OVER) and np.any(eager[0][:, 0] == MISSED)
