@@ -99,3 +99,59 @@ def test_camera_among_the_columns_falls_back():
                                 width=16)
     assert raster_beam(ortho, octree_column_tops(octree), stop_level=octree.depth,
                        depth=octree.depth) is None
+
+
+@pytest.mark.parametrize("reach", [0.0, 0.5])
+def test_direction_limits_hold_every_ray_of_the_pixel(reach):
+    """Brute force: no ray through a point within ``reach`` of a pixel's centre moves faster
+    along an axis than its limit allows, for an orthonormal camera and a skewed one; for the
+    orthonormal one (every camera voxfield makes) the limit is nearly met (within 1 %)."""
+    from voxfield.kernels.camera_rays import camera_ray
+    from voxfield.kernels.column_raster import direction_limits
+
+    straight = Camera.look_at((3.0, 40.0, -2.0), (10.0, 0.0, 12.0), fov_deg=75, width=9,
+                              height=7)
+    params = straight.params.copy()
+    params[7:10] += 0.3 * params[10:13]  # right tilted towards up: not orthogonal
+    rng = np.random.default_rng(0)
+    for cam in (straight.params, params):
+        limits = direction_limits(cam, 9, 7, reach)
+        for row in range(7):
+            for col in range(9):
+                offsets = rng.uniform(-reach, reach, (400, 2))
+                offsets[:4] = [[-reach, -reach], [-reach, reach], [reach, -reach], [reach, reach]]
+                fastest = np.zeros(3)
+                for fx, fy in offsets:
+                    d = camera_ray(cam, col + 0.5 + fx, row + 0.5 + fy, 9, 7)[3:]
+                    fastest = np.maximum(fastest, np.abs(d))
+                assert np.all(fastest * limits[row, col] <= 1.0 + 1e-12)
+                if cam is straight.params:
+                    assert np.all(fastest * limits[row, col] >= 0.99)
+
+
+def test_slanting_rays_start_past_the_nearest_box_point():
+    """A pixel keeps the larger of a box's nearest distance and its gaps over the pixel's
+    direction limits: towards the edges of a view from above, the bound lies beyond the
+    nearest point (``test_bound_never_passes_a_hit`` shows it still never passes a hit)."""
+    from voxfield.kernels.column_raster import direction_limits, draw_cell_boxes
+
+    octree = build_octree(overhanging_terrain(1))
+    columns = octree_column_tops(octree)
+    lo, hi = octree.voxel_bounds
+    centre = (np.asarray(lo) + np.asarray(hi)) / 2.0
+    cam = Camera.look_at((centre[0], hi[1] + 30, centre[2]), tuple(centre), (0.0, 0.0, -1.0),
+                         fov_deg=80, width=37, height=29)
+    params = cam.params
+    to_camera = np.linalg.inv(np.array([params[4:7], params[7:10], params[10:13]]).T)
+    bounds = []
+    for limits in (np.ones((29, 37, 3)), direction_limits(params, 37, 29, 0.5)):
+        nearest = np.full((1, 29, 37), np.inf)
+        assert draw_cell_boxes(params, to_camera, 37, 29, columns.tops, columns.floors, 0,
+                               int(columns.level_width[0]), int(columns.level_depth[0]), 0, 0,
+                               0.5, limits, 1, nearest, np.zeros(1, np.int64))
+        bounds.append(nearest[0])
+    nearest_point, slanted = bounds
+    finite = np.isfinite(nearest_point)
+    assert np.array_equal(finite, np.isfinite(slanted))
+    assert np.all(slanted[finite] >= nearest_point[finite])
+    assert np.mean(slanted[finite] > nearest_point[finite] * 1.01) > 0.1

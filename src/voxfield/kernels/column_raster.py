@@ -11,6 +11,14 @@ start no later than its hit, and ``inf`` to pixels no box covers (their rays mis
 per-block beam bound (``kernels.beam``) is as far from a ray's hit as the highest ground in
 the block; this one as far as the highest ground under the pixel's cell.
 
+The distance to a box's nearest point suits a ray that heads straight for it; a pixel's
+rays head along their own directions. A unit ray whose largest component along an axis is
+``m`` (over the pixel's rays, ``direction_limits``) covers at most ``m·t`` of that axis by
+time ``t``, so it reaches a box ``g`` away along it (the gap between the eye and the box's
+slab) no sooner than ``g / m``: each pixel keeps the larger of the two bounds. Seen from
+above, rays towards the image's edges slant, and their start moves from a box's nearest
+point down to their own crossing of its top.
+
 Only a pinhole camera with every box in front of its eye plane is drawn: a box across that
 plane has no bounded projection, and the caller falls back to the beam.
 """
@@ -21,6 +29,8 @@ import math
 
 import numpy as np
 from numba import njit, prange
+
+from voxfield.kernels.camera_rays import camera_ray
 
 #: Pixels a projected rectangle is widened by on each side, against rounding in the
 #: projection: it only loosens bounds.
@@ -38,10 +48,88 @@ def box_distance(ex: float, ey: float, ez: float, x0: float, x1: float, y0: floa
 
 
 @njit(parallel=True, cache=True, nogil=True)
+def direction_limits(cam: np.ndarray, width: int, height: int, reach: float) -> np.ndarray:
+    """``(height, width, 3)``: per pixel and axis, 1 over the largest magnitude a unit
+    direction of the pinhole camera ``cam`` has along the axis for an image point within
+    ``reach`` pixels of the pixel's centre (along each image axis): 0 is the centre ray
+    itself (``camera_ray``'s very direction), 0.5 every ray through the pixel. ``inf`` where
+    no such ray moves along the axis."""
+    limits = np.empty((height, width, 3))
+    fx, fy, fz = cam[4], cam[5], cam[6]
+    rx, ry, rz = cam[7], cam[8], cam[9]
+    ux, uy, uz = cam[10], cam[11], cam[12]
+    products = (fx * fx + fy * fy + fz * fz, fx * rx + fy * ry + fz * rz,
+                fx * ux + fy * uy + fz * uz, rx * rx + ry * ry + rz * rz,
+                rx * ux + ry * uy + rz * uz, ux * ux + uy * uy + uz * uz)
+    for row in prange(height):
+        for col in range(width):
+            if reach == 0.0:
+                _, _, _, dx, dy, dz = camera_ray(cam, col + 0.5, row + 0.5, width, height)
+                limits[row, col, 0] = 1.0 / abs(dx) if dx != 0.0 else math.inf
+                limits[row, col, 1] = 1.0 / abs(dy) if dy != 0.0 else math.inf
+                limits[row, col, 2] = 1.0 / abs(dz) if dz != 0.0 else math.inf
+                continue
+            # The unnormalised direction f + a·r + b·u over the image rectangle: each
+            # component is largest at a corner, the length smallest where the convex
+            # |f + a·r + b·u|² is.
+            a0 = (2.0 * (col + 0.5 - reach) / width - 1.0) * cam[13]
+            a1 = (2.0 * (col + 0.5 + reach) / width - 1.0) * cam[13]
+            b0 = (1.0 - 2.0 * (row + 0.5 + reach) / height) * cam[14]
+            b1 = (1.0 - 2.0 * (row + 0.5 - reach) / height) * cam[14]
+            mx = 0.0
+            my = 0.0
+            mz = 0.0
+            for corner in range(4):
+                a = a1 if corner & 1 else a0
+                b = b1 if corner & 2 else b0
+                mx = max(mx, abs(fx + a * rx + b * ux))
+                my = max(my, abs(fy + a * ry + b * uy))
+                mz = max(mz, abs(fz + a * rz + b * uz))
+            shortest = math.sqrt(smallest_square_length(products, a0, a1, b0, b1))
+            # Rounding only loosens the limits (the bound's own slack covers the rest).
+            scale = (1.0 + 1e-12) / (shortest * (1.0 - 1e-12))
+            limits[row, col, 0] = 1.0 / (mx * scale) if mx > 0.0 else math.inf
+            limits[row, col, 1] = 1.0 / (my * scale) if my > 0.0 else math.inf
+            limits[row, col, 2] = 1.0 / (mz * scale) if mz > 0.0 else math.inf
+    return limits
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _square_length(products, a: float, b: float) -> float:
+    ff, fr, fu, rr, ru, uu = products
+    return ff + 2.0 * a * fr + 2.0 * b * fu + a * a * rr + 2.0 * a * b * ru + b * b * uu
+
+
+@njit(cache=True, nogil=True, inline="always")
+def smallest_square_length(products, a0: float, a1: float, b0: float, b1: float) -> float:
+    """The least ``|f + a·r + b·u|²`` over ``a0 <= a <= a1``, ``b0 <= b <= b1`` for the
+    camera's forward, right and up vectors, given their dot ``products`` (ff, fr, fu, rr,
+    ru, uu): at the unconstrained minimum if it lies inside, else on an edge, where it is a
+    parabola's clamped vertex."""
+    ff, fr, fu, rr, ru, uu = products
+    best = math.inf
+    det = rr * uu - ru * ru
+    if det > 0.0:
+        a = (ru * fu - uu * fr) / det
+        b = (ru * fr - rr * fu) / det
+        if a0 <= a <= a1 and b0 <= b <= b1:
+            best = _square_length(products, a, b)
+    for edge in range(4):
+        if edge < 2:  # a fixed, b free
+            a = a0 if edge == 0 else a1
+            b = min(max(-(fu + a * ru) / uu, b0), b1) if uu > 0.0 else b0
+        else:  # b fixed, a free
+            b = b0 if edge == 2 else b1
+            a = min(max(-(fr + b * ru) / rr, a0), a1) if rr > 0.0 else a0
+        best = min(best, _square_length(products, a, b))
+    return max(best, 0.0)
+
+
+@njit(parallel=True, cache=True, nogil=True)
 def draw_cell_boxes(
     cam: np.ndarray, to_camera: np.ndarray, width: int, height: int, tops: np.ndarray,
     floors: np.ndarray, first: int, cells_x: int, cells_z: int, level: int, node_level: int,
-    reach: float, parts: int, nearest: np.ndarray, drawn: np.ndarray,
+    reach: float, limits: np.ndarray, parts: int, nearest: np.ndarray, drawn: np.ndarray,
 ) -> bool:
     """Draw the ``cells_x × cells_z`` cells of one pyramid level (``tops`` and ``floors``
     from ``first``, x-major, side ``2^level``) into ``nearest`` (``(parts, height, width)``,
@@ -49,10 +137,11 @@ def draw_cell_boxes(
     ``nearest[p]`` and counts them in ``drawn[p]`` (-1 where it met a box across the eye
     plane). A pixel is covered where a point within ``reach`` pixels of its centre (along
     each image axis) lies in a box's rectangle: 0 bounds the ray through the centre, 0.5
-    every ray through the pixel (its sub-samples). Heights round out to nodes of side
-    ``2^node_level``. ``to_camera`` maps ``point - eye`` to ``(s, s·a, s·b)``, a point on
-    the ray through image-plane position ``(a, b)``. False when a box reaches the eye plane
-    (no bound: the caller must not use ``nearest``)."""
+    every ray through the pixel (its sub-samples), whose ``direction_limits`` for that reach
+    are ``limits``. Heights round out to nodes of side ``2^node_level``. ``to_camera`` maps
+    ``point - eye`` to ``(s, s·a, s·b)``, a point on the ray through image-plane position
+    ``(a, b)``. False when a box reaches the eye plane (no bound: the caller must not use
+    ``nearest``)."""
     ex, ey, ez = cam[1], cam[2], cam[3]
     x_scale = 1.0 / cam[13]
     y_scale = 1.0 / cam[14]
@@ -130,10 +219,20 @@ def draw_cell_boxes(
                 if col0 > col1 or row0 > row1:
                     continue
                 d = box_distance(ex, ey, ez, x0, x1, y0, y1, z0, z1)
+                gap_x = max(max(x0 - ex, ex - x1), 0.0)
+                gap_y = max(max(y0 - ey, ey - y1), 0.0)
+                gap_z = max(max(z0 - ez, ez - z1), 0.0)
                 for row in range(row0, row1 + 1):
                     for col in range(col0, col1 + 1):
-                        if d < out[row, col]:
-                            out[row, col] = d
+                        bound = d
+                        if gap_x > 0.0:
+                            bound = max(bound, gap_x * limits[row, col, 0])
+                        if gap_y > 0.0:
+                            bound = max(bound, gap_y * limits[row, col, 1])
+                        if gap_z > 0.0:
+                            bound = max(bound, gap_z * limits[row, col, 2])
+                        if bound < out[row, col]:
+                            out[row, col] = bound
             if across:
                 break
         drawn[p] = -1 if across else count

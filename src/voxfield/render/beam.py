@@ -15,7 +15,7 @@ import numpy as np
 
 from voxfield.kernels.beam import beam_map
 from voxfield.kernels.camera_rays import PINHOLE, pixel_cone
-from voxfield.kernels.column_raster import draw_cell_boxes
+from voxfield.kernels.column_raster import direction_limits, draw_cell_boxes
 from voxfield.render.camera import Camera
 from voxfield.svo.octree import Octree
 
@@ -172,8 +172,11 @@ def raster_beam(camera: Camera, columns, *, stop_level: int, depth: int,
     cam = camera.params
     # No cells: compiles (or loads) the kernel outside the timing, as ``plan_beam`` does.
     draw_cell_boxes(cam, np.eye(3), 1, 1, columns.tops, columns.floors, 0, 0, 0, 0, 0, 0.0,
-                    1, np.full((1, 1, 1), np.inf), np.zeros(1, np.int64))
+                    np.ones((1, 1, 3)), 1, np.full((1, 1, 1), np.inf), np.zeros(1, np.int64))
+    direction_limits(cam, 1, 1, 0.0)
     start = time.perf_counter()
+    reach = 0.5 if whole_pixel else 0.0
+    limits = direction_limits(cam, camera.width, camera.height, reach)
     basis = np.array([cam[4:7], cam[7:10], cam[10:13]]).T  # columns forward, right, up
     to_camera = np.linalg.inv(basis)
     parts = numba.get_num_threads()
@@ -182,7 +185,7 @@ def raster_beam(camera: Camera, columns, *, stop_level: int, depth: int,
     ok = draw_cell_boxes(cam, to_camera, camera.width, camera.height, columns.tops,
                          columns.floors, int(columns.level_offset[level]),
                          int(columns.level_width[level]), int(columns.level_depth[level]),
-                         level, node_level, 0.5 if whole_pixel else 0.0, parts, nearest, drawn)
+                         level, node_level, reach, limits, parts, nearest, drawn)
     if not ok:
         return None
     bound = nearest.min(axis=0) if parts > 1 else nearest[0]
