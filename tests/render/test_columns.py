@@ -76,7 +76,9 @@ def test_rays_traced_in_batches_step_as_each_ray_alone(scene):
     """A render walks its rays in batches (``kernels.primary.RAY_BATCH``) before it settles
     and shades them: the same pixels as the octree alone, partial batches and batches across
     pixels included, and every pixel's steps those of its rays traced one by one
-    (``trace_over_columns`` from the pixel's start bound) plus its share of the bound's."""
+    (``trace_over_columns`` from where the pixel's start bound lets rays start,
+    ``beam.start_distance``) plus its share of the bound's."""
+    from voxfield.kernels.beam import start_distance
     from voxfield.kernels.primary import RAY_BATCH
     from voxfield.kernels.surface_approach import trace_over_columns
     from voxfield.kernels.traversal import new_scratch
@@ -101,7 +103,8 @@ def test_rays_traced_in_batches_step_as_each_ray_alone(scene):
         scratch = new_scratch(scene.depth)
         alone = np.zeros(len(starts), np.int64)
         for k in np.flatnonzero(starts < np.inf):
-            alone[k] = trace_over_columns(*origins[k], *directions[k], starts[k], np.inf,
+            alone[k] = trace_over_columns(*origins[k], *directions[k],
+                                          start_distance(starts[k]), np.inf,
                                           scene.inner_nodes, scene.depth, stop_level,
                                           scratch, columns)[4]
         drawn = bounds.image_steps(camera.height, camera.width).reshape(-1)

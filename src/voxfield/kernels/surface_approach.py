@@ -54,16 +54,19 @@ MISSED = 0
 HANDED_OVER = 1
 #: Levels above the sampled one at which a primary ray's walk from a start bound (``tmin >
 #: 0``: a beam bound or a continued ray, near the surface) begins; from the camera it begins
-#: at the top. Two measured best of 0, 2, 3, 4, 5 and the top on the mountain terrain.
-NEAR_START_LEVELS = 2
+#: at the top. With ``CLIMB_PATIENCE`` and the raster's slanted bounds
+#: (``kernels.column_raster``), one level up made the top and 45° views' walks 1.02-1.11×
+#: as fast as two on the 2048² mountain terrain, a ground-level view's 0.99-1.01×; three
+#: were 0.87-0.99× as fast.
+NEAR_START_LEVELS = 1
 #: Cells a walk from a start bound skips in a row at one level before it climbs to the
-#: parent, twice as many at or above the level it started at (``approach_surface``).
-#: Such a ray starts beside the surface, so the parent of the next cell along usually holds
-#: that surface: climbing there only to come straight back down cost two visits and was
-#: most of the walk's mispredicted branches. On the 2048² mountain terrain (512² images,
-#: the walk alone, in one process) this made the top and 45° views' walks 1.08-1.13× as
-#: fast, one or 16 rays a pixel, and a ground-level view's 1.00-1.03×; climbing at once
-#: is what rays leaving a surface (``FROM_SURFACE``) and from the camera still do.
+#: parent (``approach_surface``). Such a ray starts beside the surface, so the parent of
+#: the next cell along usually holds that surface: climbing there only to come straight
+#: back down cost two visits, and the climbs' branches were the walk's worst predicted. On
+#: the 2048² mountain terrain (512² images, the walk alone, in one process) waiting made the
+#: top and 45° views' walks 1.08-1.15× as fast, one or 16 rays a pixel, and a ground-level
+#: view's 1.00-1.03×; rays leaving a surface (``FROM_SURFACE``) and from the camera climb at
+#: once, as before.
 CLIMB_PATIENCE = 4
 #: ``start`` for ``trace_over_columns``: primary rays (as above) and rays that leave the
 #: surface (secondary rays: from the finest level, climbing as they rise).
@@ -243,8 +246,8 @@ def approach_surface(
     ``(cx, cz)`` of the finest level and below its top (-1, -1 when the walk did not start).
     The walk starts at ``start_level`` (clamped to the pyramid): low when ``tmin`` is near
     the surface, at the top when not. It climbs to a parent cell only after skipping
-    ``patience`` cells in a row at its level (``2 · patience`` at or above the start level;
-    0 climbs at once, ``CLIMB_PATIENCE``): the route, never the answer. ``columns`` is a
+    ``patience`` cells in a row at its level (0 climbs at once, ``CLIMB_PATIENCE``): the
+    route, never the answer. ``columns`` is a
     ``ColumnTops``; without levels, or for non-finite rays, every ray is handed over at
     ``tmin``."""
     tops, level_width, level_depth = columns.tops, columns.level_width, columns.level_depth
@@ -278,7 +281,6 @@ def approach_surface(
     round_up = (1 << finest_level) - 1
     top_level = levels - 1
     level = min(max(start_level, finest_level), top_level)
-    first_level = level
     skips = 0  # cells skipped in a row at this level
     width, depth, offset = level_shape(columns, level)
     cx = cell_holding(ox, dx, ix, t, level, 0, width - 1)
@@ -328,9 +330,8 @@ def approach_surface(
                 return MISSED, t, steps, -1, -1
             t = t_exit
             skips += 1
-            wait = patience if level < first_level else 2 * patience
             cx, cz, next_level = step_across(cx, cz, level, tx, tz, t_exit, step_x, step_z,
-                                             top_level if skips >= wait else level)
+                                             top_level if skips >= patience else level)
             if next_level != level:
                 skips = 0
                 level = next_level
