@@ -41,7 +41,8 @@ the LOD-2 and cone-LOD images' PSNR against the reference, from an 8-bit and a f
 ``--big N`` builds an N² world streamed (``voxfield.svo.streamed_build``) and reports build
 time, peak RSS, bytes per voxel, render throughput and the memory Embree would need for it:
 its exposed faces counted block by block, times the bytes per triangle Embree used in this
-run (it is not built).
+run (it is not built). It runs first, so that a footprint too small for the recipe is
+refused before the long runs and its peak RSS is its own, not the Embree builds' after it.
 
 The peer is optional: ``pip install -e .[peer]`` (Open3D, ~900 MB wheel) and, on Debian or
 Ubuntu, ``apt-get install libusb-1.0-0`` (``import open3d`` needs ``libusb-1.0.so.0``).
@@ -450,8 +451,10 @@ def count_exposed_faces(layout, block: int = 256) -> int:
     return total
 
 
-def run_big(args, bytes_per_triangle: float | None) -> dict:
-    """Stream-build an N² world, render it, and estimate what Embree would need."""
+def run_big(args) -> dict:
+    """Stream-build an N² world, render it, and count its exposed faces (``main`` turns
+    them into what Embree would need once a main run has measured its bytes per
+    triangle)."""
     from voxfield.render.primary import render_lod
     from voxfield.scene.terrain.recipes import recipe_layout
     from voxfield.svo.streamed_build import build_octree_streamed
@@ -480,8 +483,8 @@ def run_big(args, bytes_per_triangle: float | None) -> dict:
         t3 = time.perf_counter()
         big["triangles"] = 2 * count_exposed_faces(layout)
         big["count_s"] = time.perf_counter() - t3
-        if bytes_per_triangle is not None:
-            big["embree_gib"] = big["triangles"] * bytes_per_triangle / 2**30
+    del layout
+    gc.collect()
     print(f"  big: {fmt_row(big)}", file=sys.stderr)
     return big
 
@@ -595,9 +598,9 @@ def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args
                       f"{big['top_mrays']:.2f}", f"{big['oblique_mrays']:.2f}",
                       f"{big.get('triangles', 0):,}",
                       num(big.get("embree_gib"), ".0f")]])
-        print("\nPeak RSS is the whole process (the Embree runs above included when they ran "
-              "first). The Embree estimate is its triangle count times the bytes per triangle "
-              "Embree took in this run; it is not built.")
+        print("\nPeak RSS is the process's by the end of this world's renders, which run "
+              "before the other scenes and Embree. The Embree estimate is its triangle count "
+              "times the bytes per triangle Embree took in this run; it is not built.")
     try:
         load = os.getloadavg()
         print(f"\nLoad average at the end: {load[0]:.2f} {load[1]:.2f} {load[2]:.2f} "
@@ -644,6 +647,7 @@ def main(argv=None) -> int:
         print(PEER_HELP.format(reason=why), file=sys.stderr)
     print("compiling kernels (warm-up)...", file=sys.stderr)
     warm_up()
+    big = run_big(args) if args.big else None
     all_stats = []
     bytes_per_triangle = None
     for footprint in args.footprint:
@@ -667,7 +671,8 @@ def main(argv=None) -> int:
         all_stats.append(stats)
         del octree, layout
         gc.collect()
-    big = run_big(args, bytes_per_triangle) if args.big else None
+    if big is not None and bytes_per_triangle is not None and "triangles" in big:
+        big["embree_gib"] = big["triangles"] * bytes_per_triangle / 2**30
     print_tables(all_stats, o3d is not None, big, args)
     if o3d is None:
         print("\n" + PEER_HELP.format(reason=why))
