@@ -66,3 +66,16 @@ def test_a_benchmark_reports_bad_input_found_late_in_one_line():
     assert proc.returncode == EXIT_USAGE
     assert len(proc.stderr.splitlines()) == 1
     assert proc.stderr.startswith("bench_start_bounds: error: unknown terrain recipe 'nowhere'")
+
+
+def test_a_big_world_too_small_for_its_recipe_is_refused_first(shared_data):
+    """``bench_traversal.py --big N`` builds its world before the long runs: a footprint with
+    no room for the recipe's terrain ends the script at once, before any scene is built."""
+    proc = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "bench_traversal.py"), "--no-peer", "--big", "3",
+         "--footprint", "64"],
+        capture_output=True, text=True, timeout=600)
+    assert proc.returncode == EXIT_USAGE
+    assert "Traceback" not in proc.stderr
+    assert proc.stderr.splitlines()[-1].startswith("bench_traversal: error: no room for")
+    assert "building mountain at 64²" not in proc.stderr
