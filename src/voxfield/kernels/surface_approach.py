@@ -247,9 +247,8 @@ def approach_surface(
     The walk starts at ``start_level`` (clamped to the pyramid): low when ``tmin`` is near
     the surface, at the top when not. It climbs to a parent cell only after skipping
     ``patience`` cells in a row at its level (0 climbs at once, ``CLIMB_PATIENCE``): the
-    route, never the answer. ``columns`` is a
-    ``ColumnTops``; without levels, or for non-finite rays, every ray is handed over at
-    ``tmin``."""
+    route, never the answer. ``columns`` is a ``ColumnTops``; without levels, or for
+    non-finite rays, every ray is handed over at ``tmin``."""
     tops, level_width, level_depth = columns.tops, columns.level_width, columns.level_depth
     run_bottom, top_nodes = columns.run_bottom, columns.top_nodes
     gap_floor, gap_ceiling = columns.gap_floor, columns.gap_ceiling
