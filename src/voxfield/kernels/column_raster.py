@@ -38,13 +38,12 @@ PIXEL_MARGIN = 1e-3
 
 
 @njit(cache=True, nogil=True, inline="always")
-def box_distance(ex: float, ey: float, ez: float, x0: float, x1: float, y0: float, y1: float,
-                 z0: float, z1: float) -> float:
-    """Distance from the eye to the nearest point of the box."""
-    dx = max(max(x0 - ex, ex - x1), 0.0)
-    dy = max(max(y0 - ey, ey - y1), 0.0)
-    dz = max(max(z0 - ez, ez - z1), 0.0)
-    return math.sqrt(dx * dx + dy * dy + dz * dz)
+def box_gaps(ex: float, ey: float, ez: float, x0: float, x1: float, y0: float, y1: float,
+             z0: float, z1: float) -> tuple[float, float, float]:
+    """How far the eye is from the box's slab along each axis (0 inside the slab): the
+    components of the way to the box's nearest point."""
+    return (max(max(x0 - ex, ex - x1), 0.0), max(max(y0 - ey, ey - y1), 0.0),
+            max(max(z0 - ez, ez - z1), 0.0))
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -218,10 +217,8 @@ def draw_cell_boxes(
                 row1 = min(int(math.floor(hi_y - 0.5 + widen)), height - 1)
                 if col0 > col1 or row0 > row1:
                     continue
-                d = box_distance(ex, ey, ez, x0, x1, y0, y1, z0, z1)
-                gap_x = max(max(x0 - ex, ex - x1), 0.0)
-                gap_y = max(max(y0 - ey, ey - y1), 0.0)
-                gap_z = max(max(z0 - ez, ez - z1), 0.0)
+                gap_x, gap_y, gap_z = box_gaps(ex, ey, ez, x0, x1, y0, y1, z0, z1)
+                d = math.sqrt(gap_x * gap_x + gap_y * gap_y + gap_z * gap_z)  # nearest point
                 for row in range(row0, row1 + 1):
                     for col in range(col0, col1 + 1):
                         bound = d
