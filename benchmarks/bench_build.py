@@ -72,7 +72,7 @@ def _run(args, queue) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="bench_build", description=__doc__.splitlines()[0])
     parser.add_argument("--scene", default="synthetic",
                         help="'synthetic' or any scene description (e.g. terrain:mountain)")
     parser.add_argument("--footprint", type=int_between(2, MAX_FOOTPRINT), default=2048)

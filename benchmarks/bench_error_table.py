@@ -52,7 +52,7 @@ def per_mask_passes(directions, samples):
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="bench_error_table", description=__doc__.splitlines()[0])
     parser.add_argument("--directions", type=int_at_least(2), default=1024)
     parser.add_argument("--resolution", type=int_at_least(1), default=512)
     parser.add_argument("--peer-directions", type=int_at_least(1), default=2)

@@ -203,7 +203,7 @@ def check_probe_ptx(cuda) -> None:
 
 
 def main(argv=None) -> int:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser = argparse.ArgumentParser(prog="bench_gpu", description=__doc__.split("\n")[0])
     parser.add_argument("--recipe", default="mountain")
     count = int_at_least(1)
     parser.add_argument("--footprint", type=int_between(2, MAX_FOOTPRINT), nargs="+",

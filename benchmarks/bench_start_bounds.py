@@ -130,7 +130,7 @@ def run_view(octree, view: str, args, trace_all) -> list[dict]:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = argparse.ArgumentParser(prog="bench_start_bounds", description=__doc__.splitlines()[0])
     p.add_argument("--recipe", default="mountain", help="terrain recipe (default mountain)")
     p.add_argument("--footprint", type=int, default=2048, help="columns per side (2048)")
     p.add_argument("--size", type=int, default=512, help="image side in pixels (512)")

@@ -615,7 +615,7 @@ def main(argv=None) -> int:
     from voxfield.scene.terrain.recipes import RECIPES
 
     count = int_at_least(1)
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="bench_traversal", description=__doc__.split("\n\n")[0])
     p.add_argument("--recipe", default="mountain", choices=list(RECIPES),
                    help="terrain recipe (real DEM) from voxfield.scene.terrain (default mountain)")
     p.add_argument("--footprint", type=int_between(2, MAX_FOOTPRINT), nargs="+",
