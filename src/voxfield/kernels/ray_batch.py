@@ -1,4 +1,11 @@
-"""Batch ray queries: arbitrary rays, closest or any hit (tests, oracles, benchmarks, probes)."""
+"""Batch ray queries: arbitrary rays, closest or any hit (tests, oracles, benchmarks, probes).
+
+Every ``threads`` worker claims runs of ``RAY_RUN`` rays from the call's queue
+(``scheduling.claim_items``) until none is left, as renders claim their pixels: a list in
+image order (its sky rows first, cheap misses) or one a neighbour's process slows keeps
+both threads busy to the end, where ``prange``'s one contiguous half a thread left one
+idle. Which thread traces a ray never changes its result.
+"""
 
 from __future__ import annotations
 
@@ -7,9 +14,13 @@ from numba import njit, prange
 
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
+from voxfield.kernels.scheduling import claim_items, new_run_queue
 from voxfield.kernels.surface_approach import FROM_SURFACE, trace_over_columns
 from voxfield.kernels.traversal import new_scratch, occluded, trace_ray
 from voxfield.kernels.upward_rays import BLOCKED, UNDECIDED, rising_ray_query
+
+#: Rays a thread claims at a time.
+RAY_RUN = 256
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -17,18 +28,34 @@ def trace_rays(
     origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
     inner_nodes: np.ndarray, depth: int, stop_level: int,
     out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
-    out_normal: np.ndarray, out_steps: np.ndarray, columns=None,
+    out_normal: np.ndarray, out_steps: np.ndarray, columns=None, threads: int = 1,
 ) -> None:
-    """Trace arbitrary rays at a fixed stop level (batch API, tests, oracles, probes). With
-    a column-top pyramid (``svo.column_tops``) each ray crosses the air in it first
-    (``kernels.surface_approach``, from the finest level, as rays from the surface do): the
-    same hits; the steps count its cells."""
-    n = origins.shape[0]
-    chunk = 256
-    for c in prange((n + chunk - 1) // chunk):
-        trace_ray_chunk(origins, directions, c * chunk, min(n, (c + 1) * chunk), tmin, tmax,
-                        inner_nodes, depth, stop_level, out_node, out_level, out_t,
-                        out_normal, out_steps, new_scratch(depth), columns)
+    """Trace arbitrary rays at a fixed stop level (batch API, tests, oracles, probes) on
+    ``threads`` workers. With a column-top pyramid (``svo.column_tops``) each ray crosses
+    the air in it first (``kernels.surface_approach``, from the finest level, as rays from
+    the surface do): the same hits; the steps count its cells."""
+    queue = new_run_queue()
+    for _ in prange(threads):
+        trace_ray_claims(origins, directions, tmin, tmax, inner_nodes, depth, stop_level,
+                         out_node, out_level, out_t, out_normal, out_steps, columns, queue)
+
+
+@njit(cache=True, nogil=True)
+def trace_ray_claims(
+    origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
+    inner_nodes: np.ndarray, depth: int, stop_level: int,
+    out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray, columns, queue: np.ndarray,
+) -> None:
+    """One worker of ``trace_rays``: runs claimed from ``queue`` until none is left."""
+    scratch = new_scratch(depth)
+    while True:
+        first, last = claim_items(queue, origins.shape[0], RAY_RUN)
+        if first == last:
+            return
+        trace_ray_chunk(origins, directions, first, last, tmin, tmax, inner_nodes, depth,
+                        stop_level, out_node, out_level, out_t, out_normal, out_steps,
+                        scratch, columns)
 
 
 @borrowing
@@ -64,18 +91,35 @@ def trace_rays_in_packets(
     origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
     inner_nodes: np.ndarray, depth: int, stop_level: int,
     out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
-    out_normal: np.ndarray, out_steps: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray, threads: int = 1,
 ) -> None:
     """``trace_rays`` through ``kernels.packet_traversal``: every 64 consecutive rays form
     one packet (the same results; faster where neighbours in the list are coherent)."""
+    queue = new_run_queue()
+    for _ in prange(threads):
+        trace_packet_claims(origins, directions, tmin, tmax, inner_nodes, depth, stop_level,
+                            out_node, out_level, out_t, out_normal, out_steps, queue)
+
+
+@njit(cache=True, nogil=True)
+def trace_packet_claims(
+    origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
+    inner_nodes: np.ndarray, depth: int, stop_level: int,
+    out_node: np.ndarray, out_level: np.ndarray, out_t: np.ndarray,
+    out_normal: np.ndarray, out_steps: np.ndarray, queue: np.ndarray,
+) -> None:
+    """One worker of ``trace_rays_in_packets``: runs of ``RAY_RUN`` rays (whole packets)
+    claimed from ``queue`` until none is left."""
     n = origins.shape[0]
-    chunk = 16 * PACKET_RAYS
-    for c in prange((n + chunk - 1) // chunk):
-        scratch = new_packet_scratch(depth)
-        tmins = np.full(PACKET_RAYS, tmin)
-        tmaxs = np.full(PACKET_RAYS, tmax)
-        for first in range(c * chunk, min(n, (c + 1) * chunk), PACKET_RAYS):
-            last = min(n, first + PACKET_RAYS)
+    scratch = new_packet_scratch(depth)
+    tmins = np.full(PACKET_RAYS, tmin)
+    tmaxs = np.full(PACKET_RAYS, tmax)
+    while True:
+        run_first, run_last = claim_items(queue, n, RAY_RUN)
+        if run_first == run_last:
+            return
+        for first in range(run_first, run_last, PACKET_RAYS):
+            last = min(run_last, first + PACKET_RAYS)
             rays = slice(first, last)
             trace_packet(last - first, origins[rays], directions[rays], tmins, tmaxs,
                          inner_nodes, depth, stop_level, scratch, out_node[rays],
@@ -86,17 +130,32 @@ def trace_rays_in_packets(
 def occlude_rays(
     origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
     inner_nodes: np.ndarray, depth: int, columns, out_blocked: np.ndarray,
-    out_steps: np.ndarray,
+    out_steps: np.ndarray, threads: int = 1,
 ) -> None:
-    """Any-hit queries at LOD 0: is ``[tmin, tmax)`` of each ray blocked by a voxel? With
-    ``tmin`` 0, rising rays walk ``columns`` (``kernels.upward_rays``; an empty pyramid
-    sends every ray to the octree) before the octree."""
-    n = origins.shape[0]
-    chunk = 256
-    for c in prange((n + chunk - 1) // chunk):
-        occlude_ray_chunk(origins, directions, c * chunk, min(n, (c + 1) * chunk), tmin, tmax,
-                          inner_nodes, depth, columns, out_blocked, out_steps,
-                          new_scratch(depth))
+    """Any-hit queries at LOD 0 on ``threads`` workers: is ``[tmin, tmax)`` of each ray
+    blocked by a voxel? With ``tmin`` 0, rising rays walk ``columns``
+    (``kernels.upward_rays``; an empty pyramid sends every ray to the octree) before the
+    octree."""
+    queue = new_run_queue()
+    for _ in prange(threads):
+        occlude_ray_claims(origins, directions, tmin, tmax, inner_nodes, depth, columns,
+                           out_blocked, out_steps, queue)
+
+
+@njit(cache=True, nogil=True)
+def occlude_ray_claims(
+    origins: np.ndarray, directions: np.ndarray, tmin: float, tmax: float,
+    inner_nodes: np.ndarray, depth: int, columns, out_blocked: np.ndarray,
+    out_steps: np.ndarray, queue: np.ndarray,
+) -> None:
+    """One worker of ``occlude_rays``: runs claimed from ``queue`` until none is left."""
+    scratch = new_scratch(depth)
+    while True:
+        first, last = claim_items(queue, origins.shape[0], RAY_RUN)
+        if first == last:
+            return
+        occlude_ray_chunk(origins, directions, first, last, tmin, tmax, inner_nodes, depth,
+                          columns, out_blocked, out_steps, scratch)
 
 
 @borrowing

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from voxfield.checks import integer_in, ray_arrays, real_number
@@ -56,7 +57,7 @@ def trace(
         trace_rays(
             o, d, tmin, tmax, octree.inner_nodes, octree.depth, octree.depth - lod,
             hits.node, hits.level, hits.t, hits.normal_code, hits.steps,
-            octree_column_tops(octree) if columns else None,
+            octree_column_tops(octree) if columns else None, numba.get_num_threads(),
         )
     return hits
 
@@ -89,7 +90,7 @@ def occluded(
     pyramid = octree_column_tops(octree) if columns else no_column_tops()
     with thread_count(threads):
         occlude_rays(o, d, tmin, tmax, octree.inner_nodes, octree.depth,
-                     pyramid, result.blocked, result.steps)
+                     pyramid, result.blocked, result.steps, numba.get_num_threads())
     return result
 
 
