@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.octahedral import oct_decode
-from voxfield.kernels.sampling import subpixel
+from voxfield.kernels.sampling import divide, subpixel
 
 PINHOLE = 0
 ORTHOGRAPHIC = 1
@@ -36,18 +36,34 @@ def camera_ray(
     if cam[0] == OCTAHEDRAL:
         dx, dy, dz = oct_decode(x / width, y / height)
         return cam[1], cam[2], cam[3], dx, dy, dz
-    a = (2.0 * x / width - 1.0) * cam[13]
-    b = (1.0 - 2.0 * y / height) * cam[14]
+    a, b = image_plane(cam, x, y, width, height)
     if cam[0] == ORTHOGRAPHIC:
         ox = cam[1] + a * cam[7] + b * cam[10]
         oy = cam[2] + a * cam[8] + b * cam[11]
         oz = cam[3] + a * cam[9] + b * cam[12]
         return ox, oy, oz, cam[4], cam[5], cam[6]
+    dx, dy, dz = pinhole_direction(cam, a, b)
+    return cam[1], cam[2], cam[3], dx, dy, dz
+
+
+@njit(cache=True, nogil=True, inline="always")
+def pinhole_direction(cam: np.ndarray, a: float, b: float) -> tuple[float, float, float]:
+    """The unit direction of a pinhole camera through image-plane point ``(a, b)`` (in
+    tangents of the half field of view): ``camera_ray``'s, for callers that loop over
+    pixels of one camera kind."""
     dx = cam[4] + a * cam[7] + b * cam[10]
     dy = cam[5] + a * cam[8] + b * cam[11]
     dz = cam[6] + a * cam[9] + b * cam[12]
     inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
-    return cam[1], cam[2], cam[3], dx * inv, dy * inv, dz * inv
+    return dx * inv, dy * inv, dz * inv
+
+
+@njit(cache=True, nogil=True, inline="always")
+def image_plane(cam: np.ndarray, x: float, y: float, width: int,
+                height: int) -> tuple[float, float]:
+    """Image position (x, y) in pixels as the image-plane point ``(a, b)`` of ``camera_ray``."""
+    return ((divide(2.0 * x, width) - 1.0) * cam[13],
+            (1.0 - divide(2.0 * y, height)) * cam[14])
 
 
 @njit(cache=True, nogil=True)

@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from voxfield.kernels.camera_rays import PINHOLE, camera_ray
+from voxfield.kernels.camera_rays import PINHOLE, camera_ray, image_plane, pinhole_direction
 
 #: Pixels a projected rectangle is widened by on each side, against rounding in the
 #: projection: it only loosens bounds.
@@ -80,25 +80,17 @@ def centre_ray_limits(cam: np.ndarray, width: int, height: int, row: int,
             limits[col, 1] = 1.0 / abs(dy)
             limits[col, 2] = 1.0 / abs(dz)
         return
-    # ``camera_ray``'s pinhole arithmetic, step for step (the same bits), with the camera in
-    # registers: the loop then runs on vectors.
-    fx, fy, fz = cam[4], cam[5], cam[6]
-    rx, ry, rz = cam[7], cam[8], cam[9]
-    ux, uy, uz = cam[10], cam[11], cam[12]
-    half_width = cam[13]
-    b = (1.0 - 2.0 * (row + 0.5) / height) * cam[14]
+    # The pinhole directions with the camera kind settled outside the loop, which then
+    # runs on vectors.
     lx = np.empty(width)
     ly = np.empty(width)
     lz = np.empty(width)
     for col in range(width):
-        a = (2.0 * (col + 0.5) / width - 1.0) * half_width
-        dx = fx + a * rx + b * ux
-        dy = fy + a * ry + b * uy
-        dz = fz + a * rz + b * uz
-        inv = 1.0 / math.sqrt(dx * dx + dy * dy + dz * dz)
-        lx[col] = 1.0 / abs(dx * inv)
-        ly[col] = 1.0 / abs(dy * inv)
-        lz[col] = 1.0 / abs(dz * inv)
+        a, b = image_plane(cam, col + 0.5, row + 0.5, width, height)
+        dx, dy, dz = pinhole_direction(cam, a, b)
+        lx[col] = 1.0 / abs(dx)
+        ly[col] = 1.0 / abs(dy)
+        lz[col] = 1.0 / abs(dz)
     for col in range(width):
         limits[col, 0] = lx[col]
         limits[col, 1] = ly[col]
