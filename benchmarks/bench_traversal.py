@@ -511,7 +511,7 @@ def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args
             "steps/ray", "hit %"]
     if peer:
         head += ["Embree Mrays/s", "voxfield/Embree", "paired rounds: median (range)",
-                 "hit/miss agree", "only vox / only Embree", "median |Δt|"]
+                 "hit/miss agree", "only vox / only Embree", "median \\|Δt\\|"]
     rows = []
     for s in all_stats:
         for r in s.rows:
