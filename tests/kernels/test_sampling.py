@@ -9,6 +9,7 @@ from voxfield.kernels.sampling import (
     cmj_sample,
     cmj_sample_in,
     cmj_strata,
+    divide,
     permute,
     rand_float,
     subpixel,
@@ -63,3 +64,14 @@ def test_strata_tables_give_the_same_samples_as_permuting_per_sample():
         for s in range(m * n):
             assert cmj_sample_in(s, s % m, s // m, m, n, pattern, column, row) == \
                 cmj_sample(s, m, n, pattern)
+
+
+def test_divide_gives_the_bits_of_a_true_division():
+    """The multiply by an exact reciprocal stands in for ``/`` only where it is exact: for
+    powers of two, and (by division) for every other count, whatever the value."""
+    rng = np.random.default_rng(5)
+    values = np.concatenate([rng.random(2000) * 4096.0, rng.random(200) * 1e-300,
+                             [0.0, 1.0, 2.0**-1070, 1e308]])
+    for n in (1, 2, 3, 4, 5, 7, 16, 512, 640, 1 << 20, 1000003):
+        for v in values:
+            assert divide(float(v), n) == float(v) / n
