@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from voxfield.kernels.beam import beam_map
+from voxfield.kernels.beam import add_block_shares, beam_map
 from voxfield.kernels.camera_rays import PINHOLE, pixel_cone
 from voxfield.kernels.column_raster import direction_limits, draw_cell_boxes
 from voxfield.render.camera import Camera
@@ -60,16 +60,12 @@ class Beam:
     def image_steps(self, height: int, width: int) -> np.ndarray:
         """``pixel_steps`` of every pixel of the image in row-major order, as an (H, W) map:
         a pixel's rank in its block is its row-major position there, so no sort is needed."""
-        rows = np.arange(height, dtype=np.int64)[:, None]
-        cols = np.arange(width, dtype=np.int64)[None, :]
         total = np.zeros((height, width), np.int64)
         for block, steps in self.steps:
-            by, bx = rows // block, cols // block
-            block_height = np.minimum(block, height - by * block)
-            block_width = np.minimum(block, width - bx * block)
-            share, remainder = np.divmod(steps[by, bx], block_height * block_width)
-            rank = (rows - by * block) * block_width + (cols - bx * block)
-            total += share + (rank < remainder)
+            block_heights = np.minimum(block, height - np.arange(steps.shape[0]) * block)
+            block_widths = np.minimum(block, width - np.arange(steps.shape[1]) * block)
+            share, remainder = np.divmod(steps, np.outer(block_heights, block_widths))
+            add_block_shares(total, block, share.astype(np.int64), remainder.astype(np.int64))
         return total
 
 
