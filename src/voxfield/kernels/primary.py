@@ -278,7 +278,16 @@ def sample_ray(cam: np.ndarray, width: int, height: int, pixel: int, s: int, sid
 @njit(cache=True, nogil=True, inline="always")
 def beam_start(beam_bound: np.ndarray, block: int, pixel: int, width: int) -> float:
     row = pixel // width
-    return start_distance(beam_bound[row // block, (pixel - row * width) // block])
+    return block_start(beam_bound, block, row, pixel - row * width)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def block_start(beam_bound: np.ndarray, block: int, row: int, col: int) -> float:
+    """Where the rays of pixel ``(row, col)`` start: its block's bound, with no division
+    for the raster's per-pixel bounds (``block`` 1), which one-ray renders read per ray."""
+    if block == 1:
+        return start_distance(beam_bound[row, col])
+    return start_distance(beam_bound[row // block, col // block])
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -342,11 +351,11 @@ def trace_chunk_over_columns(
         if side > 1:
             pattern = pixel_pattern(pixel, seed)
             cmj_strata(side, side, pattern, column, row)
-        t_start = beam_start(beam.bound, beam.block, pixel, width)
-        if t_start == math.inf:
-            continue  # the beam showed every ray of the block misses: black, and no steps
         y_pixel = pixel // width
         x_pixel = pixel - y_pixel * width
+        t_start = block_start(beam.bound, beam.block, y_pixel, x_pixel)
+        if t_start == math.inf:
+            continue  # the beam showed every ray of the block misses: black, and no steps
         for s in range(side * side):
             fx, fy = 0.5, 0.5
             if side > 1:
