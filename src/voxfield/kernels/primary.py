@@ -22,7 +22,7 @@ from voxfield.kernels.sampling import (
     pixel_pattern,
 )
 from voxfield.kernels.scheduling import claim_items, new_run_queue
-from voxfield.kernels.surface_approach import settle_walk, walk_over_columns
+from voxfield.kernels.surface_approach import settle_walk, walk_primary_over_columns
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
 
@@ -359,7 +359,10 @@ def trace_chunk_over_columns(
     A supersampled pixel's stratum permutations are drawn once (``sampling.cmj_strata``),
     not again for each sample: the same sample positions, and 16-ray pixels 1.1× faster."""
     column, row = strata
-    queued = 0
+    # ``np.int64``: with a plain 0 Numba typed the last, partial batch's count as the
+    # literal 0 and compiled ``trace_ray_batch`` a second time for it (15 s on two cores
+    # with the walk compiled in).
+    queued = np.int64(0)
     for j in range(last - first):
         pixel = pixels[first + j]
         pattern = 0
@@ -383,7 +386,7 @@ def trace_chunk_over_columns(
             if queued == RAY_BATCH:
                 trace_ray_batch(batch, queued, view, stop_level, scratch, columns, sums,
                                 tallies)
-                queued = 0
+                queued = np.int64(0)
     trace_ray_batch(batch, queued, view, stop_level, scratch, columns, sums, tallies)
 
 
@@ -431,9 +434,9 @@ def trace_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratc
     inner_nodes, depth, facing = view.inner_nodes, view.depth, view.facing
     colors = view_colours(view)
     for k in range(count):
-        verdict, t_from, cells, cx, cz, y, t, normal = walk_over_columns(
+        verdict, t_from, cells, cx, cz, y, t, normal = walk_primary_over_columns(
             rays[k, 0], rays[k, 1], rays[k, 2], rays[k, 3], rays[k, 4], rays[k, 5],
-            rays[k, 6], math.inf, depth, stop_level, columns)
+            rays[k, 6], depth, stop_level, columns)
         walk_ints[k, 0] = verdict
         walk_ints[k, 1] = cells
         walk_ints[k, 2] = cx
