@@ -103,11 +103,9 @@ def walk_over_columns(
     """The pyramid's part of ``trace_over_columns``: ``(verdict, t_from, cells, cx, cz, y,
     t_hit, normal_code)`` as ``walk_to_surface`` gives them, for ``settle_walk``. Without a
     pyramid (or at the root) it hands the ray over at ``tmin``, having walked no cell."""
-    stop_level = min(stop_level, depth)
-    if columns.level_width.shape[0] == 0 or stop_level <= 0:
+    finest, start_level, patience = walk_plan(tmin, depth, stop_level, columns, start)
+    if finest < 0:
         return HANDED_OVER, tmin, 0, -1, -1, -1, math.inf, -1
-    finest = depth - stop_level
-    start_level, patience = walk_start(tmin, finest, depth, start)
     if finest == 0:
         return walk_to_voxels(ox, oy, oz, dx, dy, dz, tmin, tmax, start_level, patience,
                               columns)
@@ -126,11 +124,9 @@ def walk_primary_over_columns(
     fast (2048² mountain terrain, 512² images, top and 45° views; one-ray renders the same).
     The batch's first compilation takes longer for it: a first reference render compiled in
     48 s instead of 44 on two cores (the kernels are cached after)."""
-    stop_level = min(stop_level, depth)
-    if columns.level_width.shape[0] == 0 or stop_level <= 0:
+    finest, start_level, patience = walk_plan(tmin, depth, stop_level, columns, FROM_CAMERA)
+    if finest < 0:
         return HANDED_OVER, tmin, 0, -1, -1, -1, math.inf, -1
-    finest = depth - stop_level
-    start_level, patience = walk_start(tmin, finest, depth, FROM_CAMERA)
     if finest == 0:
         return _walk_and_settle(ox, oy, oz, dx, dy, dz, tmin, math.inf, 0, start_level,
                                 patience, columns)
@@ -139,16 +135,23 @@ def walk_primary_over_columns(
 
 
 @njit(cache=True, nogil=True, inline="always")
-def walk_start(tmin: float, finest: int, depth: int, start: int) -> tuple[int, int]:
-    """The level a walk to nodes of level ``finest`` begins at, and its patience before it
-    climbs (``approach_surface``): rays leaving a surface at the finest level, climbing at
-    once; primary rays from a start bound ``NEAR_START_LEVELS`` up, waiting
-    ``CLIMB_PATIENCE`` cells; from the camera at the top."""
+def walk_plan(tmin: float, depth: int, stop_level: int, columns,
+              start: int) -> tuple[int, int, int]:
+    """``(finest, start_level, patience)`` of a walk to nodes at ``stop_level``: the nodes'
+    level in the pyramid (-1 where there is no walk: no pyramid, or nodes at the root), the
+    level the walk begins at and the cells it skips before it climbs (``approach_surface``).
+    Rays leaving a surface begin at the finest level and climb at once; primary rays from a
+    start bound ``NEAR_START_LEVELS`` up, waiting ``CLIMB_PATIENCE`` cells; from the camera at
+    the top."""
+    stop_level = min(stop_level, depth)
+    if columns.level_width.shape[0] == 0 or stop_level <= 0:
+        return -1, 0, 0
+    finest = depth - stop_level
     if start == FROM_SURFACE:
-        return finest, 0
+        return finest, finest, 0
     if tmin > 0.0:
-        return finest + NEAR_START_LEVELS, CLIMB_PATIENCE
-    return depth, 0
+        return finest, finest + NEAR_START_LEVELS, CLIMB_PATIENCE
+    return finest, depth, 0
 
 
 @njit(cache=True, nogil=True, inline="always")
