@@ -51,9 +51,11 @@ Ubuntu, ``apt-get install libusb-1.0-0`` (``import open3d`` needs ``libusb-1.0.s
 from __future__ import annotations
 
 import argparse
+import contextlib
 import gc
 import math
 import os
+import platform
 import resource
 import sys
 import time
@@ -504,9 +506,37 @@ def table(head: list[str], rows: list[list[str]]) -> None:
         print("| " + " | ".join(cells) + " |")
 
 
-def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args) -> None:
+def machine_line(o3d) -> str:
+    """The processor and the libraries both tracers ran on: on two machines of the same size
+    voxfield's figures read 5–10 % apart and Embree's alike, so a table says where it was
+    measured."""
+    import numba  # noqa: PLC0415 - voxfield already imported it
+
+    cpu = platform.processor() or platform.machine()
+    fields = {}
+    with contextlib.suppress(OSError):
+        with open("/proc/cpuinfo", encoding="utf-8") as info:
+            for line in info:
+                key, _, value = line.partition(":")
+                fields.setdefault(key.strip(), value.strip())
+    if fields.get("model name"):
+        cpu = f"{fields['model name']} (family {fields.get('cpu family', '?')}, model " \
+              f"{fields.get('model', '?')})"
+    l3 = ""
+    with contextlib.suppress(OSError):
+        with open("/sys/devices/system/cpu/cpu0/cache/index3/size", encoding="utf-8") as size:
+            l3 = f", L3 {size.read().strip()}"
+    peer = f", Open3D {o3d.__version__}" if o3d is not None else ""
+    return (f"Machine: {cpu}, {os.cpu_count()} logical CPUs{l3}; NumPy {np.__version__}, "
+            f"Numba {numba.__version__}{peer}.")
+
+
+def print_tables(all_stats: list[SceneStats], peer: bool, big: dict | None, args,
+                 machine: str = "") -> None:
     print(f"\n### Primary rays ({args.size}² image, 90° FOV, LOD 0, {args.threads} threads, "
           f"best of {args.repeats})\n")
+    if machine:
+        print(machine + "\n")
     head = ["scene", "view", "rays/px", "beam", "columns", "rays", "voxfield Mrays/s",
             "steps/ray", "hit %"]
     if peer:
@@ -673,7 +703,7 @@ def main(argv=None) -> int:
         gc.collect()
     if big is not None and bytes_per_triangle is not None and "triangles" in big:
         big["embree_gib"] = big["triangles"] * bytes_per_triangle / 2**30
-    print_tables(all_stats, o3d is not None, big, args)
+    print_tables(all_stats, o3d is not None, big, args, machine_line(o3d))
     if o3d is None:
         print("\n" + PEER_HELP.format(reason=why))
     return 0
