@@ -11,7 +11,8 @@ the plain loop. Schedulers (``--scheduler`` on the command line):
 - ``None`` or ``"threads"``: Dask's threaded scheduler in this process. The shared argument is
   not copied; the Numba kernels release the GIL, so tasks overlap on all cores.
 - ``"processes"``: a ``distributed.LocalCluster`` of one single-threaded worker process per
-  core, started for the job and closed after it.
+  core, started for the job and closed after it (no dashboard; its scheduler's HTTP routes on
+  a free loopback port, ``PRIVATE_HTTP_PORT``).
 - any other string with a colon: the address of a running Dask scheduler
   (``tcp://host:8786``), reached with ``distributed.Client``; its workers need voxfield
   installed (the same version) and must see any file the job names.
@@ -33,6 +34,10 @@ from collections.abc import Callable, Sequence
 from voxfield.errors import VoxfieldError
 
 LOCAL_SCHEDULERS = ("threads", "processes", "serial")
+#: Where a local cluster's scheduler serves its HTTP routes: a free port on the loopback
+#: interface. Without a dashboard it still takes Dask's default 8787, so two clusters at once
+#: (two jobs, or a job beside a user's own cluster) fought over it and the second warned.
+PRIVATE_HTTP_PORT = {"dashboard_address": "127.0.0.1:0"}
 SCHEDULER_HELP = ("where independent pieces run: threads (Dask's threaded scheduler), "
                   "processes (a local Dask cluster), serial (no Dask), or a Dask scheduler "
                   "address like tcp://host:8786")
@@ -145,7 +150,8 @@ class scheduler_client:
         try:
             if s == "processes":
                 cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1,
-                                       processes=True, dashboard_address=None)
+                                       processes=True, dashboard_address=None,
+                                       scheduler_kwargs=PRIVATE_HTTP_PORT)
                 self.owned.append(cluster)
                 client = Client(cluster)
             else:
