@@ -508,7 +508,7 @@ def table(head: list[str], rows: list[list[str]]) -> None:
 
 def machine_line(o3d) -> str:
     """The processor and the libraries both tracers ran on: on two machines of the same size
-    voxfield's 16-ray figures read 3–11 % apart and Embree's alike, so a table says where it was
+    voxfield's 16-ray figures read 3–13 % apart and Embree's alike, so a table says where it was
     measured."""
     import numba  # noqa: PLC0415 - voxfield already imported it
 
