@@ -514,18 +514,17 @@ def machine_line(o3d) -> str:
 
     cpu = platform.processor() or platform.machine()
     fields = {}
-    with contextlib.suppress(OSError):
-        with open("/proc/cpuinfo", encoding="utf-8") as info:
-            for line in info:
-                key, _, value = line.partition(":")
-                fields.setdefault(key.strip(), value.strip())
+    with contextlib.suppress(OSError), open("/proc/cpuinfo", encoding="utf-8") as info:
+        for line in info:
+            key, _, value = line.partition(":")
+            fields.setdefault(key.strip(), value.strip())
     if fields.get("model name"):
         cpu = f"{fields['model name']} (family {fields.get('cpu family', '?')}, model " \
               f"{fields.get('model', '?')})"
     l3 = ""
-    with contextlib.suppress(OSError):
-        with open("/sys/devices/system/cpu/cpu0/cache/index3/size", encoding="utf-8") as size:
-            l3 = f", L3 {size.read().strip()}"
+    cache = "/sys/devices/system/cpu/cpu0/cache/index3/size"
+    with contextlib.suppress(OSError), open(cache, encoding="utf-8") as size:
+        l3 = f", L3 {size.read().strip()}"
     peer = f", Open3D {o3d.__version__}" if o3d is not None else ""
     return (f"Machine: {cpu}, {os.cpu_count()} logical CPUs{l3}; NumPy {np.__version__}, "
             f"Numba {numba.__version__}{peer}.")

@@ -28,7 +28,7 @@ def _kernel_cache_dir() -> Path:
 os.environ.setdefault("NUMBA_CACHE_DIR", str(_kernel_cache_dir()))
 
 from voxfield.data import data_root  # noqa: E402
-from voxfield.scaleout import PRIVATE_HTTP_PORT  # noqa: E402
+from voxfield.scaleout import local_cluster  # noqa: E402
 
 
 @pytest.fixture(scope="session")
@@ -44,9 +44,6 @@ def dask_client():
     """A two-worker ``distributed`` cluster in this process: the scheduler tests run their
     tasks through a real client, scatter and all, without the cost of worker processes."""
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                                  dashboard_address=None,
-                                  scheduler_kwargs=PRIVATE_HTTP_PORT) as cluster, \
-            distributed.Client(cluster) as client:
+    with local_cluster(2, processes=False) as cluster, distributed.Client(cluster) as client:
         yield client
 

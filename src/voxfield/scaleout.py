@@ -11,8 +11,7 @@ the plain loop. Schedulers (``--scheduler`` on the command line):
 - ``None`` or ``"threads"``: Dask's threaded scheduler in this process. The shared argument is
   not copied; the Numba kernels release the GIL, so tasks overlap on all cores.
 - ``"processes"``: a ``distributed.LocalCluster`` of one single-threaded worker process per
-  core, started for the job and closed after it (no dashboard; its scheduler's HTTP routes on
-  a free loopback port, ``PRIVATE_HTTP_PORT``).
+  core, started for the job and closed after it (``local_cluster``).
 - any other string with a colon: the address of a running Dask scheduler
   (``tcp://host:8786``), reached with ``distributed.Client``; its workers need voxfield
   installed (the same version) and must see any file the job names.
@@ -34,10 +33,6 @@ from collections.abc import Callable, Sequence
 from voxfield.errors import VoxfieldError
 
 LOCAL_SCHEDULERS = ("threads", "processes", "serial")
-#: Where a local cluster's scheduler serves its HTTP routes: a free port on the loopback
-#: interface. Without a dashboard it still takes Dask's default 8787, so two clusters at once
-#: (two jobs, or a job beside a user's own cluster) fought over it and the second warned.
-PRIVATE_HTTP_PORT = {"dashboard_address": "127.0.0.1:0"}
 SCHEDULER_HELP = ("where independent pieces run: threads (Dask's threaded scheduler), "
                   "processes (a local Dask cluster), serial (no Dask), or a Dask scheduler "
                   "address like tcp://host:8786")
@@ -129,6 +124,19 @@ def _run_client(client, task, shared, arguments, emit, name: str) -> None:
         scattered.release()
 
 
+def local_cluster(workers: int, *, processes: bool):
+    """A ``distributed.LocalCluster`` of single-threaded workers (processes, or threads in this
+    process) with no dashboard. Its scheduler serves its HTTP routes on a free loopback port:
+    without a dashboard it still took Dask's default 8787, so two clusters at once (two jobs,
+    or a job beside a user's own cluster) fought over it and the second warned."""
+    # heavy: Dask loads only when a job runs on a scheduler
+    from distributed import LocalCluster
+
+    return LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
+                        dashboard_address=None,
+                        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+
+
 class scheduler_client:
     """A context manager yielding a ``distributed.Client`` for ``scheduler``: a local
     process cluster for ``"processes"``, a connection for an address, or the given client."""
@@ -139,7 +147,7 @@ class scheduler_client:
 
     def __enter__(self):
         # heavy: Dask loads only when a job runs on a scheduler
-        from distributed import Client, LocalCluster
+        from distributed import Client
 
         s = self.scheduler
         if isinstance(s, Client):
@@ -149,9 +157,7 @@ class scheduler_client:
                                  f"scheduler address like tcp://host:8786, got {s!r}")
         try:
             if s == "processes":
-                cluster = LocalCluster(n_workers=os.cpu_count() or 1, threads_per_worker=1,
-                                       processes=True, dashboard_address=None,
-                                       scheduler_kwargs=PRIVATE_HTTP_PORT)
+                cluster = local_cluster(os.cpu_count() or 1, processes=True)
                 self.owned.append(cluster)
                 client = Client(cluster)
             else:
