@@ -74,3 +74,37 @@ def pillar_field(seed: int = 0, size: int = 80) -> VoxelScene:
     coords = np.array([(i, y, k) for i in range(size) for k in range(size)
                        for y in range(int(height[i, k]))])
     return VoxelScene(coords, rng.random((len(coords), 3)), name=f"pillars{seed}")
+
+
+def any_rays(voxels: np.ndarray, n: int, seed: int):
+    """Rays of every kind: down from a camera above (steep and oblique), from lattice points
+    with small integer directions (through edges and corners, level ones included), with
+    zero ``x`` or ``z`` or straight up and down, from inside voxels, and from random points
+    around the scene (beside the footprint and under it)."""
+    rng = np.random.default_rng(seed)
+    lo, hi = voxels.min(axis=0), voxels.max(axis=0) + 1
+    size = float((hi - lo).max())
+    parts_o, parts_d = [], []
+    o = np.empty((n, 3))
+    o[:, [0, 2]] = rng.uniform(lo[[0, 2]] - 2, hi[[0, 2]] + 2, (n, 2))
+    o[:, 1] = hi[1] + rng.uniform(0.5, size, n)
+    parts_o.append(o)
+    d = rng.normal(size=(n, 3))
+    d[:, 1] = -np.abs(d[:, 1]) * rng.choice([0.1, 0.5, 2.0, 20.0], n)
+    parts_d.append(d)
+    parts_o.append(np.round(rng.uniform(lo - 2, hi + 2, (n, 3))))
+    parts_d.append(rng.integers(-2, 3, (n, 3)).astype(np.float64))
+    o = rng.uniform(lo - 1, hi + 1, (n, 3))
+    o[:, [0, 2]] = np.round(o[:, [0, 2]] * 2) / 2
+    d = rng.normal(size=(n, 3))
+    d[np.arange(n), rng.choice([0, 2], n)] = 0.0
+    d[: n // 4, [0, 2]] = 0.0
+    parts_o.append(o)
+    parts_d.append(d)
+    parts_o.append(voxels[rng.integers(0, len(voxels), n)] + rng.random((n, 3)))
+    parts_d.append(rng.normal(size=(n, 3)))
+    parts_o.append(rng.uniform(lo - 3, hi + 3, (n, 3)))
+    parts_d.append(rng.normal(size=(n, 3)))
+    origins, directions = np.concatenate(parts_o), np.concatenate(parts_d)
+    keep = np.any(directions != 0.0, axis=1)
+    return origins[keep], directions[keep]

@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit
 
 from random_scenes import (
+    any_rays,
     hollow_shell_terrain,
     octree_and_columns,
     overhanging_terrain,
@@ -19,8 +20,6 @@ from voxfield.kernels.surface_approach import (
     approach_surface,
     top_node_hit,
     trace_over_columns,
-    walk_over_columns,
-    walk_primary_over_columns,
 )
 from voxfield.kernels.traversal import new_scratch, trace_ray
 from voxfield.scene.voxel_scene import VoxelScene
@@ -64,40 +63,6 @@ def _hits(o, d, tmin, tmax, inner, depth, stop_level, columns, out, times, ends)
                 ends[k] = _TOP_NODE
 
 
-def any_rays(voxels: np.ndarray, n: int, seed: int):
-    """Rays of every kind: down from a camera above (steep and oblique), from lattice points
-    with small integer directions (through edges and corners, level ones included), with
-    zero ``x`` or ``z`` or straight up and down, from inside voxels, and from random points
-    around the scene (beside the footprint and under it)."""
-    rng = np.random.default_rng(seed)
-    lo, hi = voxels.min(axis=0), voxels.max(axis=0) + 1
-    size = float((hi - lo).max())
-    parts_o, parts_d = [], []
-    o = np.empty((n, 3))
-    o[:, [0, 2]] = rng.uniform(lo[[0, 2]] - 2, hi[[0, 2]] + 2, (n, 2))
-    o[:, 1] = hi[1] + rng.uniform(0.5, size, n)
-    parts_o.append(o)
-    d = rng.normal(size=(n, 3))
-    d[:, 1] = -np.abs(d[:, 1]) * rng.choice([0.1, 0.5, 2.0, 20.0], n)
-    parts_d.append(d)
-    parts_o.append(np.round(rng.uniform(lo - 2, hi + 2, (n, 3))))
-    parts_d.append(rng.integers(-2, 3, (n, 3)).astype(np.float64))
-    o = rng.uniform(lo - 1, hi + 1, (n, 3))
-    o[:, [0, 2]] = np.round(o[:, [0, 2]] * 2) / 2
-    d = rng.normal(size=(n, 3))
-    d[np.arange(n), rng.choice([0, 2], n)] = 0.0
-    d[: n // 4, [0, 2]] = 0.0
-    parts_o.append(o)
-    parts_d.append(d)
-    parts_o.append(voxels[rng.integers(0, len(voxels), n)] + rng.random((n, 3)))
-    parts_d.append(rng.normal(size=(n, 3)))
-    parts_o.append(rng.uniform(lo - 3, hi + 3, (n, 3)))
-    parts_d.append(rng.normal(size=(n, 3)))
-    origins, directions = np.concatenate(parts_o), np.concatenate(parts_d)
-    keep = np.any(directions != 0.0, axis=1)
-    return origins[keep], directions[keep]
-
-
 def _compare(octree, columns, origins, directions, tmin, tmax, stop_level):
     n = len(origins)
     out = np.zeros((n, 8), np.int64)
@@ -133,38 +98,6 @@ def test_hits_are_the_octree_hits_at_every_fixed_level():
     assert np.all(seen_ends > 100), seen_ends  # the walk ends all three ways at every level
 
 
-@njit
-def _primary_walks(o, d, tmin, depth, stop_level, columns, general, primary):
-    for k in range(o.shape[0]):
-        a = walk_over_columns(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2], tmin[k],
-                              math.inf, depth, stop_level, columns)
-        b = walk_primary_over_columns(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2],
-                                      tmin[k], depth, stop_level, columns)
-        general[k, 0], general[k, 1], general[k, 2], general[k, 3] = a[0], a[1], a[2], a[3]
-        general[k, 4], general[k, 5], general[k, 6], general[k, 7] = a[4], a[5], a[6], a[7]
-        primary[k, 0], primary[k, 1], primary[k, 2], primary[k, 3] = b[0], b[1], b[2], b[3]
-        primary[k, 4], primary[k, 5], primary[k, 6], primary[k, 7] = b[4], b[5], b[6], b[7]
-
-
-def test_the_renderers_walk_is_the_general_walk():
-    """The primary batches' walk (the LOD-0 walk compiled into them) ends every ray as
-    ``walk_over_columns`` does: verdict, hand-over time, cells, cell, settled height, hit
-    time and face, bit for bit, from the camera and from start bounds, at LOD 0 and above."""
-    octree, voxels, columns = octree_and_columns(overhanging_terrain(seed=5))
-    origins, directions = any_rays(voxels, 500, seed=11)
-    n = len(origins)
-    tmin = np.where(np.random.default_rng(2).random(n) < 0.5, 0.0, 3.0)
-    settled = 0
-    for lod in (0, 1):
-        general = np.zeros((n, 8))
-        primary = np.zeros((n, 8))
-        _primary_walks(origins, directions, tmin, octree.depth, octree.depth - lod, columns,
-                       general, primary)
-        assert np.array_equal(general, primary)
-        settled += int(np.count_nonzero(general[:, 5] >= 0))
-    assert settled > n // 4  # the pyramid settles many rays, and the rest walk too
-
-
 def widened(columns):
     """The pyramid with int32 heights, as worlds over 32,767 voxels high keep them."""
     assert columns.tops.dtype == np.int16
@@ -175,7 +108,8 @@ def widened(columns):
 
     return columns._replace(tops=wide(columns.tops), run_bottom=wide(columns.run_bottom),
                             gap_floor=wide(columns.gap_floor),
-                            gap_ceiling=wide(columns.gap_ceiling), floors=wide(columns.floors))
+                            gap_ceiling=wide(columns.gap_ceiling), floors=wide(columns.floors),
+                            cell_records=np.zeros(0, np.int64))
 
 
 def test_int16_and_int32_heights_walk_alike():

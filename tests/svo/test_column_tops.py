@@ -190,3 +190,22 @@ def test_no_top_run_nodes_past_int32():
     kept = column_tops(voxels, first_node=first).top_nodes
     assert len(kept) > 0 and kept.max() <= 2**31 - 2 and kept[kept >= 0].min() >= first
     assert len(column_tops(voxels, first_node=2**31 - len(voxels) + 1).top_nodes) == 0
+
+
+def test_cell_records_pack_each_cells_top_and_gap_as_signed_16_bit_fields():
+    """A cell's record unpacks (low field first, each sign-extended) to its top, gap floor
+    and gap ceiling, the empty cells' open ceiling included; int32 pyramids keep none."""
+    columns = column_tops(voxels_of(overhanging_terrain(seed=3)))
+    records = columns.cell_records
+    assert records.dtype == np.int64 and len(records) == len(columns.tops)
+
+    def field(shift):
+        return ((records << (48 - shift)) >> 48).astype(np.int64)
+
+    assert np.array_equal(field(0), columns.tops)
+    assert np.array_equal(field(16), columns.gap_floor)
+    assert np.array_equal(field(32), columns.gap_ceiling)
+    assert np.any(columns.gap_ceiling == GAP_OPEN_16)  # the largest value survives the packing
+    assert np.all(records >> 48 == 0)
+    wide = column_tops(np.array([[0, GAP_OPEN_16, 0]], np.int32))
+    assert wide.tops.dtype == np.int32 and len(wide.cell_records) == 0

@@ -72,6 +72,9 @@ class ColumnTops(NamedTuple):
     # Cells as in ``tops``: the lowest voxel's ``y`` among the cell's columns (empty:
     # ``gap_open``), so that every voxel of a cell lies in ``[floors, tops)``.
     floors: np.ndarray
+    # Per cell as in ``tops``: top, gap floor and gap ceiling as three 16-bit fields of one
+    # int64 (``kernels.lane_walk`` gathers one per cell); empty where heights are int32.
+    cell_records: np.ndarray
 
     @property
     def under_top(self) -> np.ndarray:
@@ -83,7 +86,8 @@ def no_column_tops() -> ColumnTops:
     """An empty pyramid: every rising ray goes through the octree."""
     empty = np.zeros(0, np.int64)
     none = np.zeros(0, height_type(0))  # the common height type: kernels compile once
-    return ColumnTops(none, empty, empty, empty, none, np.zeros(0, np.int32), none, none, none)
+    return ColumnTops(none, empty, empty, empty, none, np.zeros(0, np.int32), none, none, none,
+                      empty)
 
 
 def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
@@ -140,7 +144,28 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
         gap_floor=gap_floor,
         gap_ceiling=gap_ceiling,
         floors=floors,
+        cell_records=cell_records(tops, gap_floor, gap_ceiling),
     )
+
+
+def cell_records(tops: np.ndarray, gap_floor: np.ndarray, gap_ceiling: np.ndarray) -> np.ndarray:
+    """``ColumnTops.cell_records``: per cell, its top, gap floor and gap ceiling as the low,
+    second and third signed 16-bit fields of one int64, so that a vectorised walk loads a
+    cell with one gather (``kernels.lane_walk``); empty for int32 heights."""
+    if tops.dtype != np.int16 or len(tops) == 0:
+        return np.zeros(0, np.int64)
+    records = np.empty(len(tops), np.int64)
+    _pack_records(tops, gap_floor, gap_ceiling, records)
+    return records
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _pack_records(tops: np.ndarray, gap_floor: np.ndarray, gap_ceiling: np.ndarray,
+                  records: np.ndarray) -> None:
+    low = np.int64(0xFFFF)
+    for i in prange(len(tops)):
+        records[i] = ((np.int64(tops[i]) & low) | ((np.int64(gap_floor[i]) & low) << 16)
+                      | ((np.int64(gap_ceiling[i]) & low) << 32))
 
 
 def octree_column_tops(octree, voxels: np.ndarray | None = None) -> ColumnTops:
