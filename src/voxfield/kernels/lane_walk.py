@@ -139,15 +139,9 @@ def _start_lane(rays: np.ndarray, k: int, columns, floats: np.ndarray, ints: np.
         ints[_PATIENCE, lane] = CLIMB_PATIENCE
     cx = cell_holding(ox, dx, ix, t, level, 0, level_width[level] - 1)
     cz = cell_holding(oz, dz, iz, t, level, 0, level_depth[level] - 1)
-    floats[_OX, lane] = ox
-    floats[_IX, lane] = ix
-    floats[_OY, lane] = oy
-    floats[_DY, lane] = dy
-    floats[_IY, lane] = iy
-    floats[_OZ, lane] = oz
-    floats[_IZ, lane] = iz
-    floats[_T, lane] = t
-    floats[_T_END, lane] = t_end
+    state = (ox, ix, oy, dy, iy, oz, iz, t, t_end)  # the float rows, in order
+    for row in range(_FLOAT_ROWS):
+        floats[row, lane] = state[row]
     ints[_CX, lane] = cx
     ints[_CZ, lane] = cz
     ints[_LEVEL, lane] = level
