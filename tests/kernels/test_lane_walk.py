@@ -16,7 +16,7 @@ from random_scenes import (
     pillar_field,
     random_scene,
 )
-from voxfield.kernels.lane_walk import SLOTS, walk_to_voxels_in_lanes
+from voxfield.kernels.lane_walk import SLOTS, compiles_wide_vectors, walk_to_voxels_in_lanes
 from voxfield.kernels.surface_approach import HANDED_OVER, MISSED, walk_over_columns
 
 
@@ -95,3 +95,12 @@ def test_rays_that_cannot_walk_are_handed_over_where_they_start():
     np.testing.assert_array_equal(walk_ints, expected_ints)
     np.testing.assert_array_equal(walk_ints[1:], [[HANDED_OVER, 0, -1, -1]] * 2)
     assert walk_ints[0, 1] > 0
+
+
+def test_only_avx_512_targets_walk_their_batches_in_lanes():
+    """The choice follows Numba's target features: compiled for AVX2 the lane walk was
+    slower than the one-ray walk, so only a target with AVX-512 takes it."""
+    assert compiles_wide_vectors("+sse4.2,+avx,+avx2,+fma,+avx512f,+avx512dq")
+    assert not compiles_wide_vectors("+sse4.2,+avx,+avx2,+fma,-avx512f,-avx512dq")
+    assert not compiles_wide_vectors("+avx2,+avx512fp16x")  # a name that only starts alike
+    assert not compiles_wide_vectors("")

@@ -20,6 +20,8 @@ from voxfield.kernels.surface_approach import (
     approach_surface,
     top_node_hit,
     trace_over_columns,
+    walk_over_columns,
+    walk_primary_over_columns,
 )
 from voxfield.kernels.traversal import new_scratch, trace_ray
 from voxfield.scene.voxel_scene import VoxelScene
@@ -96,6 +98,38 @@ def test_hits_are_the_octree_hits_at_every_fixed_level():
             assert (out[:, 0] < 0).sum() > n // 10
             seen_ends[lod] += np.bincount(ends, minlength=3)
     assert np.all(seen_ends > 100), seen_ends  # the walk ends all three ways at every level
+
+
+@njit
+def _primary_walks(o, d, tmin, depth, stop_level, columns, general, primary):
+    for k in range(o.shape[0]):
+        a = walk_over_columns(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2], tmin[k],
+                              math.inf, depth, stop_level, columns)
+        b = walk_primary_over_columns(o[k, 0], o[k, 1], o[k, 2], d[k, 0], d[k, 1], d[k, 2],
+                                      tmin[k], depth, stop_level, columns)
+        general[k, 0], general[k, 1], general[k, 2], general[k, 3] = a[0], a[1], a[2], a[3]
+        general[k, 4], general[k, 5], general[k, 6], general[k, 7] = a[4], a[5], a[6], a[7]
+        primary[k, 0], primary[k, 1], primary[k, 2], primary[k, 3] = b[0], b[1], b[2], b[3]
+        primary[k, 4], primary[k, 5], primary[k, 6], primary[k, 7] = b[4], b[5], b[6], b[7]
+
+
+def test_the_renderers_walk_is_the_general_walk():
+    """The primary batches' walk (the LOD-0 walk compiled into them) ends every ray as
+    ``walk_over_columns`` does: verdict, hand-over time, cells, cell, settled height, hit
+    time and face, bit for bit, from the camera and from start bounds, at LOD 0 and above."""
+    octree, voxels, columns = octree_and_columns(overhanging_terrain(seed=5))
+    origins, directions = any_rays(voxels, 500, seed=11)
+    n = len(origins)
+    tmin = np.where(np.random.default_rng(2).random(n) < 0.5, 0.0, 3.0)
+    settled = 0
+    for lod in (0, 1):
+        general = np.zeros((n, 8))
+        primary = np.zeros((n, 8))
+        _primary_walks(origins, directions, tmin, octree.depth, octree.depth - lod, columns,
+                       general, primary)
+        assert np.array_equal(general, primary)
+        settled += int(np.count_nonzero(general[:, 5] >= 0))
+    assert settled > n // 4  # the pyramid settles many rays, and the rest walk too
 
 
 def widened(columns):

@@ -30,7 +30,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import config, njit
+from numba.core.codegen import get_host_cpu_features
 
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import TOP_RUN_NODES, cell_holding
@@ -44,6 +45,21 @@ from voxfield.kernels.surface_approach import (
     slab_times,
 )
 from voxfield.kernels.traversal import axis_setup, flush_uninvertible
+
+
+def compiles_wide_vectors(features: str) -> bool:
+    """Whether kernels compiled for the LLVM feature string ``features`` (``+avx2,-avx512f,
+    ...``) have 512-bit vectors (AVX-512)."""
+    return "+avx512f" in features.split(",")
+
+
+#: Whether the primary batches walk in lanes (``kernels.primary.trace_ray_batch``): where
+#: Numba compiles for AVX-512, as on the machine of the figures above. Compiled for AVX2 on
+#: that machine (``NUMBA_CPU_FEATURES`` without the AVX-512 features) the pass is half as
+#: wide and LLVM loads the cells one by one instead of gathering them: renders took 1.4-1.6×
+#: the one-ray walk's time, so other targets keep that walk.
+LANE_WALK_PAYS = compiles_wide_vectors(
+    config.CPU_FEATURES if config.CPU_FEATURES is not None else get_host_cpu_features())
 
 #: Rays a group steps side by side: two 512-bit vectors per quantity.
 LANES = 16

@@ -114,6 +114,29 @@ def walk_over_columns(
 
 
 @njit(cache=True, nogil=True, inline="always")
+def walk_primary_over_columns(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+    tmin: float, depth: int, stop_level: int, columns,
+) -> tuple[int, float, int, int, int, int, float, int]:
+    """``walk_over_columns`` of a primary ray (``FROM_CAMERA``, no ``tmax``) with the LOD-0
+    walk compiled into the caller rather than called: the renderers' ray batches
+    (``kernels.primary.trace_ray_batch``), whose rays at 16 a pixel then ran 1.04-1.05× as
+    fast (2048² mountain terrain, 512² images, top and 45° views; one-ray renders the same).
+    The batch's first compilation takes longer for it: a first reference render compiled in
+    48 s instead of 44 on two cores (the kernels are cached after). Where the batches walk
+    in SIMD lanes (``lane_walk.LANE_WALK_PAYS``) it walks the rays the lanes do not take
+    (coarser levels, int32 heights)."""
+    finest, start_level, patience = walk_plan(tmin, depth, stop_level, columns, FROM_CAMERA)
+    if finest < 0:
+        return HANDED_OVER, tmin, 0, -1, -1, -1, math.inf, -1
+    if finest == 0:
+        return _walk_and_settle(ox, oy, oz, dx, dy, dz, tmin, math.inf, 0, start_level,
+                                patience, columns)
+    return walk_to_surface(ox, oy, oz, dx, dy, dz, tmin, math.inf, finest, start_level,
+                           patience, columns)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def walk_plan(tmin: float, depth: int, stop_level: int, columns,
               start: int) -> tuple[int, int, int]:
     """``(finest, start_level, patience)`` of a walk to nodes at ``stop_level``: the nodes'
