@@ -22,7 +22,8 @@ rays a pixel, 0.82-0.84× at 45°, and 0.91-0.93× with one ray a pixel; a camer
 ground 0.88× (one and 16 rays); on the 512² terrain 0.88-0.92×, one-ray 45° renders (12 ms)
 within the noise. Images, depths and steps are the same. The walk is compiled once and
 called per batch: compiled into the batch it read 1.00-1.03× as fast, and a first reference
-render compiled for 57 s instead of 52 (48 s with the one-ray walk).
+render compiled for 57 s instead of 52 (48 s with the one-ray walk). Those figures are with
+AVX-512; see ``LANE_WALK_PAYS`` for AVX2.
 """
 
 from __future__ import annotations
