@@ -136,7 +136,7 @@ def _start_lane(rays: np.ndarray, k: int, columns, floats: np.ndarray, ints: np.
     if not (math.isfinite(ox) and math.isfinite(oy) and math.isfinite(oz)
             and math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dz)
             and math.isfinite(tmin)):
-        _record(walk_ints, walk_times, k, HANDED_OVER, tmin, 0, -1, -1)
+        record_walk(walk_ints, walk_times, k, HANDED_OVER, tmin, 0, -1, -1)
         return 0
     ox, dx, ix = axis_setup(ox, dx)
     oz, dz, iz = axis_setup(oz, dz)
@@ -147,7 +147,7 @@ def _start_lane(rays: np.ndarray, k: int, columns, floats: np.ndarray, ints: np.
     t = max(max(x_in, z_in), tmin)
     t_end = min(x_out, z_out)
     if not t < t_end:
-        _record(walk_ints, walk_times, k, MISSED, t, 0, -1, -1)
+        record_walk(walk_ints, walk_times, k, MISSED, t, 0, -1, -1)
         return 0
     top_level = level_width.shape[0] - 1
     level = top_level
@@ -172,8 +172,9 @@ def _start_lane(rays: np.ndarray, k: int, columns, floats: np.ndarray, ints: np.
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _record(walk_ints: np.ndarray, walk_times: np.ndarray, k: int, verdict: int, t: float,
-            cells: int, cx: int, cz: int) -> None:
+def record_walk(walk_ints: np.ndarray, walk_times: np.ndarray, k: int, verdict: int, t: float,
+                cells: int, cx: int, cz: int) -> None:
+    """Ray ``k``'s walk where a ray batch keeps it (``kernels.primary.new_ray_batch``)."""
     walk_ints[k, 0] = verdict
     walk_ints[k, 1] = cells
     walk_ints[k, 2] = cx
@@ -191,12 +192,12 @@ def _record_lanes(floats: np.ndarray, ints: np.ndarray, columns, walk_ints: np.n
         if k < 0 or ints[_STEPS, lane] == 0:
             continue  # idle, or recorded when it started
         if ints[_VERDICT, lane] == MISSED:
-            _record(walk_ints, walk_times, k, MISSED, floats[_T, lane], ints[_STEPS, lane], -1,
-                    -1)
+            record_walk(walk_ints, walk_times, k, MISSED, floats[_T, lane], ints[_STEPS, lane],
+                        -1, -1)
             continue
         cx, cz = ints[_CX, lane], ints[_CZ, lane]
-        _record(walk_ints, walk_times, k, HANDED_OVER, floats[_T, lane], ints[_STEPS, lane],
-                cx, cz)
+        record_walk(walk_ints, walk_times, k, HANDED_OVER, floats[_T, lane], ints[_STEPS, lane],
+                    cx, cz)
         column = np.uint64(cx * columns.level_depth[0] + cz)
         prefetch(columns.run_bottom, column)
         if columns.top_nodes.shape[0] > 0:

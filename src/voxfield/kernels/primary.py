@@ -13,7 +13,12 @@ from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs, view_colours
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.facing_colour import prefetch_seen, seen_rgb
-from voxfield.kernels.lane_walk import LANE_WALK_PAYS, SLOTS, walk_to_voxels_in_lanes
+from voxfield.kernels.lane_walk import (
+    LANE_WALK_PAYS,
+    SLOTS,
+    record_walk,
+    walk_to_voxels_in_lanes,
+)
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.sampling import (
     cmj_sample,
@@ -481,13 +486,9 @@ def trace_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratc
 def store_walk(walk_ints: np.ndarray, walk_times: np.ndarray, k: int, walk) -> None:
     """Keep ray ``k``'s walk (``surface_approach.walk_over_columns``'s tuple) for its settling."""
     verdict, t_from, cells, cx, cz, y, t, normal = walk
-    walk_ints[k, 0] = verdict
-    walk_ints[k, 1] = cells
-    walk_ints[k, 2] = cx
-    walk_ints[k, 3] = cz
+    record_walk(walk_ints, walk_times, k, verdict, t_from, cells, cx, cz)
     walk_ints[k, 4] = y
     walk_ints[k, 5] = normal
-    walk_times[k, 0] = t_from
     walk_times[k, 1] = t
 
 
