@@ -21,11 +21,11 @@ from voxfield.kernels.surface_approach import HANDED_OVER, MISSED, walk_over_col
 
 
 @njit
-def _lane_walks(rays, per_call, columns, walk_ints, walk_times):
+def _lane_walks(rays, per_call, depth, columns, walk_ints, walk_times):
     n = rays.shape[0]
     for first in range(0, n, per_call):
         count = min(per_call, n - first)
-        walk_to_voxels_in_lanes(rays[first:first + count], count, columns,
+        walk_to_voxels_in_lanes(rays[first:first + count], count, depth, columns,
                                 walk_ints[first:first + count], walk_times[first:first + count])
 
 
@@ -70,7 +70,7 @@ def test_lane_walks_are_the_one_ray_walks(scene):
     for per_call in (SLOTS, 37, 1):
         walk_ints = np.full((n, 4), -7, np.int64)
         walk_times = np.full((n, 1), -7.0)
-        _lane_walks(rays, per_call, columns, walk_ints, walk_times)
+        _lane_walks(rays, per_call, octree.depth, columns, walk_ints, walk_times)
         np.testing.assert_array_equal(walk_ints, expected_ints)
         assert np.array_equal(walk_times, expected_times)  # bit for bit, infinities too
     verdicts = expected_ints[:, 0]
@@ -88,7 +88,7 @@ def test_rays_that_cannot_walk_are_handed_over_where_they_start():
                      [1.5, 40.0, 1.5, 0.0, -math.inf, 0.0, 0.0]])
     walk_ints = np.zeros((3, 4), np.int64)
     walk_times = np.zeros((3, 1))
-    _lane_walks(rays, SLOTS, columns, walk_ints, walk_times)
+    _lane_walks(rays, SLOTS, octree.depth, columns, walk_ints, walk_times)
     expected_ints = np.zeros((3, 4), np.int64)
     expected_times = np.zeros((3, 1))
     _one_ray_walks(rays, octree.depth, columns, expected_ints, expected_times)

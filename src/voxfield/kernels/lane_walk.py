@@ -35,17 +35,17 @@ from numba import config, njit
 from numba.core.codegen import get_host_cpu_features
 
 from voxfield.kernels.borrowing import borrowing
-from voxfield.kernels.column_walk import TOP_RUN_NODES, cell_holding
+from voxfield.kernels.column_walk import TOP_RUN_NODES
 from voxfield.kernels.memory_hints import prefetch
 from voxfield.kernels.stack_arrays import stack_matrix
 from voxfield.kernels.surface_approach import (
-    CLIMB_PATIENCE,
+    FROM_CAMERA,
     HANDED_OVER,
     MISSED,
-    NEAR_START_LEVELS,
-    slab_times,
+    WALKS,
+    walk_entry,
+    walk_plan,
 )
-from voxfield.kernels.traversal import axis_setup, flush_uninvertible
 
 
 def compiles_wide_vectors(features: str) -> bool:
@@ -87,13 +87,14 @@ _INT_ROWS = 15
 
 
 @borrowing
-def walk_to_voxels_in_lanes(rays: np.ndarray, count: int, columns, walk_ints: np.ndarray,
-                            walk_times: np.ndarray) -> None:
+def walk_to_voxels_in_lanes(rays: np.ndarray, count: int, depth: int, columns,
+                            walk_ints: np.ndarray, walk_times: np.ndarray) -> None:
     """``approach_surface`` to voxels (LOD 0) of the primary rays ``rays[:count]`` (rows
-    ``ox, oy, oz, dx, dy, dz, tmin``), started as ``surface_approach.walk_plan`` starts rays
-    from the camera, into ``walk_ints[k, :4]`` (verdict, cells, cx, cz) and
-    ``walk_times[k, 0]`` (the time). ``columns`` must have ``cell_records``; a ray handed over
-    has its column's run bottom and top-run nodes prefetched for its settling."""
+    ``ox, oy, oz, dx, dy, dz, tmin``) in an octree of ``depth``, started as
+    ``surface_approach.walk_plan`` starts rays from the camera, into ``walk_ints[k, :4]``
+    (verdict, cells, cx, cz) and ``walk_times[k, 0]`` (the time). ``columns`` must have
+    ``cell_records``; a ray handed over has its column's run bottom and top-run nodes
+    prefetched for its settling."""
     floats = stack_matrix(_FLOAT_ROWS, SLOTS, np.float64)
     ints = stack_matrix(_INT_ROWS, SLOTS, np.int64)
     walking = stack_matrix(1, GROUPS, np.int64)[0]
@@ -103,8 +104,8 @@ def walk_to_voxels_in_lanes(rays: np.ndarray, count: int, columns, walk_ints: np
             walking[group] = 0
         for lane in range(SLOTS):
             k = first + lane
-            walking[lane // LANES] += _start_lane(rays, k if k < count else -1, columns, floats,
-                                                  ints, lane, walk_ints, walk_times)
+            walking[lane // LANES] += _start_lane(rays, k if k < count else -1, depth, columns,
+                                                  floats, ints, lane, walk_ints, walk_times)
         busy = True
         while busy:
             busy = False
@@ -118,10 +119,10 @@ def walk_to_voxels_in_lanes(rays: np.ndarray, count: int, columns, walk_ints: np
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _start_lane(rays: np.ndarray, k: int, columns, floats: np.ndarray, ints: np.ndarray,
-                lane: int, walk_ints: np.ndarray, walk_times: np.ndarray) -> int:
-    """Put ray ``k`` in ``lane`` as ``approach_surface`` starts it (1), or record it where it
-    takes no step (0); ``k = -1`` leaves the lane idle."""
+def _start_lane(rays: np.ndarray, k: int, depth: int, columns, floats: np.ndarray,
+                ints: np.ndarray, lane: int, walk_ints: np.ndarray, walk_times: np.ndarray) -> int:
+    """Put ray ``k`` in ``lane`` as ``approach_surface`` starts it (``walk_entry``: 1), or
+    record it where it takes no step (0); ``k = -1`` leaves the lane idle."""
     # An idle lane still computes: keep its values finite and its cell in the pyramid.
     for row in range(_FLOAT_ROWS):
         floats[row, lane] = 0.0
@@ -130,32 +131,16 @@ def _start_lane(rays: np.ndarray, k: int, columns, floats: np.ndarray, ints: np.
     ints[_RAY, lane] = k
     if k < 0:
         return 0
-    ox, oy, oz, dx, dy, dz, tmin = (rays[k, 0], rays[k, 1], rays[k, 2], rays[k, 3],
-                                    rays[k, 4], rays[k, 5], rays[k, 6])
-    level_width, level_depth = columns.level_width, columns.level_depth
-    if not (math.isfinite(ox) and math.isfinite(oy) and math.isfinite(oz)
-            and math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dz)
-            and math.isfinite(tmin)):
-        record_walk(walk_ints, walk_times, k, HANDED_OVER, tmin, 0, -1, -1)
+    tmin = rays[k, 6]
+    start_level, patience = walk_plan(tmin, depth, depth, columns, FROM_CAMERA)[1:]
+    (entry, t, t_end, ox, dx, ix, dy, iy, oz, dz, iz, level, cx, cz) = walk_entry(
+        rays[k, 0], rays[k, 1], rays[k, 2], rays[k, 3], rays[k, 4], rays[k, 5], tmin, math.inf,
+        0, start_level, columns)
+    if entry != WALKS:
+        record_walk(walk_ints, walk_times, k, entry, t, 0, -1, -1)
         return 0
-    ox, dx, ix = axis_setup(ox, dx)
-    oz, dz, iz = axis_setup(oz, dz)
-    dy = flush_uninvertible(dy)
-    iy = 1.0 / dy if dy != 0.0 else math.inf
-    x_in, x_out = slab_times(ox, dx, ix, 0, level_width[0])
-    z_in, z_out = slab_times(oz, dz, iz, 0, level_depth[0])
-    t = max(max(x_in, z_in), tmin)
-    t_end = min(x_out, z_out)
-    if not t < t_end:
-        record_walk(walk_ints, walk_times, k, MISSED, t, 0, -1, -1)
-        return 0
-    top_level = level_width.shape[0] - 1
-    level = top_level
-    if tmin > 0.0:
-        level = min(NEAR_START_LEVELS, top_level)
-        ints[_PATIENCE, lane] = CLIMB_PATIENCE
-    cx = cell_holding(ox, dx, ix, t, level, 0, level_width[level] - 1)
-    cz = cell_holding(oz, dz, iz, t, level, 0, level_depth[level] - 1)
+    oy = rays[k, 1]
+    ints[_PATIENCE, lane] = patience
     state = (ox, ix, oy, dy, iy, oz, iz, t, t_end)  # the float rows, in order
     for row in range(_FLOAT_ROWS):
         floats[row, lane] = state[row]
@@ -166,7 +151,7 @@ def _start_lane(rays: np.ndarray, k: int, columns, floats: np.ndarray, ints: np.
     ints[_AHEAD_Z, lane] = 0 if dz < 0.0 else 1
     ints[_STEP_X, lane] = 1 if dx > 0.0 else -1
     ints[_STEP_Z, lane] = 1 if dz > 0.0 else -1
-    ints[_CELL, lane] = columns.level_offset[level] + cx * level_depth[level] + cz
+    ints[_CELL, lane] = columns.level_offset[level] + cx * columns.level_depth[level] + cz
     ints[_LIVE, lane] = 1
     return 1
 

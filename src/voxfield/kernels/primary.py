@@ -455,7 +455,7 @@ def trace_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratc
         # (A constant: Numba compiles one of the two branches.)
         if walk_plan(0.0, depth, stop_level, columns, FROM_CAMERA)[0] == 0 and (
                 columns.cell_records.shape[0] > 0):
-            walk_to_voxels_in_lanes(rays, count, columns, walk_ints, walk_times)
+            walk_to_voxels_in_lanes(rays, count, depth, columns, walk_ints, walk_times)
             for k in range(count):
                 walk_ints[k, 4], walk_times[k, 1], walk_ints[k, 5] = landing(
                     rays, k, walk_ints, walk_times, columns)

@@ -52,6 +52,8 @@ from voxfield.kernels.traversal import (
 
 MISSED = 0
 HANDED_OVER = 1
+#: ``walk_entry``'s answer for a ray that walks.
+WALKS = 2
 #: Levels above the sampled one at which a primary ray's walk from a start bound (``tmin >
 #: 0``: a beam bound or a continued ray, near the surface) begins; from the camera it begins
 #: at the top. With ``CLIMB_PATIENCE`` and the raster's slanted bounds
@@ -249,7 +251,7 @@ def finish_in_octree(
 
 
 @njit(cache=True, nogil=True, inline="always")
-def slab_times(o: float, d: float, inv: float, lo: int, hi: int) -> tuple[float, float]:
+def _slab_times(o: float, d: float, inv: float, lo: int, hi: int) -> tuple[float, float]:
     """When the ray is in the slab ``[lo, hi)`` of one axis, under the contract (a zero
     component, already mid-cell, is in it for ever or never)."""
     if d > 0.0:
@@ -269,6 +271,43 @@ def level_shape(columns, level: int) -> tuple[int, int, int]:
 
 
 @njit(cache=True, nogil=True, inline="always")
+def walk_entry(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
+    tmin: float, tmax: float, finest_level: int, start_level: int, columns,
+) -> tuple[int, float, float, float, float, float, float, float, float, float, float, int, int,
+           int]:
+    """Where ``approach_surface``'s walk begins (the one-ray walk's and ``lane_walk``'s):
+    ``(entry, t, t_end, ox, dx, ix, dy, iy, oz, dz, iz, level, cx, cz)``, the ray prepared as
+    the traversal prepares it (``axis_setup``) and clipped to the footprint, rounded out to
+    whole cells of the finest level (nothing lies beside it, and a ray leaves it only once),
+    and the cell of ``start_level`` (clamped to the pyramid) that holds it. ``entry`` is
+    ``WALKS``, else the walk's verdict with no cell visited: ``HANDED_OVER`` at ``tmin``
+    (no such level, or a non-finite ray) or ``MISSED`` (the ray misses the footprint)."""
+    level_width, level_depth = columns.level_width, columns.level_depth
+    levels = level_width.shape[0]
+    if finest_level < 0 or finest_level >= levels or not (
+        math.isfinite(ox) and math.isfinite(oy) and math.isfinite(oz)
+        and math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dz)
+        and math.isfinite(tmin) and tmax == tmax
+    ):
+        return HANDED_OVER, tmin, tmin, ox, dx, 0.0, dy, 0.0, oz, dz, 0.0, 0, -1, -1
+    ox, dx, ix = axis_setup(ox, dx)
+    oz, dz, iz = axis_setup(oz, dz)
+    dy = flush_uninvertible(dy)
+    iy = 1.0 / dy if dy != 0.0 else math.inf
+    x_in, x_out = _slab_times(ox, dx, ix, 0, level_width[finest_level] << finest_level)
+    z_in, z_out = _slab_times(oz, dz, iz, 0, level_depth[finest_level] << finest_level)
+    t = max(max(x_in, z_in), tmin)
+    t_end = min(min(x_out, z_out), tmax)
+    if not t < t_end:
+        return MISSED, t, t_end, ox, dx, ix, dy, iy, oz, dz, iz, 0, -1, -1
+    level = min(max(start_level, finest_level), levels - 1)
+    cx = cell_holding(ox, dx, ix, t, level, 0, level_width[level] - 1)
+    cz = cell_holding(oz, dz, iz, t, level, 0, level_depth[level] - 1)
+    return WALKS, t, t_end, ox, dx, ix, dy, iy, oz, dz, iz, level, cx, cz
+
+
+@njit(cache=True, nogil=True, inline="always")
 def approach_surface(
     ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
     tmin: float, tmax: float, finest_level: int, start_level: int, columns,
@@ -283,28 +322,13 @@ def approach_surface(
     ``patience`` cells in a row at its level (0 climbs at once, ``CLIMB_PATIENCE``): the
     route, never the answer. ``columns`` is a ``ColumnTops``; without levels, or for
     non-finite rays, every ray is handed over at ``tmin``."""
-    tops, level_width, level_depth = columns.tops, columns.level_width, columns.level_depth
+    tops, level_width = columns.tops, columns.level_width
     run_bottom, top_nodes = columns.run_bottom, columns.top_nodes
     gap_floor, gap_ceiling = columns.gap_floor, columns.gap_ceiling
-    levels = level_width.shape[0]
-    if finest_level < 0 or finest_level >= levels or not (
-        math.isfinite(ox) and math.isfinite(oy) and math.isfinite(oz)
-        and math.isfinite(dx) and math.isfinite(dy) and math.isfinite(dz)
-        and math.isfinite(tmin) and tmax == tmax
-    ):
-        return HANDED_OVER, tmin, 0, -1, -1
-    ox, dx, ix = axis_setup(ox, dx)
-    oz, dz, iz = axis_setup(oz, dz)
-    dy = flush_uninvertible(dy)
-    iy = 1.0 / dy if dy != 0.0 else math.inf
-    # Clip to the footprint, rounded out to whole cells of the finest level: nothing lies
-    # beside it, and a ray leaves it only once.
-    x_in, x_out = slab_times(ox, dx, ix, 0, level_width[finest_level] << finest_level)
-    z_in, z_out = slab_times(oz, dz, iz, 0, level_depth[finest_level] << finest_level)
-    t = max(max(x_in, z_in), tmin)
-    t_end = min(min(x_out, z_out), tmax)
-    if not t < t_end:
-        return MISSED, t, 0, -1, -1
+    (entry, t, t_end, ox, dx, ix, dy, iy, oz, dz, iz, level, cx, cz) = walk_entry(
+        ox, oy, oz, dx, dy, dz, tmin, tmax, finest_level, start_level, columns)
+    if entry != WALKS:
+        return entry, t, 0, -1, -1
     # The face ahead on each axis; for a zero component (mid-cell, infinite inverse) the
     # face above, crossed at +inf: no test per cell.
     ahead_x = 0 if dx < 0.0 else 1
@@ -312,12 +336,9 @@ def approach_surface(
     step_x = 1 if dx > 0.0 else -1
     step_z = 1 if dz > 0.0 else -1
     round_up = (1 << finest_level) - 1
-    top_level = levels - 1
-    level = min(max(start_level, finest_level), top_level)
+    top_level = level_width.shape[0] - 1
     skips = 0  # cells skipped in a row at this level
     width, depth, offset = level_shape(columns, level)
-    cx = cell_holding(ox, dx, ix, t, level, 0, width - 1)
-    cz = cell_holding(oz, dz, iz, t, level, 0, depth - 1)
     has_top_nodes = top_nodes.shape[0] > 0
     steps = 0
     # The walk's state stays in registers: the level's shape is read when the level
