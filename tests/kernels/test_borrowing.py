@@ -73,6 +73,7 @@ def test_a_borrowing_helper_that_allocates_fails_to_compile_rather_than_leak():
     primary.trace_chunk_over_columns,
     primary.trace_chunk_per_ray,
     ray_batch.trace_ray_chunk,
+    ray_batch.trace_run_in_lanes,
     ray_batch.occlude_ray_chunk,
     error_aware.trace_error_aware_row,
 ], ids=lambda f: f.py_func.__name__)

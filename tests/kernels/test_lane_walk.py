@@ -16,8 +16,22 @@ from random_scenes import (
     pillar_field,
     random_scene,
 )
-from voxfield.kernels.lane_walk import SLOTS, compiles_wide_vectors, walk_to_voxels_in_lanes
-from voxfield.kernels.surface_approach import HANDED_OVER, MISSED, walk_over_columns
+from voxfield.kernels.lane_walk import (
+    SLOTS,
+    compiles_wide_vectors,
+    land_walks,
+    walk_queue_in_lanes,
+    walk_to_voxels_in_lanes,
+)
+from voxfield.kernels.ray_batch import new_walk_queue, trace_ray_chunk, trace_run_in_lanes
+from voxfield.kernels.surface_approach import (
+    FROM_CAMERA,
+    FROM_SURFACE,
+    HANDED_OVER,
+    MISSED,
+    walk_over_columns,
+)
+from voxfield.kernels.traversal import new_scratch
 
 
 @njit
@@ -30,16 +44,32 @@ def _lane_walks(rays, per_call, depth, columns, walk_ints, walk_times):
 
 
 @njit
-def _one_ray_walks(rays, depth, columns, walk_ints, walk_times):
+def _queue_walks(rays, per_call, depth, columns, walk_ints, walk_times, start, tmax):
+    n = rays.shape[0]
+    for first in range(0, n, per_call):
+        count = min(per_call, n - first)
+        rows = slice(first, first + count)
+        walk_queue_in_lanes(rays[rows], count, depth, columns, walk_ints[rows],
+                            walk_times[rows], start, tmax)
+        land_walks(rays[rows], count, walk_ints[rows], walk_times[rows], columns, tmax)
+
+
+@njit
+def _one_ray_walks(rays, depth, columns, walk_ints, walk_times, start=FROM_CAMERA,
+                   tmax=math.inf):
     for k in range(rays.shape[0]):
-        verdict, t, cells, cx, cz, _, _, _ = walk_over_columns(
+        verdict, t, cells, cx, cz, y, t_hit, normal = walk_over_columns(
             rays[k, 0], rays[k, 1], rays[k, 2], rays[k, 3], rays[k, 4], rays[k, 5], rays[k, 6],
-            math.inf, depth, depth, columns)
+            tmax, depth, depth, columns, start)
         walk_ints[k, 0] = verdict
         walk_ints[k, 1] = cells
         walk_ints[k, 2] = cx
         walk_ints[k, 3] = cz
         walk_times[k, 0] = t
+        if walk_ints.shape[1] > 4:
+            walk_ints[k, 4] = y
+            walk_ints[k, 5] = normal
+            walk_times[k, 1] = t_hit
 
 
 def _rays(voxels, n, seed):
@@ -77,6 +107,70 @@ def test_lane_walks_are_the_one_ray_walks(scene):
     landed = (verdicts == HANDED_OVER) & (expected_ints[:, 2] >= 0)
     assert landed.sum() > n // 4 and (verdicts == MISSED).sum() > n // 10
     assert expected_ints[:, 1].max() > 8  # long walks too: climbs, descents, gaps
+
+
+@pytest.mark.parametrize("scene", [
+    overhanging_terrain(seed=3), hollow_shell_terrain(seed=5),
+    random_scene(seed=6, n=700, size=17), pillar_field(seed=4, size=36),
+], ids=lambda scene: scene.name)
+def test_queued_lane_walks_are_the_one_ray_walks(scene):
+    """With lanes refilled from the queue as their rays stop, from the camera or from a
+    surface, over a bounded segment or not: every ray's walk and landing, bit for bit."""
+    octree, voxels, columns = octree_and_columns(scene)
+    rays = _rays(voxels, 500, seed=len(voxels) + 1)
+    n = len(rays)
+    for start in (FROM_CAMERA, FROM_SURFACE):
+        for tmax in (math.inf, 9.5):
+            expected_ints = np.zeros((n, 6), np.int64)
+            expected_times = np.zeros((n, 2))
+            _one_ray_walks(rays, octree.depth, columns, expected_ints, expected_times, start,
+                           tmax)
+            for per_call in (n, 3 * SLOTS + 5, SLOTS, 1):
+                walk_ints = np.full((n, 6), -7, np.int64)
+                walk_times = np.full((n, 2), -7.0)
+                _queue_walks(rays, per_call, octree.depth, columns, walk_ints, walk_times,
+                             start, tmax)
+                np.testing.assert_array_equal(walk_ints, expected_ints)
+                assert np.array_equal(walk_times, expected_times)
+            landed = expected_ints[:, 4] >= 0
+            assert landed.sum() > n // 10 and (expected_ints[:, 0] == MISSED).sum() > n // 10
+            assert expected_ints[:, 1].max() > 8
+
+
+@njit
+def _trace_runs(origins, directions, tmin, tmax, octree_nodes, depth, columns, lanes, out):
+    scratch = new_scratch(depth)
+    walks = new_walk_queue()
+    node, level, t, normal, steps = out
+    n = origins.shape[0]
+    run = walks[0].shape[0]
+    for first in range(0, n, run):
+        last = min(n, first + run)
+        if lanes:
+            trace_run_in_lanes(origins, directions, first, last, tmin, tmax, octree_nodes,
+                               depth, node, level, t, normal, steps, scratch, columns, walks)
+        else:
+            trace_ray_chunk(origins, directions, first, last, tmin, tmax, octree_nodes, depth,
+                            depth, node, level, t, normal, steps, scratch, columns)
+
+
+def test_ray_queries_walked_in_lanes_are_those_walked_one_by_one():
+    """``ray_batch``'s runs with their walks in lanes answer every ray as the one-ray walk
+    does: node, level, time, entry face and steps, whatever the target decides to run."""
+    octree, voxels, columns = octree_and_columns(overhanging_terrain(seed=12, size=40))
+    origins, directions = any_rays(voxels, 700, seed=3)
+    n = len(origins)
+    for tmin, tmax in ((0.0, math.inf), (1.5, math.inf), (0.0, 6.0)):
+        answers = []
+        for lanes in (True, False):
+            out = (np.zeros(n, np.int64), np.zeros(n, np.int64), np.zeros(n),
+                   np.zeros(n, np.int64), np.zeros(n, np.int64))
+            _trace_runs(origins, directions, tmin, tmax, octree.inner_nodes, octree.depth,
+                        columns, lanes, out)
+            answers.append(out)
+        for walked, alone in zip(*answers, strict=True):
+            assert np.array_equal(walked, alone)
+        assert (answers[0][0] >= 0).sum() > n // 4
 
 
 def test_rays_that_cannot_walk_are_handed_over_where_they_start():

@@ -16,6 +16,7 @@ from voxfield.kernels.facing_colour import prefetch_seen, seen_rgb
 from voxfield.kernels.lane_walk import (
     LANE_WALK_PAYS,
     SLOTS,
+    land_walks,
     record_walk,
     walk_to_voxels_in_lanes,
 )
@@ -30,9 +31,7 @@ from voxfield.kernels.sampling import (
 from voxfield.kernels.scheduling import claim_items, new_run_queue
 from voxfield.kernels.surface_approach import (
     FROM_CAMERA,
-    MISSED,
     settle_walk,
-    top_node_hit,
     walk_over_columns,
     walk_plan,
     walk_primary_over_columns,
@@ -456,9 +455,7 @@ def trace_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratc
         if walk_plan(0.0, depth, stop_level, columns, FROM_CAMERA)[0] == 0 and (
                 columns.cell_records.shape[0] > 0):
             walk_to_voxels_in_lanes(rays, count, depth, columns, walk_ints, walk_times)
-            for k in range(count):
-                walk_ints[k, 4], walk_times[k, 1], walk_ints[k, 5] = landing(
-                    rays, k, walk_ints, walk_times, columns)
+            land_walks(rays, count, walk_ints, walk_times, columns, math.inf)
         else:
             for k in range(count):
                 store_walk(walk_ints, walk_times, k, walk_over_columns(
@@ -490,18 +487,6 @@ def store_walk(walk_ints: np.ndarray, walk_times: np.ndarray, k: int, walk) -> N
     walk_ints[k, 4] = y
     walk_ints[k, 5] = normal
     walk_times[k, 1] = t
-
-
-@njit(cache=True, nogil=True, inline="always")
-def landing(rays: np.ndarray, k: int, walk_ints: np.ndarray, walk_times: np.ndarray,
-            columns) -> tuple[int, float, int]:
-    """``(y, t, normal_code)`` of the voxel a lane walk handed ray ``k`` over on, where the
-    pyramid settles it (``surface_approach.top_node_hit``), else ``(-1, inf, -1)``."""
-    if walk_ints[k, 0] == MISSED or walk_ints[k, 2] < 0:
-        return -1, math.inf, -1
-    return top_node_hit(rays[k, 0], rays[k, 1], rays[k, 2], rays[k, 3], rays[k, 4], rays[k, 5],
-                        rays[k, 6], walk_times[k, 0], math.inf, walk_ints[k, 2], walk_ints[k, 3],
-                        0, columns)
 
 
 @borrowing
