@@ -129,8 +129,8 @@ def walk_queue_in_lanes(rays: np.ndarray, count: int, depth: int, columns,
     ``FROM_SURFACE``), with a lane whose ray stops taking the next ray not yet walked
     (``_refill_group``): the lanes stay busy until the queue runs dry, where a batch waits
     for its longest walk. Secondary rays on the 2048² mountain terrain (a million from
-    voxel tops, one thread): the walks took 0.27-0.29× the one-ray walk's time in 256-ray
-    queues, 0.45× in 64-ray batches without refills."""
+    voxel tops, one thread): the walks took 0.25-0.29× the one-ray walk's time in 256-ray
+    queues, 0.45-0.47× in 64-ray batches without refills."""
     floats = stack_matrix(_FLOAT_ROWS, SLOTS, np.float64)
     ints = stack_matrix(_INT_ROWS, SLOTS, np.int64)
     walking = stack_matrix(1, GROUPS, np.int64)[0]

@@ -97,7 +97,7 @@ def trace_run_in_lanes(
     """``trace_ray_chunk`` at LOD 0 over the pyramid with the walks in SIMD lanes
     (``lane_walk.walk_queue_in_lanes``), then each ray settled: the same answers. Secondary
     rays from voxel tops on the 2048² mountain terrain (a million, one thread) took 0.59-0.62×
-    the one-ray walk's time, the walks alone 0.27-0.29×: incoherent rays mispredict the
+    the one-ray walk's time, the walks alone 0.25-0.29×: incoherent rays mispredict the
     one-ray walk's branches most. ``walks``: ``new_walk_queue()``."""
     rays, walk_ints, walk_times = walks
     count = last - first
