@@ -54,13 +54,14 @@ def hollow_shell_terrain(seed: int = 0, size: int = 32) -> VoxelScene:
 
 
 def octree_and_columns(scene: VoxelScene):
-    """The scene's octree, its voxels' corners and their column-top pyramid."""
+    """The scene's octree, its voxels' corners and their column-top pyramid, with cell
+    records on any machine, so that the walks in lanes are tested everywhere."""
     from voxfield.svo import build_octree
     from voxfield.svo.column_tops import column_tops
 
     octree = build_octree(scene)
     voxels = octree.node_coords(octree.depth)
-    return octree, voxels, column_tops(voxels)
+    return octree, voxels, column_tops(voxels, records=True)
 
 
 def pillar_field(seed: int = 0, size: int = 80) -> VoxelScene:

@@ -194,8 +194,10 @@ def test_no_top_run_nodes_past_int32():
 
 def test_cell_records_pack_each_cells_top_and_gap_as_signed_16_bit_fields():
     """A cell's record unpacks (low field first, each sign-extended) to its top, gap floor
-    and gap ceiling, the empty cells' open ceiling included; int32 pyramids keep none."""
-    columns = column_tops(voxels_of(overhanging_terrain(seed=3)))
+    and gap ceiling, the empty cells' open ceiling included; int32 pyramids keep none, nor
+    one built without them (where no walk reads them)."""
+    voxels = voxels_of(overhanging_terrain(seed=3))
+    columns = column_tops(voxels, records=True)
     records = columns.cell_records
     assert records.dtype == np.int64 and len(records) == len(columns.tops)
 
@@ -207,5 +209,7 @@ def test_cell_records_pack_each_cells_top_and_gap_as_signed_16_bit_fields():
     assert np.array_equal(field(32), columns.gap_ceiling)
     assert np.any(columns.gap_ceiling == GAP_OPEN_16)  # the largest value survives the packing
     assert np.all(records >> 48 == 0)
-    wide = column_tops(np.array([[0, GAP_OPEN_16, 0]], np.int32))
+    wide = column_tops(np.array([[0, GAP_OPEN_16, 0]], np.int32), records=True)
     assert wide.tops.dtype == np.int32 and len(wide.cell_records) == 0
+    bare = column_tops(voxels, records=False)
+    assert len(bare.cell_records) == 0 and np.array_equal(bare.tops, columns.tops)

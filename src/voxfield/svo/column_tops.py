@@ -24,6 +24,7 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.column_walk import TOP_RUN_NODES
+from voxfield.kernels.lane_walk import LANE_WALK_PAYS
 
 __all__ = ["GAP_OPEN", "GAP_OPEN_16", "MAX_COLUMNS", "TOP_RUN_NODES", "ColumnTops",
            "column_tops", "gap_open", "height_type", "no_column_tops", "octree_column_tops",
@@ -91,13 +92,14 @@ def no_column_tops() -> ColumnTops:
 
 
 def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
-                first_node: int | None = None) -> ColumnTops:
+                first_node: int | None = None, records: bool = LANE_WALK_PAYS) -> ColumnTops:
     """The pyramid of the voxels with corners ``voxels`` (``(n, 3)`` integer, octree units),
     or ``no_column_tops()`` when there are none or the footprint exceeds ``max_columns``.
     ``first_node``: the node index of ``voxels[0]``, the others following in order (an
     octree's leaves, ``Octree.level_slice(depth)``), so each column's top run keeps the
     nodes of its highest voxels; None (or node indices past int32) leaves ``top_nodes``
-    empty."""
+    empty. ``records``: whether to pack ``cell_records`` (8 bytes a cell, 42 MiB at 2048²),
+    by default only where the walks read them (``kernels.lane_walk.LANE_WALK_PAYS``)."""
     if len(voxels) == 0:
         return no_column_tops()
     width = int(voxels[:, 0].max()) + 1
@@ -144,7 +146,8 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
         gap_floor=gap_floor,
         gap_ceiling=gap_ceiling,
         floors=floors,
-        cell_records=cell_records(tops, gap_floor, gap_ceiling),
+        cell_records=(cell_records(tops, gap_floor, gap_ceiling) if records
+                      else np.zeros(0, np.int64)),
     )
 
 
