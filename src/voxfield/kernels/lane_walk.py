@@ -135,7 +135,7 @@ def walk_queue_in_lanes(rays: np.ndarray, count: int, depth: int, columns,
     ints = stack_matrix(_INT_ROWS, SLOTS, np.int64)
     walking = stack_matrix(1, GROUPS, np.int64)[0]
     # Every lane starts as one that has stopped with no ray, and is filled as such: the
-    # lanes' start is compiled once, in ``_refill_group`` (a first call compiles 8 s sooner).
+    # lanes' start is compiled once, in ``_refill_group`` (a first call compiles 7 s sooner).
     for lane in range(SLOTS):
         ints[_LIVE, lane] = 0
         ints[_RAY, lane] = -1
