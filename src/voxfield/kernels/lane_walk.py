@@ -167,7 +167,9 @@ def _fill_lanes(rays: np.ndarray, first: int, end: int, depth: int, columns,
                 floats: np.ndarray, ints: np.ndarray, walking: np.ndarray,
                 walk_ints: np.ndarray, walk_times: np.ndarray, start: int, tmax: float) -> int:
     """Fill every lane from the rays ``first..end-1`` (``_fill_lane``) and count each
-    group's walking lanes: the next ray not yet taken."""
+    group's walking lanes: the next ray not yet taken. A render's batch fills its lanes
+    inline: filled through ``_refill_group``'s call, as a queue's are, renders took 1.05-1.06×
+    the time."""
     for group in range(GROUPS):
         walking[group] = 0
     queued = first
@@ -268,6 +270,32 @@ def record_walk(walk_ints: np.ndarray, walk_times: np.ndarray, k: int, verdict: 
 
 
 @njit(cache=True, nogil=True, inline="always")
+def record_landing(walk_ints: np.ndarray, walk_times: np.ndarray, k: int, y: int, t: float,
+                   normal: int) -> None:
+    """The voxel row, time and entry face where the pyramid settled ray ``k``'s walk
+    (``surface_approach.top_node_hit``; ``y = -1`` where it did not)."""
+    walk_ints[k, 4] = y
+    walk_ints[k, 5] = normal
+    walk_times[k, 1] = t
+
+
+@njit(cache=True, nogil=True, inline="always")
+def walk_of(walk_ints: np.ndarray, walk_times: np.ndarray, k: int):
+    """Ray ``k``'s recorded walk as ``surface_approach.walk_over_columns``'s tuple, for
+    ``settle_walk``."""
+    return (walk_ints[k, 0], walk_times[k, 0], walk_ints[k, 1], walk_ints[k, 2],
+            walk_ints[k, 3], walk_ints[k, 4], walk_times[k, 1], walk_ints[k, 5])
+
+
+@njit(cache=True, nogil=True)
+def new_walk_rows(count: int):
+    """Rows for ``count`` rays and their walks: the rays (``ox, oy, oz, dx, dy, dz, tmin``),
+    the walks' integers (verdict, cells, cell x, z, landing y, normal code) and times
+    (``t_from``, landing ``t``)."""
+    return np.empty((count, 7)), np.empty((count, 6), np.int64), np.empty((count, 2))
+
+
+@njit(cache=True, nogil=True, inline="always")
 def land_walks(rays: np.ndarray, count: int, walk_ints: np.ndarray, walk_times: np.ndarray,
                columns, tmax: float) -> None:
     """Complete the walks of the first ``count`` rays of a lane walk with the voxel each was
@@ -280,9 +308,7 @@ def land_walks(rays: np.ndarray, count: int, walk_ints: np.ndarray, walk_times: 
             y, t, normal = top_node_hit(rays[k, 0], rays[k, 1], rays[k, 2], rays[k, 3],
                                         rays[k, 4], rays[k, 5], rays[k, 6], walk_times[k, 0],
                                         tmax, walk_ints[k, 2], walk_ints[k, 3], 0, columns)
-        walk_ints[k, 4] = y
-        walk_times[k, 1] = t
-        walk_ints[k, 5] = normal
+        record_landing(walk_ints, walk_times, k, y, t, normal)
 
 
 @njit(cache=True, nogil=True, inline="always")

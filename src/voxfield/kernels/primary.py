@@ -17,7 +17,10 @@ from voxfield.kernels.lane_walk import (
     LANE_WALK_PAYS,
     SLOTS,
     land_walks,
+    new_walk_rows,
+    record_landing,
     record_walk,
+    walk_of,
     walk_to_voxels_in_lanes,
 )
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
@@ -411,11 +414,10 @@ RAY_BATCH = SLOTS if LANE_WALK_PAYS else 32
 
 @njit(cache=True, nogil=True)
 def new_ray_batch():
-    """``trace_ray_batch``'s queue: the rays (origin, direction, ``tmin``) and their pixel
-    rows; their walks (verdict, cells, cell x, z, y, normal code; ``t_from``, ``t``); their
-    hits (``queue_hit``'s two arrays)."""
-    return (np.empty((RAY_BATCH, 7)), np.empty(RAY_BATCH, np.int64),
-            np.empty((RAY_BATCH, 6), np.int64), np.empty((RAY_BATCH, 2)),
+    """``trace_ray_batch``'s queue: the rays and their walks (``lane_walk.new_walk_rows``),
+    the rays' pixel rows and their hits (``queue_hit``'s two arrays)."""
+    rays, walk_ints, walk_times = new_walk_rows(RAY_BATCH)
+    return (rays, np.empty(RAY_BATCH, np.int64), walk_ints, walk_times,
             np.empty((RAY_BATCH, 5), np.int64), np.empty((RAY_BATCH, 4)))
 
 
@@ -467,12 +469,10 @@ def trace_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratc
                 rays[k, 0], rays[k, 1], rays[k, 2], rays[k, 3], rays[k, 4], rays[k, 5],
                 rays[k, 6], depth, stop_level, columns))
     for k in range(count):
-        walk = (walk_ints[k, 0], walk_times[k, 0], walk_ints[k, 1], walk_ints[k, 2],
-                walk_ints[k, 3], walk_ints[k, 4], walk_times[k, 1], walk_ints[k, 5])
         dx, dy, dz = rays[k, 3], rays[k, 4], rays[k, 5]
         node, level, t, normal, steps = settle_walk(
             rays[k, 0], rays[k, 1], rays[k, 2], dx, dy, dz, rays[k, 6], math.inf,
-            inner_nodes, depth, stop_level, scratch, columns, walk)
+            inner_nodes, depth, stop_level, scratch, columns, walk_of(walk_ints, walk_times, k))
         if node >= 0:
             prefetch_seen(colors, facing, node)
         queue_hit(hits, k, pixel_rows[k], node, level, t, normal, steps, dx, dy, dz)
@@ -484,9 +484,7 @@ def store_walk(walk_ints: np.ndarray, walk_times: np.ndarray, k: int, walk) -> N
     """Keep ray ``k``'s walk (``surface_approach.walk_over_columns``'s tuple) for its settling."""
     verdict, t_from, cells, cx, cz, y, t, normal = walk
     record_walk(walk_ints, walk_times, k, verdict, t_from, cells, cx, cz)
-    walk_ints[k, 4] = y
-    walk_ints[k, 5] = normal
-    walk_times[k, 1] = t
+    record_landing(walk_ints, walk_times, k, y, t, normal)
 
 
 @borrowing

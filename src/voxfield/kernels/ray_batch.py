@@ -13,7 +13,13 @@ import numpy as np
 from numba import njit, prange
 
 from voxfield.kernels.borrowing import borrowing
-from voxfield.kernels.lane_walk import LANE_WALK_PAYS, land_walks, walk_queue_in_lanes
+from voxfield.kernels.lane_walk import (
+    LANE_WALK_PAYS,
+    land_walks,
+    new_walk_rows,
+    walk_of,
+    walk_queue_in_lanes,
+)
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.scheduling import claim_items, new_run_queue
 from voxfield.kernels.surface_approach import (
@@ -57,11 +63,14 @@ def trace_ray_claims(
     """One worker of ``trace_rays``: runs claimed from ``queue`` until none is left."""
     scratch = new_scratch(depth)
     walks = new_walk_queue()
+    in_lanes = False
+    if columns is not None:
+        in_lanes = walks_in_lanes(tmin, depth, stop_level, columns)
     while True:
         first, last = claim_items(queue, origins.shape[0], RAY_RUN)
         if first == last:
             return
-        if columns is not None and walks_in_lanes(tmin, depth, stop_level, columns):
+        if columns is not None and in_lanes:
             trace_run_in_lanes(origins, directions, first, last, tmin, tmax, inner_nodes,
                                depth, out_node, out_level, out_t, out_normal, out_steps,
                                scratch, columns, walks)
@@ -74,9 +83,8 @@ def trace_ray_claims(
 @njit(cache=True, nogil=True)
 def new_walk_queue():
     """``trace_run_in_lanes``'s rows for a run: the rays (origin, direction, ``tmin``) and
-    their walks (as ``kernels.primary.new_ray_batch`` keeps them)."""
-    return (np.empty((RAY_RUN, 7)), np.empty((RAY_RUN, 6), np.int64),
-            np.empty((RAY_RUN, 2)))
+    their walks (``lane_walk.new_walk_rows``)."""
+    return new_walk_rows(RAY_RUN)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -113,11 +121,9 @@ def trace_run_in_lanes(
     walk_queue_in_lanes(rays, count, depth, columns, walk_ints, walk_times, FROM_SURFACE, tmax)
     land_walks(rays, count, walk_ints, walk_times, columns, tmax)
     for j in range(count):
-        walk = (walk_ints[j, 0], walk_times[j, 0], walk_ints[j, 1], walk_ints[j, 2],
-                walk_ints[j, 3], walk_ints[j, 4], walk_times[j, 1], walk_ints[j, 5])
         node, level, t, normal, steps = settle_walk(
             rays[j, 0], rays[j, 1], rays[j, 2], rays[j, 3], rays[j, 4], rays[j, 5], tmin, tmax,
-            inner_nodes, depth, depth, scratch, columns, walk)
+            inner_nodes, depth, depth, scratch, columns, walk_of(walk_ints, walk_times, j))
         k = first + j
         out_node[k] = node
         out_level[k] = level
