@@ -109,3 +109,40 @@ def any_rays(voxels: np.ndarray, n: int, seed: int):
     origins, directions = np.concatenate(parts_o), np.concatenate(parts_d)
     keep = np.any(directions != 0.0, axis=1)
     return origins[keep], directions[keep]
+
+
+def rising_rays(voxels: np.ndarray, n: int, seed: int):
+    """Rays with ``dy > 0``: the first ``n`` from points on voxel faces (as the bake casts
+    them), then from lattice points with small integer directions (through edges and
+    corners), with a zero ``x`` or ``z`` (grazing planes), straight up, and from random points
+    around the scene."""
+    rng = np.random.default_rng(seed)
+    lo, hi = voxels.min(axis=0), voxels.max(axis=0) + 1
+    parts_o, parts_d = [], []
+    corners = voxels[rng.integers(0, len(voxels), n)].astype(np.float64)
+    axis = rng.integers(0, 3, n)
+    offset = rng.random((n, 3))
+    offset[np.arange(n), axis] = rng.integers(0, 2, n)  # exactly on one face plane
+    parts_o.append(corners + offset)
+    d = rng.normal(size=(n, 3))
+    d[:, 1] = np.abs(d[:, 1]) * rng.choice([0.05, 0.3, 1.0], n)
+    parts_d.append(d)
+    parts_o.append(np.round(rng.uniform(lo - 2, hi + 2, (n, 3))))
+    d = rng.integers(-2, 3, (n, 3)).astype(np.float64)
+    d[:, 1] = rng.integers(1, 3, n)
+    parts_d.append(d)
+    o = rng.uniform(lo - 1, hi + 1, (n, 3))
+    o[:, [0, 2]] = np.round(o[:, [0, 2]] * 2) / 2
+    d = rng.normal(size=(n, 3))
+    d[:, 1] = np.abs(d[:, 1]) + 1e-3
+    d[np.arange(n), rng.choice([0, 2], n)] = 0.0
+    d[: n // 4, [0, 2]] = 0.0
+    parts_o.append(o)
+    parts_d.append(d)
+    parts_o.append(rng.uniform(lo - 3, hi + 3, (n, 3)))
+    d = rng.normal(size=(n, 3))
+    d[:, 1] = np.abs(d[:, 1])
+    parts_d.append(d)
+    origins, directions = np.concatenate(parts_o), np.concatenate(parts_d)
+    keep = directions[:, 1] > 0.0
+    return origins[keep], directions[keep]

@@ -12,6 +12,7 @@ from voxfield.kernels import (
     error_aware,
     primary,
     ray_batch,
+    rising_lanes,
     sun_bake,
     surface_approach,
     upward_rays,
@@ -67,7 +68,10 @@ def test_a_borrowing_helper_that_allocates_fails_to_compile_rather_than_leak():
     surface_approach.walk_to_surface,
     surface_approach.walk_to_voxels,
     surface_approach.finish_in_octree,
-    sun_bake.sky_visibility,
+    rising_lanes.walk_rising_rays,
+    rising_lanes.walk_rising_in_lanes,
+    sun_bake.draw_sky_rays,
+    sun_bake.trace_sky_queue,
     sun_bake.trace_shadow_queue,
     sun_bake.bake_block,
     primary.trace_chunk_over_columns,
@@ -75,6 +79,7 @@ def test_a_borrowing_helper_that_allocates_fails_to_compile_rather_than_leak():
     ray_batch.trace_ray_chunk,
     ray_batch.trace_run_in_lanes,
     ray_batch.occlude_ray_chunk,
+    ray_batch.occlude_run_in_lanes,
     error_aware.trace_error_aware_row,
 ], ids=lambda f: f.py_func.__name__)
 def test_the_per_ray_loops_of_the_hot_kernels_borrow(helper):

@@ -335,7 +335,9 @@ def _record_lane(floats: np.ndarray, ints: np.ndarray, columns, lane: int,
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _pick(condition: bool, if_true, if_false):
+def pick(condition: bool, if_true, if_false):
+    """``if_true`` where ``condition`` holds, else ``if_false``: in a lane pass, a select
+    (both sides computed), so the pass has no branch on a ray's route."""
     return if_true if condition else if_false
 
 
@@ -376,19 +378,19 @@ def _lane_pass(floats: np.ndarray, ints: np.ndarray, columns, first: int) -> int
         # Above the cell's voxels for all of [t, t_exit), or in the gap under its top runs
         # (``column_walk.in_the_gap``); an empty cell's top is 0.
         t_top = (float(top) - oy) * iy
-        above = _pick(dy < 0.0, t_exit <= t_top, _pick(dy > 0.0, t >= t_top, oy >= top))
+        above = pick(dy < 0.0, t_exit <= t_top, pick(dy > 0.0, t >= t_top, oy >= top))
         t_leave = min(t_exit, t_end)
         t_floor = (float(floor) - oy) * iy
         t_ceiling = (float(ceiling) - oy) * iy
-        in_gap = _pick(dy < 0.0, (t >= t_ceiling) & (t_leave <= t_floor),
-                       _pick(dy > 0.0, (t >= t_floor) & (t_leave <= t_ceiling),
+        in_gap = pick(dy < 0.0, (t >= t_ceiling) & (t_leave <= t_floor),
+                       pick(dy > 0.0, (t >= t_floor) & (t_leave <= t_ceiling),
                              (floor <= oy) & (oy < ceiling)))
         skip = above | (in_gap & (top != 0)) | (top == 0)
         leaves = skip & (not t_exit < t_end)
         # Across to the next cell, a level up once ``patience`` cells are skipped in a row
         # and it lies in another parent (``column_walk.step_across``).
-        next_cx = cx + _pick(tx <= t_exit, step_x_[lane], 0)
-        next_cz = cz + _pick(tz <= t_exit, step_z_[lane], 0)
+        next_cx = cx + pick(tx <= t_exit, step_x_[lane], 0)
+        next_cz = cz + pick(tz <= t_exit, step_z_[lane], 0)
         skipped = skips + 1
         climbs = ((skipped >= patience_[lane]) & (level < top_level)
                   & ((((next_cx ^ cx) | (next_cz ^ cz)) >> 1) != 0))
@@ -397,33 +399,33 @@ def _lane_pass(floats: np.ndarray, ints: np.ndarray, columns, first: int) -> int
         child = level - 1
         t_mid_x = (float((2 * cx + 1) << child) - ox) * ix
         t_mid_z = (float((2 * cz + 1) << child) - oz) * iz
-        upper_x = _pick(ahead_x == 1, t_mid_x <= t, t < t_mid_x)
-        upper_z = _pick(ahead_z == 1, t_mid_z <= t, t < t_mid_z)
+        upper_x = pick(ahead_x == 1, t_mid_x <= t, t < t_mid_x)
+        upper_z = pick(ahead_z == 1, t_mid_z <= t, t < t_mid_z)
         across = visits & skip & (not leaves)
         down = visits & (not skip) & (level > 0)
         handed = visits & (not skip) & (level == 0)
         missed = walking & (outside | leaves)
-        cx = _pick(across, _pick(climbs, next_cx >> 1, next_cx),
-                   _pick(down, 2 * cx + _pick(upper_x, 1, 0), cx))
-        cz = _pick(across, _pick(climbs, next_cz >> 1, next_cz),
-                   _pick(down, 2 * cz + _pick(upper_z, 1, 0), cz))
-        level = _pick(across, _pick(climbs, level + 1, level), _pick(down, child, level))
+        cx = pick(across, pick(climbs, next_cx >> 1, next_cx),
+                   pick(down, 2 * cx + pick(upper_x, 1, 0), cx))
+        cz = pick(across, pick(climbs, next_cz >> 1, next_cz),
+                   pick(down, 2 * cz + pick(upper_z, 1, 0), cz))
+        level = pick(across, pick(climbs, level + 1, level), pick(down, child, level))
         still = walking & (not missed) & (not handed)
         cx_[lane] = cx
         cz_[lane] = cz
         level_[lane] = level
-        skips_[lane] = _pick(across, _pick(climbs, 0, skipped), _pick(down, 0, skips))
-        t_[lane] = _pick(across, t_exit, t)
-        steps_[lane] += _pick(visits, 1, 0)
-        live_[lane] = _pick(still, 1, 0)
-        verdict_[lane] = _pick(missed, MISSED, _pick(handed, HANDED_OVER, verdict_[lane]))
-        live += _pick(still, 1, 0)
+        skips_[lane] = pick(across, pick(climbs, 0, skipped), pick(down, 0, skips))
+        t_[lane] = pick(across, t_exit, t)
+        steps_[lane] += pick(visits, 1, 0)
+        live_[lane] = pick(still, 1, 0)
+        verdict_[lane] = pick(missed, MISSED, pick(handed, HANDED_OVER, verdict_[lane]))
+        live += pick(still, 1, 0)
         # The next pass's cell; a level's shape is the footprint's, halved and rounded up.
         round_level = (1 << level) - 1
         depth = (depth0 + round_level) >> level
         beyond = ((np.uint64(cx) >= np.uint64((width0 + round_level) >> level))
                   | (np.uint64(cz) >= np.uint64(depth)))
-        outside_[lane] = _pick(beyond, 1, 0)
-        cell_[lane] = _pick(still & (not beyond), level_offset[np.uint64(level)] + cx * depth + cz,
+        outside_[lane] = pick(beyond, 1, 0)
+        cell_[lane] = pick(still & (not beyond), level_offset[np.uint64(level)] + cx * depth + cz,
                             0)
     return live

@@ -21,6 +21,11 @@ from voxfield.kernels.lane_walk import (
     walk_queue_in_lanes,
 )
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
+from voxfield.kernels.rising_lanes import (
+    RISING_RAY_COLUMNS,
+    lanes_walk_rising,
+    walk_rising_in_lanes,
+)
 from voxfield.kernels.scheduling import claim_items, new_run_queue
 from voxfield.kernels.surface_approach import (
     FROM_SURFACE,
@@ -222,14 +227,66 @@ def occlude_ray_claims(
     inner_nodes: np.ndarray, depth: int, columns, out_blocked: np.ndarray,
     out_steps: np.ndarray, queue: np.ndarray,
 ) -> None:
-    """One worker of ``occlude_rays``: runs claimed from ``queue`` until none is left."""
+    """One worker of ``occlude_rays``: runs claimed from ``queue`` until none is left, their
+    pyramid walks in SIMD lanes where those pay (``rising_lanes.lanes_walk_rising``)."""
     scratch = new_scratch(depth)
+    in_lanes = tmin == 0.0 and lanes_walk_rising(columns)
+    walks = new_rising_walks(RAY_RUN if in_lanes else 0)
     while True:
         first, last = claim_items(queue, origins.shape[0], RAY_RUN)
         if first == last:
             return
-        occlude_ray_chunk(origins, directions, first, last, tmin, tmax, inner_nodes, depth,
-                          columns, out_blocked, out_steps, scratch)
+        if in_lanes:
+            occlude_run_in_lanes(origins, directions, first, last, tmax, inner_nodes, depth,
+                                 columns, out_blocked, out_steps, scratch, walks)
+        else:
+            occlude_ray_chunk(origins, directions, first, last, tmin, tmax, inner_nodes,
+                              depth, columns, out_blocked, out_steps, scratch)
+
+
+@njit(cache=True, nogil=True)
+def new_rising_walks(count: int):
+    """Rows for ``count`` rising rays (``rising_lanes.RISING_RAY_COLUMNS``) and their walks'
+    verdicts, times and steps."""
+    return (np.zeros((count, RISING_RAY_COLUMNS)), np.empty(count, np.int64), np.empty(count),
+            np.empty(count, np.int64))
+
+
+@borrowing
+def occlude_run_in_lanes(
+    origins: np.ndarray, directions: np.ndarray, first: int, last: int, tmax: float,
+    inner_nodes: np.ndarray, depth: int, columns, out_blocked: np.ndarray,
+    out_steps: np.ndarray, scratch, walks,
+) -> None:
+    """``occlude_ray_chunk`` from ``tmin`` 0 with the rising rays' walks in SIMD lanes
+    (``rising_lanes.walk_rising_in_lanes``), then the octree for those left undecided: the
+    same answers and steps. Rays that do not rise are undecided at once, as there.
+    ``walks``: ``new_rising_walks(RAY_RUN)``."""
+    rays, verdicts, times, walk_steps = walks
+    count = last - first
+    for j in range(count):
+        k = first + j
+        rays[j, 0] = origins[k, 0]
+        rays[j, 1] = origins[k, 1]
+        rays[j, 2] = origins[k, 2]
+        rays[j, 3] = directions[k, 0]
+        rays[j, 4] = directions[k, 1]
+        rays[j, 5] = directions[k, 2]
+        rays[j, 6] = tmax
+    walk_rising_in_lanes(rays, count, columns, verdicts, times, walk_steps)
+    for j in range(count):
+        k = first + j
+        if verdicts[j] != UNDECIDED:
+            out_blocked[k] = verdicts[j] == BLOCKED
+            out_steps[k] = walk_steps[j]
+            continue
+        blocked, steps = occluded(
+            origins[k, 0], origins[k, 1], origins[k, 2],
+            directions[k, 0], directions[k, 1], directions[k, 2], times[j], tmax,
+            inner_nodes, depth, scratch,
+        )
+        out_blocked[k] = blocked
+        out_steps[k] = walk_steps[j] + steps
 
 
 @borrowing

@@ -34,7 +34,10 @@ Every traced ray rises, so it first walks the column-top pyramid (``kernels.upwa
 over open ground that settles most rays (clear above the terrain, or blocked by the run of
 voxels they dip into) in a few 2D cells; the rest go on through the octree from where the
 walk left them, with the answer the octree alone gives. A ray's steps are the pyramid cells
-it visits plus the octree nodes it enters.
+it visits plus the octree nodes it enters. A block's sky rays are drawn voxel by voxel and
+then walk together (``kernels.rising_lanes``: in SIMD lanes where those pay), where each
+used to walk as soon as it was drawn: on the 2048² desert the kernel took 0.84× the time
+with the same answers and steps.
 
 A sky ray that starts at or above its column's top and rises more steeply than the
 column's horizon slope for its heading (``svo.horizons``; ``upward_rays.clears_horizon``) is
@@ -65,6 +68,7 @@ from numba import njit, prange
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
+from voxfield.kernels.rising_lanes import RISING_RAY_COLUMNS, walk_rising_rays
 from voxfield.kernels.sampling import (
     cmj_sample_in,
     cmj_strata,
@@ -87,8 +91,13 @@ _POSITION_SALT = 0x68E31DA4
 _SHADOW_SALT = 0xB5297A4D
 #: Code of the face looking down (−y).
 FACE_DOWN = 2
-#: Surface voxels per parallel task; their shadow rays towards one sun share packets.
-BAKE_BLOCK = 32
+#: Surface voxels per parallel task; their shadow rays towards one sun share packets, and
+#: their sky rays walk the pyramid together (``trace_sky_queue``). On the 2048² desert the
+#: bake's kernel took 0.95× the time with 128 as with 32, 0.93× with 256 (longer queues
+#: keep the lanes busier; the shadow rays alone read the same at 32 and 128).
+BAKE_BLOCK = 128
+#: Sky rays a block queues before it walks them (more when one voxel casts more).
+SKY_QUEUE_RAYS = 2048
 
 
 @njit(cache=True, nogil=True)
@@ -197,87 +206,130 @@ def new_strata(count: int):
     return new_cmj_strata(count + 1) + new_cmj_strata(count + 1)
 
 
+@njit(cache=True, nogil=True, inline="always")
+def most_sky_rays(sky_rays: int) -> int:
+    """The most sky rays one voxel casts: ``sky_rays``, or one for each of up to five faces
+    that can see up when that is more."""
+    return max(sky_rays, 5)
+
+
+@njit(cache=True, nogil=True)
+def new_sky_queue(sky_rays: int):
+    """A block's queued sky rays (``rising_lanes.RISING_RAY_COLUMNS``), the (block voxel,
+    face) each belongs to and its walk's verdict, time and steps; per block voxel and face,
+    the rays drawn and those that escaped."""
+    n = max(SKY_QUEUE_RAYS, most_sky_rays(sky_rays))
+    return (np.zeros((n, RISING_RAY_COLUMNS)), np.empty(n, np.int64), np.empty(n, np.int64),
+            np.empty(n, np.int64), np.empty(n), np.empty(n, np.int64),
+            np.zeros((BAKE_BLOCK, 6), np.int64), np.zeros((BAKE_BLOCK, 6), np.int64))
+
+
 @borrowing
-def sky_visibility(
-    x: int, y: int, z: int, voxel_pattern: int, faces: int, sky_rays: int,
-    inner_nodes: np.ndarray, depth: int, y_top: float, columns, horizons: np.ndarray,
-    face_sky: np.ndarray, face_weight: np.ndarray, scratch, strata, rays: np.ndarray,
-) -> tuple[float, float, float, int, int]:
-    """One voxel's sky rays (``faces``: bit ``f`` set for exposed face ``f``): fills its
-    per-face sky visibility and weights and returns ``(sky, weight seen, weight total, rays,
-    steps)``; a voxel none of whose faces sees the sky gets equal face weights, which its
-    total then sums (module docstring). ``horizons`` are ``columns``' horizon slopes
-    (``svo.horizons``; empty: none), ``strata`` is ``new_strata(sky_rays)``, ``rays`` room
-    for a face's rays (``(sky_rays, 7)``)."""
+def draw_sky_rays(
+    x: int, y: int, z: int, voxel_pattern: int, faces: int, sky_rays: int, y_top: float,
+    columns, horizons: np.ndarray, strata, queue, queued: int, j: int,
+) -> tuple[int, int, int]:
+    """Draw the sky rays of block voxel ``j`` at ``(x, y, z)`` (``faces``: bit ``f`` set for
+    exposed face ``f``): per face, how many it gets and how many its horizon clears, in
+    ``queue``'s counts; the others are queued from row ``queued`` on, to be walked with the
+    block's. ``(next free row, rays cast, steps)``. ``horizons`` are ``columns``' horizon
+    slopes (``svo.horizons``; empty: none), ``strata`` is ``new_strata(sky_rays)``."""
+    rays, ray_voxel, ray_face = queue[:3]
+    face_rays, face_escaped = queue[6:]
     # A face looking down (−y) sees no sky and no sun above the horizon: it gets no rays.
-    exposed = 0
     open_faces = 0
     for f in range(6):
-        if (faces >> f) & 1:
-            exposed += 1
-            if f != FACE_DOWN:
-                open_faces += 1
+        face_rays[j, f] = 0
+        face_escaped[j, f] = 0
+        if (faces >> f) & 1 and f != FACE_DOWN:
+            open_faces += 1
     steps = 0
     sky_cast = 0
+    if sky_rays == 0:
+        return queued, sky_cast, steps
     # ``sky_rays`` per voxel shared among its faces that can see up, at least one each.
     k = 0
+    for f in range(6):
+        if not (faces >> f) & 1 or f == FACE_DOWN:
+            continue
+        count = max(1, sky_rays // open_faces + (1 if k < sky_rays % open_faces else 0))
+        face_rays[j, f] = count
+        k += 1
+        face_pattern = hash_u32(voxel_pattern ^ ((f + 1) * _GOLDEN))
+        position_pattern = hash_u32(face_pattern + _POSITION_SALT)
+        m, n = pattern_shape(count)
+        cmj_strata(m, n, face_pattern, strata[0], strata[1])
+        cmj_strata(m, n, position_pattern, strata[2], strata[3])
+        i = -1  # sample s is column i, row j of the m×n patterns
+        row = 0
+        for s in range(count):
+            i, row = next_stratum(i, row, m)
+            u1, u2 = cmj_sample_in(s, i, row, m, n, face_pattern, strata[0], strata[1])
+            dx, dy, dz = cosine_direction(f, u1, u2)
+            if dy <= 0.0:
+                continue  # it would see the ground at best: no sky, no need to trace
+            pu, pv = face_sample(s, i, row, count, m, n, position_pattern, strata[2],
+                                 strata[3])
+            ox, oy, oz = face_point(x, y, z, f, pu, pv)
+            sky_cast += 1
+            if clears_horizon(ox, oy, oz, dx, dy, dz, columns, horizons):
+                steps += 1  # the horizon slope read
+                face_escaped[j, f] += 1
+                continue
+            rays[queued, 0], rays[queued, 1], rays[queued, 2] = ox, oy, oz
+            rays[queued, 3], rays[queued, 4], rays[queued, 5] = dx, dy, dz
+            rays[queued, 6] = (y_top - oy) / dy
+            ray_voxel[queued] = j
+            ray_face[queued] = f
+            queued += 1
+    return queued, sky_cast, steps
+
+
+@borrowing
+def trace_sky_queue(count: int, queue, columns, inner_nodes: np.ndarray, depth: int,
+                    scratch, first: int, out_steps: np.ndarray) -> None:
+    """Trace a block's ``count`` queued sky rays: all walk the pyramid together
+    (``rising_lanes.walk_rising_rays``), those it leaves undecided go on through the octree;
+    each escaped ray counts for its face, its steps for its voxel (row ``first + voxel`` of
+    ``out_steps``)."""
+    rays, ray_voxel, ray_face, verdicts, times, walk_steps, _, face_escaped = queue
+    walk_rising_rays(rays, count, columns, verdicts, times, walk_steps)
+    for r in range(count):
+        blocked = verdicts[r] == BLOCKED
+        steps = walk_steps[r]
+        if verdicts[r] == UNDECIDED:
+            blocked, octree_steps = occluded(rays[r, 0], rays[r, 1], rays[r, 2], rays[r, 3],
+                                             rays[r, 4], rays[r, 5], times[r], rays[r, 6],
+                                             inner_nodes, depth, scratch)
+            steps += octree_steps
+        out_steps[first + ray_voxel[r]] += steps
+        if not blocked:
+            face_escaped[ray_voxel[r], ray_face[r]] += 1
+
+
+@njit(cache=True, nogil=True, inline="always")
+def sky_terms(faces: int, sky_rays: int, face_rays: np.ndarray, face_escaped: np.ndarray,
+              face_sky: np.ndarray, face_weight: np.ndarray) -> tuple[float, float, float]:
+    """One voxel's sky visibility from its faces' rays drawn and escaped: fills its per-face
+    sky visibility and weights and returns ``(sky, weight seen, weight total)``; a voxel
+    none of whose faces sees the sky gets equal face weights, which its total then sums
+    (module docstring)."""
+    exposed = 0
     total_weight = 0.0
     for f in range(6):
         face_sky[f] = 0.0
         face_weight[f] = 0.0
-        if not (faces >> f) & 1 or f == FACE_DOWN:
+        if not (faces >> f) & 1:
             continue
-        axis, sign = face_axis_sign(f)
+        exposed += 1
+        if f == FACE_DOWN:
+            continue
         if sky_rays == 0:
+            axis, sign = face_axis_sign(f)
             face_weight[f] = 0.5 * (1.0 + (sign if axis == 1 else 0.0))
         else:
-            count = max(1, sky_rays // open_faces + (1 if k < sky_rays % open_faces else 0))
-            face_pattern = hash_u32(voxel_pattern ^ ((f + 1) * _GOLDEN))
-            position_pattern = hash_u32(face_pattern + _POSITION_SALT)
-            m, n = pattern_shape(count)
-            cmj_strata(m, n, face_pattern, strata[0], strata[1])
-            cmj_strata(m, n, position_pattern, strata[2], strata[3])
-            # The face's rays are drawn first, then traced: drawing them (divisions, a
-            # square root, a sine and cosine each) runs at the units' throughput apart from
-            # the walks, whose mispredicted branches would otherwise discard it.
-            traced = 0
-            i = -1  # sample s is column i, row j of the m×n patterns
-            j = 0
-            for s in range(count):
-                i, j = next_stratum(i, j, m)
-                u1, u2 = cmj_sample_in(s, i, j, m, n, face_pattern, strata[0], strata[1])
-                dx, dy, dz = cosine_direction(f, u1, u2)
-                if dy <= 0.0:
-                    continue  # it would see the ground at best: no sky, no need to trace
-                pu, pv = face_sample(s, i, j, count, m, n, position_pattern, strata[2],
-                                     strata[3])
-                ox, oy, oz = face_point(x, y, z, f, pu, pv)
-                rays[traced, 0], rays[traced, 1], rays[traced, 2] = ox, oy, oz
-                rays[traced, 3], rays[traced, 4], rays[traced, 5] = dx, dy, dz
-                rays[traced, 6] = (y_top - oy) / dy
-                traced += 1
-            escaped = 0
-            for r in range(traced):
-                ox, oy, oz, dx, dy, dz, tmax = (rays[r, 0], rays[r, 1], rays[r, 2], rays[r, 3],
-                                                rays[r, 4], rays[r, 5], rays[r, 6])
-                if clears_horizon(ox, oy, oz, dx, dy, dz, columns, horizons):
-                    steps += 1  # the horizon slope read
-                    escaped += 1
-                    continue
-                verdict, t_on, ray_steps = rising_ray_query(ox, oy, oz, dx, dy, dz, tmax,
-                                                            columns)
-                blocked = verdict == BLOCKED
-                if verdict == UNDECIDED:
-                    blocked, octree_steps = occluded(ox, oy, oz, dx, dy, dz, t_on, tmax,
-                                                     inner_nodes, depth, scratch)
-                    ray_steps += octree_steps
-                steps += ray_steps
-                if not blocked:
-                    escaped += 1
-            sky_cast += traced
-            face_sky[f] = escaped / count
+            face_sky[f] = face_escaped[f] / face_rays[f]
             face_weight[f] = face_sky[f]
-            k += 1
         total_weight += face_weight[f]
     seen_weight = total_weight
     if total_weight == 0.0:
@@ -288,7 +340,7 @@ def sky_visibility(
     sky = 0.0
     for f in range(6):
         sky += face_weight[f] * face_sky[f]
-    return sky / total_weight, seen_weight, total_weight, sky_cast, steps
+    return sky / total_weight, seen_weight, total_weight
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -349,11 +401,12 @@ def trace_shadow_queue(count: int, queue, inner_nodes: np.ndarray, depth: int,
 @njit(cache=True, nogil=True)
 def new_block_scratch(depth: int, sky_rays: int, shadow_rays: int):
     """What ``bake_block`` works in: traversal and packet scratch, the shadow-ray queue, the
-    sampling strata, per-voxel face terms and the shadow rays' start points."""
+    sampling strata, per-voxel face terms, the shadow rays' start points and the sky-ray
+    queue."""
     return (new_scratch(depth), new_packet_scratch(depth), new_shadow_queue(), np.empty(6),
             new_strata(max(sky_rays, shadow_rays)), np.empty((BAKE_BLOCK, 6)),
             np.empty(BAKE_BLOCK), np.empty((BAKE_BLOCK, 6), np.int64),
-            np.empty((BAKE_BLOCK, 6, shadow_rays, 2)), np.empty((max(sky_rays, 1), 7)))
+            np.empty((BAKE_BLOCK, 6, shadow_rays, 2)), new_sky_queue(sky_rays))
 
 
 @borrowing
@@ -365,25 +418,34 @@ def bake_block(
     out_weight: np.ndarray, out_sky_rays: np.ndarray, out_shadow_rays: np.ndarray,
     out_steps: np.ndarray, work,
 ) -> None:
-    """Bake voxels ``first..last-1`` (at most ``BAKE_BLOCK``): each voxel's sky rays one by
-    one, then per sun the block's shadow rays (from the faces turned to it); those the
-    column walk leaves undecided are queued and traced as any-hit packets: parallel rays from
-    neighbouring voxels walk almost the same nodes, and a packet loads each node once for
-    all of them. ``columns`` is a ``svo.column_tops.ColumnTops`` (empty: octree only);
-    ``work`` is ``new_block_scratch``'s."""
+    """Bake voxels ``first..last-1`` (at most ``BAKE_BLOCK``): the block's sky rays, drawn
+    voxel by voxel and walked together (``trace_sky_queue``), then per sun the block's
+    shadow rays (from the faces turned to it); those the column walk leaves undecided are
+    queued and traced as any-hit packets: parallel rays from neighbouring voxels walk almost
+    the same nodes, and a packet loads each node once for all of them. ``columns`` is a
+    ``svo.column_tops.ColumnTops`` (empty: octree only); ``work`` is
+    ``new_block_scratch``'s."""
     (scratch, packet_scratch, queue, face_sky, strata, face_weight, total_weight, unblocked,
-     shadow_points, sky_ray_buffer) = work
+     shadow_points, sky_queue) = work
     origins, directions, tmins, tmaxs, ray_voxel, ray_face = queue[:6]
+    face_rays, face_escaped = sky_queue[6:]
+    sky_queued = 0
+    for i in range(first, last):
+        if sky_queued + most_sky_rays(sky_rays) > sky_queue[0].shape[0]:
+            trace_sky_queue(sky_queued, sky_queue, columns, inner_nodes, depth, scratch,
+                            first, out_steps)
+            sky_queued = 0
+        sky_queued, out_sky_rays[i], out_steps[i] = draw_sky_rays(
+            coords[i, 0], coords[i, 1], coords[i, 2], pixel_pattern(voxel_ids[i], seed),
+            faces[i], sky_rays, y_top, columns, horizons, strata, sky_queue, sky_queued,
+            i - first)
+        out_shadow_rays[i] = 0
+    trace_sky_queue(sky_queued, sky_queue, columns, inner_nodes, depth, scratch, first,
+                    out_steps)
     for i in range(first, last):
         j = i - first
-        sky, out_weight[out_rows[i]], total_weight[j], sky_cast, steps = sky_visibility(
-            coords[i, 0], coords[i, 1], coords[i, 2], pixel_pattern(voxel_ids[i], seed),
-            faces[i], sky_rays, inner_nodes, depth, y_top, columns, horizons, face_sky,
-            face_weight[j], scratch, strata, sky_ray_buffer)
-        out_sky[out_rows[i]] = sky
-        out_sky_rays[i] = sky_cast
-        out_shadow_rays[i] = 0
-        out_steps[i] = steps
+        out_sky[out_rows[i]], out_weight[out_rows[i]], total_weight[j] = sky_terms(
+            faces[i], sky_rays, face_rays[j], face_escaped[j], face_sky, face_weight[j])
     # Each face's shadow-ray start points serve every sun: drawn once.
     m, n = pattern_shape(shadow_rays)
     for i in range(first, last):

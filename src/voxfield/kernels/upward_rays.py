@@ -59,7 +59,7 @@ def _start_cell(o: float, d: float, inv: float) -> int:
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _walk_start(ox: float, dx: float, oz: float, dz: float, level_width, level_depth):
+def rising_walk_start(ox: float, dx: float, oz: float, dz: float, level_width, level_depth):
     """Where a rising walk starts: each horizontal axis as the traversal prepares it
     (``axis_setup``), the start cell, and whether the ray starts beside the footprint
     running towards it (no walk from there: nothing there tells where it enters)."""
@@ -108,8 +108,8 @@ def rising_ray_query(
     gap_ceiling = columns.gap_ceiling
     if level_width.shape[0] == 0 or not dy > MIN_RISE:
         return UNDECIDED, 0.0, 0
-    ox, dx, ix, oz, dz, iz, cx, cz, toward = _walk_start(ox, dx, oz, dz, level_width,
-                                                         level_depth)
+    ox, dx, ix, oz, dz, iz, cx, cz, toward = rising_walk_start(ox, dx, oz, dz, level_width,
+                                                                level_depth)
     iy = 1.0 / dy
     # Beside the footprint a ray is clear when it runs away from it (as every ray the walk
     # steps out of the footprint does); one that runs towards it starts in the octree.
@@ -181,8 +181,8 @@ def parallel_rays_clear(
     level_offset, level_width, level_depth = columns[1:4]
     if level_width.shape[0] == 0 or not dy > MIN_RISE:
         return False, 0, 0.0
-    ox, dx, ix, oz, dz, iz, cx, cz, toward = _walk_start(ox, dx, oz, dz, level_width,
-                                                         level_depth)
+    ox, dx, ix, oz, dz, iz, cx, cz, toward = rising_walk_start(ox, dx, oz, dz, level_width,
+                                                                level_depth)
     if toward:
         return False, 0, 0.0
     iy = 1.0 / dy
@@ -216,13 +216,13 @@ def clears_horizon(ox: float, oy: float, oz: float, dx: float, dy: float, dz: fl
     """True when the ray ``o + t·d``, ``t >= 0``, is ``CLEAR``: it starts in a column of the
     footprint at or above its top and rises more steeply than that column's horizon slope
     for its heading (``svo.horizons.horizon_slopes``, empty: never). False says nothing.
-    The heading and start column are the walk's (``_walk_start``), so a component too small
-    to invert counts as zero, as it does for the octree."""
+    The heading and start column are the walk's (``rising_walk_start``), so a component too
+    small to invert counts as zero, as it does for the octree."""
     tops, level_width, level_depth = columns[0], columns[2], columns[3]
     if horizons.shape[0] == 0 or not dy > MIN_RISE:
         return False
-    ox, dx, ix, oz, dz, iz, cx, cz, _ = _walk_start(ox, dx, oz, dz, level_width,
-                                                         level_depth)
+    ox, dx, ix, oz, dz, iz, cx, cz, _ = rising_walk_start(ox, dx, oz, dz, level_width,
+                                                          level_depth)
     if not (0 <= cx < level_width[0] and 0 <= cz < level_depth[0]):
         return False
     cell = cx * level_depth[0] + cz
