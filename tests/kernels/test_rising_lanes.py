@@ -17,15 +17,11 @@ from random_scenes import (
     random_scene,
     rising_rays,
 )
-from voxfield.kernels.ray_batch import (
-    RAY_RUN,
-    new_rising_walks,
-    occlude_ray_chunk,
-    occlude_run_in_lanes,
-)
+from voxfield.kernels.ray_batch import RAY_RUN, occlude_ray_chunk, occlude_run_in_lanes
 from voxfield.kernels.rising_lanes import (
     RISING_RAY_COLUMNS,
     lanes_walk_rising,
+    new_rising_walks,
     walk_rising_in_lanes,
     walk_rising_rays,
 )

@@ -22,8 +22,8 @@ from voxfield.kernels.lane_walk import (
 )
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
 from voxfield.kernels.rising_lanes import (
-    RISING_RAY_COLUMNS,
     lanes_walk_rising,
+    new_rising_walks,
     walk_rising_in_lanes,
 )
 from voxfield.kernels.scheduling import claim_items, new_run_queue
@@ -114,15 +114,7 @@ def trace_run_in_lanes(
     one-ray walk's branches most. ``walks``: ``new_walk_queue()``."""
     rays, walk_ints, walk_times = walks
     count = last - first
-    for j in range(count):
-        k = first + j
-        rays[j, 0] = origins[k, 0]
-        rays[j, 1] = origins[k, 1]
-        rays[j, 2] = origins[k, 2]
-        rays[j, 3] = directions[k, 0]
-        rays[j, 4] = directions[k, 1]
-        rays[j, 5] = directions[k, 2]
-        rays[j, 6] = tmin
+    copy_rays(origins, directions, first, count, rays, tmin)
     walk_queue_in_lanes(rays, count, depth, columns, walk_ints, walk_times, FROM_SURFACE, tmax)
     land_walks(rays, count, walk_ints, walk_times, columns, tmax)
     for j in range(count):
@@ -244,12 +236,18 @@ def occlude_ray_claims(
                               depth, columns, out_blocked, out_steps, scratch)
 
 
-@njit(cache=True, nogil=True)
-def new_rising_walks(count: int):
-    """Rows for ``count`` rising rays (``rising_lanes.RISING_RAY_COLUMNS``) and their walks'
-    verdicts, times and steps."""
-    return (np.zeros((count, RISING_RAY_COLUMNS)), np.empty(count, np.int64), np.empty(count),
-            np.empty(count, np.int64))
+@njit(cache=True, nogil=True, inline="always")
+def copy_rays(origins: np.ndarray, directions: np.ndarray, first: int, count: int,
+              rays: np.ndarray, bound: float) -> None:
+    """Rays ``first..first+count-1`` into the rows of a lane queue: origin, direction and
+    the walk's one bound (``tmin`` for ``walk_queue_in_lanes``, ``tmax`` for
+    ``walk_rising_in_lanes``) in column 6."""
+    for j in range(count):
+        k = first + j
+        for axis in range(3):
+            rays[j, axis] = origins[k, axis]
+            rays[j, 3 + axis] = directions[k, axis]
+        rays[j, 6] = bound
 
 
 @borrowing
@@ -264,15 +262,7 @@ def occlude_run_in_lanes(
     ``walks``: ``new_rising_walks(RAY_RUN)``."""
     rays, verdicts, times, walk_steps = walks
     count = last - first
-    for j in range(count):
-        k = first + j
-        rays[j, 0] = origins[k, 0]
-        rays[j, 1] = origins[k, 1]
-        rays[j, 2] = origins[k, 2]
-        rays[j, 3] = directions[k, 0]
-        rays[j, 4] = directions[k, 1]
-        rays[j, 5] = directions[k, 2]
-        rays[j, 6] = tmax
+    copy_rays(origins, directions, first, count, rays, tmax)
     walk_rising_in_lanes(rays, count, columns, verdicts, times, walk_steps)
     for j in range(count):
         k = first + j

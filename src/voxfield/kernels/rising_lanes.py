@@ -48,6 +48,14 @@ _FLOAT_ROWS = 8
 _INT_ROWS = 13
 
 
+@njit(cache=True, nogil=True)
+def new_rising_walks(count: int):
+    """Rows for ``count`` queued rising rays (``RISING_RAY_COLUMNS``, ``t_clear`` 0) and
+    their walks' verdicts, times and steps."""
+    return (np.zeros((count, RISING_RAY_COLUMNS)), np.empty(count, np.int64), np.empty(count),
+            np.empty(count, np.int64))
+
+
 @njit(cache=True, nogil=True, inline="always")
 def lanes_walk_rising(columns) -> bool:
     """Whether ``walk_rising_rays`` walks ``columns``' rays in lanes: where they pay

@@ -68,7 +68,7 @@ from numba import njit, prange
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
-from voxfield.kernels.rising_lanes import RISING_RAY_COLUMNS, walk_rising_rays
+from voxfield.kernels.rising_lanes import new_rising_walks, walk_rising_rays
 from voxfield.kernels.sampling import (
     cmj_sample_in,
     cmj_strata,
@@ -215,12 +215,11 @@ def most_sky_rays(sky_rays: int) -> int:
 
 @njit(cache=True, nogil=True)
 def new_sky_queue(sky_rays: int):
-    """A block's queued sky rays (``rising_lanes.RISING_RAY_COLUMNS``), the (block voxel,
-    face) each belongs to and its walk's verdict, time and steps; per block voxel and face,
-    the rays drawn and those that escaped."""
+    """A block's queued sky rays and their walks (``rising_lanes.new_rising_walks``), the
+    (block voxel, face) each belongs to, and per block voxel and face the rays drawn and
+    those that escaped."""
     n = max(SKY_QUEUE_RAYS, most_sky_rays(sky_rays))
-    return (np.zeros((n, RISING_RAY_COLUMNS)), np.empty(n, np.int64), np.empty(n, np.int64),
-            np.empty(n, np.int64), np.empty(n), np.empty(n, np.int64),
+    return (new_rising_walks(n), np.empty(n, np.int64), np.empty(n, np.int64),
             np.zeros((BAKE_BLOCK, 6), np.int64), np.zeros((BAKE_BLOCK, 6), np.int64))
 
 
@@ -234,8 +233,8 @@ def draw_sky_rays(
     ``queue``'s counts; the others are queued from row ``queued`` on, to be walked with the
     block's. ``(next free row, rays cast, steps)``. ``horizons`` are ``columns``' horizon
     slopes (``svo.horizons``; empty: none), ``strata`` is ``new_strata(sky_rays)``."""
-    rays, ray_voxel, ray_face = queue[:3]
-    face_rays, face_escaped = queue[6:]
+    walks, ray_voxel, ray_face, face_rays, face_escaped = queue
+    rays = walks[0]
     # A face looking down (−y) sees no sky and no sun above the horizon: it gets no rays.
     open_faces = 0
     for f in range(6):
@@ -292,7 +291,7 @@ def trace_sky_queue(count: int, queue, columns, inner_nodes: np.ndarray, depth: 
     (``rising_lanes.walk_rising_rays``), those it leaves undecided go on through the octree;
     each escaped ray counts for its face, its steps for its voxel (row ``first + voxel`` of
     ``out_steps``)."""
-    rays, ray_voxel, ray_face, verdicts, times, walk_steps, _, face_escaped = queue
+    (rays, verdicts, times, walk_steps), ray_voxel, ray_face, _, face_escaped = queue
     walk_rising_rays(rays, count, columns, verdicts, times, walk_steps)
     for r in range(count):
         blocked = verdicts[r] == BLOCKED
@@ -428,10 +427,10 @@ def bake_block(
     (scratch, packet_scratch, queue, face_sky, strata, face_weight, total_weight, unblocked,
      shadow_points, sky_queue) = work
     origins, directions, tmins, tmaxs, ray_voxel, ray_face = queue[:6]
-    face_rays, face_escaped = sky_queue[6:]
+    face_rays, face_escaped = sky_queue[3:]
     sky_queued = 0
     for i in range(first, last):
-        if sky_queued + most_sky_rays(sky_rays) > sky_queue[0].shape[0]:
+        if sky_queued + most_sky_rays(sky_rays) > sky_queue[0][0].shape[0]:
             trace_sky_queue(sky_queued, sky_queue, columns, inner_nodes, depth, scratch,
                             first, out_steps)
             sky_queued = 0
