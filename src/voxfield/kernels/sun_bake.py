@@ -428,19 +428,20 @@ def bake_block(
      shadow_points, sky_queue) = work
     origins, directions, tmins, tmaxs, ray_voxel, ray_face = queue[:6]
     face_rays, face_escaped = sky_queue[3:]
-    sky_queued = 0
-    for i in range(first, last):
-        if sky_queued + most_sky_rays(sky_rays) > sky_queue[0][0].shape[0]:
-            trace_sky_queue(sky_queued, sky_queue, columns, inner_nodes, depth, scratch,
-                            first, out_steps)
-            sky_queued = 0
-        sky_queued, out_sky_rays[i], out_steps[i] = draw_sky_rays(
-            coords[i, 0], coords[i, 1], coords[i, 2], pixel_pattern(voxel_ids[i], seed),
-            faces[i], sky_rays, y_top, columns, horizons, strata, sky_queue, sky_queued,
-            i - first)
-        out_shadow_rays[i] = 0
-    trace_sky_queue(sky_queued, sky_queue, columns, inner_nodes, depth, scratch, first,
-                    out_steps)
+    # The queue is walked whenever the next voxel's rays might not fit, and at the end: one
+    # call of ``trace_sky_queue``.
+    i = first
+    while i < last:
+        sky_queued = 0
+        while i < last and sky_queued + most_sky_rays(sky_rays) <= sky_queue[0][0].shape[0]:
+            sky_queued, out_sky_rays[i], out_steps[i] = draw_sky_rays(
+                coords[i, 0], coords[i, 1], coords[i, 2], pixel_pattern(voxel_ids[i], seed),
+                faces[i], sky_rays, y_top, columns, horizons, strata, sky_queue, sky_queued,
+                i - first)
+            out_shadow_rays[i] = 0
+            i += 1
+        trace_sky_queue(sky_queued, sky_queue, columns, inner_nodes, depth, scratch, first,
+                        out_steps)
     for i in range(first, last):
         j = i - first
         out_sky[out_rows[i]], out_weight[out_rows[i]], total_weight[j] = sky_terms(
