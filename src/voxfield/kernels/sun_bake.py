@@ -428,8 +428,9 @@ def bake_block(
      shadow_points, sky_queue) = work
     origins, directions, tmins, tmaxs, ray_voxel, ray_face = queue[:6]
     face_rays, face_escaped = sky_queue[3:]
-    # The queue is walked whenever the next voxel's rays might not fit, and at the end: one
-    # call of ``trace_sky_queue``.
+    # The queue is walked whenever the next voxel's rays might not fit, and at the end, from
+    # one call of ``trace_sky_queue``: LLVM copies a linked helper into its caller at every
+    # call site, and a second one made a first bake compile for 81 s instead of 62.
     i = first
     while i < last:
         sky_queued = 0
