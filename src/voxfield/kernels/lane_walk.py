@@ -342,6 +342,39 @@ def pick(condition: bool, if_true, if_false):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def unpack_record(record):
+    """A cell record's three signed 16-bit fields (``column_tops.cell_records``): its top,
+    gap floor and gap ceiling."""
+    return (record << 48) >> 48, (record << 32) >> 48, (record << 16) >> 48
+
+
+@njit(cache=True, nogil=True, inline="always")
+def lane_child(cx, cz, level, ox, ix, oz, iz, ahead_x, ahead_z, t):
+    """The child cell (x, z) that holds a lane's ray at ``t`` (``column_walk.step_down``, as
+    selects; with a zero component the mid plane is crossed at ±inf, as there). Worked out
+    at level 0 too, where the pass does not use it."""
+    child = level - 1
+    t_mid_x = (float((2 * cx + 1) << child) - ox) * ix
+    t_mid_z = (float((2 * cz + 1) << child) - oz) * iz
+    upper_x = pick(ahead_x == 1, t_mid_x <= t, t < t_mid_x)
+    upper_z = pick(ahead_z == 1, t_mid_z <= t, t < t_mid_z)
+    return 2 * cx + pick(upper_x, 1, 0), 2 * cz + pick(upper_z, 1, 0)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def next_lane_cell(cx, cz, level, still, width0, depth0, level_offset):
+    """``(outside, cell)`` for a lane's next pass: whether cell ``(cx, cz)`` of ``level`` is
+    off the footprint (a level's shape is the footprint's, halved and rounded up), and its
+    index into the pyramid (0 where the ray stopped or left)."""
+    round_level = (1 << level) - 1
+    depth = (depth0 + round_level) >> level
+    beyond = ((np.uint64(cx) >= np.uint64((width0 + round_level) >> level))
+              | (np.uint64(cz) >= np.uint64(depth)))
+    return (pick(beyond, 1, 0),
+            pick(still & (not beyond), level_offset[np.uint64(level)] + cx * depth + cz, 0))
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _lane_pass(floats: np.ndarray, ints: np.ndarray, columns, first: int) -> int:
     """One cell of ``approach_surface`` for every walking lane of the group from ``first``,
     as selects; the rays still walking. A ray that stops keeps its cell, time and steps, and
@@ -368,10 +401,7 @@ def _lane_pass(floats: np.ndarray, ints: np.ndarray, columns, first: int) -> int
         oz, iz, t, t_end = oz_[lane], iz_[lane], t_[lane], t_end_[lane]
         cx, cz, level, skips = cx_[lane], cz_[lane], level_[lane], skips_[lane]
         ahead_x, ahead_z = ahead_x_[lane], ahead_z_[lane]
-        # The record's three signed 16-bit fields (``column_tops.cell_records``).
-        top = (record << 48) >> 48
-        floor = (record << 32) >> 48
-        ceiling = (record << 16) >> 48
+        top, floor, ceiling = unpack_record(record)
         tx = (float((cx + ahead_x) << level) - ox) * ix
         tz = (float((cz + ahead_z) << level) - oz) * iz
         t_exit = min(tx, tz)
@@ -394,22 +424,17 @@ def _lane_pass(floats: np.ndarray, ints: np.ndarray, columns, first: int) -> int
         skipped = skips + 1
         climbs = ((skipped >= patience_[lane]) & (level < top_level)
                   & ((((next_cx ^ cx) | (next_cz ^ cz)) >> 1) != 0))
-        # Down to the child that holds the ray at ``t`` (``column_walk.step_down``; with a
-        # zero component the mid plane is crossed at ±inf, as there).
-        child = level - 1
-        t_mid_x = (float((2 * cx + 1) << child) - ox) * ix
-        t_mid_z = (float((2 * cz + 1) << child) - oz) * iz
-        upper_x = pick(ahead_x == 1, t_mid_x <= t, t < t_mid_x)
-        upper_z = pick(ahead_z == 1, t_mid_z <= t, t < t_mid_z)
+        # Down to the child that holds the ray at ``t``.
+        child_cx, child_cz = lane_child(cx, cz, level, ox, ix, oz, iz, ahead_x, ahead_z, t)
         across = visits & skip & (not leaves)
         down = visits & (not skip) & (level > 0)
         handed = visits & (not skip) & (level == 0)
         missed = walking & (outside | leaves)
         cx = pick(across, pick(climbs, next_cx >> 1, next_cx),
-                   pick(down, 2 * cx + pick(upper_x, 1, 0), cx))
+                   pick(down, child_cx, cx))
         cz = pick(across, pick(climbs, next_cz >> 1, next_cz),
-                   pick(down, 2 * cz + pick(upper_z, 1, 0), cz))
-        level = pick(across, pick(climbs, level + 1, level), pick(down, child, level))
+                   pick(down, child_cz, cz))
+        level = pick(across, pick(climbs, level + 1, level), pick(down, level - 1, level))
         still = walking & (not missed) & (not handed)
         cx_[lane] = cx
         cz_[lane] = cz
@@ -420,12 +445,7 @@ def _lane_pass(floats: np.ndarray, ints: np.ndarray, columns, first: int) -> int
         live_[lane] = pick(still, 1, 0)
         verdict_[lane] = pick(missed, MISSED, pick(handed, HANDED_OVER, verdict_[lane]))
         live += pick(still, 1, 0)
-        # The next pass's cell; a level's shape is the footprint's, halved and rounded up.
-        round_level = (1 << level) - 1
-        depth = (depth0 + round_level) >> level
-        beyond = ((np.uint64(cx) >= np.uint64((width0 + round_level) >> level))
-                  | (np.uint64(cz) >= np.uint64(depth)))
-        outside_[lane] = pick(beyond, 1, 0)
-        cell_[lane] = pick(still & (not beyond), level_offset[np.uint64(level)] + cx * depth + cz,
-                            0)
+        # The next pass's cell, whether it is off the footprint.
+        outside_[lane], cell_[lane] = next_lane_cell(cx, cz, level, still, width0, depth0,
+                                                    level_offset)
     return live

@@ -19,7 +19,16 @@ from numba import njit
 
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import cell_holding
-from voxfield.kernels.lane_walk import GROUPS, LANE_WALK_PAYS, LANES, SLOTS, pick
+from voxfield.kernels.lane_walk import (
+    GROUPS,
+    LANE_WALK_PAYS,
+    LANES,
+    SLOTS,
+    lane_child,
+    next_lane_cell,
+    pick,
+    unpack_record,
+)
 from voxfield.kernels.memory_hints import prefetch
 from voxfield.kernels.stack_arrays import stack_matrix
 from voxfield.kernels.traversal import face_time
@@ -242,10 +251,7 @@ def _rising_pass(floats: np.ndarray, ints: np.ndarray, columns, first: int) -> i
         oz, iz, t, tmax = oz_[lane], iz_[lane], t_[lane], tmax_[lane]
         cx, cz, level = cx_[lane], cz_[lane], level_[lane]
         ahead_x, ahead_z = ahead_x_[lane], ahead_z_[lane]
-        # The record's three signed 16-bit fields (``column_tops.cell_records``).
-        top = (record << 48) >> 48
-        floor = (record << 32) >> 48
-        ceiling = (record << 16) >> 48
+        top, floor, ceiling = unpack_record(record)
         tx = (float((cx + ahead_x) << level) - ox) * ix
         tz = (float((cz + ahead_z) << level) - oz) * iz
         t_exit = min(tx, tz)
@@ -260,22 +266,17 @@ def _rising_pass(floats: np.ndarray, ints: np.ndarray, columns, first: int) -> i
         next_cx = cx + pick(tx <= t_exit, step_x_[lane], 0)
         next_cz = cz + pick(tz <= t_exit, step_z_[lane], 0)
         climbs = (level < top_level) & ((((next_cx ^ cx) | (next_cz ^ cz)) >> 1) != 0)
-        # Down to the child that holds the ray at ``t`` (``column_walk.step_down``; with a
-        # zero component the mid plane is crossed at ±inf, as there).
-        child = level - 1
-        t_mid_x = (float((2 * cx + 1) << child) - ox) * ix
-        t_mid_z = (float((2 * cz + 1) << child) - oz) * iz
-        upper_x = pick(ahead_x == 1, t_mid_x <= t, t < t_mid_x)
-        upper_z = pick(ahead_z == 1, t_mid_z <= t, t < t_mid_z)
+        # Down to the child that holds the ray at ``t``.
+        child_cx, child_cz = lane_child(cx, cz, level, ox, ix, oz, iz, ahead_x, ahead_z, t)
         across = visits & skip & (not leaves)
         down = visits & (not skip) & (level > 0)
         below = visits & (not skip) & (level == 0)
         still = visits & (not leaves) & (not below)
         cx = pick(across, pick(climbs, next_cx >> 1, next_cx),
-                  pick(down, 2 * cx + pick(upper_x, 1, 0), cx))
+                  pick(down, child_cx, cx))
         cz = pick(across, pick(climbs, next_cz >> 1, next_cz),
-                  pick(down, 2 * cz + pick(upper_z, 1, 0), cz))
-        level = pick(across, pick(climbs, level + 1, level), pick(down, child, level))
+                  pick(down, child_cz, cz))
+        level = pick(across, pick(climbs, level + 1, level), pick(down, level - 1, level))
         cx_[lane] = cx
         cz_[lane] = cz
         level_[lane] = level
@@ -284,12 +285,6 @@ def _rising_pass(floats: np.ndarray, ints: np.ndarray, columns, first: int) -> i
         live_[lane] = pick(still, 1, 0)
         below_[lane] = pick(below, 1, below_[lane])
         live += pick(still, 1, 0)
-        # The next pass's cell; a level's shape is the footprint's, halved and rounded up.
-        round_level = (1 << level) - 1
-        depth = (depth0 + round_level) >> level
-        beyond = ((np.uint64(cx) >= np.uint64((width0 + round_level) >> level))
-                  | (np.uint64(cz) >= np.uint64(depth)))
-        outside_[lane] = pick(beyond, 1, 0)
-        cell_[lane] = pick(still & (not beyond), level_offset[np.uint64(level)] + cx * depth + cz,
-                           0)
+        outside_[lane], cell_[lane] = next_lane_cell(cx, cz, level, still, width0, depth0,
+                                                    level_offset)
     return live
