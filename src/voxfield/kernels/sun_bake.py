@@ -94,7 +94,7 @@ FACE_DOWN = 2
 #: Surface voxels per parallel task; their shadow rays towards one sun share packets, and
 #: their sky rays walk the pyramid together (``trace_sky_queue``). On the 2048² desert the
 #: bake's kernel took 0.95× the time with 128 as with 32, 0.93× with 256 (longer queues
-#: keep the lanes busier; the shadow rays alone read the same at 32 and 128).
+#: keep the lanes busier; before the sky rays were queued, 32 and 128 read the same).
 BAKE_BLOCK = 128
 #: Sky rays a block queues before it walks them (more when one voxel casts more).
 SKY_QUEUE_RAYS = 2048
@@ -259,7 +259,7 @@ def draw_sky_rays(
         m, n = pattern_shape(count)
         cmj_strata(m, n, face_pattern, strata[0], strata[1])
         cmj_strata(m, n, position_pattern, strata[2], strata[3])
-        i = -1  # sample s is column i, row j of the m×n patterns
+        i = -1  # sample s is column i, row ``row`` of the m×n patterns
         row = 0
         for s in range(count):
             i, row = next_stratum(i, row, m)
