@@ -76,11 +76,16 @@ def test_a_borrowing_helper_that_allocates_fails_to_compile_rather_than_leak():
     sun_bake.bake_block,
     primary.trace_chunk_over_columns,
     primary.trace_chunk_per_ray,
+    primary.hit_ray_batch,
     ray_batch.trace_ray_chunk,
     ray_batch.trace_run_in_lanes,
     ray_batch.occlude_ray_chunk,
     ray_batch.occlude_run_in_lanes,
-    error_aware.trace_error_aware_row,
+    error_aware.trace_pixel_chunk,
+    error_aware.trace_records,
+    error_aware.record_batch,
+    error_aware.refine_records,
+    error_aware.add_pixel_samples,
 ], ids=lambda f: f.py_func.__name__)
 def test_the_per_ray_loops_of_the_hot_kernels_borrow(helper):
     # With counting, every call updates the shared arrays' headers from every thread: the

@@ -212,6 +212,28 @@ def test_precomputed_sh_children_term_matches_the_per_child_sum(table, terrain):
         assert got == pytest.approx(expected, abs=1e-9)
 
 
+def test_sh_renders_of_one_octree_work_out_the_childrens_means_once(table, monkeypatch):
+    """The children's mean SH coefficients cover every inner node (426 MiB on the 2048²
+    mountain terrain): they are kept with the octree for its table, recoloured copies
+    included, and worked out again for another table."""
+    from voxfield.render import error_aware
+
+    calls = []
+    original = error_aware.children_sh_means
+    monkeypatch.setattr(error_aware, "children_sh_means",
+                        lambda octree, t: calls.append(t) or original(octree, t))
+    octree = build_octree(pillars(32))
+    cam = _top(octree, 8)
+    first = render_error_aware(octree, cam, table, encoding="sh", threshold=0.1)
+    again = render_error_aware(octree.recoloured(name="copy"), cam, table, encoding="sh",
+                               threshold=0.1)
+    assert len(calls) == 1
+    assert np.array_equal(first.image, again.image)
+    other = build_error_table(n_directions=32, resolution=32, oct_resolution=8, seed=1)
+    render_error_aware(octree, cam, other, encoding="sh", threshold=0.1)
+    assert len(calls) == 2
+
+
 def _sh_basis(d):
     from voxfield.error_table.spherical_harmonics import sh_basis
 
@@ -329,3 +351,145 @@ def test_context_aware_error_stops_flat_ground_refining(table):
     after = render_error_aware(scattered, cam, table, threshold=0.1, base_lod=1,
                                context_aware=True)
     assert np.all(after.maps["refined"] <= before.maps["refined"])
+
+
+def _refine_pixel_by_pixel(octree, camera, table, *, columns, threshold, decay, base_lod,
+                           max_refinements, reuse_parent, seed):
+    """The error-aware render as the thesis states it, one pixel at a time: a stack of the
+    pixel's pending rays, each traced on its own when popped (``trace_over_columns``, or
+    ``trace_ray`` without the pyramid), refined 2×2 where ``E_N(r)`` exceeds the threshold,
+    kept samples added as they come. Written without the renderer's batches, records and
+    lanes, as an oracle for them."""
+    import math
+
+    from voxfield.kernels.beam import start_distance
+    from voxfield.kernels.bundles import octree_view, view_colours
+    from voxfield.kernels.camera_rays import camera_ray
+    from voxfield.kernels.error_aware import (
+        ENCODING_OCT,
+        cell_sample,
+        designated_cell,
+        node_error,
+    )
+    from voxfield.kernels.facing_colour import seen_rgb
+    from voxfield.kernels.primary import normal_from_code, store_pixel
+    from voxfield.kernels.sampling import cmj_sample, pixel_pattern
+    from voxfield.kernels.surface_approach import trace_over_columns
+    from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
+    from voxfield.render.beam import pixel_start_bounds
+    from voxfield.svo.column_tops import no_column_tops, octree_column_tops
+
+    depth, inner = octree.depth, octree.inner_nodes
+    colors, facing = octree.kernel_colours("albedo")
+    stored = view_colours(octree_view(inner, depth, colors, facing))
+    pyramid = octree_column_tops(octree) if columns else no_column_tops()
+    beam = pixel_start_bounds(octree, camera, pyramid, stop_level=depth - base_lod,
+                              whole_pixel=True)
+    oct_map = np.ascontiguousarray(table.oct_map, np.float64)
+    sh = np.ascontiguousarray(table.sh, np.float64)
+    scratch = new_scratch(depth)
+    h, w = camera.height, camera.width
+    color, depth_map = np.zeros((h, w, 3), np.float32), np.zeros((h, w), np.float32)
+    normal = np.zeros((h, w, 3), np.float32)
+    counts = [np.zeros((h, w), kind) for kind in (np.int32, np.int32, np.int64, np.int8)]
+    refined_map, discarded_map = np.zeros((h, w), np.int32), np.zeros((h, w), np.int32)
+    fine = 1 << max_refinements
+    for row in range(h):
+        for col in range(w):
+            pattern = pixel_pattern(row * w + col, seed)
+            t_start = start_distance(beam.bound[row // beam.block, col // beam.block])
+            sums = dict(r=0.0, g=0.0, b=0.0, nx=0.0, ny=0.0, nz=0.0, t=0.0, weight=0.0)
+            rays = hits = steps_sum = refined = discarded = 0
+            finest = 127
+            # (cell x, cell y, refinement, stop level, resume time or None, finest cell,
+            # parent's entry face)
+            pending = [(0, 0, 0, depth - base_lod, None,
+                        designated_cell(0, 0, 0, fine, pattern) if reuse_parent else None,
+                        -1)]
+            while pending:
+                cx, cy, k, stop, resume, cell, parent_face = pending.pop()
+                cells = 1 << k
+                if reuse_parent:
+                    fx, fy = cell_sample(cell[0], cell[1], fine, pattern)
+                elif cells == 4:
+                    fx, fy = cmj_sample(cy * 4 + cx, 4, 4, pattern)
+                else:
+                    fx, fy = (cx + 0.5) / cells, (cy + 0.5) / cells
+                ox, oy, oz, dx, dy, dz = camera_ray(camera.params, col + fx, row + fy, w, h)
+                tmin = t_start if resume is None else max(resume, t_start)
+                if columns:
+                    node, level, t, face, steps = trace_over_columns(
+                        ox, oy, oz, dx, dy, dz, tmin, math.inf, inner, depth, stop, scratch,
+                        pyramid)
+                else:
+                    node, level, t, face, steps = trace_ray(
+                        ox, oy, oz, dx, dy, dz, tmin, math.inf, inner, depth, stop, 0.0, 0.0,
+                        scratch)
+                steps_sum += steps
+                if resume is None:
+                    rays += 1
+                elif face < 0 and t == resume:
+                    face = parent_face
+                if node == MISS:
+                    discarded += resume is not None
+                    continue
+                if k < max_refinements and level < depth and node_error(
+                        node, level, depth, inner, decay, ENCODING_OCT, oct_map, sh,
+                        dx, dy, dz) > threshold:
+                    refined += 1
+                    discarded += not reuse_parent
+                    for sub in range(4):
+                        sx, sy = 2 * cx + (sub & 1), 2 * cy + (sub >> 1)
+                        span = fine >> (k + 1)
+                        if reuse_parent and (cell[0] // span, cell[1] // span) == (sx, sy):
+                            pending.append((sx, sy, k + 1, level + 1, t, cell, face))
+                        else:
+                            pending.append((sx, sy, k + 1, level + 1, None, designated_cell(
+                                sx, sy, k + 1, fine, pattern) if reuse_parent else None, -1))
+                    continue
+                weight = 1.0 / (cells * cells)
+                hits += 1
+                cr, cg, cb = seen_rgb(stored, facing, node, dx, dy, dz)
+                ax, ay, az = normal_from_code(face)
+                for key, value in (("r", cr), ("g", cg), ("b", cb), ("t", t), ("nx", ax),
+                                   ("ny", ay), ("nz", az)):
+                    sums[key] += weight * value
+                sums["weight"] += weight
+                finest = min(finest, depth - level)
+            refined_map[row, col], discarded_map[row, col] = refined, discarded
+            store_pixel(color[row], depth_map[row], normal[row], counts[0][row],
+                        counts[1][row], counts[2][row], counts[3][row], col, sums["r"],
+                        sums["g"], sums["b"], sums["t"], sums["weight"], sums["nx"],
+                        sums["ny"], sums["nz"], rays, hits, steps_sum, finest)
+    counts[2] += beam.image_steps(h, w)  # the beam's own steps, shared out over its pixels
+    return color, depth_map, normal, counts, refined_map, discarded_map
+
+
+@pytest.mark.parametrize(("reuse_parent", "columns"), [(False, True), (True, True),
+                                                      (False, False)])
+def test_the_batched_render_is_the_pixel_by_pixel_refinement(table, terrain, reuse_parent,
+                                                             columns):
+    """The renderer traces a row's pixels in chunks of 64, refinement level by level, in
+    batches (rays to voxels walking the pyramid in SIMD lanes where they pay): a
+    150-pixel-wide view (three chunks, the last partial) with sky, pillar tops and sides,
+    where refinement stops at every level, must come out as each pixel refined on its own
+    does, to the last bit of every output."""
+    cam = Camera.look_at((60, 40, 60), (32, 6, 32), fov_deg=40, width=150, height=24)
+    options = dict(threshold=0.08, decay=0.2, base_lod=2, max_refinements=2,
+                   reuse_parent=reuse_parent, seed=5)
+    result = render_error_aware(terrain, cam, table, columns=columns, encoding="oct",
+                                **options)
+    color, depth, normal, (rays, hits, steps, lod), refined, discarded = (
+        _refine_pixel_by_pixel(terrain, cam, table, columns=columns, **options))
+    refinements = np.bincount(result.maps["refined"].ravel(), minlength=6)
+    assert np.all(refinements > 0)  # refinement stops at every level,
+    assert (result.hit_count == 0).any()  # and there is sky
+    assert np.array_equal(result.image, color)
+    assert np.array_equal(result.depth, depth)
+    assert np.array_equal(result.normal, normal)
+    assert np.array_equal(result.ray_count, rays)
+    assert np.array_equal(result.hit_count, hits)
+    assert np.array_equal(result.steps, steps)
+    assert np.array_equal(result.finest_lod, lod)
+    assert np.array_equal(result.maps["refined"], refined)
+    assert np.array_equal(result.maps["discarded"], discarded)

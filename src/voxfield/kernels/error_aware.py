@@ -33,10 +33,16 @@ from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.error_lookup import colour_error, oct_error, sh_error, sh_evaluate
 from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.node_descriptor import descriptor_first_child
-from voxfield.kernels.primary import normal_from_code, store_pixel
+from voxfield.kernels.primary import (
+    RAY_BATCH,
+    hit_ray_batch,
+    new_ray_batch,
+    normal_from_code,
+    queue_ray,
+    store_pixel,
+)
 from voxfield.kernels.sampling import cmj_sample, hash_u32, pixel_pattern
-from voxfield.kernels.scheduling import interleaved
-from voxfield.kernels.surface_approach import trace_over_columns
+from voxfield.kernels.scheduling import claim_items, new_run_queue
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
 
 ENCODING_OCT = 0
@@ -213,189 +219,334 @@ def render_error_aware_rows(
     view: OctreeView, refinement: Refinement, model: ErrorModel, beam: BeamBounds,
     out: PixelOutputs, maps: RefinementMaps, columns, threads: int = 1,
 ) -> None:
-    """Trace rows ``[row0, row1)``, dealt out to the ``threads`` in turn
+    """Trace rows ``[row0, row1)``, each thread claiming the next row from a shared counter
     (``kernels.scheduling``); ``refinement.cone_scale`` > 0 picks the base LOD by pixel
     cone; ``model.lighting_aware`` adds the bright-flag colour error to the geometric one.
     Rays at a fixed level cross the air in the column-top pyramid ``columns`` first
     (``kernels.surface_approach``; ``no_column_tops()`` for none), as the LOD renderer's do."""
-    rows = row1 - row0
-    for k in prange(rows):
-        row = row0 + interleaved(k, rows, threads)
-        render_error_aware_row(cam, width, height, row0, seed, view, refinement, model, beam,
-                               out, maps, row, columns)
+    queue = new_run_queue()
+    for _ in prange(max(threads, 1)):
+        render_claimed_rows(cam, width, height, row0, row1, seed, view, refinement, model,
+                            beam, out, maps, columns, queue)
 
 
 @njit(cache=True, nogil=True)
-def render_error_aware_row(
-    cam: np.ndarray, width: int, height: int, row0: int, seed: int, view: OctreeView,
-    refinement: Refinement, model: ErrorModel, beam: BeamBounds, out: PixelOutputs,
-    maps: RefinementMaps, row: int, columns,
+def render_claimed_rows(
+    cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
+    view: OctreeView, refinement: Refinement, model: ErrorModel, beam: BeamBounds,
+    out: PixelOutputs, maps: RefinementMaps, columns, queue: np.ndarray,
 ) -> None:
-    """One row of ``render_error_aware_rows``: its scratch, then ``trace_error_aware_row``."""
-    trace_error_aware_row(cam, width, height, row0, seed, view, refinement, model, beam, out,
-                          maps, row, columns, new_scratch(view.depth), new_ray_queue())
+    """One thread's rows of ``render_error_aware_rows``, with its scratch, ray batch and
+    records allocated once (never in the ``prange`` body, where Numba's parfor pass would
+    hoist them out of the parallel loop, shared)."""
+    scratch, batch = new_scratch(view.depth), new_ray_batch()
+    records = new_chunk_records(refinement.max_refinements)
+    while True:
+        first, last = claim_items(queue, row1 - row0, 1)
+        if first == last:
+            return
+        for first_col in range(0, width, REFINE_CHUNK):
+            trace_pixel_chunk(cam, width, height, row0, seed, view, refinement, model, beam,
+                              out, maps, row0 + first, first_col,
+                              min(width, first_col + REFINE_CHUNK), columns, scratch, batch,
+                              records)
+
+
+#: Pixels of a row whose rays are traced together, one refinement level at a time
+#: (``trace_pixel_chunk``): with up to 16 rays a pixel at the finest level, a chunk's
+#: records stay in the L2 cache (2 refinements: 1,344 rays, 194 KiB).
+REFINE_CHUNK = 64
+
+# A chunk's ray records. Integers: the pixel (in the chunk), the ray's cell and refinement,
+# its stop level, the finest cell a reused ray goes through, the record of its first child
+# (-1: a sample, or a miss), what it hit (node, level, entry face, steps) and, for a
+# continued ray, its parent's entry face.
+(_PIXEL, _CELL_X, _CELL_Y, _REFINEMENT, _STOP, _FINE_X, _FINE_Y, _CHILD, _NODE, _LEVEL,
+ _NORMAL, _STEPS, _PARENT_NORMAL) = range(13)
+# Floats: where a continued ray resumes (``_FRESH`` for a new ray), its hit time, direction.
+_TMIN, _T, _DX, _DY, _DZ = range(5)
 
 
 @njit(cache=True, nogil=True)
-def new_ray_queue():
-    """The pending rays of one pixel: cell, refinement, stop level, finest cell, start and
-    entry face."""
-    return (np.empty(_QUEUE, np.int64), np.empty(_QUEUE, np.int64),
-            np.empty(_QUEUE, np.int64), np.empty(_QUEUE, np.int64),
-            np.empty(_QUEUE, np.int64), np.empty(_QUEUE, np.int64),
-            np.empty(_QUEUE, np.float64), np.empty(_QUEUE, np.int64))
+def rays_per_pixel(max_refinements: int) -> int:
+    """The most rays a pixel can cast: ``1 + 4 + ... + 4^max_refinements``."""
+    return ((1 << (2 * max_refinements + 2)) - 1) // 3
+
+
+@njit(cache=True, nogil=True)
+def new_chunk_records(max_refinements: int):
+    """``trace_pixel_chunk``'s records: integer and float rows for every ray a chunk's pixels
+    may cast, the pixels' start distances and sample patterns, and the replay stack."""
+    count = REFINE_CHUNK * rays_per_pixel(max_refinements)
+    return (np.empty((count, 13), np.int64), np.empty((count, 5)),
+            np.empty(REFINE_CHUNK), np.empty(REFINE_CHUNK, np.int64),
+            np.empty(_QUEUE, np.int64))
 
 
 @borrowing
-def trace_error_aware_row(
+def trace_pixel_chunk(
     cam: np.ndarray, width: int, height: int, row0: int, seed: int, view: OctreeView,
     refinement: Refinement, model: ErrorModel, beam: BeamBounds, out: PixelOutputs,
-    maps: RefinementMaps, row: int, columns, scratch, queue,
+    maps: RefinementMaps, row: int, first: int, last: int, columns, scratch, batch,
+    records,
 ) -> None:
-    """One row of ``render_error_aware_rows`` with the caller's scratch and ray queue (the
-    traversal is inlined here, never straight into a ``prange`` body, where Numba's parfor
-    pass would hoist its initialisations)."""
-    inner_nodes, depth, facing = view.inner_nodes, view.depth, view.facing
-    colors = view_colours(view)
-    base_stop_level, cone_scale, max_refinements, reuse_parent = refinement
-    (threshold, decay, encoding, oct_map, sh, children_sh, lighting_aware, bright_ratio,
-     light_map, class_of, symmetry_of, symmetries, colour_weight, colour_error,
-     colour_to_voxels, context) = model
-    beam_bound, block = beam
-    out_color, out_depth, out_normal, out_rays, out_hits, out_steps, out_lod = out
-    out_refined, out_discarded = maps
+    """Pixels ``first..last-1`` of ``row``, breadth first: every pixel's first ray, then the
+    error test of each hit, which queues the 2×2 finer rays of those over the threshold;
+    then those rays, and so on. A level's rays are traced together in ray batches
+    (``kernels.primary.hit_ray_batch``: walks to voxels in SIMD lanes, settling overlapped),
+    where one pixel at a time left each ray to wait on its own walk. Each pixel's samples
+    are then added up in the order a per-pixel, depth-first refinement adds them
+    (``add_pixel_samples``), so the image is the same to the last bit."""
+    ints, floats, starts, patterns = records[0], records[1], records[2], records[3]
+    base_stop_level, _, max_refinements, reuse_parent = refinement
     fine = 1 << max_refinements  # finest cells per pixel side
+    for j in range(last - first):
+        col = first + j
+        patterns[j] = pixel_pattern(row * width + col, seed)
+        starts[j] = start_distance(beam.bound[row // beam.block, col // beam.block])
+        ints[j, _PIXEL] = j
+        ints[j, _CELL_X] = 0
+        ints[j, _CELL_Y] = 0
+        ints[j, _REFINEMENT] = 0
+        ints[j, _STOP] = base_stop_level
+        floats[j, _TMIN] = _FRESH
+        if reuse_parent:
+            ints[j, _FINE_X], ints[j, _FINE_Y] = designated_cell(0, 0, 0, fine, patterns[j])
+    level_first = np.int64(0)  # not a literal 0: one compilation of ``trace_records``
+    count = last - first
+    while level_first < count:
+        level_last = count
+        trace_records(cam, width, height, view, refinement, row, first, level_first,
+                      level_last, columns, scratch, batch, records)
+        count = refine_records(view, refinement, model, level_first, level_last, count,
+                               records)
+        level_first = level_last
+    for j in range(last - first):
+        add_pixel_samples(view, refinement, out, maps, row - row0, first + j, j, records)
+
+
+@borrowing
+def trace_records(
+    cam: np.ndarray, width: int, height: int, view: OctreeView, refinement: Refinement,
+    row: int, first: int, level_first: int, level_last: int, columns, scratch, batch,
+    records,
+) -> None:
+    """Trace records ``level_first..level_last-1`` (one refinement level of a chunk) into
+    their hit rows: rays at a fixed level in batches of ``RAY_BATCH`` that stop at one
+    level, first rays of a cone-LOD render one by one through the octree."""
+    ints, floats, starts, patterns = records[0], records[1], records[2], records[3]
+    _, cone_scale, max_refinements, reuse_parent = refinement
+    fine = 1 << max_refinements
     radius, spread = pixel_cone(cam, height)
     radius *= cone_scale
     spread *= cone_scale
-    # q_fx, q_fy: (reuse) the finest cell the ray goes through; q_tmin: where a continued
-    # ray resumes
-    q_x, q_y, q_k, q_stop, q_fx, q_fy, q_tmin, q_normal = queue
-    for col in range(width):
-        pixel = row * width + col
-        pattern = pixel_pattern(pixel, seed)
-        t_start = start_distance(beam_bound[row // block, col // block])
-        r = 0.0
-        g = 0.0
-        b = 0.0
-        nx = 0.0
-        ny = 0.0
-        nz = 0.0
-        t_sum = 0.0
-        t_weight = 0.0
-        rays = 0
-        hits = 0
-        steps_sum = 0
-        refined = 0
-        discarded = 0  # rays that hit but give no sample
-        finest = 127
-        q_x[0] = 0
-        q_y[0] = 0
-        q_k[0] = 0
-        q_stop[0] = base_stop_level
-        q_tmin[0] = _FRESH
+    # ``np.int64``: with plain literals Numba compiled ``record_batch`` a second time, for
+    # a literal -1 as the stop level.
+    queued = np.int64(0)
+    batch_stop = np.int64(-1)
+    for r in range(level_first, level_last + 1):
+        stop = ints[r, _STOP] if r < level_last else -1
+        if queued > 0 and (r == level_last or queued == RAY_BATCH or stop != batch_stop):
+            # The batch is traced from this one call: LLVM copies a callee's code into its
+            # caller at every call site, and the lane walk is large to compile.
+            record_batch(view, batch_stop, scratch, columns, batch, queued, records)
+            queued = np.int64(0)
+        if r == level_last:
+            break
+        j = ints[r, _PIXEL]
+        cx = ints[r, _CELL_X]
+        cy = ints[r, _CELL_Y]
+        k = ints[r, _REFINEMENT]
+        cells = 1 << k
         if reuse_parent:
-            q_fx[0], q_fy[0] = designated_cell(0, 0, 0, fine, pattern)
-        n = 1
-        while n > 0:
-            n -= 1
-            cx = q_x[n]
-            cy = q_y[n]
-            k = q_k[n]
-            stop = q_stop[n]
-            tmin = q_tmin[n]
-            cell_x = q_fx[n]
-            cell_y = q_fy[n]
-            cells = 1 << k
+            fx, fy = cell_sample(ints[r, _FINE_X], ints[r, _FINE_Y], fine, patterns[j])
+        elif cells == 4:
+            fx, fy = cmj_sample(cy * 4 + cx, 4, 4, patterns[j])
+        else:
+            fx = (cx + 0.5) / cells
+            fy = (cy + 0.5) / cells
+        ox, oy, oz, dx, dy, dz = camera_ray(cam, first + j + fx, row + fy, width, height)
+        floats[r, _DX] = dx
+        floats[r, _DY] = dy
+        floats[r, _DZ] = dz
+        tmin = max(floats[r, _TMIN], starts[j])
+        if tmin == math.inf:
+            # The beam showed every ray of the block misses; a walk would take no step.
+            record_hit(records, r, MISS, 0, math.inf, -1, 0)
+        elif k == 0 and cone_scale > 0.0:
+            node, level, t, normal, steps = trace_ray(
+                ox, oy, oz, dx, dy, dz, tmin, math.inf, view.inner_nodes, view.depth, stop,
+                radius, spread, scratch)
+            record_hit(records, r, node, level, t, normal, steps)
+        else:
+            batch_stop = stop
+            queue_ray(batch, queued, r, ox, oy, oz, dx, dy, dz, tmin)
+            queued += 1
+
+
+@borrowing
+def record_batch(view: OctreeView, stop_level: int, scratch, columns, batch, count: int,
+                 records) -> None:
+    """Trace the batch's ``count`` rays to ``stop_level`` and record each hit with its ray."""
+    hit_ray_batch(batch, count, view, stop_level, scratch, columns)
+    hit_ints, hit_floats = batch[4], batch[5]
+    for b in range(count):
+        record_hit(records, hit_ints[b, 0], hit_ints[b, 1], hit_ints[b, 2], hit_floats[b, 0],
+                   hit_ints[b, 3], hit_ints[b, 4])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def record_hit(records, r: int, node: int, level: int, t: float, normal: int,
+               steps: int) -> None:
+    """Ray ``r``'s hit; a continued ray that hits where it resumes entered through its
+    parent's face."""
+    ints, floats = records[0], records[1]
+    if floats[r, _TMIN] != _FRESH and normal < 0 and t == floats[r, _TMIN]:
+        normal = ints[r, _PARENT_NORMAL]
+    ints[r, _NODE] = node
+    ints[r, _LEVEL] = level
+    ints[r, _NORMAL] = normal
+    ints[r, _STEPS] = steps
+    floats[r, _T] = t
+
+
+@borrowing
+def refine_records(view: OctreeView, refinement: Refinement, model: ErrorModel,
+                   level_first: int, level_last: int, count: int, records) -> int:
+    """The error test (``E_N(r) > threshold``) of records ``level_first..level_last-1``:
+    each hit over the threshold gets four finer rays at ``count`` on (``_CHILD``), in its
+    sub-cells' order. Returns the new record count."""
+    ints, floats, patterns = records[0], records[1], records[3]
+    inner_nodes, depth = view.inner_nodes, view.depth
+    colors = view_colours(view)
+    _, _, max_refinements, reuse_parent = refinement
+    (threshold, decay, encoding, oct_map, sh, children_sh, lighting_aware, bright_ratio,
+     light_map, class_of, symmetry_of, symmetries, colour_weight, colour_error,
+     colour_to_voxels, context) = model
+    fine = 1 << max_refinements
+    for r in range(level_first, level_last):
+        ints[r, _CHILD] = -1
+        node = ints[r, _NODE]
+        level = ints[r, _LEVEL]
+        k = ints[r, _REFINEMENT]
+        if node == MISS or k >= max_refinements or level >= depth:
+            continue
+        dx, dy, dz = floats[r, _DX], floats[r, _DY], floats[r, _DZ]
+        if children_sh.shape[0] > 0:
+            error = node_error_precomputed(node, level, depth, inner_nodes, decay, sh,
+                                           children_sh, dx, dy, dz)
+        else:
+            error = node_error(node, level, depth, inner_nodes, decay, encoding, oct_map, sh,
+                               dx, dy, dz)
+        if context.shape[0] > 0 and context[node]:
+            error = 0.0  # inside a repeating surface: a shift, not a silhouette
+        if lighting_aware:
+            error += lighting_node_error(
+                node, level, depth, inner_nodes, decay, colors, bright_ratio, light_map,
+                class_of, symmetry_of, symmetries, dx, dy, dz)
+        colour_part = 0.0
+        if colour_weight > 0.0:
+            colour_part = colour_weight * colour_error[node]
+            error += colour_part
+        if error <= threshold:
+            continue
+        # Colour alone over the threshold: finer LODs average it again, so the sub-rays may
+        # go straight to the voxels.
+        finer = depth if colour_to_voxels and colour_part > threshold else level + 1
+        ints[r, _CHILD] = count
+        j = ints[r, _PIXEL]
+        cell_x, cell_y = ints[r, _FINE_X], ints[r, _FINE_Y]
+        for sub in range(4):
+            sx = 2 * ints[r, _CELL_X] + (sub & 1)
+            sy = 2 * ints[r, _CELL_Y] + (sub >> 1)
+            ints[count, _PIXEL] = j
+            ints[count, _CELL_X] = sx
+            ints[count, _CELL_Y] = sy
+            ints[count, _REFINEMENT] = k + 1
+            ints[count, _STOP] = finer
+            floats[count, _TMIN] = _FRESH
             if reuse_parent:
-                fx, fy = cell_sample(cell_x, cell_y, fine, pattern)
-            elif cells == 4:
-                fx, fy = cmj_sample(cy * 4 + cx, 4, 4, pattern)
-            else:
-                fx = (cx + 0.5) / cells
-                fy = (cy + 0.5) / cells
-            ox, oy, oz, dx, dy, dz = camera_ray(cam, col + fx, row + fy, width, height)
-            if k == 0 and cone_scale > 0.0:
-                node, level, t, normal, steps = trace_ray(
-                    ox, oy, oz, dx, dy, dz, max(tmin, t_start), math.inf, inner_nodes, depth,
-                    stop, radius, spread, scratch)
-            else:
-                node, level, t, normal, steps = trace_over_columns(
-                    ox, oy, oz, dx, dy, dz, max(tmin, t_start), math.inf, inner_nodes, depth,
-                    stop, scratch, columns)
-            if tmin == _FRESH:
-                rays += 1
-            elif normal < 0 and t == tmin:
-                normal = q_normal[n]  # entered through the parent's face
-            steps_sum += steps
-            if node == MISS:
-                if tmin != _FRESH:
-                    discarded += 1  # a continued ray: it hit its parent's node
-                continue
-            if k < max_refinements and level < depth:
-                if children_sh.shape[0] > 0:
-                    error = node_error_precomputed(node, level, depth, inner_nodes, decay,
-                                                   sh, children_sh, dx, dy, dz)
+                span = fine >> (k + 1)
+                if cell_x // span == sx and cell_y // span == sy:
+                    # The parent ray lies in this sub-cell: continue it from its hit.
+                    ints[count, _FINE_X] = cell_x
+                    ints[count, _FINE_Y] = cell_y
+                    floats[count, _TMIN] = floats[r, _T]
+                    ints[count, _PARENT_NORMAL] = ints[r, _NORMAL]
                 else:
-                    error = node_error(node, level, depth, inner_nodes, decay, encoding,
-                                       oct_map, sh, dx, dy, dz)
-                if context.shape[0] > 0 and context[node]:
-                    error = 0.0  # inside a repeating surface: a shift, not a silhouette
-                if lighting_aware:
-                    error += lighting_node_error(
-                        node, level, depth, inner_nodes, decay, colors, bright_ratio,
-                        light_map, class_of, symmetry_of, symmetries, dx, dy, dz)
-                colour_part = 0.0
-                if colour_weight > 0.0:
-                    colour_part = colour_weight * colour_error[node]
-                    error += colour_part
-                if error > threshold:
-                    # Colour alone over the threshold: finer LODs average it again, so
-                    # the sub-rays may go straight to the voxels.
-                    finer = depth if colour_to_voxels and colour_part > threshold else level + 1
-                    # Discard this sample; its cell is covered by four finer rays.
-                    refined += 1
-                    if not reuse_parent:
-                        discarded += 1
-                    for sub in range(4):
-                        sx = 2 * cx + (sub & 1)
-                        sy = 2 * cy + (sub >> 1)
-                        q_x[n] = sx
-                        q_y[n] = sy
-                        q_k[n] = k + 1
-                        q_stop[n] = finer
-                        q_tmin[n] = _FRESH
-                        if reuse_parent:
-                            span = fine >> (k + 1)
-                            if cell_x // span == sx and cell_y // span == sy:
-                                # The parent ray lies in this sub-cell: continue it.
-                                q_fx[n] = cell_x
-                                q_fy[n] = cell_y
-                                q_tmin[n] = t
-                                q_normal[n] = normal
-                            else:
-                                q_fx[n], q_fy[n] = designated_cell(sx, sy, k + 1, fine,
-                                                                   pattern)
-                        n += 1
-                    continue
-            weight = 1.0 / (cells * cells)
-            hits += 1
-            cr, cg, cb = seen_rgb(colors, facing, node, dx, dy, dz)
-            r += weight * cr
-            g += weight * cg
-            b += weight * cb
-            t_sum += weight * t
-            t_weight += weight
-            ax, ay, az = normal_from_code(normal)
-            nx += weight * ax
-            ny += weight * ay
-            nz += weight * az
-            lod = depth - level
-            if lod < finest:
-                finest = lod
-        i = row - row0
-        out_refined[i, col] = refined
-        out_discarded[i, col] = discarded
-        store_pixel(out_color[i], out_depth[i], out_normal[i], out_rays[i], out_hits[i],
-                    out_steps[i], out_lod[i], col, r, g, b, t_sum, t_weight, nx, ny, nz,
-                    rays, hits, steps_sum, finest)
+                    ints[count, _FINE_X], ints[count, _FINE_Y] = designated_cell(
+                        sx, sy, k + 1, fine, patterns[j])
+            count += 1
+    return count
+
+
+@borrowing
+def add_pixel_samples(view: OctreeView, refinement: Refinement, out: PixelOutputs,
+                      maps: RefinementMaps, i: int, col: int, j: int, records) -> None:
+    """Pixel ``j``'s rays added up into its outputs (row ``i``, column ``col``), depth first
+    from its first ray with the last sub-cell's rays first: the order a pixel refined on
+    its own adds them in (a stack of its pending rays), so the sums round alike."""
+    ints, floats, stack = records[0], records[1], records[4]
+    depth, facing = view.depth, view.facing
+    colors = view_colours(view)
+    reuse_parent = refinement.reuse_parent
+    r_sum = 0.0
+    g_sum = 0.0
+    b_sum = 0.0
+    nx = 0.0
+    ny = 0.0
+    nz = 0.0
+    t_sum = 0.0
+    t_weight = 0.0
+    rays = 0
+    hits = 0
+    steps_sum = 0
+    refined = 0
+    discarded = 0  # rays that hit but give no sample
+    finest = 127
+    stack[0] = j  # the pixel's first ray is record j
+    n = 1
+    while n > 0:
+        n -= 1
+        r = stack[n]
+        fresh = floats[r, _TMIN] == _FRESH
+        if fresh:
+            rays += 1
+        steps_sum += ints[r, _STEPS]
+        node = ints[r, _NODE]
+        if node == MISS:
+            if not fresh:
+                discarded += 1  # a continued ray: it hit its parent's node
+            continue
+        child = ints[r, _CHILD]
+        if child >= 0:
+            # Refined: this sample is discarded, its cell covered by four finer rays.
+            refined += 1
+            if not reuse_parent:
+                discarded += 1
+            for sub in range(4):
+                stack[n] = child + sub
+                n += 1
+            continue
+        cells = 1 << ints[r, _REFINEMENT]
+        weight = 1.0 / (cells * cells)
+        dx, dy, dz = floats[r, _DX], floats[r, _DY], floats[r, _DZ]
+        hits += 1
+        cr, cg, cb = seen_rgb(colors, facing, node, dx, dy, dz)
+        r_sum += weight * cr
+        g_sum += weight * cg
+        b_sum += weight * cb
+        t_sum += weight * floats[r, _T]
+        t_weight += weight
+        ax, ay, az = normal_from_code(ints[r, _NORMAL])
+        nx += weight * ax
+        ny += weight * ay
+        nz += weight * az
+        lod = depth - ints[r, _LEVEL]
+        if lod < finest:
+            finest = lod
+    maps.refined[i, col] = refined
+    maps.discarded[i, col] = discarded
+    store_pixel(out.color[i], out.depth[i], out.normal[i], out.rays[i], out.hits[i],
+                out.steps[i], out.lod[i], col, r_sum, g_sum, b_sum, t_sum, t_weight, nx, ny,
+                nz, rays, hits, steps_sum, finest)

@@ -448,6 +448,17 @@ def trace_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratc
     in turn). Walks to voxels go through the pyramid side by side in SIMD lanes
     (``lane_walk``) where it has ``cell_records`` and the target has AVX-512
     (``lane_walk.LANE_WALK_PAYS``); other walks one by one."""
+    hit_ray_batch(batch, count, view, stop_level, scratch, columns)
+    shade_batch((batch[4], batch[5]), count, sums, tallies, view_colours(view), view.facing,
+                view.depth)
+
+
+@borrowing
+def hit_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratch,
+                  columns) -> None:
+    """The first two passes of ``trace_ray_batch``: every queued ray's hit (node, level,
+    time, entry face, steps) into the batch's hits (``queue_hit``), each hit's colour
+    prefetched. The error-aware renderer decides on these before it shades."""
     rays, pixel_rows, walk_ints, walk_times = batch[0], batch[1], batch[2], batch[3]
     hits = (batch[4], batch[5])
     inner_nodes, depth, facing = view.inner_nodes, view.depth, view.facing
@@ -476,7 +487,6 @@ def trace_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratc
         if node >= 0:
             prefetch_seen(colors, facing, node)
         queue_hit(hits, k, pixel_rows[k], node, level, t, normal, steps, dx, dy, dz)
-    shade_batch(hits, count, sums, tallies, colors, facing, depth)
 
 
 @njit(cache=True, nogil=True, inline="always")

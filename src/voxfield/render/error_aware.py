@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 import time
 from dataclasses import dataclass, field
 
@@ -161,7 +162,7 @@ def render_error_aware(
     model = ErrorModel(
         float(threshold), float(decay), ENCODING_SH if encoding == "sh" else ENCODING_OCT,
         np.ascontiguousarray(table.oct_map, np.float64), np.ascontiguousarray(table.sh, np.float64),
-        children_sh_means(octree, table) if encoding == "sh" else np.zeros((0, 9)),
+        octree_children_sh_means(octree, table) if encoding == "sh" else np.zeros((0, 9)),
         bool(lighting_aware), float(bright_ratio), *light, float(colour_term),
         (octree.derived(("colour_error", channel, float(decay)),
                         lambda: colour_error(octree, decay, channel))
@@ -307,6 +308,15 @@ def colour_error(octree: Octree, decay: float, channel: str = "albedo") -> np.nd
         sums = np.add.reduceat(padded[: int(starts[-1] + counts[parents][-1])], starts)
         out[parents] += decay * sums[: len(starts)] / counts[parents]
     return out
+
+
+def octree_children_sh_means(octree: Octree, table: ErrorTable) -> np.ndarray:
+    """``children_sh_means``, worked out once per octree and table and kept with the octree:
+    on the 2048² mountain terrain it takes 1.2 s and 426 MiB, three SH renders' time."""
+    coefficients = np.ascontiguousarray(table.sh)
+    key = ("children_sh_means", coefficients.dtype.str,
+           hashlib.sha256(coefficients.tobytes()).hexdigest())
+    return octree.derived(key, lambda: children_sh_means(octree, table))
 
 
 def children_sh_means(octree: Octree, table: ErrorTable) -> np.ndarray:

@@ -32,9 +32,11 @@ from voxfield.kernels.octree_levels import child_corners
 #: Fields ``Octree.recoloured`` may change: everything but the structure.
 _COLOUR_FIELDS = frozenset({"attributes", "facing", "name"})
 #: ``Octree.derived`` keys (first item) of tables that depend on the structure alone: the
-#: column-top pyramid (``svo.column_tops``), the exposed faces (``svo.lod_colours``) and the
-#: context-aware error's repeating-surface flags (``render.error_aware``).
-STRUCTURAL_TABLES = frozenset({"column_tops", "exposed_faces", "inside_repeating_surface"})
+#: column-top pyramid (``svo.column_tops``), the exposed faces (``svo.lod_colours``), the
+#: context-aware error's repeating-surface flags and the children's mean SH error
+#: coefficients for an error table (``render.error_aware``).
+STRUCTURAL_TABLES = frozenset({"column_tops", "exposed_faces", "inside_repeating_surface",
+                               "children_sh_means"})
 
 
 @dataclass(frozen=True)
