@@ -35,6 +35,7 @@ from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.node_descriptor import descriptor_first_child
 from voxfield.kernels.primary import (
     RAY_BATCH,
+    RUN_CHUNKS,
     hit_ray_batch,
     new_ray_batch,
     normal_from_code,
@@ -215,46 +216,48 @@ class RefinementMaps(NamedTuple):
 
 @njit(parallel=True, cache=True, nogil=True)
 def render_error_aware_rows(
-    cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
-    view: OctreeView, refinement: Refinement, model: ErrorModel, beam: BeamBounds,
-    out: PixelOutputs, maps: RefinementMaps, columns, threads: int = 1,
+    cam: np.ndarray, width: int, height: int, row0: int, row1: int, pixels: np.ndarray,
+    seed: int, view: OctreeView, refinement: Refinement, model: ErrorModel,
+    beam: BeamBounds, out: PixelOutputs, maps: RefinementMaps, columns, threads: int = 1,
 ) -> None:
-    """Trace rows ``[row0, row1)``, each thread claiming the next row from a shared counter
-    (``kernels.scheduling``); ``refinement.cone_scale`` > 0 picks the base LOD by pixel
-    cone; ``model.lighting_aware`` adds the bright-flag colour error to the geometric one.
-    Rays at a fixed level cross the air in the column-top pyramid ``columns`` first
+    """Trace rows ``[row0, row1)``, their pixels in the order ``pixels`` lists them (flat
+    indices from ``row0``; ``render.primary.tile_order`` keeps neighbouring rays together),
+    each thread claiming the next ``REFINE_CHUNK`` × ``RUN_CHUNKS`` of them from a shared
+    counter (``kernels.scheduling``); ``refinement.cone_scale`` > 0 picks the base LOD by
+    pixel cone; ``model.lighting_aware`` adds the bright-flag colour error to the geometric
+    one. Rays at a fixed level cross the air in the column-top pyramid ``columns`` first
     (``kernels.surface_approach``; ``no_column_tops()`` for none), as the LOD renderer's do."""
     queue = new_run_queue()
     for _ in prange(max(threads, 1)):
-        render_claimed_rows(cam, width, height, row0, row1, seed, view, refinement, model,
-                            beam, out, maps, columns, queue)
+        render_claimed_chunks(cam, width, height, row0, pixels, seed, view, refinement,
+                              model, beam, out, maps, columns, queue)
 
 
 @njit(cache=True, nogil=True)
-def render_claimed_rows(
-    cam: np.ndarray, width: int, height: int, row0: int, row1: int, seed: int,
+def render_claimed_chunks(
+    cam: np.ndarray, width: int, height: int, row0: int, pixels: np.ndarray, seed: int,
     view: OctreeView, refinement: Refinement, model: ErrorModel, beam: BeamBounds,
     out: PixelOutputs, maps: RefinementMaps, columns, queue: np.ndarray,
 ) -> None:
-    """One thread's rows of ``render_error_aware_rows``, with its scratch, ray batch and
+    """One thread's chunks of ``render_error_aware_rows``, with its scratch, ray batch and
     records allocated once (never in the ``prange`` body, where Numba's parfor pass would
     hoist them out of the parallel loop, shared)."""
     scratch, batch = new_scratch(view.depth), new_ray_batch()
     records = new_chunk_records(refinement.max_refinements)
     while True:
-        first, last = claim_items(queue, row1 - row0, 1)
+        first, last = claim_items(queue, pixels.shape[0], REFINE_CHUNK * RUN_CHUNKS)
         if first == last:
             return
-        for first_col in range(0, width, REFINE_CHUNK):
-            trace_pixel_chunk(cam, width, height, row0, seed, view, refinement, model, beam,
-                              out, maps, row0 + first, first_col,
-                              min(width, first_col + REFINE_CHUNK), columns, scratch, batch,
-                              records)
+        for chunk in range(first, last, REFINE_CHUNK):
+            trace_pixel_chunk(cam, width, height, row0, pixels, chunk,
+                              min(last, chunk + REFINE_CHUNK), seed, view, refinement, model,
+                              beam, out, maps, columns, scratch, batch, records)
 
 
-#: Pixels of a row whose rays are traced together, one refinement level at a time
-#: (``trace_pixel_chunk``): with up to 16 rays a pixel at the finest level, a chunk's
-#: records stay in the L2 cache (2 refinements: 1,344 rays, 194 KiB).
+#: Pixels whose rays are traced together, one refinement level at a time
+#: (``trace_pixel_chunk``): an 8×8 tile in tile order. With up to 16 rays a pixel at the
+#: finest level, a chunk's records stay in the L2 cache (2 refinements: 1,344 rays,
+#: 194 KiB).
 REFINE_CHUNK = 64
 
 # A chunk's ray records. Integers: the pixel (in the chunk), the ray's cell and refinement,
@@ -276,32 +279,37 @@ def rays_per_pixel(max_refinements: int) -> int:
 @njit(cache=True, nogil=True)
 def new_chunk_records(max_refinements: int):
     """``trace_pixel_chunk``'s records: integer and float rows for every ray a chunk's pixels
-    may cast, the pixels' start distances and sample patterns, and the replay stack."""
+    may cast; the pixels' start distances, sample patterns, rows and columns; the replay
+    stack."""
     count = REFINE_CHUNK * rays_per_pixel(max_refinements)
     return (np.empty((count, 13), np.int64), np.empty((count, 5)),
             np.empty(REFINE_CHUNK), np.empty(REFINE_CHUNK, np.int64),
-            np.empty(_QUEUE, np.int64))
+            np.empty(_QUEUE, np.int64), np.empty((REFINE_CHUNK, 2), np.int64))
 
 
 @borrowing
 def trace_pixel_chunk(
-    cam: np.ndarray, width: int, height: int, row0: int, seed: int, view: OctreeView,
-    refinement: Refinement, model: ErrorModel, beam: BeamBounds, out: PixelOutputs,
-    maps: RefinementMaps, row: int, first: int, last: int, columns, scratch, batch,
+    cam: np.ndarray, width: int, height: int, row0: int, pixels: np.ndarray, first: int,
+    last: int, seed: int, view: OctreeView, refinement: Refinement, model: ErrorModel,
+    beam: BeamBounds, out: PixelOutputs, maps: RefinementMaps, columns, scratch, batch,
     records,
 ) -> None:
-    """Pixels ``first..last-1`` of ``row``, breadth first: every pixel's first ray, then the
-    error test of each hit, which queues the 2×2 finer rays of those over the threshold;
-    then those rays, and so on. A level's rays are traced together in ray batches
-    (``kernels.primary.hit_ray_batch``: walks to voxels in SIMD lanes, settling overlapped),
-    where one pixel at a time left each ray to wait on its own walk. Each pixel's samples
-    are then added up in the order a per-pixel, depth-first refinement adds them
-    (``add_pixel_samples``), so the image is the same to the last bit."""
+    """Pixels ``pixels[first:last]`` (flat indices from row ``row0``), breadth first: every
+    pixel's first ray, then the error test of each hit, which queues the 2×2 finer rays of
+    those over the threshold; then those rays, and so on. A level's rays are traced together
+    in ray batches (``kernels.primary.hit_ray_batch``: walks to voxels in SIMD lanes,
+    settling overlapped), where one pixel at a time left each ray to wait on its own walk.
+    Each pixel's samples are then added up in the order a per-pixel, depth-first refinement
+    adds them (``add_pixel_samples``), so the image is the same to the last bit."""
     ints, floats, starts, patterns = records[0], records[1], records[2], records[3]
+    places = records[5]
     base_stop_level, _, max_refinements, reuse_parent = refinement
     fine = 1 << max_refinements  # finest cells per pixel side
     for j in range(last - first):
-        col = first + j
+        row = row0 + pixels[first + j] // width
+        col = pixels[first + j] % width
+        places[j, 0] = row
+        places[j, 1] = col
         patterns[j] = pixel_pattern(row * width + col, seed)
         starts[j] = start_distance(beam.bound[row // beam.block, col // beam.block])
         ints[j, _PIXEL] = j
@@ -316,25 +324,26 @@ def trace_pixel_chunk(
     count = last - first
     while level_first < count:
         level_last = count
-        trace_records(cam, width, height, view, refinement, row, first, level_first,
-                      level_last, columns, scratch, batch, records)
+        trace_records(cam, width, height, view, refinement, level_first, level_last,
+                      columns, scratch, batch, records)
         count = refine_records(view, refinement, model, level_first, level_last, count,
                                records)
         level_first = level_last
     for j in range(last - first):
-        add_pixel_samples(view, refinement, out, maps, row - row0, first + j, j, records)
+        add_pixel_samples(view, refinement, out, maps, places[j, 0] - row0, places[j, 1], j,
+                          records)
 
 
 @borrowing
 def trace_records(
     cam: np.ndarray, width: int, height: int, view: OctreeView, refinement: Refinement,
-    row: int, first: int, level_first: int, level_last: int, columns, scratch, batch,
-    records,
+    level_first: int, level_last: int, columns, scratch, batch, records,
 ) -> None:
     """Trace records ``level_first..level_last-1`` (one refinement level of a chunk) into
     their hit rows: rays at a fixed level in batches of ``RAY_BATCH`` that stop at one
     level, first rays of a cone-LOD render one by one through the octree."""
     ints, floats, starts, patterns = records[0], records[1], records[2], records[3]
+    places = records[5]
     _, cone_scale, max_refinements, reuse_parent = refinement
     fine = 1 << max_refinements
     radius, spread = pixel_cone(cam, height)
@@ -365,7 +374,8 @@ def trace_records(
         else:
             fx = (cx + 0.5) / cells
             fy = (cy + 0.5) / cells
-        ox, oy, oz, dx, dy, dz = camera_ray(cam, first + j + fx, row + fy, width, height)
+        ox, oy, oz, dx, dy, dz = camera_ray(cam, places[j, 1] + fx, places[j, 0] + fy, width,
+                                            height)
         floats[r, _DX] = dx
         floats[r, _DY] = dy
         floats[r, _DZ] = dz

@@ -35,7 +35,7 @@ from voxfield.parallel import run_in_bands, thread_count
 from voxfield.render.adaptive import luminance, refine_by_variance
 from voxfield.render.beam import pixel_start_bounds
 from voxfield.render.camera import Camera
-from voxfield.render.primary import cone_scale_value
+from voxfield.render.primary import cone_scale_value, tile_order
 from voxfield.render.result import RenderResult
 from voxfield.svo.column_tops import no_column_tops, octree_column_tops
 from voxfield.svo.lod_colours import exposed_face_weights
@@ -184,7 +184,8 @@ def render_error_aware(
     def band(rows: slice) -> None:
         out = PixelOutputs(*result.buffers(rows))
         maps = RefinementMaps(refined[rows], discarded[rows])
-        render_error_aware_rows(cam, w, h, rows.start, rows.stop, seed, view, refinement,
+        render_error_aware_rows(cam, w, h, rows.start, rows.stop,
+                                tile_order(rows.stop - rows.start, w), seed, view, refinement,
                                 model, BeamBounds(beam.bound, beam.block), out, maps, pyramid,
                                 numba.get_num_threads())
 
