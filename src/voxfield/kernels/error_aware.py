@@ -35,7 +35,6 @@ from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.node_descriptor import descriptor_first_child
 from voxfield.kernels.primary import (
     RAY_BATCH,
-    RUN_CHUNKS,
     hit_ray_batch,
     new_ray_batch,
     normal_from_code,
@@ -222,11 +221,13 @@ def render_error_aware_rows(
 ) -> None:
     """Trace rows ``[row0, row1)``, their pixels in the order ``pixels`` lists them (flat
     indices from ``row0``; ``render.primary.tile_order`` keeps neighbouring rays together),
-    each thread claiming the next ``REFINE_CHUNK`` × ``RUN_CHUNKS`` of them from a shared
-    counter (``kernels.scheduling``); ``refinement.cone_scale`` > 0 picks the base LOD by
-    pixel cone; ``model.lighting_aware`` adds the bright-flag colour error to the geometric
-    one. Rays at a fixed level cross the air in the column-top pyramid ``columns`` first
-    (``kernels.surface_approach``; ``no_column_tops()`` for none), as the LOD renderer's do."""
+    each thread claiming the next ``REFINE_CHUNK`` of them from a shared counter
+    (``kernels.scheduling``): single tiles, not the LOD renderers' strips of 8, which left
+    one thread idle in a band of a 64-pixel-wide probe face. ``refinement.cone_scale`` > 0
+    picks the base LOD by pixel cone; ``model.lighting_aware`` adds the bright-flag colour
+    error to the geometric one. Rays at a fixed level cross the air in the column-top
+    pyramid ``columns`` first (``kernels.surface_approach``; ``no_column_tops()`` for none),
+    as the LOD renderer's do."""
     queue = new_run_queue()
     for _ in prange(max(threads, 1)):
         render_claimed_chunks(cam, width, height, row0, pixels, seed, view, refinement,
@@ -245,13 +246,11 @@ def render_claimed_chunks(
     scratch, batch = new_scratch(view.depth), new_ray_batch()
     records = new_chunk_records(refinement.max_refinements)
     while True:
-        first, last = claim_items(queue, pixels.shape[0], REFINE_CHUNK * RUN_CHUNKS)
+        first, last = claim_items(queue, pixels.shape[0], REFINE_CHUNK)
         if first == last:
             return
-        for chunk in range(first, last, REFINE_CHUNK):
-            trace_pixel_chunk(cam, width, height, row0, pixels, chunk,
-                              min(last, chunk + REFINE_CHUNK), seed, view, refinement, model,
-                              beam, out, maps, columns, scratch, batch, records)
+        trace_pixel_chunk(cam, width, height, row0, pixels, first, last, seed, view,
+                          refinement, model, beam, out, maps, columns, scratch, batch, records)
 
 
 #: Pixels whose rays are traced together, one refinement level at a time
