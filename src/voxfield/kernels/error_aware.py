@@ -275,15 +275,27 @@ def rays_per_pixel(max_refinements: int) -> int:
     return ((1 << (2 * max_refinements + 2)) - 1) // 3
 
 
+class ChunkRecords(NamedTuple):
+    """What ``trace_pixel_chunk`` keeps of a chunk: rows for every ray its pixels may cast
+    (``ints`` and ``floats``, the columns above), the pixels' start distances, sample
+    patterns and image places (row, column), and the stack ``add_pixel_samples`` replays a
+    pixel's rays with."""
+
+    ints: np.ndarray
+    floats: np.ndarray
+    starts: np.ndarray
+    patterns: np.ndarray
+    places: np.ndarray
+    stack: np.ndarray
+
+
 @njit(cache=True, nogil=True)
-def new_chunk_records(max_refinements: int):
-    """``trace_pixel_chunk``'s records: integer and float rows for every ray a chunk's pixels
-    may cast; the pixels' start distances, sample patterns, rows and columns; the replay
-    stack."""
+def new_chunk_records(max_refinements: int) -> ChunkRecords:
+    """``ChunkRecords`` for chunks of ``REFINE_CHUNK`` pixels."""
     count = REFINE_CHUNK * rays_per_pixel(max_refinements)
-    return (np.empty((count, 13), np.int64), np.empty((count, 5)),
-            np.empty(REFINE_CHUNK), np.empty(REFINE_CHUNK, np.int64),
-            np.empty(_QUEUE, np.int64), np.empty((REFINE_CHUNK, 2), np.int64))
+    return ChunkRecords(np.empty((count, 13), np.int64), np.empty((count, 5)),
+                        np.empty(REFINE_CHUNK), np.empty(REFINE_CHUNK, np.int64),
+                        np.empty((REFINE_CHUNK, 2), np.int64), np.empty(_QUEUE, np.int64))
 
 
 @borrowing
@@ -291,7 +303,7 @@ def trace_pixel_chunk(
     cam: np.ndarray, width: int, height: int, row0: int, pixels: np.ndarray, first: int,
     last: int, seed: int, view: OctreeView, refinement: Refinement, model: ErrorModel,
     beam: BeamBounds, out: PixelOutputs, maps: RefinementMaps, columns, scratch, batch,
-    records,
+    records: ChunkRecords,
 ) -> None:
     """Pixels ``pixels[first:last]`` (flat indices from row ``row0``), breadth first: every
     pixel's first ray, then the error test of each hit, which queues the 2×2 finer rays of
@@ -300,8 +312,8 @@ def trace_pixel_chunk(
     settling overlapped), where one pixel at a time left each ray to wait on its own walk.
     Each pixel's samples are then added up in the order a per-pixel, depth-first refinement
     adds them (``add_pixel_samples``), so the image is the same to the last bit."""
-    ints, floats, starts, patterns = records[0], records[1], records[2], records[3]
-    places = records[5]
+    ints, floats, places = records.ints, records.floats, records.places
+    starts, patterns = records.starts, records.patterns
     base_stop_level, _, max_refinements, reuse_parent = refinement
     fine = 1 << max_refinements  # finest cells per pixel side
     for j in range(last - first):
@@ -336,13 +348,13 @@ def trace_pixel_chunk(
 @borrowing
 def trace_records(
     cam: np.ndarray, width: int, height: int, view: OctreeView, refinement: Refinement,
-    level_first: int, level_last: int, columns, scratch, batch, records,
+    level_first: int, level_last: int, columns, scratch, batch, records: ChunkRecords,
 ) -> None:
     """Trace records ``level_first..level_last-1`` (one refinement level of a chunk) into
     their hit rows: rays at a fixed level in batches of ``RAY_BATCH`` that stop at one
     level, first rays of a cone-LOD render one by one through the octree."""
-    ints, floats, starts, patterns = records[0], records[1], records[2], records[3]
-    places = records[5]
+    ints, floats, places = records.ints, records.floats, records.places
+    starts, patterns = records.starts, records.patterns
     _, cone_scale, max_refinements, reuse_parent = refinement
     fine = 1 << max_refinements
     radius, spread = pixel_cone(cam, height)
@@ -395,7 +407,7 @@ def trace_records(
 
 @borrowing
 def record_batch(view: OctreeView, stop_level: int, scratch, columns, batch, count: int,
-                 records) -> None:
+                 records: ChunkRecords) -> None:
     """Trace the batch's ``count`` rays to ``stop_level`` and record each hit with its ray."""
     hit_ray_batch(batch, count, view, stop_level, scratch, columns)
     hit_ints, hit_floats = batch[4], batch[5]
@@ -405,11 +417,11 @@ def record_batch(view: OctreeView, stop_level: int, scratch, columns, batch, cou
 
 
 @njit(cache=True, nogil=True, inline="always")
-def record_hit(records, r: int, node: int, level: int, t: float, normal: int,
+def record_hit(records: ChunkRecords, r: int, node: int, level: int, t: float, normal: int,
                steps: int) -> None:
     """Ray ``r``'s hit; a continued ray that hits where it resumes entered through its
     parent's face."""
-    ints, floats = records[0], records[1]
+    ints, floats = records.ints, records.floats
     if floats[r, _TMIN] != _FRESH and normal < 0 and t == floats[r, _TMIN]:
         normal = ints[r, _PARENT_NORMAL]
     ints[r, _NODE] = node
@@ -421,11 +433,12 @@ def record_hit(records, r: int, node: int, level: int, t: float, normal: int,
 
 @borrowing
 def refine_records(view: OctreeView, refinement: Refinement, model: ErrorModel,
-                   level_first: int, level_last: int, count: int, records) -> int:
+                   level_first: int, level_last: int, count: int,
+                   records: ChunkRecords) -> int:
     """The error test (``E_N(r) > threshold``) of records ``level_first..level_last-1``:
     each hit over the threshold gets four finer rays at ``count`` on (``_CHILD``), in its
     sub-cells' order. Returns the new record count."""
-    ints, floats, patterns = records[0], records[1], records[3]
+    ints, floats, patterns = records.ints, records.floats, records.patterns
     inner_nodes, depth = view.inner_nodes, view.depth
     colors = view_colours(view)
     _, _, max_refinements, reuse_parent = refinement
@@ -491,11 +504,12 @@ def refine_records(view: OctreeView, refinement: Refinement, model: ErrorModel,
 
 @borrowing
 def add_pixel_samples(view: OctreeView, refinement: Refinement, out: PixelOutputs,
-                      maps: RefinementMaps, i: int, col: int, j: int, records) -> None:
+                      maps: RefinementMaps, i: int, col: int, j: int,
+                      records: ChunkRecords) -> None:
     """Pixel ``j``'s rays added up into its outputs (row ``i``, column ``col``), depth first
     from its first ray with the last sub-cell's rays first: the order a pixel refined on
     its own adds them in (a stack of its pending rays), so the sums round alike."""
-    ints, floats, stack = records[0], records[1], records[4]
+    ints, floats, stack = records.ints, records.floats, records.stack
     depth, facing = view.depth, view.facing
     colors = view_colours(view)
     reuse_parent = refinement.reuse_parent
