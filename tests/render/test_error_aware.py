@@ -471,9 +471,9 @@ def test_the_batched_render_is_the_pixel_by_pixel_refinement(table, terrain, reu
                                                              columns):
     """The renderer traces 8×8 tiles of pixels, refinement level by level, in batches (rays
     to voxels walking the pyramid in SIMD lanes where they pay): a 150×24 view (three bands
-    of 19 tiles, the last 6 pixels wide, so that chunks of 64 pixels span two tiles there)
-    with sky, pillar tops and sides, where refinement stops at every level, must come out as
-    each pixel refined on its own does, to the last bit of every output."""
+    of 19 tiles, the last 6 pixels wide: a partial chunk of 48 pixels) with sky, pillar
+    tops and sides, where refinement stops at every level, must come out as each pixel
+    refined on its own does, to the last bit of every output."""
     cam = Camera.look_at((60, 40, 60), (32, 6, 32), fov_deg=40, width=150, height=24)
     options = dict(threshold=0.08, decay=0.2, base_lod=2, max_refinements=2,
                    reuse_parent=reuse_parent, seed=5)
