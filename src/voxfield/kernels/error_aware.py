@@ -25,7 +25,6 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from voxfield.kernels.beam import start_distance
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs, view_colours
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
@@ -35,6 +34,7 @@ from voxfield.kernels.facing_colour import seen_rgb
 from voxfield.kernels.node_descriptor import descriptor_first_child
 from voxfield.kernels.primary import (
     RAY_BATCH,
+    block_start,
     hit_ray_batch,
     new_ray_batch,
     normal_from_code,
@@ -215,13 +215,13 @@ class RefinementMaps(NamedTuple):
 
 @njit(parallel=True, cache=True, nogil=True)
 def render_error_aware_rows(
-    cam: np.ndarray, width: int, height: int, row0: int, row1: int, pixels: np.ndarray,
-    seed: int, view: OctreeView, refinement: Refinement, model: ErrorModel,
-    beam: BeamBounds, out: PixelOutputs, maps: RefinementMaps, columns, threads: int = 1,
+    cam: np.ndarray, width: int, height: int, row0: int, pixels: np.ndarray, seed: int,
+    view: OctreeView, refinement: Refinement, model: ErrorModel, beam: BeamBounds,
+    out: PixelOutputs, maps: RefinementMaps, columns, threads: int = 1,
 ) -> None:
-    """Trace rows ``[row0, row1)``, their pixels in the order ``pixels`` lists them (flat
-    indices from ``row0``; ``render.primary.tile_order`` keeps neighbouring rays together),
-    each thread claiming the next ``REFINE_CHUNK`` of them from a shared counter
+    """Trace the pixels ``pixels`` lists, in that order (flat indices from row ``row0``, a
+    band's; ``render.primary.tile_order`` keeps neighbouring rays together), each thread
+    claiming the next ``REFINE_CHUNK`` of them from a shared counter
     (``kernels.scheduling``): single tiles, not the LOD renderers' strips of 8, which left
     one thread idle in a band of a 64-pixel-wide probe face. ``refinement.cone_scale`` > 0
     picks the base LOD by pixel cone; ``model.lighting_aware`` adds the bright-flag colour
@@ -322,7 +322,7 @@ def trace_pixel_chunk(
         places[j, 0] = row
         places[j, 1] = col
         patterns[j] = pixel_pattern(row * width + col, seed)
-        starts[j] = start_distance(beam.bound[row // beam.block, col // beam.block])
+        starts[j] = block_start(beam.bound, beam.block, row, col)
         ints[j, _PIXEL] = j
         ints[j, _CELL_X] = 0
         ints[j, _CELL_Y] = 0

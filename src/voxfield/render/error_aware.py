@@ -184,9 +184,9 @@ def render_error_aware(
     def band(rows: slice) -> None:
         out = PixelOutputs(*result.buffers(rows))
         maps = RefinementMaps(refined[rows], discarded[rows])
-        render_error_aware_rows(cam, w, h, rows.start, rows.stop,
-                                tile_order(rows.stop - rows.start, w), seed, view, refinement,
-                                model, BeamBounds(beam.bound, beam.block), out, maps, pyramid,
+        render_error_aware_rows(cam, w, h, rows.start, tile_order(rows.stop - rows.start, w),
+                                seed, view, refinement, model,
+                                BeamBounds(beam.bound, beam.block), out, maps, pyramid,
                                 numba.get_num_threads())
 
     result.seconds = beam.seconds + run_in_bands(h, band, label="error-aware", threads=threads,
