@@ -10,6 +10,7 @@ from numba.core.errors import TypingError
 
 from voxfield.kernels import (
     error_aware,
+    lane_walk,
     primary,
     ray_batch,
     rising_lanes,
@@ -68,6 +69,9 @@ def test_a_borrowing_helper_that_allocates_fails_to_compile_rather_than_leak():
     surface_approach.walk_to_surface,
     surface_approach.walk_to_voxels,
     surface_approach.finish_in_octree,
+    lane_walk.walk_to_voxels_in_lanes,
+    lane_walk.walk_to_nodes_in_lanes,
+    lane_walk.walk_queue_in_lanes,
     rising_lanes.walk_rising_rays,
     rising_lanes.walk_rising_in_lanes,
     sun_bake.draw_sky_rays,

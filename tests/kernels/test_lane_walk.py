@@ -21,7 +21,7 @@ from voxfield.kernels.lane_walk import (
     compiles_wide_vectors,
     land_walks,
     walk_queue_in_lanes,
-    walk_to_voxels_in_lanes,
+    walk_to_nodes_in_lanes,
 )
 from voxfield.kernels.ray_batch import new_walk_queue, trace_ray_chunk, trace_run_in_lanes
 from voxfield.kernels.surface_approach import (
@@ -35,12 +35,16 @@ from voxfield.kernels.traversal import new_scratch
 
 
 @njit
-def _lane_walks(rays, per_call, depth, columns, walk_ints, walk_times):
+def _lane_walks(rays, per_call, depth, columns, walk_ints, walk_times, finest=0):
     n = rays.shape[0]
     for first in range(0, n, per_call):
         count = min(per_call, n - first)
-        walk_to_voxels_in_lanes(rays[first:first + count], count, depth, columns,
-                                walk_ints[first:first + count], walk_times[first:first + count])
+        rows = slice(first, first + count)
+        walk_to_nodes_in_lanes(rays[rows], count, depth, finest, columns, walk_ints[rows],
+                               walk_times[rows])
+        if walk_ints.shape[1] > 4:
+            land_walks(rays[rows], count, walk_ints[rows], walk_times[rows], columns,
+                       math.inf, finest)
 
 
 @njit
@@ -51,16 +55,16 @@ def _queue_walks(rays, per_call, depth, columns, walk_ints, walk_times, start, t
         rows = slice(first, first + count)
         walk_queue_in_lanes(rays[rows], count, depth, columns, walk_ints[rows],
                             walk_times[rows], start, tmax)
-        land_walks(rays[rows], count, walk_ints[rows], walk_times[rows], columns, tmax)
+        land_walks(rays[rows], count, walk_ints[rows], walk_times[rows], columns, tmax, 0)
 
 
 @njit
 def _one_ray_walks(rays, depth, columns, walk_ints, walk_times, start=FROM_CAMERA,
-                   tmax=math.inf):
+                   tmax=math.inf, finest=0):
     for k in range(rays.shape[0]):
         verdict, t, cells, cx, cz, y, t_hit, normal = walk_over_columns(
             rays[k, 0], rays[k, 1], rays[k, 2], rays[k, 3], rays[k, 4], rays[k, 5], rays[k, 6],
-            tmax, depth, depth, columns, start)
+            tmax, depth, depth - finest, columns, start)
         walk_ints[k, 0] = verdict
         walk_ints[k, 1] = cells
         walk_ints[k, 2] = cx
@@ -107,6 +111,37 @@ def test_lane_walks_are_the_one_ray_walks(scene):
     landed = (verdicts == HANDED_OVER) & (expected_ints[:, 2] >= 0)
     assert landed.sum() > n // 4 and (verdicts == MISSED).sum() > n // 10
     assert expected_ints[:, 1].max() > 8  # long walks too: climbs, descents, gaps
+
+
+@pytest.mark.parametrize("scene", [
+    overhanging_terrain(seed=9, size=45), hollow_shell_terrain(seed=6, size=40),
+    pillar_field(seed=3, size=44),
+], ids=lambda scene: scene.name)
+def test_lane_walks_to_coarser_nodes_are_the_one_ray_walks(scene):
+    """Walks to nodes of side 2, 4 and 8 (the error-aware renderer's first rays, LOD
+    renders) round the cells' tops and gaps out to whole nodes and stop a level higher, as
+    the one-ray walk does: verdict, cells, hand-over cell, time and the node the pyramid
+    lands on, bit for bit."""
+    octree, voxels, columns = octree_and_columns(scene)
+    rays = _rays(voxels, 500, seed=len(voxels) + 2)
+    n = len(rays)
+    cells_walked = []
+    for finest in (1, 2, 3):
+        expected_ints = np.zeros((n, 6), np.int64)
+        expected_times = np.zeros((n, 2))
+        _one_ray_walks(rays, octree.depth, columns, expected_ints, expected_times,
+                       finest=finest)
+        for per_call in (SLOTS, 37):
+            walk_ints = np.full((n, 6), -7, np.int64)
+            walk_times = np.full((n, 2), -7.0)
+            _lane_walks(rays, per_call, octree.depth, columns, walk_ints, walk_times, finest)
+            np.testing.assert_array_equal(walk_ints, expected_ints)
+            assert np.array_equal(walk_times, expected_times)
+        landed = expected_ints[:, 4] >= 0
+        assert landed.sum() > n // 10 and (expected_ints[:, 0] == MISSED).sum() > n // 10
+        cells_walked.append(expected_ints[:, 1].sum())
+    # Coarser nodes: the walk stops higher up, after fewer cells.
+    assert cells_walked[0] > cells_walked[1] > cells_walked[2]
 
 
 @pytest.mark.parametrize("scene", [

@@ -21,6 +21,7 @@ from voxfield.kernels.lane_walk import (
     record_landing,
     record_walk,
     walk_of,
+    walk_to_nodes_in_lanes,
     walk_to_voxels_in_lanes,
 )
 from voxfield.kernels.packet_traversal import PACKET_RAYS, new_packet_scratch, trace_packet
@@ -35,8 +36,8 @@ from voxfield.kernels.scheduling import claim_items, new_run_queue
 from voxfield.kernels.surface_approach import (
     FROM_CAMERA,
     settle_walk,
-    walk_over_columns,
     walk_plan,
+    walk_primary_at_any_level,
     walk_primary_over_columns,
 )
 from voxfield.kernels.traversal import MISS, new_scratch, trace_ray
@@ -445,9 +446,10 @@ def trace_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratc
     hit its colour, so each pass finds the last one's loads done: a batch's cache misses
     overlap instead of each stalling its ray (mountain terrain, one and 16 rays a pixel,
     2048² and 512², top and 45° views: 1.05-1.20× as fast as tracing and shading each ray
-    in turn). Walks to voxels go through the pyramid side by side in SIMD lanes
-    (``lane_walk``) where it has ``cell_records`` and the target has AVX-512
-    (``lane_walk.LANE_WALK_PAYS``); other walks one by one."""
+    in turn). The walks go through the pyramid side by side in SIMD lanes (``lane_walk``)
+    where it has ``cell_records`` and the target has AVX-512 (``lane_walk.LANE_WALK_PAYS``),
+    to voxels through a walk compiled for LOD 0, to coarser nodes through one for any
+    level; otherwise one by one."""
     hit_ray_batch(batch, count, view, stop_level, scratch, columns)
     shade_batch((batch[4], batch[5]), count, sums, tallies, view_colours(view), view.facing,
                 view.depth)
@@ -465,15 +467,18 @@ def hit_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratch,
     colors = view_colours(view)
     if LANE_WALK_PAYS:
         # (A constant: Numba compiles one of the two branches.)
-        if walk_plan(0.0, depth, stop_level, columns, FROM_CAMERA)[0] == 0 and (
-                columns.cell_records.shape[0] > 0):
+        finest = walk_plan(0.0, depth, stop_level, columns, FROM_CAMERA)[0]
+        if finest == 0 and columns.cell_records.shape[0] > 0:
             walk_to_voxels_in_lanes(rays, count, depth, columns, walk_ints, walk_times)
-            land_walks(rays, count, walk_ints, walk_times, columns, math.inf)
+            land_walks(rays, count, walk_ints, walk_times, columns, math.inf, 0)
+        elif finest > 0 and columns.cell_records.shape[0] > 0:
+            walk_to_nodes_in_lanes(rays, count, depth, finest, columns, walk_ints, walk_times)
+            land_walks(rays, count, walk_ints, walk_times, columns, math.inf, finest)
         else:
             for k in range(count):
-                store_walk(walk_ints, walk_times, k, walk_over_columns(
+                store_walk(walk_ints, walk_times, k, walk_primary_at_any_level(
                     rays[k, 0], rays[k, 1], rays[k, 2], rays[k, 3], rays[k, 4], rays[k, 5],
-                    rays[k, 6], math.inf, depth, stop_level, columns))
+                    rays[k, 6], depth, stop_level, columns))
     else:
         for k in range(count):
             store_walk(walk_ints, walk_times, k, walk_primary_over_columns(

@@ -116,7 +116,7 @@ def trace_run_in_lanes(
     count = last - first
     copy_rays(origins, directions, first, count, rays, tmin)
     walk_queue_in_lanes(rays, count, depth, columns, walk_ints, walk_times, FROM_SURFACE, tmax)
-    land_walks(rays, count, walk_ints, walk_times, columns, tmax)
+    land_walks(rays, count, walk_ints, walk_times, columns, tmax, 0)
     for j in range(count):
         node, level, t, normal, steps = settle_walk(
             rays[j, 0], rays[j, 1], rays[j, 2], rays[j, 3], rays[j, 4], rays[j, 5], tmin, tmax,
