@@ -1,4 +1,4 @@
-"""The LOD-0 column-pyramid walk of many rays at once, one ray per SIMD lane.
+"""The column-pyramid walk of many rays at once, one ray per SIMD lane.
 
 ``surface_approach.approach_surface`` walks one ray: in every cell it asks "above the
 cell, in its gap, or down a level?", the answers change from cell to cell and from ray to
@@ -6,9 +6,9 @@ ray, and each one the branch predictor gets wrong stalls the walk. Here ``LANES`
 one cell each per pass and every decision is a select, so the compiler turns the pass into
 vector instructions (one gather of the cells' records, masked moves) with no branch on a
 ray's route. In a render's batch (``walk_to_voxels_in_lanes``, ``walk_to_nodes_in_lanes``
-for coarser nodes) a ray that has stopped
-idles in its lane until its group's pass finds none walking; in a queue of ray queries
-(``walk_queue_in_lanes``) its lane takes the next ray. ``GROUPS`` groups step in turn,
+for coarser nodes) a ray that has stopped idles in its lane until its group's pass finds
+none walking; in a queue of ray queries (``walk_queue_in_lanes``) its lane takes the next
+ray. ``GROUPS`` groups step in turn,
 each pass prefetching the cells its group reads next while the other groups step. Cells,
 times, verdicts and step counts are ``approach_surface``'s, bit for bit: the same
 operations on the same values.
