@@ -308,7 +308,7 @@ def trace_pixel_chunk(
     """Pixels ``pixels[first:last]`` (flat indices from row ``row0``), breadth first: every
     pixel's first ray, then the error test of each hit, which queues the 2×2 finer rays of
     those over the threshold; then those rays, and so on. A level's rays are traced together
-    in ray batches (``kernels.primary.hit_ray_batch``: walks to voxels in SIMD lanes,
+    in ray batches (``kernels.primary.hit_ray_batch``: walks in SIMD lanes,
     settling overlapped), where one pixel at a time left each ray to wait on its own walk.
     Each pixel's samples are then added up in the order a per-pixel, depth-first refinement
     adds them (``add_pixel_samples``), so the image is the same to the last bit."""
