@@ -8,10 +8,9 @@ vector instructions (one gather of the cells' records, masked moves) with no bra
 ray's route. In a render's batch (``walk_to_voxels_in_lanes``, ``walk_to_nodes_in_lanes``
 for coarser nodes) a ray that has stopped idles in its lane until its group's pass finds
 none walking; in a queue of ray queries (``walk_queue_in_lanes``) its lane takes the next
-ray. ``GROUPS`` groups step in turn,
-each pass prefetching the cells its group reads next while the other groups step. Cells,
-times, verdicts and step counts are ``approach_surface``'s, bit for bit: the same
-operations on the same values.
+ray. ``GROUPS`` groups step in turn, each pass prefetching the cells its group reads next
+while the other groups step. Cells, times, verdicts and step counts are
+``approach_surface``'s, bit for bit: the same operations on the same values.
 
 Two things make the pass vectorise. Its state lives in ``stack_arrays.stack_matrix``
 arrays, which the compiler knows no argument can overlap (arrays passed in might, and a
@@ -111,8 +110,8 @@ def walk_to_nodes_in_lanes(rays: np.ndarray, count: int, depth: int, finest: int
     what its settling reads prefetched (``_record_lane``).
 
     Walked one by one instead, LOD-1 and LOD-2 renders of the 2048² mountain terrain (512²,
-    16 rays a pixel) took 1.17-1.20× the time from the top and at 45°, 1.13× with one ray a
-    pixel."""
+    16 rays a pixel) took 1.17-1.20× the time from the top and at 45°, 1.09-1.13× with one
+    ray a pixel."""
     _walk_batch_in_lanes(rays, count, depth, finest, columns, walk_ints, walk_times)
 
 
@@ -145,13 +144,13 @@ def _walk_batch_in_lanes(rays: np.ndarray, count: int, depth: int, finest: int, 
 def walk_queue_in_lanes(rays: np.ndarray, count: int, depth: int, columns,
                         walk_ints: np.ndarray, walk_times: np.ndarray, start: int,
                         tmax: float) -> None:
-    """``walk_to_nodes_in_lanes`` to voxels (LOD 0) for any rays over ``[tmin, tmax)``, started as
-    ``walk_plan`` starts them from ``start`` (``surface_approach.FROM_CAMERA`` or
+    """``walk_to_nodes_in_lanes`` to voxels (LOD 0) for any rays over ``[tmin, tmax)``, started
+    as ``walk_plan`` starts them from ``start`` (``surface_approach.FROM_CAMERA`` or
     ``FROM_SURFACE``), with a lane whose ray stops taking the next ray not yet walked
-    (``_refill_group``): the lanes stay busy until the queue runs dry, where a batch waits
-    for its longest walk. Secondary rays on the 2048² mountain terrain (a million from
-    voxel tops, one thread): the walks took 0.25-0.29× the one-ray walk's time in 256-ray
-    queues, 0.45-0.47× in 64-ray batches without refills."""
+    (``_refill_group``): the lanes stay busy until the queue runs dry, where a batch waits for
+    its longest walk. Secondary rays on the 2048² mountain terrain (a million from voxel tops,
+    one thread): the walks took 0.25-0.29× the one-ray walk's time in 256-ray queues, 0.45-0.47×
+    in 64-ray batches without refills."""
     floats = stack_matrix(_FLOAT_ROWS, SLOTS, np.float64)
     ints = stack_matrix(_INT_ROWS, SLOTS, np.int64)
     walking = stack_matrix(1, GROUPS, np.int64)[0]
