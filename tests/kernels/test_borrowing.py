@@ -9,6 +9,7 @@ from numba import njit
 from numba.core.errors import TypingError
 
 from voxfield.kernels import (
+    cone_walk,
     error_aware,
     lane_walk,
     primary,
@@ -69,6 +70,9 @@ def test_a_borrowing_helper_that_allocates_fails_to_compile_rather_than_leak():
     surface_approach.walk_to_surface,
     surface_approach.walk_to_voxels,
     surface_approach.finish_in_octree,
+    cone_walk.walk_cone_over_columns,
+    cone_walk.trace_cone_over_columns,
+    primary.trace_chunk_cone_over_columns,
     lane_walk.walk_to_voxels_in_lanes,
     lane_walk.walk_to_nodes_in_lanes,
     lane_walk.walk_queue_in_lanes,

@@ -1,5 +1,5 @@
 """Renders that cross the air in the column-top pyramid are the octree's renders, pixel for
-pixel, in every renderer that traces at a fixed level."""
+pixel, in every renderer that traces at a fixed level or with a cone."""
 
 from __future__ import annotations
 
@@ -49,13 +49,19 @@ def test_lod_and_reference_renders_are_unchanged(scene, beam):
                      render_reference(scene, camera, side=2, seed=5, beam=beam, columns=False))
 
 
-def test_cone_lod_does_not_use_the_pyramid(scene):
-    """The cone's node size grows along the ray, so its rays stay in the octree: steps too."""
-    camera = _cameras(scene)[1]
-    a = render_lod(scene, camera, lod=None, columns=True)
-    b = render_lod(scene, camera, lod=None, columns=False)
-    _assert_same(a, b)
-    assert np.array_equal(a.steps, b.steps)
+@pytest.mark.parametrize("side", [1, 2])
+def test_cone_lod_renders_are_unchanged(scene, side):
+    """Cone-LOD rays walk the pyramid as their cone allows (``kernels.cone_walk``): the
+    same pixels from every camera, with and without start bounds; the steps count its
+    cells."""
+    walked = 0
+    for camera in _cameras(scene):
+        for beam in (True, False):
+            a = render_lod(scene, camera, lod=None, side=side, beam=beam, columns=True)
+            b = render_lod(scene, camera, lod=None, side=side, beam=beam, columns=False)
+            _assert_same(a, b)
+            walked += int(not np.array_equal(a.steps, b.steps))
+    assert walked == 2 * len(_cameras(scene))
 
 
 def test_error_aware_and_adaptive_renders_are_unchanged(scene):

@@ -171,7 +171,8 @@ def test_tile_order_visits_each_pixel_once_tile_by_tile_in_quads(height, width):
     (0, 1, True, "render_pixels_over_columns"),  # a fixed level with the pyramid
     (0, 4, False, "render_pixels_in_packets"),  # supersampled, a fixed level, no pyramid
     (0, 1, False, "render_pixels_per_ray"),
-    (None, 1, True, "render_pixels_per_ray"),  # cone LOD: each ray's node size grows
+    (None, 1, True, "render_pixels_cone_over_columns"),  # cone LOD with the pyramid
+    (None, 1, False, "render_pixels_per_ray"),
 ])
 def test_a_render_runs_only_the_kernel_of_its_traversal(pillar_octree, monkeypatch, lod, side,
                                                         columns, runs):
@@ -180,7 +181,7 @@ def test_a_render_runs_only_the_kernel_of_its_traversal(pillar_octree, monkeypat
     from voxfield.kernels import primary
 
     kernels = ("render_pixels_over_columns", "render_pixels_in_packets",
-               "render_pixels_per_ray")
+               "render_pixels_per_ray", "render_pixels_cone_over_columns")
     calls = []
 
     def spy(name, real):

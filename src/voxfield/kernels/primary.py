@@ -12,6 +12,7 @@ from voxfield.kernels.beam import start_distance
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs, view_colours
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
+from voxfield.kernels.cone_walk import trace_cone_over_columns
 from voxfield.kernels.facing_colour import prefetch_seen, seen_rgb
 from voxfield.kernels.lane_walk import (
     LANE_WALK_PAYS,
@@ -125,10 +126,13 @@ def render_pixels(
     spread *= cone_scale / side
     fixed_level = radius == 0.0 and spread == 0.0
     common = (cam, width, height, pixels, out_base, side, seed, view, stop_level)
-    if fixed_level and columns.level_width.shape[0] > 0:
+    with_columns = columns.level_width.shape[0] > 0
+    if fixed_level and with_columns:
         render_pixels_over_columns(*common, beam, out, columns, threads)
     elif fixed_level and side > 1:
         render_pixels_in_packets(*common, beam, out, threads)
+    elif with_columns and stop_level >= view.depth:
+        render_pixels_cone_over_columns(*common, radius, spread, beam, out, columns, threads)
     else:
         render_pixels_per_ray(*common, radius, spread, beam, out, threads)
 
@@ -178,6 +182,20 @@ def render_pixels_per_ray(
     for _ in prange(threads):
         render_chunks_per_ray(cam, width, height, pixels, out_base, side, seed, view,
                               stop_level, radius, spread, beam, out, queue)
+
+
+@njit(parallel=True, cache=True, nogil=True)
+def render_pixels_cone_over_columns(
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
+    side: int, seed: int, view: OctreeView, stop_level: int, radius: float, spread: float,
+    beam: BeamBounds, out: PixelOutputs, columns, threads: int,
+) -> None:
+    """``render_pixels`` of cone-LOD rays through the column-top pyramid first
+    (``trace_chunk_cone_over_columns``)."""
+    queue = new_run_queue()
+    for _ in prange(threads):
+        render_chunks_cone_over_columns(cam, width, height, pixels, out_base, side, seed,
+                                        view, radius, spread, beam, out, columns, queue)
 
 
 # One thread's share of a render: chunks of PIXEL_CHUNK pixels claimed from the render's
@@ -233,6 +251,24 @@ def render_chunks_per_ray(
             return
         trace_chunk_per_ray(cam, width, height, pixels, first, last, side, seed, view,
                             stop_level, radius, spread, beam, sums, tallies, scratch)
+        store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
+
+
+@njit(cache=True, nogil=True)
+def render_chunks_cone_over_columns(
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
+    side: int, seed: int, view: OctreeView, radius: float, spread: float,
+    beam: BeamBounds, out: PixelOutputs, columns, queue: np.ndarray,
+) -> None:
+    sums, tallies, run = new_chunk_sums()
+    scratch = new_scratch(view.depth)
+    while True:
+        first, last = claim_chunk(queue, pixels.shape[0], sums, tallies, run)
+        if first == last:
+            return
+        trace_chunk_cone_over_columns(cam, width, height, pixels, first, last, side, seed,
+                                      view, radius, spread, beam, columns, sums, tallies,
+                                      scratch)
         store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
 
 
@@ -357,6 +393,30 @@ def trace_chunk_per_ray(
         trace_pixel(cam, width, height, pixels[first + j], side, seed, view.inner_nodes,
                     view.depth, stop_level, radius, spread, view_colours(view), view.facing,
                     beam.bound, beam.block, scratch, sums, tallies, j)
+
+
+@borrowing
+def trace_chunk_cone_over_columns(
+    cam: np.ndarray, width: int, height: int, pixels: np.ndarray, first: int, last: int,
+    side: int, seed: int, view: OctreeView, radius: float, spread: float, beam: BeamBounds,
+    columns, sums: np.ndarray, tallies: np.ndarray, scratch,
+) -> None:
+    """Every sample with the cone ``radius + spread·t`` down to the voxels, through the
+    column-top pyramid first (``kernels.cone_walk``): ``trace_chunk_per_ray``'s hits, in
+    fewer steps."""
+    inner_nodes, depth, facing = view.inner_nodes, view.depth, view.facing
+    colors = view_colours(view)
+    for j in range(last - first):
+        pixel = pixels[first + j]
+        pattern = pixel_pattern(pixel, seed) if side > 1 else 0
+        t_start = beam_start(beam.bound, beam.block, pixel, width)
+        for s in range(side * side):
+            ox, oy, oz, dx, dy, dz = sample_ray(cam, width, height, pixel, s, side, pattern)
+            node, level, t, normal, steps = trace_cone_over_columns(
+                ox, oy, oz, dx, dy, dz, t_start, inner_nodes, depth, radius, spread, scratch,
+                columns)
+            add_sample(sums, tallies, j, colors, facing, depth, node, level, t, normal, steps,
+                       dx, dy, dz)
 
 
 @borrowing

@@ -54,10 +54,10 @@ def trace_image(
     ``beam`` starts the rays of each pixel block at its beam bound (``render.beam``): the
     same image, fewer steps. Rays at a fixed level over the column-top pyramid start at
     their pixel's bound from the pyramid drawn into the image instead
-    (``render.beam.raster_beam``), where the camera allows it. ``columns`` lets rays at a
-    fixed level (no cone) cross the air in the octree's column-top pyramid first
-    (``kernels.surface_approach``; built once per structure): the same image, in less time;
-    the steps then count the pyramid's cells.
+    (``render.beam.raster_beam``), where the camera allows it. ``columns`` lets rays cross
+    the air in the octree's column-top pyramid first (``kernels.surface_approach`` at a
+    fixed level, ``kernels.cone_walk`` with a cone; built once per structure): the same
+    image, in less time; the steps then count the pyramid's cells.
     ``device="cuda"`` traces the pixels on a GPU (``render.device``), with the same image
     and the octree's steps alone.
     """
@@ -114,12 +114,12 @@ def trace_image_cpu(
 
 def pixel_columns(octree: Octree, columns: bool, side: int, beam_bound: np.ndarray,
                   cone_scale: float = 0.0):
-    """The column-top pyramid ``render_pixels`` should walk, or none: cone-LOD rays stay in
-    the octree (their node size grows along the ray), and supersampled rays from the camera
-    (no beam bound: probe cameras, ``beam=False``) go faster in packets through the octree
-    alone (mountain terrain, 16 rays a pixel: packets 1.1-1.3× the walk without a beam, the
-    walk 1.1-1.2× packets with one)."""
-    if not columns or cone_scale > 0.0 or (side > 1 and not np.any(beam_bound > 0)):
+    """The column-top pyramid ``render_pixels`` should walk, or none: supersampled rays at a
+    fixed level from the camera (no beam bound: probe cameras, ``beam=False``) go faster in
+    packets through the octree alone (mountain terrain, 16 rays a pixel: packets 1.1-1.3×
+    the walk without a beam, the walk 1.1-1.2× packets with one). Cone-LOD rays walk it as
+    their cone allows (``kernels.cone_walk``)."""
+    if not columns or (cone_scale == 0.0 and side > 1 and not np.any(beam_bound > 0)):
         return no_column_tops()
     return octree_column_tops(octree)
 
@@ -185,8 +185,8 @@ def render_lod(
     """One ray per pixel sampling a fixed LOD, or (``lod=None``) the LOD whose nodes match the
     pixel cone: a node is sampled once it is no larger than ``cone_scale`` pixel footprints.
     ``beam=False`` starts every ray at the camera (same image, more steps); ``columns``
-    crosses the air in the column-top pyramid first at a fixed LOD (``trace_image``; same
-    image); ``device`` is ``"cpu"`` or ``"cuda"`` (same image)."""
+    crosses the air in the column-top pyramid first, at a fixed LOD or as the cone allows
+    (``trace_image``; same image); ``device`` is ``"cpu"`` or ``"cuda"`` (same image)."""
     if lod is not None:
         lod = integer_in(lod, "LOD", 0, octree.depth)
     else:

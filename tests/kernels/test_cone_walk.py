@@ -1,0 +1,91 @@
+"""Cone-LOD rays walked over the column-top pyramid end where the octree alone ends them."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numba import njit
+
+from random_scenes import (
+    any_rays,
+    hollow_shell_terrain,
+    octree_and_columns,
+    overhanging_terrain,
+    pillar_field,
+    random_scene,
+)
+from voxfield.kernels.cone_walk import (
+    MISSED_ALL,
+    cone_level,
+    trace_cone_over_columns,
+    walk_cone_over_columns,
+)
+from voxfield.kernels.traversal import new_scratch, trace_ray
+
+
+@njit
+def _both(rays, depth, inner_nodes, columns, radius, spread, walked, alone, ends):
+    scratch = new_scratch(depth)
+    for k in range(rays.shape[0]):
+        ox, oy, oz, dx, dy, dz, tmin = (rays[k, 0], rays[k, 1], rays[k, 2], rays[k, 3],
+                                        rays[k, 4], rays[k, 5], rays[k, 6])
+        node, level, t, normal, steps = trace_cone_over_columns(
+            ox, oy, oz, dx, dy, dz, tmin, inner_nodes, depth, radius, spread, scratch,
+            columns)
+        walked[k, 0], walked[k, 1], walked[k, 3], walked[k, 4] = node, level, normal, steps
+        walked[k, 2] = t
+        node, level, t, normal, steps = trace_ray(ox, oy, oz, dx, dy, dz, tmin, math.inf,
+                                                  inner_nodes, depth, depth, radius, spread,
+                                                  scratch)
+        alone[k, 0], alone[k, 1], alone[k, 3], alone[k, 4] = node, level, normal, steps
+        alone[k, 2] = t
+        _, cells, cx, _, _ = walk_cone_over_columns(ox, oy, oz, dx, dy, dz, tmin, radius,
+                                                    spread, depth, columns)
+        ends[k, 0] = cx
+        ends[k, 1] = cells
+
+
+def _rays(voxels, n, seed):
+    """``any_rays``, from their origin or from a start bound part of the way along."""
+    origins, directions = any_rays(voxels, n, seed=seed)
+    rng = np.random.default_rng(seed)
+    tmin = np.where(rng.random(len(origins)) < 0.5, 0.0, rng.uniform(0.0, 30.0, len(origins)))
+    return np.column_stack([origins, directions, tmin])
+
+
+@pytest.mark.parametrize("scene", [
+    overhanging_terrain(seed=3, size=45), hollow_shell_terrain(seed=2, size=37),
+    random_scene(seed=5, n=900, size=21), pillar_field(seed=6, size=50),
+], ids=lambda scene: scene.name)
+@pytest.mark.parametrize("radius, spread", [(0.4, 0.15), (0.0, 0.3), (1.5, 0.08)])
+def test_cone_rays_over_the_pyramid_are_the_octrees(scene, radius, spread):
+    """Node, level, hit time and entry face of every ray, bit for bit, for cones that take
+    voxels near the start and nodes of side 2 to 8 further on; the walk lands rays on
+    cell tops, hands others to the octree and ends some past the footprint itself."""
+    octree, voxels, columns = octree_and_columns(scene)
+    rays = _rays(voxels, 600, seed=len(voxels))
+    n = len(rays)
+    walked = np.zeros((n, 5))
+    alone = np.zeros((n, 5))
+    ends = np.zeros((n, 2), np.int64)
+    _both(rays, octree.depth, octree.inner_nodes, columns, radius, spread, walked, alone,
+          ends)
+    np.testing.assert_array_equal(walked[:, [0, 1, 3]], alone[:, [0, 1, 3]])
+    assert np.array_equal(walked[:, 2], alone[:, 2])  # bit for bit, infinities too
+    hits = alone[:, 0] >= 0
+    assert hits.sum() > n // 4 and (~hits).sum() > n // 20
+    assert (alone[hits, 1] < octree.depth).sum() > n // 40  # coarser nodes taken too
+    assert (ends[:, 0] >= 0).sum() > n // 10 and (ends[:, 0] == MISSED_ALL).sum() > 0
+    assert ends[:, 1].max() > 4
+
+
+def test_the_cone_level_is_the_traversals_own_test():
+    """The largest side ``2^level`` with ``side <= radius + spread·t``: a node at the
+    boundary is taken, one a hair over it is not."""
+    assert cone_level(0.0, 0.5, 0.1, 10) == 0
+    assert cone_level(10.0, 0.0, 0.2, 10) == 1  # cone 2: side 2 taken, 4 not
+    assert cone_level(np.nextafter(10.0, 0.0), 0.0, 0.2, 10) == 0
+    assert cone_level(-5.0, 4.0, 1.0, 10) == 2  # behind the eye the cone is its radius
+    assert cone_level(1e9, 0.0, 1.0, 6) == 6  # never past the root
