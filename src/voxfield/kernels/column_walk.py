@@ -55,6 +55,27 @@ def step_down(cx: int, cz: int, level: int, ox: float, dx: float, ix: float, oz:
 
 
 @njit(cache=True, nogil=True, inline="always")
+def clear_of_cell(oy: float, dy: float, iy: float, t: float, t_exit: float, t_leave: float,
+                  top: int, gap_floor, gap_ceiling, cell, round_up: int) -> bool:
+    """Whether a ray in a pyramid cell over ``[t, t_exit)`` meets none of its nodes of side
+    ``round_up + 1``: above the cell's ``top`` (rounded up to them) all along (falling rays
+    until they cross the top plane, rising ones from the time they are above it, level ones
+    throughout), or in the gap all its columns leave under their top runs, rounded in to
+    them, until ``t_leave``. The gap is read only where the top does not settle it."""
+    t_top = face_time(top, oy, iy)
+    if dy < 0.0:
+        above = t_exit <= t_top
+    elif dy > 0.0:
+        above = t >= t_top
+    else:
+        above = oy >= top
+    if not above and top != 0:
+        above = in_the_gap(oy, dy, iy, t, t_leave, (gap_floor[cell] + round_up) & ~round_up,
+                           gap_ceiling[cell] & ~round_up)
+    return above
+
+
+@njit(cache=True, nogil=True, inline="always")
 def in_the_gap(oy: float, dy: float, iy: float, t: float, t_leave: float, floor: int,
                ceiling: int) -> bool:
     """Whether the ray stays in the gap ``[floor, ceiling)`` (under every top run of a cell,

@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from voxfield.kernels.borrowing import borrowing
-from voxfield.kernels.column_walk import cell_holding, in_the_gap, step_across, step_down
+from voxfield.kernels.column_walk import cell_holding, clear_of_cell, step_across, step_down
 from voxfield.kernels.surface_approach import (
     NEAR_START_LEVELS,
     WALKS,
@@ -103,18 +103,9 @@ def walk_cone_over_columns(
             continue
         round_up = (1 << accepted) - 1
         top = (tops[cell] + round_up) & ~round_up if inside else 0
-        t_top = face_time(top, oy, iy)
-        if dy < 0.0:
-            above = t_exit <= t_top
-        elif dy > 0.0:
-            above = t >= t_top
-        else:
-            above = oy >= top
-        if not above and top != 0:
-            above = in_the_gap(oy, dy, iy, t, t_leave,
-                               (gap_floor[cell] + round_up) & ~round_up,
-                               gap_ceiling[cell] & ~round_up)
-        if above or top == 0:
+        if (clear_of_cell(oy, dy, iy, t, t_exit, t_leave, top, gap_floor, gap_ceiling, cell,
+                          round_up)
+                or top == 0):
             if not t_exit < t_end:
                 # Out of the top cell: nothing lies past it, and no node larger than it
                 # is taken on the way.

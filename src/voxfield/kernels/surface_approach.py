@@ -36,7 +36,7 @@ from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import (
     TOP_RUN_NODES,
     cell_holding,
-    in_the_gap,
+    clear_of_cell,
     step_across,
     step_down,
 )
@@ -383,21 +383,9 @@ def approach_surface(
         tx = face_time((cx + ahead_x) << level, ox, ix)
         tz = face_time((cz + ahead_z) << level, oz, iz)
         t_exit = min(tx, tz)
-        # Above the cell's nodes for all of ``[t, t_exit)``: falling rays until they cross
-        # the top plane, rising ones from the time they are above it, level ones throughout.
-        t_top = face_time(top, oy, iy)
-        if dy < 0.0:
-            above = t_exit <= t_top
-        elif dy > 0.0:
-            above = t >= t_top
-        else:
-            above = oy >= top
-        # Under the cell's runs, in the gap all its columns leave (node-aligned): as empty.
-        if not above and top != 0:
-            above = in_the_gap(oy, dy, iy, t, min(t_exit, t_end),
-                               (gap_floor[cell] + round_up) & ~round_up,
-                               gap_ceiling[cell] & ~round_up)
-        if above or top == 0:  # (an empty cell's top is 0: no voxel, whatever the ray does)
+        if (clear_of_cell(oy, dy, iy, t, t_exit, min(t_exit, t_end), top, gap_floor,
+                          gap_ceiling, cell, round_up)
+                or top == 0):  # (an empty cell's top is 0: no voxel, whatever the ray does)
             if not t_exit < t_end:
                 return MISSED, t, steps, -1, -1
             t = t_exit
