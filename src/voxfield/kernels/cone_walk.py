@@ -38,7 +38,14 @@ from voxfield.kernels.surface_approach import (
     top_node_hit,
     walk_entry,
 )
-from voxfield.kernels.traversal import MISS, NO_NORMAL, face_time, node_at_level, traverse
+from voxfield.kernels.traversal import (
+    MISS,
+    NO_NORMAL,
+    cone_width,
+    face_time,
+    node_at_level,
+    traverse,
+)
 
 #: ``walk_cone_over_columns``'s cell for a ray that meets nothing.
 MISSED_ALL = -2
@@ -48,7 +55,7 @@ MISSED_ALL = -2
 def cone_level(t: float, radius: float, spread: float, depth: int) -> int:
     """The level (node side ``2^level``) of the largest node the cone ``radius + spread·t``
     accepts at ``t``, by ``traversal.traverse``'s own test; 0 (voxels) when none larger."""
-    cone = radius + spread * max(t, 0.0)
+    cone = cone_width(radius, spread, t)
     level = 0
     while level < depth and float(2 << level) <= cone:
         level += 1

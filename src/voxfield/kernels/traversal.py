@@ -300,6 +300,14 @@ def node_at_level(inner_nodes: np.ndarray, depth: int, level: int, x: int, y: in
 
 
 @njit(cache=True, nogil=True, inline="always")
+def cone_width(radius: float, spread: float, t: float) -> float:
+    """How wide a ray's cone is at time ``t`` (its radius behind the eye): a node no wider
+    is sampled whole. One expression for the traversal and the walks that must judge
+    nodes exactly as it does (``kernels.cone_walk``)."""
+    return radius + spread * max(t, 0.0)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def trace_ray(
     ox: float, oy: float, oz: float,
     dx: float, dy: float, dz: float,
@@ -415,7 +423,7 @@ def traverse(
         return MISS, 0, math.inf, NO_NORMAL, 0
     stop_level = min(stop_level, depth)
     use_cone = cone_radius > 0.0 or cone_spread > 0.0
-    cone = cone_radius + cone_spread * max(t_min, 0.0)
+    cone = cone_width(cone_radius, cone_spread, t_min)
     parent = inner_nodes[0] if depth > 0 else 0
     if (stop_level <= 0 or (use_cone and float(root) <= cone)
             or (any_hit and (parent & SOLID_BIT) != 0)):
@@ -467,7 +475,7 @@ def traverse(
             steps += 1
             node = child_index(parent, idx)
             if level + 1 >= stop_level or (
-                use_cone and float(size) <= cone_radius + cone_spread * max(t_min, 0.0)
+                use_cone and float(size) <= cone_width(cone_radius, cone_spread, t_min)
             ):
                 if any_hit:
                     return node, level + 1, t_min, NO_NORMAL, steps
