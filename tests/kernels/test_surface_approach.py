@@ -26,7 +26,13 @@ from voxfield.kernels.surface_approach import (
 from voxfield.kernels.traversal import new_scratch, trace_ray
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
-from voxfield.svo.column_tops import GAP_OPEN, column_tops, gap_open, no_column_tops
+from voxfield.svo.column_tops import (
+    GAP_OPEN,
+    cell_records,
+    column_tops,
+    gap_open,
+    no_column_tops,
+)
 
 #: How a ray ended in the walk: missed, settled by the pyramid (a column's top run, a cell's
 #: top node), or finished by the octree.
@@ -143,7 +149,9 @@ def widened(columns):
     return columns._replace(tops=wide(columns.tops), run_bottom=wide(columns.run_bottom),
                             gap_floor=wide(columns.gap_floor),
                             gap_ceiling=wide(columns.gap_ceiling), floors=wide(columns.floors),
-                            cell_records=np.zeros(0, np.int64))
+                            cell_records=cell_records(wide(columns.tops),
+                                                      wide(columns.gap_floor),
+                                                      wide(columns.gap_ceiling)))
 
 
 def test_int16_and_int32_heights_walk_alike():

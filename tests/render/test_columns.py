@@ -11,6 +11,7 @@ from voxfield.error_table import build_error_table
 from voxfield.render import Camera, render_lod, render_reference
 from voxfield.render.adaptive import render_adaptive
 from voxfield.render.error_aware import render_error_aware
+from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
 
 _SAME = ("image", "depth", "normal", "hit_count", "ray_count", "finest_lod")
@@ -21,6 +22,17 @@ def scene():
     """Ground with ledges, caves and hollows: rays land on tops, on sides, under overhangs,
     and miss past the edges."""
     return build_octree(overhanging_terrain(seed=4, size=40))
+
+
+@pytest.fixture(scope="module")
+def tall_scene():
+    """The same ground with one voxel 40,000 voxels above it: a pyramid with int32 heights
+    (``svo.column_tops.height_type``), whose records the lanes walk as they walk int16."""
+    ground = overhanging_terrain(seed=4, size=40)
+    spire = np.array([[0, 40_000, 0]])
+    return build_octree(VoxelScene(np.concatenate([ground.coords, spire]),
+                                   np.concatenate([ground.color, [[1.0, 1.0, 1.0]]]),
+                                   name="tall"))
 
 
 def _cameras(octree):
@@ -78,12 +90,14 @@ def test_error_aware_and_adaptive_renders_are_unchanged(scene):
                      render_adaptive(scene, camera, base_lod=1, columns=False))
 
 
-def test_rays_traced_in_batches_step_as_each_ray_alone(scene):
+@pytest.mark.parametrize("tall", [False, True])
+def test_rays_traced_in_batches_step_as_each_ray_alone(scene, tall_scene, tall):
     """A render walks its rays in batches (``kernels.primary.RAY_BATCH``) before it settles
     and shades them: the same pixels as the octree alone, partial batches and batches across
     pixels included, and every pixel's steps those of its rays traced one by one
     (``trace_over_columns`` from where the pixel's start bound lets rays start,
-    ``beam.start_distance``) plus its share of the bound's."""
+    ``beam.start_distance``) plus its share of the bound's. So too in a world whose pyramid
+    keeps int32 heights."""
     from voxfield.kernels.beam import start_distance
     from voxfield.kernels.primary import RAY_BATCH
     from voxfield.kernels.surface_approach import trace_over_columns
@@ -91,7 +105,10 @@ def test_rays_traced_in_batches_step_as_each_ray_alone(scene):
     from voxfield.render.beam import pixel_start_bounds
     from voxfield.svo.column_tops import octree_column_tops
 
-    lo, hi = scene.voxel_bounds
+    lo, hi = scene.voxel_bounds  # (the ground's, with the spire or without)
+    if tall:
+        scene = tall_scene
+        assert octree_column_tops(scene).tops.dtype == np.int32
     c = (lo + hi) / 2
     # 37 × 37 pixels: chunks of 64 pixels end in partial batches; 9 rays a pixel straddle
     # batches.
@@ -103,9 +120,13 @@ def test_rays_traced_in_batches_step_as_each_ray_alone(scene):
         stop_level = scene.depth - lod
         columns = octree_column_tops(scene)
         bounds = pixel_start_bounds(scene, camera, columns, stop_level=stop_level)
-        assert bounds.block == 1  # the raster's bound, one per pixel
+        # The raster's bound, one per pixel; a block's where the spire's cells cross the
+        # eye plane.
+        assert bounds.block == (8 if tall else 1)
+        block = bounds.block
+        starts = np.repeat(np.repeat(bounds.bound, block, 0), block, 1)
+        starts = starts[:camera.height, :camera.width].reshape(-1)
         origins, directions = camera.rays(side=1)
-        starts = bounds.bound.reshape(-1)
         scratch = new_scratch(scene.depth)
         alone = np.zeros(len(starts), np.int64)
         for k in np.flatnonzero(starts < np.inf):

@@ -11,6 +11,7 @@ from voxfield.svo import build_octree
 from voxfield.svo.column_tops import (
     GAP_OPEN,
     GAP_OPEN_16,
+    RECORD_FIELD_BITS,
     column_tops,
     gap_open,
     octree_column_tops,
@@ -152,11 +153,15 @@ def test_heights_are_int16_below_32767_voxels_high_and_int32_above():
                           np.where(shifted == GAP_OPEN - 1, GAP_OPEN, shifted))
 
 
-def test_no_pyramid_for_no_voxels_or_a_footprint_over_the_limit():
+def test_no_pyramid_for_no_voxels_a_footprint_over_the_limit_or_a_world_too_high():
     voxels = voxels_of(random_scene(seed=4, n=100, size=9))
     assert len(column_tops(voxels).level_width) > 0
     assert len(column_tops(voxels, max_columns=8).level_width) == 0
     assert len(column_tops(voxels[:0]).level_width) == 0
+    # A top of GAP_OPEN would be an empty cell's ceiling, and no record field holds more.
+    tallest = np.array([[0, 0, 0], [1, GAP_OPEN - 2, 1]], np.int32)
+    assert len(column_tops(tallest).level_width) > 0
+    assert len(column_tops(tallest + [0, 1, 0]).level_width) == 0
 
 
 def test_an_octrees_pyramid_keeps_the_nodes_of_each_columns_top_run():
@@ -192,24 +197,27 @@ def test_no_top_run_nodes_past_int32():
     assert len(column_tops(voxels, first_node=2**31 - len(voxels) + 1).top_nodes) == 0
 
 
-def test_cell_records_pack_each_cells_top_and_gap_as_signed_16_bit_fields():
+def test_cell_records_pack_each_cells_top_and_gap_as_signed_fields():
     """A cell's record unpacks (low field first, each sign-extended) to its top, gap floor
-    and gap ceiling, the empty cells' open ceiling included; int32 pyramids keep none, nor
-    one built without them (where no walk reads them)."""
+    and gap ceiling, the empty cells' open ceiling included, for int16 and int32 heights
+    alike (up to ``GAP_OPEN``); a pyramid built without them keeps none."""
     voxels = voxels_of(overhanging_terrain(seed=3))
-    columns = column_tops(voxels, records=True)
-    records = columns.cell_records
-    assert records.dtype == np.int64 and len(records) == len(columns.tops)
+    tall = np.concatenate([voxels, [[0, GAP_OPEN - 2, 0]]]).astype(np.int32)
+    for columns, open_value in ((column_tops(voxels, records=True), GAP_OPEN_16),
+                                (column_tops(tall, records=True), GAP_OPEN)):
+        records = columns.cell_records
+        assert records.dtype == np.int64 and len(records) == len(columns.tops)
+        bits = RECORD_FIELD_BITS
 
-    def field(shift):
-        return ((records << (48 - shift)) >> 48).astype(np.int64)
+        def field(k, records=records, bits=bits):
+            return ((records << (64 - (k + 1) * bits)) >> (64 - bits)).astype(np.int64)
 
-    assert np.array_equal(field(0), columns.tops)
-    assert np.array_equal(field(16), columns.gap_floor)
-    assert np.array_equal(field(32), columns.gap_ceiling)
-    assert np.any(columns.gap_ceiling == GAP_OPEN_16)  # the largest value survives the packing
-    assert np.all(records >> 48 == 0)
-    wide = column_tops(np.array([[0, GAP_OPEN_16, 0]], np.int32), records=True)
-    assert wide.tops.dtype == np.int32 and len(wide.cell_records) == 0
+        assert np.array_equal(field(0), columns.tops)
+        assert np.array_equal(field(1), columns.gap_floor)
+        assert np.array_equal(field(2), columns.gap_ceiling)
+        assert np.any(columns.gap_ceiling == open_value)  # the largest value survives
+        assert columns.tops.dtype == (np.int32 if open_value == GAP_OPEN else np.int16)
+        assert np.all(records >> (3 * bits) == 0)
+    assert column_tops(tall).tops.max() == GAP_OPEN - 1
     bare = column_tops(voxels, records=False)
-    assert len(bare.cell_records) == 0 and np.array_equal(bare.tops, columns.tops)
+    assert len(bare.cell_records) == 0 and np.array_equal(bare.tops, column_tops(voxels).tops)

@@ -15,6 +15,9 @@ from voxfield.kernels.traversal import face_time, floor_float
 #: 98 % of such hits are within 4 voxels of the top (73 % the voxel under the top one), and
 #: a lookup from the octree's root costs those rays a chain of cache misses.
 TOP_RUN_NODES = 4
+#: Bits of each signed field of a pyramid's cell record (``svo.column_tops.cell_records``:
+#: top, gap floor, gap ceiling in one int64, for the walks in SIMD lanes).
+RECORD_FIELD_BITS = 21
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -126,32 +126,13 @@ def walk_primary_over_columns(
     fast (2048² mountain terrain, 512² images, top and 45° views; one-ray renders the same).
     The batch's first compilation takes longer for it: a first reference render compiled in
     48 s instead of 44 on two cores (the kernels are cached after). Where the batches walk
-    in SIMD lanes (``lane_walk.LANE_WALK_PAYS``), ``walk_primary_at_any_level`` walks the
-    rays they leave."""
+    in SIMD lanes (``lane_walk.LANE_WALK_PAYS``), they do not use it."""
     finest, start_level, patience = walk_plan(tmin, depth, stop_level, columns, FROM_CAMERA)
     if finest < 0:
         return HANDED_OVER, tmin, 0, -1, -1, -1, math.inf, -1
     if finest == 0:
         return _walk_and_settle(ox, oy, oz, dx, dy, dz, tmin, math.inf, 0, start_level,
                                 patience, columns)
-    return walk_to_surface(ox, oy, oz, dx, dy, dz, tmin, math.inf, finest, start_level,
-                           patience, columns)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def walk_primary_at_any_level(
-    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
-    tmin: float, depth: int, stop_level: int, columns,
-) -> tuple[int, float, int, int, int, int, float, int]:
-    """``walk_over_columns`` of a primary ray (``FROM_CAMERA``, no ``tmax``) through the one
-    walk compiled for every level (``walk_to_surface``), LOD 0 included: for the batches
-    that SIMD lanes walk (``kernels.primary.hit_ray_batch``), whose only rays left to walk
-    one by one are those of pyramids too tall for packed cell records (int32 heights). The
-    LOD-0 walk compiled apart (``walk_to_voxels``, 6-7 % faster) would add 11 s to the
-    batch's first compilation for them."""
-    finest, start_level, patience = walk_plan(tmin, depth, stop_level, columns, FROM_CAMERA)
-    if finest < 0:
-        return HANDED_OVER, tmin, 0, -1, -1, -1, math.inf, -1
     return walk_to_surface(ox, oy, oz, dx, dy, dz, tmin, math.inf, finest, start_level,
                            patience, columns)
 

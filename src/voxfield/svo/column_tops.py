@@ -23,10 +23,11 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from voxfield.kernels.column_walk import TOP_RUN_NODES
+from voxfield.kernels.column_walk import RECORD_FIELD_BITS, TOP_RUN_NODES
 from voxfield.kernels.lane_walk import LANE_WALK_PAYS
 
-__all__ = ["GAP_OPEN", "GAP_OPEN_16", "MAX_COLUMNS", "TOP_RUN_NODES", "ColumnTops",
+__all__ = ["GAP_OPEN", "GAP_OPEN_16", "MAX_COLUMNS", "RECORD_FIELD_BITS", "TOP_RUN_NODES",
+           "ColumnTops",
            "column_tops", "gap_open", "height_type", "no_column_tops", "octree_column_tops",
            "tops_ahead"]
 
@@ -36,8 +37,10 @@ MAX_COLUMNS = 1 << 27
 #: ``gap_ceiling`` (and ``floors``) of a cell with no voxel, above every height: no run
 #: above the gap. Pyramids of worlds under ``GAP_OPEN_16`` voxels high keep their heights
 #: as int16, which walks read in half the cache lines (2048² mountain terrain, one ray a
-#: pixel: the column walk 1.1-1.2× as fast); higher worlds keep int32 and ``GAP_OPEN``.
-GAP_OPEN = 1 << 30
+#: pixel: the column walk 1.1-1.2× as fast); higher worlds keep int32 and ``GAP_OPEN``, the
+#: largest value a record's field holds. Worlds that reach ``GAP_OPEN`` (2^20 voxels high,
+#: octrees of depth 21 and more) get no pyramid: every ray goes through the octree alone.
+GAP_OPEN = (1 << (RECORD_FIELD_BITS - 1)) - 1
 GAP_OPEN_16 = (1 << 15) - 1
 
 
@@ -73,8 +76,9 @@ class ColumnTops(NamedTuple):
     # Cells as in ``tops``: the lowest voxel's ``y`` among the cell's columns (empty:
     # ``gap_open``), so that every voxel of a cell lies in ``[floors, tops)``.
     floors: np.ndarray
-    # Per cell as in ``tops``: top, gap floor and gap ceiling as three 16-bit fields of one
-    # int64 (``kernels.lane_walk`` gathers one per cell); empty where heights are int32.
+    # Per cell as in ``tops``: top, gap floor and gap ceiling as three signed fields of
+    # ``RECORD_FIELD_BITS`` in one int64 (``kernels.lane_walk`` gathers one per cell); empty
+    # where no walk reads them (``column_tops``'s ``records``).
     cell_records: np.ndarray
 
     @property
@@ -94,7 +98,8 @@ def no_column_tops() -> ColumnTops:
 def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
                 first_node: int | None = None, records: bool = LANE_WALK_PAYS) -> ColumnTops:
     """The pyramid of the voxels with corners ``voxels`` (``(n, 3)`` integer, octree units),
-    or ``no_column_tops()`` when there are none or the footprint exceeds ``max_columns``.
+    or ``no_column_tops()`` when there are none, the footprint exceeds ``max_columns`` or
+    the voxels reach ``GAP_OPEN``.
     ``first_node``: the node index of ``voxels[0]``, the others following in order (an
     octree's leaves, ``Octree.level_slice(depth)``), so each column's top run keeps the
     nodes of its highest voxels; None (or node indices past int32) leaves ``top_nodes``
@@ -104,7 +109,8 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
         return no_column_tops()
     width = int(voxels[:, 0].max()) + 1
     depth = int(voxels[:, 2].max()) + 1
-    if width * depth > max_columns:
+    highest_top = int(voxels[:, 1].max()) + 1
+    if width * depth > max_columns or highest_top >= GAP_OPEN:
         return no_column_tops()
     shapes = [(width, depth)]
     while shapes[-1] != (1, 1):
@@ -114,7 +120,7 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
     # Every level lands in its place in one flat array per quantity: no level is built
     # apart and copied after (on a 2048² terrain those copies and the 2×2 reductions as
     # NumPy views took 0.4 s).
-    heights = height_type(int(voxels[:, 1].max()) + 1)
+    heights = height_type(highest_top)
     open_value = gap_open(heights)
     tops = np.empty(int(sizes.sum()), heights)
     gap_floor = np.empty_like(tops)
@@ -153,10 +159,9 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
 
 def cell_records(tops: np.ndarray, gap_floor: np.ndarray, gap_ceiling: np.ndarray) -> np.ndarray:
     """``ColumnTops.cell_records``: per cell, its top, gap floor and gap ceiling as the low,
-    second and third signed 16-bit fields of one int64, so that a vectorised walk loads a
-    cell with one gather (``kernels.lane_walk``); empty for int32 heights."""
-    if tops.dtype != np.int16 or len(tops) == 0:
-        return np.zeros(0, np.int64)
+    second and third signed ``RECORD_FIELD_BITS``-bit fields of one int64, so that a
+    vectorised walk loads a cell with one gather (``kernels.lane_walk``). Every height a
+    pyramid keeps fits (``GAP_OPEN``), in either height type."""
     records = np.empty(len(tops), np.int64)
     _pack_records(tops, gap_floor, gap_ceiling, records)
     return records
@@ -165,10 +170,11 @@ def cell_records(tops: np.ndarray, gap_floor: np.ndarray, gap_ceiling: np.ndarra
 @njit(cache=True, nogil=True, parallel=True)
 def _pack_records(tops: np.ndarray, gap_floor: np.ndarray, gap_ceiling: np.ndarray,
                   records: np.ndarray) -> None:
-    low = np.int64(0xFFFF)
+    low = np.int64((1 << RECORD_FIELD_BITS) - 1)
     for i in prange(len(tops)):
-        records[i] = ((np.int64(tops[i]) & low) | ((np.int64(gap_floor[i]) & low) << 16)
-                      | ((np.int64(gap_ceiling[i]) & low) << 32))
+        records[i] = ((np.int64(tops[i]) & low)
+                      | ((np.int64(gap_floor[i]) & low) << RECORD_FIELD_BITS)
+                      | ((np.int64(gap_ceiling[i]) & low) << (2 * RECORD_FIELD_BITS)))
 
 
 def octree_column_tops(octree, voxels: np.ndarray | None = None) -> ColumnTops:
