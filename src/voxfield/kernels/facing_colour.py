@@ -28,7 +28,8 @@ from numba import njit, prange
 
 from voxfield.kernels.colour import SRGB8_TO_LINEAR, node_rgb, prefetch_stored
 from voxfield.kernels.memory_hints import prefetch
-from voxfield.kernels.node_descriptor import child_index
+from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, child_index
+from voxfield.kernels.stack_arrays import stack_matrix
 
 #: Bytes per direction: sRGB red, green, blue codes, then coverage in 1/255.
 FACING_CHANNELS = 4
@@ -36,12 +37,16 @@ _DECODE = SRGB8_TO_LINEAR.astype(np.float64)
 #: Linear value at the midpoint between consecutive sRGB codes: a value's code is the number
 #: of midpoints below it.
 _ENCODE_EDGES = ((SRGB8_TO_LINEAR[1:].astype(np.float64) + SRGB8_TO_LINEAR[:-1]) / 2.0)
-#: Equal buckets of [0, 1], each with the number of midpoints below its lower end: encoding
-#: starts there and steps over the one or two midpoints a bucket holds, where a binary
-#: search would take eight unpredictable branches (the facing colours encode 18 a node).
+#: Equal buckets of [0, 1], each with the number of midpoints below its lower end. A bucket
+#: (1/4096 wide) is narrower than the closest two midpoints (1/(12.92·255) apart, at the
+#: dark end), so it holds one at most: the code is the bucket's count, plus one if the
+#: linear value is past that midpoint, with no search and no branch (stepping over the
+#: midpoints in a loop, the directional colours took 3 % longer).
 _ENCODE_BUCKETS = 4096
 _ENCODE_START = np.searchsorted(
     _ENCODE_EDGES, np.arange(_ENCODE_BUCKETS) / _ENCODE_BUCKETS).astype(np.int64)
+assert np.all(np.diff(_ENCODE_EDGES) > 1.0 / _ENCODE_BUCKETS)
+_LAST_CODE = _ENCODE_EDGES.shape[0]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -49,30 +54,18 @@ def encode_srgb8(linear: float) -> int:
     """Nearest 8-bit sRGB code of a linear value in [0, 1]: the number of midpoints below
     it, as ``np.searchsorted(_ENCODE_EDGES, linear)`` counts them (NaN: 255)."""
     if linear != linear:
-        return _ENCODE_EDGES.shape[0]
+        return _LAST_CODE
     bucket = min(max(int(min(max(linear, 0.0), 1.0) * _ENCODE_BUCKETS), 0),
                  _ENCODE_BUCKETS - 1)
     code = _ENCODE_START[bucket]
-    while code < _ENCODE_EDGES.shape[0] and _ENCODE_EDGES[code] < linear:
-        code += 1
-    return code
+    past = _ENCODE_EDGES[min(code, _LAST_CODE - 1)] < linear
+    return code + (1 if past and code < _LAST_CODE else 0)
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _child_or_none(descriptor: int, octant: int) -> int:
     """Flat index of child ``octant``, -1 where the mask has none."""
     return child_index(descriptor, octant) if (descriptor >> octant) & 1 else -1
-
-
-@njit(cache=True, nogil=True)
-def _child_view(node: int, inner: int, colors, facing, exposure, direction: int):
-    """Colour and coverage of one node seen along ``direction``: a voxel covers fully when
-    the face the ray enters it through (``direction ^ 1`` in face order) is exposed."""
-    if node >= inner:
-        r, g, b = node_rgb(colors, node)
-        return r, g, b, float((exposure[node - inner] >> (direction ^ 1)) & 1)
-    return (_DECODE[facing[node, direction, 0]], _DECODE[facing[node, direction, 1]],
-            _DECODE[facing[node, direction, 2]], facing[node, direction, 3] / 255.0)
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -84,43 +77,107 @@ def facing_level(descriptors, first: int, last: int, colors, exposure, facing) -
     inner = descriptors.shape[0]
     for node in prange(first, last):
         descriptor = descriptors[node]
-        for axis in range(3):
-            bit = 1 << axis
-            for up in range(2):
-                direction = 2 * axis + up
-                front_bit = 0 if up else bit  # a ray running up the axis meets the low half first
-                cover_sum = 0.0
-                r = 0.0
-                g = 0.0
-                b = 0.0
-                for octant in range(8):
-                    if octant & bit:
-                        continue  # each column once, from its low-half octant
-                    front = _child_or_none(descriptor, octant | front_bit)
-                    back = _child_or_none(descriptor, octant | (bit ^ front_bit))
-                    fr = fg = fb = fa = 0.0
-                    br = bg = bb = ba = 0.0
-                    if front >= 0:
-                        fr, fg, fb, fa = _child_view(front, inner, colors, facing, exposure,
-                                                     direction)
-                    if back >= 0:
-                        br, bg, bb, ba = _child_view(back, inner, colors, facing, exposure,
-                                                     direction)
-                    through = (1.0 - fa) * ba
-                    cover_sum += fa + through
-                    r += fa * fr + through * br
-                    g += fa * fg + through * bg
-                    b += fa * fb + through * bb
-                if cover_sum > 0.0:
-                    r /= cover_sum
-                    g /= cover_sum
-                    b /= cover_sum
-                facing[node, direction, 0] = encode_srgb8(r)
-                facing[node, direction, 1] = encode_srgb8(g)
-                facing[node, direction, 2] = encode_srgb8(b)
-                # Any visible surface keeps a coverage of at least 1/255.
-                cover = int(math.floor(cover_sum / 4.0 * 255.0 + 0.5))
-                facing[node, direction, 3] = max(cover, 1) if cover_sum > 0.0 else 0
+        if (descriptor >> FIRST_CHILD_SHIFT) >= inner:
+            _facing_of_brick(descriptor, node, inner, colors, exposure, facing)
+        else:
+            _facing_of_parent(descriptor, node, facing)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _facing_of_brick(descriptor: int, node: int, inner: int, colors, exposure,
+                     facing) -> None:
+    """``facing_level`` for a node whose children are voxels: each voxel's colour decoded
+    once for its six directions, where a lookup per direction and column decoded it six
+    times: on the 2048² mountain terrain the 4.6M such nodes took 245 ms instead of 355 on
+    two threads, the same bytes. A missing voxel shows nothing, as a covered face does."""
+    rgb = stack_matrix(8, 3, np.float64)
+    faces = stack_matrix(1, 8, np.int64)[0]
+    child = descriptor >> FIRST_CHILD_SHIFT
+    for octant in range(8):
+        if (descriptor >> octant) & 1:
+            rgb[octant, 0], rgb[octant, 1], rgb[octant, 2] = node_rgb(colors, child)
+            faces[octant] = exposure[child - inner]
+            child += 1
+        else:
+            rgb[octant, 0] = rgb[octant, 1] = rgb[octant, 2] = 0.0
+            faces[octant] = 0
+    for axis in range(3):
+        bit = 1 << axis
+        for up in range(2):
+            direction = 2 * axis + up
+            front_bit = 0 if up else bit  # a ray running up the axis meets the low half first
+            seen_face = direction ^ 1  # the face it enters a voxel through
+            cover_sum = 0.0
+            r = 0.0
+            g = 0.0
+            b = 0.0
+            for octant in range(8):
+                if octant & bit:
+                    continue  # each column once, from its low-half octant
+                front = octant | front_bit
+                back = octant | (bit ^ front_bit)
+                fa = float((faces[front] >> seen_face) & 1)
+                ba = float((faces[back] >> seen_face) & 1)
+                through = (1.0 - fa) * ba
+                cover_sum += fa + through
+                r += fa * rgb[front, 0] + through * rgb[back, 0]
+                g += fa * rgb[front, 1] + through * rgb[back, 1]
+                b += fa * rgb[front, 2] + through * rgb[back, 2]
+            _store_view(facing, node, direction, r, g, b, cover_sum)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _facing_of_parent(descriptor: int, node: int, facing) -> None:
+    """``facing_level`` for a node whose children are inner nodes, from their views."""
+    for axis in range(3):
+        bit = 1 << axis
+        for up in range(2):
+            direction = 2 * axis + up
+            front_bit = 0 if up else bit
+            cover_sum = 0.0
+            r = 0.0
+            g = 0.0
+            b = 0.0
+            for octant in range(8):
+                if octant & bit:
+                    continue
+                front = _child_or_none(descriptor, octant | front_bit)
+                back = _child_or_none(descriptor, octant | (bit ^ front_bit))
+                fr = fg = fb = fa = 0.0
+                br = bg = bb = ba = 0.0
+                if front >= 0:
+                    fr, fg, fb, fa = _inner_view(front, facing, direction)
+                if back >= 0:
+                    br, bg, bb, ba = _inner_view(back, facing, direction)
+                through = (1.0 - fa) * ba
+                cover_sum += fa + through
+                r += fa * fr + through * br
+                g += fa * fg + through * bg
+                b += fa * fb + through * bb
+            _store_view(facing, node, direction, r, g, b, cover_sum)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _inner_view(node: int, facing, direction: int):
+    """Colour and coverage of an inner node seen along ``direction``."""
+    return (_DECODE[facing[node, direction, 0]], _DECODE[facing[node, direction, 1]],
+            _DECODE[facing[node, direction, 2]], facing[node, direction, 3] / 255.0)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _store_view(facing, node: int, direction: int, r: float, g: float, b: float,
+                cover_sum: float) -> None:
+    """A node's colour and coverage along ``direction`` from its four columns' sums."""
+    if cover_sum > 0.0:
+        r /= cover_sum
+        g /= cover_sum
+        b /= cover_sum
+    facing[node, direction, 0] = encode_srgb8(r)
+    facing[node, direction, 1] = encode_srgb8(g)
+    facing[node, direction, 2] = encode_srgb8(b)
+    # Any visible surface keeps a coverage of at least 1/255.
+    cover = int(math.floor(cover_sum / 4.0 * 255.0 + 0.5))
+    facing[node, direction, 3] = max(cover, 1) if cover_sum > 0.0 else 0
 
 
 @njit(cache=True, nogil=True, inline="always")
