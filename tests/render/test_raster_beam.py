@@ -8,7 +8,7 @@ import pytest
 
 from random_scenes import hollow_shell_terrain, overhanging_terrain, random_scene
 from voxfield.render import Camera, orbit_camera, render_lod, render_reference
-from voxfield.render.beam import raster_beam
+from voxfield.render.beam import coarsest_cone_level, raster_beam
 from voxfield.render.ray_query import trace
 from voxfield.svo import build_octree
 from voxfield.svo.column_tops import octree_column_tops
@@ -85,6 +85,31 @@ def test_render_is_unchanged(scene):
                         render_lod(octree, cam, lod=lod, beam=False))
         assert_same(render_reference(octree, cam, side=3, beam=True),
                     render_reference(octree, cam, side=3, beam=False))
+
+
+@pytest.mark.parametrize("scene", SCENES, ids=["random", "overhangs", "hollow"])
+def test_cone_lod_renders_from_the_bound_drawn_for_their_coarsest_nodes(scene):
+    """Cone-LOD rays start at the bound drawn with the boxes rounded out to the largest node
+    their cone accepts anywhere (``coarsest_cone_level``): every pixel as from the eye, the
+    nodes hit never larger than that level, and cones wide enough that coarse nodes reaching
+    above the column tops and past the voxels' box are hit. Drawn for voxels instead, the
+    bound would start rays past such hits."""
+    octree = build_octree(scene)
+    lo, hi = octree.voxel_bounds
+    centre = (np.asarray(lo) + np.asarray(hi)) / 2.0
+    far = Camera.look_at((hi[0] + 70.0, hi[1] + 45.0, lo[2] - 60.0), tuple(centre),
+                         fov_deg=30, width=40, height=32)
+    coarse_hits = 0
+    for cam in [*pinhole_cameras(octree), far]:
+        for cone_scale, side in ((1.0, 1), (6.0, 1), (6.0, 2)):
+            coarsest = coarsest_cone_level(octree, cam, cone_scale, side)
+            drawn = render_lod(octree, cam, lod=None, cone_scale=cone_scale, side=side,
+                               beam=True)
+            assert_same(drawn, render_lod(octree, cam, lod=None, cone_scale=cone_scale,
+                                          side=side, beam=False))
+            assert drawn.finest_lod.max() <= coarsest
+            coarse_hits += int(np.count_nonzero(drawn.finest_lod >= 2))
+    assert coarse_hits > 0
 
 
 def test_camera_among_the_columns_falls_back():

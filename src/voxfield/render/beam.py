@@ -16,6 +16,7 @@ import numpy as np
 from voxfield.kernels.beam import add_block_shares, beam_map
 from voxfield.kernels.camera_rays import PINHOLE, pixel_cone
 from voxfield.kernels.column_raster import direction_limits, draw_cell_boxes
+from voxfield.kernels.traversal import cone_width
 from voxfield.render.camera import Camera
 from voxfield.svo.octree import Octree
 
@@ -194,14 +195,47 @@ def raster_beam(camera: Camera, columns, *, stop_level: int, depth: int,
 def pixel_start_bounds(octree: Octree, camera: Camera, columns, *, stop_level: int,
                        cone_scale: float = 0.0, side: int = 1, whole_pixel: bool = False,
                        enabled: bool = True) -> Beam:
-    """Where each pixel's rays start, the one choice the primary renderers share: rays at a
-    fixed level (no cone) at their pixel's bound from the pyramid ``columns`` drawn into
-    the image (``raster_beam``, ``whole_pixel`` as there), where it can be drawn; else at
-    their block's beam bound (``primary_beam``)."""
-    if enabled and cone_scale == 0.0:
-        bounds = raster_beam(camera, columns, stop_level=stop_level, depth=octree.depth,
+    """Where each pixel's rays start, the one choice the primary renderers share: at their
+    pixel's bound from the pyramid ``columns`` drawn into the image (``raster_beam``,
+    ``whole_pixel`` as there), where it can be drawn; else at their block's beam bound
+    (``primary_beam``). Cone-LOD rays (``cone_scale`` > 0) take the bound drawn for the
+    largest nodes their cones accept anywhere in the octree (``coarsest_cone_level``): on
+    the 2048² mountain terrain (512²) their renders took 0.73-0.76× the block beam's time
+    from the top, 0.79-0.81× at 45°, with one ray a pixel or 16, the same pixels."""
+    if enabled:
+        drawn_stop = stop_level
+        if cone_scale > 0.0:
+            drawn_stop = octree.depth - coarsest_cone_level(octree, camera, cone_scale, side)
+        bounds = raster_beam(camera, columns, stop_level=drawn_stop, depth=octree.depth,
                              whole_pixel=whole_pixel)
         if bounds is not None:
             return bounds
     return primary_beam(octree, camera, stop_level=stop_level, cone_scale=cone_scale,
                         side=side, enabled=enabled)
+
+
+def coarsest_cone_level(octree: Octree, camera: Camera, cone_scale: float, side: int) -> int:
+    """The level of the largest node the cone of a ``1/side`` sub-pixel's ray (``cone_scale``
+    footprints wide, ``kernels.traversal.cone_width``) can accept in ``octree``: a node of
+    side ``2^k`` lies in the voxels' box rounded out to ``2^k``, so the ray enters it no
+    farther than that box's farthest corner, and a cone no wider there accepts no such node.
+    Boxes of the pyramid's cells rounded to that level then hold every node a cone-LOD ray
+    can hit, and its drawn bound starts every such ray before its hit: no node it accepts
+    (none larger) holds it there, so the octree from the bound judges each node at its
+    entry, as from the eye (``kernels.cone_walk``'s contract)."""
+    radius, spread = pixel_cone(camera.params, camera.height)
+    radius *= cone_scale / side
+    spread *= cone_scale / side
+    eye = np.asarray(camera.params[1:4], np.float64)
+    lo, hi = (np.asarray(b, np.float64) for b in octree.voxel_bounds)
+    coarsest = 0
+    for level in range(1, octree.depth + 1):
+        node = float(1 << level)
+        corners = np.stack(np.meshgrid(*[(np.floor(a / node) * node, np.ceil(b / node) * node)
+                                         for a, b in zip(lo, hi, strict=True)],
+                                       indexing="ij"), axis=-1).reshape(-1, 3)
+        farthest = float(np.sqrt(((corners - eye) ** 2).sum(axis=1)).max())
+        # (A margin over the rounding of the traversal's own entry times.)
+        if node <= cone_width(radius, spread, farthest * (1.0 + 1e-9) + 1e-6):
+            coarsest = level
+    return coarsest

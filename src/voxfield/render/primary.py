@@ -64,7 +64,7 @@ def trace_image(
     side = integer_in(side, "samples per pixel side", 1, 16)
     seed = seed_value(seed)
     check_device(device)
-    drawn = beam and device == "cpu" and cone_scale == 0.0 and columns
+    drawn = beam and device == "cpu" and columns
     with thread_count(threads):
         bounds = pixel_start_bounds(
             octree, camera, octree_column_tops(octree) if drawn else no_column_tops(),
