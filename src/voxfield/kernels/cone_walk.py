@@ -36,6 +36,7 @@ from voxfield.kernels.surface_approach import (
     WALKS,
     level_shape,
     top_node_hit,
+    top_run_node,
     walk_entry,
 )
 from voxfield.kernels.traversal import (
@@ -149,8 +150,15 @@ def trace_cone_over_columns(
         # The cone takes the top node where it accepts exactly its level at the node's
         # entry: no larger node around it, entered no later, yet.
         if y >= 0 and cone_level(t_hit, radius, spread, depth) == level:
-            node = node_at_level(inner_nodes, depth, depth - level, cx << level, y << level,
-                                 cz << level, scratch)
+            node = -1
+            # A voxel near its column's top: the pyramid keeps its node, where a lookup
+            # from the root chained a load per level (16-ray renders of the 2048² mountain:
+            # 1.06-1.07× as fast from the top, 1.02-1.04× at 45° and near the ground).
+            if level == 0:
+                node = top_run_node(columns, cx * columns.level_depth[0] + cz, y)
+            if node < 0:
+                node = node_at_level(inner_nodes, depth, depth - level, cx << level,
+                                     y << level, cz << level, scratch)
             return node, depth - level, t_hit, normal, cells + 1
     node, node_level, t_hit, normal, steps = traverse(
         ox, oy, oz, dx, dy, dz, tmin, math.inf, inner_nodes, depth, depth, radius, spread,
