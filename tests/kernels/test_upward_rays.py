@@ -263,7 +263,7 @@ def test_far_pillars_keep_flat_rays_unsettled():
     """From the ground of a pillar field, a flat ray towards a pillar taller than it will be
     when it gets there is never settled; a steep one from the same place is."""
     octree, voxels, columns = octree_and_columns(pillar_field(seed=1))
-    tops = columns.tops[: columns.run_bottom.shape[0]].reshape(
+    tops = columns.tops[: int(columns.level_width[0] * columns.level_depth[0])].reshape(
         int(columns.level_width[0]), int(columns.level_depth[0]))
     horizons = horizon_slopes(columns)
     starts = [(px - k, pz) for px, pz in np.argwhere(tops >= 30) for k in range(10, 20)

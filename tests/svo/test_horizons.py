@@ -14,7 +14,7 @@ from voxfield.svo.horizons import NOTHING_AHEAD, RING, horizon_slopes
 
 
 def _level0(columns) -> np.ndarray:
-    return columns.tops[: columns.run_bottom.shape[0]].reshape(
+    return columns.tops[: int(columns.level_width[0] * columns.level_depth[0])].reshape(
         int(columns.level_width[0]), int(columns.level_depth[0])).astype(np.int64)
 
 

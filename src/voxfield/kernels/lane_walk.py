@@ -351,9 +351,10 @@ def _record_lane(floats: np.ndarray, ints: np.ndarray, columns, lane: int, fines
     cx, cz = ints[_CX, lane], ints[_CZ, lane]
     record_walk(walk_ints, walk_times, k, HANDED_OVER, floats[_T, lane], ints[_STEPS, lane],
                 cx, cz)
-    if finest > 0:  # a coarser node: the settling reads the cell's top alone
-        prefetch(columns.tops, np.uint64(columns.level_offset[finest]
-                                         + cx * columns.level_depth[finest] + cz))
+    if finest > 0:  # a coarser node: the settling reads the cell's top and run bottom
+        cell = np.uint64(columns.level_offset[finest] + cx * columns.level_depth[finest] + cz)
+        prefetch(columns.tops, cell)
+        prefetch(columns.run_bottom, cell)
         return
     column = np.uint64(cx * columns.level_depth[0] + cz)
     prefetch(columns.run_bottom, column)

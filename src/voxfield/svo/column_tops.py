@@ -65,7 +65,10 @@ class ColumnTops(NamedTuple):
     level_offset: np.ndarray  # int64 (levels,): first cell of each level in ``tops``
     level_width: np.ndarray  # int64 (levels,): cells along x
     level_depth: np.ndarray  # int64 (levels,): cells along z
-    run_bottom: np.ndarray  # (level-0 cells,): lowest y of each column's top run
+    # Cells as in ``tops``: the lowest y of each column's top run (level 0) and, for a cell
+    # of level l, the lowest y (a multiple of 2^l) from which every node of side 2^l up to
+    # the cell's top node holds a voxel, as far as its children's runs show (``_coarser_runs``)
+    run_bottom: np.ndarray
     top_nodes: np.ndarray  # int32 (level-0 cells × TOP_RUN_NODES,): per column, the nodes of
     #                        its top run's highest voxels, top down (-1 past the run's bottom
     #                        or in an empty column); empty when the voxels' nodes are not
@@ -84,7 +87,7 @@ class ColumnTops(NamedTuple):
     @property
     def under_top(self) -> np.ndarray:
         """Per column (level-0 cell): the top of what lies under its top run's gap, or 0."""
-        return self.gap_floor[: self.run_bottom.shape[0]]
+        return self.gap_floor[: int(self.level_width[0] * self.level_depth[0])]
 
 
 def no_column_tops() -> ColumnTops:
@@ -126,7 +129,7 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
     gap_floor = np.empty_like(tops)
     gap_ceiling = np.empty_like(tops)
     floors = np.empty_like(tops)
-    bottom = np.empty(width * depth, heights)
+    bottom = np.empty_like(tops)
     with_nodes = first_node is not None and first_node + len(voxels) <= np.iinfo(np.int32).max
     top_nodes = np.empty(width * depth * TOP_RUN_NODES if with_nodes else 0, np.int32)
     # Scratch for the column sort: the voxel each sorted slot holds, int32 below 2^31
@@ -142,6 +145,7 @@ def column_tops(voxels: np.ndarray, max_columns: int = MAX_COLUMNS,
         _coarser(gap_floor, source, w, d, target, False, open_value)
         _coarser(gap_ceiling, source, w, d, target, True, open_value)
         _coarser(floors, source, w, d, target, True, open_value)
+        _coarser_runs(tops, bottom, source, w, d, target, level)
     return ColumnTops(
         tops=tops,
         level_offset=offsets,
@@ -241,6 +245,43 @@ def _coarser(cells: np.ndarray, first: int, width: int, depth: int, out_first: i
                     value = cells[first + cx * depth + cz]
                     best = min(best, value) if lowest else max(best, value)
             cells[out_first + x * out_depth + z] = best
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _coarser_runs(tops: np.ndarray, run_bottom: np.ndarray, first: int, width: int, depth: int,
+                  out_first: int, level: int) -> None:
+    """``run_bottom`` of level ``level`` from the level below (at ``first``, ``width × depth``
+    cells), whose ``tops`` are filled: a node of side ``2^level`` holds a voxel where it
+    meets a child's known run (each of the child's nodes there holds one), so the cell's
+    known run is the unbroken union of its children's, in nodes of this level, down from
+    the top node. The children's runs, not their columns': a bound, which only leaves rays
+    to the octree that a finer account would settle. On the 2048² mountain terrain this
+    pass costs the pyramid's build 0.02 s (0.23 -> 0.25 s)."""
+    size = 1 << level
+    out_depth = (depth + 1) // 2
+    for x in prange((width + 1) // 2):
+        for z in range(out_depth):
+            x_cells = range(2 * x, min(2 * x + 2, width))
+            z_cells = range(2 * z, min(2 * z + 2, depth))
+            top_node = 0
+            bottom = 0
+            for cx in x_cells:
+                for cz in z_cells:
+                    child = first + cx * depth + cz
+                    high = (tops[child] + size - 1) >> level
+                    if tops[child] > 0 and high > top_node:
+                        top_node = high
+                        bottom = run_bottom[child] >> level
+            # Runs that reach the known run's bottom extend it, one at least a round.
+            for _ in range(3):
+                for cx in x_cells:
+                    for cz in z_cells:
+                        child = first + cx * depth + cz
+                        low = run_bottom[child] >> level
+                        if (tops[child] > 0 and ((tops[child] + size - 1) >> level) >= bottom
+                                and low < bottom):
+                            bottom = low
+            run_bottom[out_first + x * out_depth + z] = bottom << level
 
 
 @njit(cache=True, nogil=True, parallel=True)
