@@ -73,6 +73,7 @@ def test_a_borrowing_helper_that_allocates_fails_to_compile_rather_than_leak():
     cone_walk.walk_cone_over_columns,
     cone_walk.trace_cone_over_columns,
     primary.trace_chunk_cone_over_columns,
+    primary.trace_cone_batch,
     lane_walk.walk_to_voxels_in_lanes,
     lane_walk.walk_to_nodes_in_lanes,
     lane_walk.walk_queue_in_lanes,

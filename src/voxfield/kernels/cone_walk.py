@@ -30,7 +30,14 @@ import numpy as np
 from numba import njit
 
 from voxfield.kernels.borrowing import borrowing
-from voxfield.kernels.column_walk import cell_holding, clear_of_cell, step_across, step_down
+from voxfield.kernels.column_walk import (
+    TOP_RUN_NODES,
+    cell_holding,
+    clear_of_cell,
+    step_across,
+    step_down,
+)
+from voxfield.kernels.memory_hints import prefetch
 from voxfield.kernels.surface_approach import (
     NEAR_START_LEVELS,
     WALKS,
@@ -139,9 +146,35 @@ def trace_cone_over_columns(
 ) -> tuple[int, int, float, int, int]:
     """``traversal.trace_ray`` of a cone-LOD primary ray (``stop_level`` the voxels, no
     ``tmax``) through the pyramid first: the same node, level, time and entry face; the
-    steps count the pyramid's cells, then the octree's nodes or one for a landing."""
-    t, cells, cx, cz, level = walk_cone_over_columns(ox, oy, oz, dx, dy, dz, tmin, radius,
-                                                     spread, depth, columns)
+    steps count the pyramid's cells, then the octree's nodes or one for a landing. It is
+    ``walk_cone_over_columns`` then ``settle_cone_walk``."""
+    walk = walk_cone_over_columns(ox, oy, oz, dx, dy, dz, tmin, radius, spread, depth,
+                                  columns)
+    return settle_cone_walk(ox, oy, oz, dx, dy, dz, tmin, inner_nodes, depth, radius, spread,
+                            scratch, columns, walk)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def prefetch_cone_landing(columns, walk) -> None:
+    """Start loading what ``settle_cone_walk`` reads to land a walk on its cell's top node."""
+    _, _, cx, cz, level = walk
+    if cx >= 0 and level < columns.level_width.shape[0]:
+        cell = np.uint64(columns.level_offset[level] + cx * columns.level_depth[level] + cz)
+        prefetch(columns.tops, cell)
+        prefetch(columns.run_bottom, cell)
+        if level == 0 and columns.top_nodes.shape[0] > 0:
+            prefetch(columns.top_nodes, cell * np.uint64(TOP_RUN_NODES))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def settle_cone_walk(
+    ox: float, oy: float, oz: float, dx: float, dy: float, dz: float, tmin: float,
+    inner_nodes: np.ndarray, depth: int, radius: float, spread: float, scratch, columns,
+    walk,
+) -> tuple[int, int, float, int, int]:
+    """``trace_cone_over_columns``'s answer from its walk: the cell's top node where the
+    cone takes it, else the octree's from the walk's time."""
+    t, cells, cx, cz, level = walk
     if cx == MISSED_ALL:
         return MISS, 0, math.inf, NO_NORMAL, cells
     if cx >= 0 and level < depth:  # (a cone that takes the root takes it at its entry)
