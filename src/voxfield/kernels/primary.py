@@ -348,6 +348,23 @@ def sample_ray(cam: np.ndarray, width: int, height: int, pixel: int, s: int, sid
 
 
 @njit(cache=True, nogil=True, inline="always")
+def chunk_pixel(pixels: np.ndarray, index: int, width: int, side: int, seed: int,
+                beam: BeamBounds, column: np.ndarray,
+                row: np.ndarray) -> tuple[int, int, int, float]:
+    """``(pattern, x, y, t_start)`` of the pixel ``pixels[index]``: its CMJ pattern, with
+    the pattern's stratum permutations drawn into ``column`` and ``row`` (``side`` > 1), its
+    position and its start bound."""
+    pixel = pixels[index]
+    pattern = 0
+    if side > 1:
+        pattern = pixel_pattern(pixel, seed)
+        cmj_strata(side, side, pattern, column, row)
+    y_pixel = pixel // width
+    x_pixel = pixel - y_pixel * width
+    return pattern, x_pixel, y_pixel, block_start(beam.bound, beam.block, y_pixel, x_pixel)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def strata_sample_ray(cam: np.ndarray, width: int, height: int, x_pixel: int, y_pixel: int,
                       s: int, side: int, pattern: int, column: np.ndarray,
                       row: np.ndarray) -> tuple[float, float, float, float, float, float]:
@@ -425,14 +442,8 @@ def trace_chunk_cone_over_columns(
     column, row = strata
     queued = np.int64(0)
     for j in range(last - first):
-        pixel = pixels[first + j]
-        pattern = 0
-        if side > 1:
-            pattern = pixel_pattern(pixel, seed)
-            cmj_strata(side, side, pattern, column, row)
-        y_pixel = pixel // width
-        x_pixel = pixel - y_pixel * width
-        t_start = block_start(beam.bound, beam.block, y_pixel, x_pixel)
+        pattern, x_pixel, y_pixel, t_start = chunk_pixel(pixels, first + j, width, side, seed,
+                                                         beam, column, row)
         for s in range(side * side):
             ox, oy, oz, dx, dy, dz = strata_sample_ray(cam, width, height, x_pixel, y_pixel, s,
                                                        side, pattern, column, row)
@@ -502,14 +513,8 @@ def trace_chunk_over_columns(
     # with the walk compiled in).
     queued = np.int64(0)
     for j in range(last - first):
-        pixel = pixels[first + j]
-        pattern = 0
-        if side > 1:
-            pattern = pixel_pattern(pixel, seed)
-            cmj_strata(side, side, pattern, column, row)
-        y_pixel = pixel // width
-        x_pixel = pixel - y_pixel * width
-        t_start = block_start(beam.bound, beam.block, y_pixel, x_pixel)
+        pattern, x_pixel, y_pixel, t_start = chunk_pixel(pixels, first + j, width, side, seed,
+                                                         beam, column, row)
         if t_start == math.inf:
             continue  # the beam showed every ray of the block misses: black, and no steps
         for s in range(side * side):
