@@ -31,19 +31,18 @@ from numba import njit
 
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import (
-    TOP_RUN_NODES,
     cell_holding,
     clear_of_cell,
     step_across,
     step_down,
 )
-from voxfield.kernels.memory_hints import prefetch
 from voxfield.kernels.surface_approach import (
     NEAR_START_LEVELS,
     WALKS,
+    landed_node,
     level_shape,
+    prefetch_landing,
     top_node_hit,
-    top_run_node,
     walk_entry,
 )
 from voxfield.kernels.traversal import (
@@ -51,7 +50,6 @@ from voxfield.kernels.traversal import (
     NO_NORMAL,
     cone_width,
     face_time,
-    node_at_level,
     traverse,
 )
 
@@ -156,14 +154,11 @@ def trace_cone_over_columns(
 
 @njit(cache=True, nogil=True, inline="always")
 def prefetch_cone_landing(columns, walk) -> None:
-    """Start loading what ``settle_cone_walk`` reads to land a walk on its cell's top node."""
+    """Start loading what ``settle_cone_walk`` reads to land a walk on its cell's top node
+    (``surface_approach.prefetch_landing``)."""
     _, _, cx, cz, level = walk
     if cx >= 0 and level < columns.level_width.shape[0]:
-        cell = np.uint64(columns.level_offset[level] + cx * columns.level_depth[level] + cz)
-        prefetch(columns.tops, cell)
-        prefetch(columns.run_bottom, cell)
-        if level == 0 and columns.top_nodes.shape[0] > 0:
-            prefetch(columns.top_nodes, cell * np.uint64(TOP_RUN_NODES))
+        prefetch_landing(columns, cx, cz, level)
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -183,15 +178,9 @@ def settle_cone_walk(
         # The cone takes the top node where it accepts exactly its level at the node's
         # entry: no larger node around it, entered no later, yet.
         if y >= 0 and cone_level(t_hit, radius, spread, depth) == level:
-            node = -1
-            # A voxel near its column's top: the pyramid keeps its node, where a lookup
-            # from the root chained a load per level (16-ray renders of the 2048² mountain:
-            # 1.06-1.07× as fast from the top, 1.02-1.04× at 45° and near the ground).
-            if level == 0:
-                node = top_run_node(columns, cx * columns.level_depth[0] + cz, y)
-            if node < 0:
-                node = node_at_level(inner_nodes, depth, depth - level, cx << level,
-                                     y << level, cz << level, scratch)
+            # (A voxel's node from the pyramid rather than the root made 16-ray renders of
+            # the 2048² mountain 1.06-1.07× as fast from the top, 1.02-1.04× elsewhere.)
+            node = landed_node(inner_nodes, depth, level, cx, cz, y, scratch, columns)
             return node, depth - level, t_hit, normal, cells + 1
     node, node_level, t_hit, normal, steps = traverse(
         ox, oy, oz, dx, dy, dz, tmin, math.inf, inner_nodes, depth, depth, radius, spread,

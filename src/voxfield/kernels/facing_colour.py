@@ -112,9 +112,12 @@ def _facing_of_brick(descriptor: int, node: int, inner: int, colors, exposure,
 def _facing_of_parent(descriptor: int, node: int, facing) -> None:
     """``facing_level`` for a node whose children are inner nodes, from their views."""
     views = stack_matrix(8, 4, np.float64)
+    children = stack_matrix(1, 8, np.int64)[0]
+    for octant in range(8):
+        children[octant] = _child_or_none(descriptor, octant)
     for direction in range(6):
         for octant in range(8):
-            child = _child_or_none(descriptor, octant)
+            child = children[octant]
             if child >= 0:
                 (views[octant, 0], views[octant, 1], views[octant, 2],
                  views[octant, 3]) = _inner_view(child, facing, direction)

@@ -37,7 +37,7 @@ from numba import config, njit
 from numba.core.codegen import get_host_cpu_features
 
 from voxfield.kernels.borrowing import borrowing
-from voxfield.kernels.column_walk import RECORD_FIELD_BITS, TOP_RUN_NODES
+from voxfield.kernels.column_walk import RECORD_FIELD_BITS
 from voxfield.kernels.memory_hints import prefetch
 from voxfield.kernels.stack_arrays import stack_matrix
 from voxfield.kernels.surface_approach import (
@@ -45,6 +45,7 @@ from voxfield.kernels.surface_approach import (
     HANDED_OVER,
     MISSED,
     WALKS,
+    prefetch_landing,
     top_node_hit,
     walk_entry,
     walk_plan,
@@ -351,15 +352,7 @@ def _record_lane(floats: np.ndarray, ints: np.ndarray, columns, lane: int, fines
     cx, cz = ints[_CX, lane], ints[_CZ, lane]
     record_walk(walk_ints, walk_times, k, HANDED_OVER, floats[_T, lane], ints[_STEPS, lane],
                 cx, cz)
-    if finest > 0:  # a coarser node: the settling reads the cell's top and run bottom
-        cell = np.uint64(columns.level_offset[finest] + cx * columns.level_depth[finest] + cz)
-        prefetch(columns.tops, cell)
-        prefetch(columns.run_bottom, cell)
-        return
-    column = np.uint64(cx * columns.level_depth[0] + cz)
-    prefetch(columns.run_bottom, column)
-    if columns.top_nodes.shape[0] > 0:
-        prefetch(columns.top_nodes, column * np.uint64(TOP_RUN_NODES))
+    prefetch_landing(columns, cx, cz, finest)
 
 
 @njit(cache=True, nogil=True, inline="always")

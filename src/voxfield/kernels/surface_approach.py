@@ -170,18 +170,41 @@ def settle_walk(
         return -1, 0, math.inf, -1, cells
     stop_level = min(stop_level, depth)
     if y >= 0:
-        finest = depth - stop_level
-        node = -1
-        if finest == 0:
-            node = top_run_node(columns, cx * columns.level_depth[0] + cz, y)
-        if node < 0:
-            node = node_at_level(inner_nodes, depth, stop_level, cx << finest, y << finest,
-                                 cz << finest, scratch)
+        node = landed_node(inner_nodes, depth, depth - stop_level, cx, cz, y, scratch, columns)
         return node, stop_level, t, normal, cells + 1
     node, level, t, normal, steps = finish_in_octree(ox, oy, oz, dx, dy, dz, tmin, t_from,
                                                      tmax, inner_nodes, depth, stop_level,
                                                      scratch)
     return node, level, t, normal, cells + steps
+
+
+@njit(cache=True, nogil=True, inline="always")
+def landed_node(inner_nodes, depth: int, level: int, cx: int, cz: int, y: int, scratch,
+                columns) -> int:
+    """The node of side ``2^level`` a walk landed on in cell ``(cx, cz)`` at height ``y``
+    (node units, ``top_node_hit``): a voxel near its column's top from the pyramid
+    (``top_run_node``), where a lookup from the root would chain a load per level; any
+    other from the octree."""
+    node = -1
+    if level == 0:
+        node = top_run_node(columns, cx * columns.level_depth[0] + cz, y)
+    if node < 0:
+        node = node_at_level(inner_nodes, depth, depth - level, cx << level, y << level,
+                             cz << level, scratch)
+    return node
+
+
+@njit(cache=True, nogil=True, inline="always")
+def prefetch_landing(columns, cx: int, cz: int, level: int) -> None:
+    """Start loading what ``top_node_hit`` and ``landed_node`` read for a walk handed over
+    in cell ``(cx, cz)`` of ``level``: the cell's top and run bottom, and at level 0 (where
+    the walk itself read the top) the run bottom and the column's top-run nodes."""
+    cell = np.uint64(columns.level_offset[level] + cx * columns.level_depth[level] + cz)
+    prefetch(columns.run_bottom, cell)
+    if level > 0:
+        prefetch(columns.tops, cell)
+    elif columns.top_nodes.shape[0] > 0:
+        prefetch(columns.top_nodes, cell * np.uint64(TOP_RUN_NODES))
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -52,8 +52,8 @@ def trace_image(
     """Trace ``side²`` rays per pixel; the shared engine of the reference and LOD renderers.
 
     ``beam`` starts the rays of each pixel block at its beam bound (``render.beam``): the
-    same image, fewer steps. Rays at a fixed level over the column-top pyramid start at
-    their pixel's bound from the pyramid drawn into the image instead
+    same image, fewer steps. Rays over the column-top pyramid start at their pixel's bound
+    from the pyramid drawn into the image instead
     (``render.beam.raster_beam``), where the camera allows it. ``columns`` lets rays cross
     the air in the octree's column-top pyramid first (``kernels.surface_approach`` at a
     fixed level, ``kernels.cone_walk`` with a cone; built once per structure): the same
