@@ -61,6 +61,23 @@ def test_lod_and_reference_renders_are_unchanged(scene, beam):
                      render_reference(scene, camera, side=2, seed=5, beam=beam, columns=False))
 
 
+@pytest.mark.parametrize("lod", [0, 1])
+def test_a_batch_without_its_walk_hands_every_ray_to_the_octree(scene, monkeypatch, lod):
+    """Fixed-level renders compile only the lane walk of their level
+    (``primary.walks_for_level``); a batch left without it (None for both) sends its rays to
+    the octree from their starts: the same pixels, in other steps (more of them here)."""
+    from voxfield.kernels import primary
+
+    assert primary.walks_for_level(12, 12) == (True, None)
+    assert primary.walks_for_level(11, 12) == (None, True)
+    camera = _cameras(scene)[0]
+    walked = render_lod(scene, camera, lod=lod, columns=True)
+    monkeypatch.setattr(primary, "walks_for_level", lambda stop_level, depth: (None, None))
+    unwalked = render_lod(scene, camera, lod=lod, columns=True)
+    _assert_same(walked, unwalked)
+    assert unwalked.steps.sum() > walked.steps.sum()
+
+
 @pytest.mark.parametrize("side", [1, 2])
 def test_cone_lod_renders_are_unchanged(scene, side):
     """Cone-LOD rays walk the pyramid as their cone allows (``kernels.cone_walk``): the

@@ -409,7 +409,8 @@ def trace_records(
 def record_batch(view: OctreeView, stop_level: int, scratch, columns, batch, count: int,
                  records: ChunkRecords) -> None:
     """Trace the batch's ``count`` rays to ``stop_level`` and record each hit with its ray."""
-    hit_ray_batch(batch, count, view, stop_level, scratch, columns)
+    # Refinements walk to coarser nodes and to voxels: both walks are compiled in.
+    hit_ray_batch(batch, count, view, stop_level, scratch, columns, True, True)
     hit_ints, hit_floats = batch[4], batch[5]
     for b in range(count):
         record_hit(records, hit_ints[b, 0], hit_ints[b, 1], hit_ints[b, 2], hit_floats[b, 0],

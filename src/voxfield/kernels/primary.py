@@ -132,13 +132,21 @@ def render_pixels(
     common = (cam, width, height, pixels, out_base, side, seed, view, stop_level)
     with_columns = columns.level_width.shape[0] > 0
     if fixed_level and with_columns:
-        render_pixels_over_columns(*common, beam, out, columns, threads)
+        render_pixels_over_columns(*common, beam, out, columns, threads,
+                                   *walks_for_level(stop_level, view.depth))
     elif fixed_level and side > 1:
         render_pixels_in_packets(*common, beam, out, threads)
     elif with_columns and stop_level >= view.depth:
         render_pixels_cone_over_columns(*common, radius, spread, beam, out, columns, threads)
     else:
         render_pixels_per_ray(*common, radius, spread, beam, out, threads)
+
+
+def walks_for_level(stop_level: int, depth: int) -> tuple[bool | None, bool | None]:
+    """``(to_voxels, to_nodes)`` for ``hit_ray_batch`` of rays that stop at ``stop_level``
+    of an octree of ``depth`` levels: the walk they take, and None for the other, which
+    Numba then leaves out of the compiled batch."""
+    return (True, None) if stop_level >= depth else (None, True)
 
 
 #: Pixels a thread traces at a time: one 8×8 tile of ``render.primary.tile_order``. The
@@ -152,13 +160,15 @@ PIXEL_CHUNK = 64
 def render_pixels_over_columns(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
     side: int, seed: int, view: OctreeView, stop_level: int, beam: BeamBounds,
-    out: PixelOutputs, columns, threads: int,
+    out: PixelOutputs, columns, threads: int, to_voxels, to_nodes,
 ) -> None:
-    """``render_pixels`` through the column-top pyramid (``trace_chunk_over_columns``)."""
+    """``render_pixels`` through the column-top pyramid (``trace_chunk_over_columns``;
+    ``to_voxels`` and ``to_nodes`` as ``hit_ray_batch`` takes them)."""
     queue = new_run_queue()
     for _ in prange(threads):
         render_chunks_over_columns(cam, width, height, pixels, out_base, side, seed, view,
-                                   stop_level, beam, out, columns, queue)
+                                   stop_level, beam, out, columns, queue, to_voxels,
+                                   to_nodes)
 
 
 @njit(parallel=True, cache=True, nogil=True)
@@ -211,7 +221,7 @@ def render_pixels_cone_over_columns(
 def render_chunks_over_columns(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, out_base: int,
     side: int, seed: int, view: OctreeView, stop_level: int, beam: BeamBounds,
-    out: PixelOutputs, columns, queue: np.ndarray,
+    out: PixelOutputs, columns, queue: np.ndarray, to_voxels, to_nodes,
 ) -> None:
     sums, tallies, run = new_chunk_sums()
     scratch, batch, strata = new_scratch(view.depth), new_ray_batch(), new_cmj_strata(side)
@@ -221,7 +231,7 @@ def render_chunks_over_columns(
             return
         trace_chunk_over_columns(cam, width, height, pixels, first, last, side, seed, view,
                                  stop_level, beam, columns, sums, tallies, scratch, batch,
-                                 strata)
+                                 strata, to_voxels, to_nodes)
         store_chunk(out, pixels, out_base, first, last, sums, tallies, side * side)
 
 
@@ -495,7 +505,7 @@ def trace_cone_batch(batch, count: int, view: OctreeView, radius: float, spread:
 def trace_chunk_over_columns(
     cam: np.ndarray, width: int, height: int, pixels: np.ndarray, first: int, last: int,
     side: int, seed: int, view: OctreeView, stop_level: int, beam: BeamBounds, columns,
-    sums: np.ndarray, tallies: np.ndarray, scratch, batch, strata,
+    sums: np.ndarray, tallies: np.ndarray, scratch, batch, strata, to_voxels, to_nodes,
 ) -> None:
     """Every sample to ``stop_level`` through ``kernels.surface_approach``: the air in the
     column-top pyramid, then the octree where the ray reaches the surface, ``RAY_BATCH``
@@ -524,9 +534,10 @@ def trace_chunk_over_columns(
             queued += 1
             if queued == RAY_BATCH:
                 trace_ray_batch(batch, queued, view, stop_level, scratch, columns, sums,
-                                tallies)
+                                tallies, to_voxels, to_nodes)
                 queued = np.int64(0)
-    trace_ray_batch(batch, queued, view, stop_level, scratch, columns, sums, tallies)
+    trace_ray_batch(batch, queued, view, stop_level, scratch, columns, sums, tallies,
+                    to_voxels, to_nodes)
 
 
 #: Rays a chunk queues before it traces them (``trace_ray_batch``): one call of the lane
@@ -561,7 +572,7 @@ def queue_ray(batch, k: int, j: int, ox: float, oy: float, oz: float, dx: float,
 
 @borrowing
 def trace_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratch, columns,
-                    sums: np.ndarray, tallies: np.ndarray) -> None:
+                    sums: np.ndarray, tallies: np.ndarray, to_voxels, to_nodes) -> None:
     """Trace the first ``count`` queued rays into their pixels' sums in three passes: walk
     every ray through the pyramid, settle every walk (``surface_approach.settle_walk``),
     shade every hit. A walk prefetches the line of the column it stops in, and a settled
@@ -575,17 +586,25 @@ def trace_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratc
     no cell records and their rays were walked one by one here, a first reference render
     (``voxfield render builtin:pillars``, empty cache) took 74 s instead of 58 on two
     cores."""
-    hit_ray_batch(batch, count, view, stop_level, scratch, columns)
+    hit_ray_batch(batch, count, view, stop_level, scratch, columns, to_voxels, to_nodes)
     shade_batch((batch[4], batch[5]), count, sums, tallies, view_colours(view), view.facing,
                 view.depth)
 
 
 @borrowing
 def hit_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratch,
-                  columns) -> None:
+                  columns, to_voxels, to_nodes) -> None:
     """The first two passes of ``trace_ray_batch``: every queued ray's hit (node, level,
     time, entry face, steps) into the batch's hits (``queue_hit``), each hit's colour
-    prefetched. The error-aware renderer decides on these before it shades."""
+    prefetched. The error-aware renderer decides on these before it shades.
+
+    ``to_voxels`` and ``to_nodes`` say which lane walks the batch may take: anything for
+    the walk to voxels (LOD 0) and the walk to coarser nodes, None for one it never takes
+    (``walks_for_level``), which Numba then prunes from the compiled batch. A reference
+    render's batches compile no walk to coarser nodes, a fixed-LOD render's none to
+    voxels: ``voxfield render builtin:pillars`` with an empty cache took 56 s instead of 75
+    on two cores. (Rays whose walk was left out go to the octree from their start: the
+    same hits, in other steps.)"""
     rays, pixel_rows, walk_ints, walk_times = batch[0], batch[1], batch[2], batch[3]
     hits = (batch[4], batch[5])
     inner_nodes, depth, facing = view.inner_nodes, view.depth, view.facing
@@ -593,18 +612,21 @@ def hit_ray_batch(batch, count: int, view: OctreeView, stop_level: int, scratch,
     if LANE_WALK_PAYS:
         # (A constant: Numba compiles one of the two branches.)
         finest = walk_plan(0.0, depth, stop_level, columns, FROM_CAMERA)[0]
-        if finest < 0 or columns.cell_records.shape[0] == 0:
-            # No pyramid (or one built without records, which renders are not given): each
-            # ray goes to the octree from its start, as ``walk_over_columns`` hands it over.
+        # (``is not None`` on an argument typed None: the branch is pruned before typing.)
+        walks = finest >= 0 and columns.cell_records.shape[0] > 0
+        if walks and finest == 0 and to_voxels is not None:
+            walk_to_voxels_in_lanes(rays, count, depth, columns, walk_ints, walk_times)
+            land_walks(rays, count, walk_ints, walk_times, columns, math.inf, 0)
+        elif walks and finest > 0 and to_nodes is not None:
+            walk_to_nodes_in_lanes(rays, count, depth, finest, columns, walk_ints, walk_times)
+            land_walks(rays, count, walk_ints, walk_times, columns, math.inf, finest)
+        else:
+            # No pyramid (or one built without records, which renders are not given), or no
+            # walk for this level: each ray goes to the octree from its start, as
+            # ``walk_over_columns`` hands it over.
             for k in range(count):
                 store_walk(walk_ints, walk_times, k,
                            (HANDED_OVER, rays[k, 6], 0, -1, -1, -1, math.inf, -1))
-        elif finest == 0:
-            walk_to_voxels_in_lanes(rays, count, depth, columns, walk_ints, walk_times)
-            land_walks(rays, count, walk_ints, walk_times, columns, math.inf, 0)
-        else:
-            walk_to_nodes_in_lanes(rays, count, depth, finest, columns, walk_ints, walk_times)
-            land_walks(rays, count, walk_ints, walk_times, columns, math.inf, finest)
     else:
         for k in range(count):
             store_walk(walk_ints, walk_times, k, walk_primary_over_columns(
