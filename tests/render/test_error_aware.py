@@ -212,6 +212,45 @@ def test_precomputed_sh_children_term_matches_the_per_child_sum(table, terrain):
         assert got == pytest.approx(expected, abs=1e-9)
 
 
+@pytest.mark.parametrize("encoding", ["oct", "sh"])
+def test_node_error_is_its_masks_table_errors(table, terrain, encoding):
+    # ``node_error`` encodes the direction once for all its masks: it must give what a
+    # lookup per mask gives, e(N) + d·mean_c e(c), at every level (none for children that
+    # are voxels) and with no decay.
+    from voxfield.kernels.error_aware import ENCODING_OCT, ENCODING_SH, node_error
+    from voxfield.kernels.error_lookup import oct_error, sh_error
+
+    oct_map = np.ascontiguousarray(table.oct_map, np.float64)
+    sh = table.sh.astype(np.float64)
+    code = ENCODING_SH if encoding == "sh" else ENCODING_OCT
+
+    def lookup(mask, d):
+        if encoding == "sh":
+            return sh_error(sh, int(mask), *d)
+        return oct_error(oct_map, int(mask), *d)
+
+    rng = np.random.default_rng(11)
+    inner = int(terrain.level_offsets[terrain.depth])
+    above_voxels = terrain.level_slice(terrain.depth - 1)
+    nodes = np.concatenate([rng.integers(0, inner, 40),
+                            rng.integers(above_voxels.start, above_voxels.stop, 5)])
+    for node in nodes:
+        level = int(terrain.node_level(node))
+        first = int(terrain.first_child[node])
+        n_children = int(np.unpackbits(np.uint8(terrain.child_mask[node])).sum())
+        children = terrain.child_mask[first:first + n_children]
+        d = rng.normal(size=3)
+        d /= np.linalg.norm(d)
+        own = lookup(terrain.child_mask[node], d)
+        kids = np.mean([lookup(m, d) for m in children])
+        for decay in (0.0, 0.3):
+            got = node_error(int(node), level, terrain.depth, terrain.inner_nodes, decay, code,
+                             oct_map, sh, *d)
+            has_kids = decay > 0 and level + 1 < terrain.depth
+            expected = own + decay * (kids if has_kids else 0.0)
+            assert got == pytest.approx(expected, rel=1e-12, abs=1e-15), (node, decay)
+
+
 def test_sh_renders_of_one_octree_work_out_the_childrens_means_once(table, monkeypatch):
     """The children's mean SH coefficients cover every inner node (426 MiB on the 2048²
     mountain terrain): they are kept with the octree for its table, recoloured copies

@@ -86,21 +86,35 @@ def add_border(maps: np.ndarray) -> np.ndarray:
     return out
 
 
-@njit(cache=True, nogil=True)
-def oct_bilinear(bordered: np.ndarray, u: float, v: float) -> float:
-    """Bilinear lookup in one bordered (R + 2)² map at (u, v) in [0, 1]²."""
-    r = bordered.shape[0] - 2
+@njit(cache=True, nogil=True, inline="always")
+def bilinear_footprint(resolution: int, u: float, v: float) -> tuple[int, int, float, float]:
+    """The texel corner ``(x0, y0)`` and weights ``(fx, fy)`` of a bilinear lookup at
+    (u, v) in [0, 1]² in a bordered (R + 2)² map, ``R = resolution``: the same for every
+    map of that size, so several maps read at one direction share it."""
     # Bordered texel i holds interior texel i - 1, centred at u = (i - 0.5) / r: in these
     # coordinates texel centres sit on integers.
-    x = u * r + 0.5
-    y = v * r + 0.5
-    x0 = min(max(int(math.floor(x)), 0), r)
-    y0 = min(max(int(math.floor(y)), 0), r)
+    x = u * resolution + 0.5
+    y = v * resolution + 0.5
+    x0 = min(max(int(math.floor(x)), 0), resolution)
+    y0 = min(max(int(math.floor(y)), 0), resolution)
     fx = min(max(x - x0, 0.0), 1.0)
     fy = min(max(y - y0, 0.0), 1.0)
+    return x0, y0, fx, fy
+
+
+@njit(cache=True, nogil=True, inline="always")
+def bilinear_at(bordered: np.ndarray, x0: int, y0: int, fx: float, fy: float) -> float:
+    """One bordered map read at a ``bilinear_footprint``."""
     top = bordered[y0, x0] * (1.0 - fx) + bordered[y0, x0 + 1] * fx
     bottom = bordered[y0 + 1, x0] * (1.0 - fx) + bordered[y0 + 1, x0 + 1] * fx
     return top * (1.0 - fy) + bottom * fy
+
+
+@njit(cache=True, nogil=True)
+def oct_bilinear(bordered: np.ndarray, u: float, v: float) -> float:
+    """Bilinear lookup in one bordered (R + 2)² map at (u, v) in [0, 1]²."""
+    x0, y0, fx, fy = bilinear_footprint(bordered.shape[0] - 2, u, v)
+    return bilinear_at(bordered, x0, y0, fx, fy)
 
 
 #: Largest snorm16 magnitude: code ``c`` stands for ``c / SNORM16_MAX`` (-32768 reads as -1).
