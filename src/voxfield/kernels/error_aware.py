@@ -30,7 +30,7 @@ from voxfield.kernels.bundles import BeamBounds, OctreeView, PixelOutputs, view_
 from voxfield.kernels.camera_rays import camera_ray, pixel_cone
 from voxfield.kernels.colour import node_rgb
 from voxfield.kernels.error_lookup import colour_error, sh_error, sh_evaluate
-from voxfield.kernels.facing_colour import seen_rgb
+from voxfield.kernels.facing_colour import prefetch_seen, seen_rgb
 from voxfield.kernels.node_descriptor import descriptor_first_child
 from voxfield.kernels.octahedral import bilinear_at, bilinear_footprint, oct_encode
 from voxfield.kernels.primary import (
@@ -344,9 +344,7 @@ def trace_pixel_chunk(
         count = refine_records(view, refinement, model, level_first, level_last, count,
                                records)
         level_first = level_last
-    for j in range(last - first):
-        add_pixel_samples(view, refinement, out, maps, places[j, 0] - row0, places[j, 1], j,
-                          records)
+    add_chunk_samples(view, refinement, out, maps, row0, last - first, records)
 
 
 @borrowing
@@ -456,7 +454,10 @@ def refine_records(view: OctreeView, refinement: Refinement, model: ErrorModel,
         node = ints[r, _NODE]
         level = ints[r, _LEVEL]
         k = ints[r, _REFINEMENT]
-        if node == MISS or k >= max_refinements or level >= depth:
+        if node == MISS:
+            continue
+        if k >= max_refinements or level >= depth:
+            prefetch_seen(colors, view.facing, node)  # a sample: see ``add_chunk_samples``
             continue
         dx, dy, dz = floats[r, _DX], floats[r, _DY], floats[r, _DZ]
         if children_sh.shape[0] > 0:
@@ -476,6 +477,7 @@ def refine_records(view: OctreeView, refinement: Refinement, model: ErrorModel,
             colour_part = colour_weight * colour_error[node]
             error += colour_part
         if error <= threshold:
+            prefetch_seen(colors, view.facing, node)
             continue
         # Colour alone over the threshold: finer LODs average it again, so the sub-rays may
         # go straight to the voxels.
@@ -508,6 +510,19 @@ def refine_records(view: OctreeView, refinement: Refinement, model: ErrorModel,
 
 
 @borrowing
+def add_chunk_samples(view: OctreeView, refinement: Refinement, out: PixelOutputs,
+                      maps: RefinementMaps, row0: int, count: int,
+                      records: ChunkRecords) -> None:
+    """The chunk's ``count`` pixels' samples added up into their outputs (rows from
+    ``row0``). One call for the chunk: a call per pixel passed every array of its bundles
+    again each time. ``refine_records`` has asked for each sample's colour as it found
+    the ray needs no refinement, so the colours are loaded, or on their way, by now."""
+    for j in range(count):
+        add_pixel_samples(view, refinement, out, maps, records.places[j, 0] - row0,
+                          records.places[j, 1], j, records)
+
+
+@njit(cache=True, nogil=True, inline="always")
 def add_pixel_samples(view: OctreeView, refinement: Refinement, out: PixelOutputs,
                       maps: RefinementMaps, i: int, col: int, j: int,
                       records: ChunkRecords) -> None:
