@@ -94,7 +94,7 @@ def test_a_borrowing_helper_that_allocates_fails_to_compile_rather_than_leak():
     error_aware.trace_records,
     error_aware.record_batch,
     error_aware.refine_records,
-    error_aware.add_pixel_samples,
+    error_aware.add_chunk_samples,
 ], ids=lambda f: f.py_func.__name__)
 def test_the_per_ray_loops_of_the_hot_kernels_borrow(helper):
     # With counting, every call updates the shared arrays' headers from every thread: the
