@@ -91,7 +91,7 @@ def bilinear_footprint(resolution: int, u: float, v: float) -> tuple[int, int, f
     """The texel corner ``(x0, y0)`` and weights ``(fx, fy)`` of a bilinear lookup at
     (u, v) in [0, 1]² in a bordered (R + 2)² map, ``R = resolution``: the same for every
     map of that size, so several maps read at one direction share it."""
-    # Bordered texel i holds interior texel i - 1, centred at u = (i - 0.5) / r: in these
+    # Bordered texel i holds interior texel i - 1, centred at u = (i - 0.5) / R: in these
     # coordinates texel centres sit on integers.
     x = u * resolution + 0.5
     y = v * resolution + 0.5
