@@ -5,16 +5,20 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from random_scenes import hollow_shell_terrain, overhanging_terrain
 from voxfield.errors import VoxfieldError
-from voxfield.render import Camera
+from voxfield.render import Camera, adaptive, orbit_camera, render_lod, render_reference
 from voxfield.render.adaptive import (
     CLASS_SIDE,
+    PixelRefinement,
     refinement_classes,
     render_adaptive,
     window_variance,
 )
+from voxfield.render.beam import raster_beam, raster_cells, raster_level
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
+from voxfield.svo.column_tops import octree_column_tops
 
 
 def test_classes_follow_the_cut_offs_on_a_synthetic_variance_image():
@@ -87,3 +91,72 @@ def test_bad_options_are_refused(options, message):
     octree, cam = _stripes()
     with pytest.raises(VoxfieldError, match=message):
         render_adaptive(octree, cam, base_lod=0, **options)
+
+
+def _refinement_scene(scene):
+    octree = build_octree(scene)
+    lo, hi = octree.voxel_bounds
+    return octree, orbit_camera(lo, hi, size=40)
+
+
+@pytest.mark.parametrize("scene", [overhanging_terrain(1), hollow_shell_terrain(2)],
+                         ids=["overhangs", "hollow"])
+def test_refinements_from_the_drawn_bound_change_no_pixel(scene, monkeypatch):
+    """Refinement rays started at their pixel's drawn bound (every pass drawing) or at the
+    block beam (none drawing) give the same pixels and rays; the drawing's cells are shared
+    out over the whole image, the block beam's steps over the refined pixels alone."""
+    octree, cam = _refinement_scene(scene)
+    renders = {}
+    for name, saving in (("drawn", 10**9), ("beam", 0)):
+        monkeypatch.setattr(adaptive, "DRAWN_BOUND_SAVING", saving)
+        renders[name] = render_adaptive(octree, cam, base_lod=1)
+    drawn, beam = renders["drawn"], renders["beam"]
+    for name in ("image", "depth", "normal", "ray_count", "hit_count", "finest_lod"):
+        assert np.array_equal(getattr(drawn, name), getattr(beam, name)), name
+    kept = drawn.maps["refinement_class"] == 0
+    assert kept.any() and (drawn.maps["refinement_class"] > 0).any()
+    first = render_lod(octree, cam, lod=1)
+    assert np.array_equal(beam.steps[kept], first.steps[kept])
+    share = raster_beam(cam, octree_column_tops(octree), stop_level=octree.depth,
+                        depth=octree.depth, whole_pixel=True).image_steps(cam.height,
+                                                                         cam.width)
+    assert np.array_equal(drawn.steps[kept], first.steps[kept] + share[kept])
+
+
+def test_a_pass_draws_once_it_has_rays_enough_and_later_passes_reuse_it():
+    """``DRAWN_BOUND_SAVING`` steps a ray against the drawing's cells: one refined pixel
+    starts at the block beam (no other pixel's steps change), a pass refining most of the
+    image draws (every other pixel takes its share of the cells once), and a later small
+    pass starts at that drawing (no more shares). The refined pixels are the reference
+    render's, whichever start they had."""
+    octree, cam = _refinement_scene(overhanging_terrain(1))
+    cells = raster_cells(octree_column_tops(octree), raster_level(
+        cam, octree_column_tops(octree), stop_level=octree.depth, depth=octree.depth,
+        whole_pixel=True))
+    side = 2
+    assert side * side * adaptive.DRAWN_BOUND_SAVING < cells  # one pixel: no drawing
+    result = render_lod(octree, cam, lod=1)
+    truth = render_reference(octree, cam, side=side)
+    refinement = PixelRefinement(octree, cam, 0, octree.kernel_colours("albedo"))
+    pixels = np.flatnonzero(result.hit_count.ravel() > 0)
+    lone, many, last = pixels[:1], pixels[1:-1], pixels[-1:]
+    before = result.steps.copy().ravel()
+    refinement.refine(result, lone, side)
+    others = np.setdiff1d(np.arange(before.size), lone)
+    assert np.array_equal(result.steps.ravel()[others], before[others])
+    assert len(many) * side * side * adaptive.DRAWN_BOUND_SAVING >= cells
+    before = result.steps.copy().ravel()
+    refinement.refine(result, many, side)
+    assert refinement.drawn is not None
+    share = refinement.drawn.image_steps(cam.height, cam.width).ravel()
+    assert share.sum() == cells
+    others = np.setdiff1d(np.arange(before.size), many)
+    assert np.array_equal(result.steps.ravel()[others], before[others] + share[others])
+    before = result.steps.copy().ravel()
+    refinement.refine(result, last, side)
+    others = np.setdiff1d(np.arange(before.size), last)
+    assert np.array_equal(result.steps.ravel()[others], before[others])
+    for name in ("image", "depth", "normal", "hit_count"):
+        got = getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])
+        want = getattr(truth, name).reshape(-1, *getattr(truth, name).shape[2:])
+        assert np.array_equal(got[pixels], want[pixels]), name

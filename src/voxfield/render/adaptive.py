@@ -21,11 +21,12 @@ from voxfield.errors import VoxfieldError
 from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import thread_count
-from voxfield.render.beam import primary_beam
+from voxfield.render.beam import Beam, primary_beam, raster_beam, raster_cells, raster_level
 from voxfield.render.camera import Camera
 from voxfield.render.device import check_device, trace_pixels_cuda
 from voxfield.render.primary import pixel_columns, render_lod
 from voxfield.render.result import RenderResult
+from voxfield.svo.column_tops import octree_column_tops
 from voxfield.svo.octree import Octree
 
 #: Normalisation of the 3×3 sum of squared luminance differences, one constant for every
@@ -107,12 +108,12 @@ def refine_by_variance(octree: Octree, camera: Camera, result: RenderResult,
     wanted = refinement_classes(window_variance(luminance(result.image), valid)
                                 / normalisation, valid)
     rays = result.ray_count.reshape(-1)
+    refinement = PixelRefinement(octree, camera, seed, colours, threads, columns=columns)
     for cls in (2, 1):
         side = CLASS_SIDE[cls]
         todo = np.flatnonzero((wanted.reshape(-1) == cls) & (rays < side * side))
         if len(todo):
-            refine_pixels(octree, camera, todo, side, seed, colours, result, threads,
-                          columns=columns)
+            refinement.refine(result, todo, side)
     return wanted
 
 
@@ -149,7 +150,8 @@ def render_adaptive(
     valid = first.hit_count > 0
     current = np.zeros(valid.shape, np.int8)
     variance = np.zeros(valid.shape)
-    colors, facing = octree.kernel_colours(channel)
+    refinement = PixelRefinement(octree, camera, seed, octree.kernel_colours(channel), threads,
+                                 device, channel, columns)
     for _ in range(iterations):
         variance = window_variance(luminance(result.image), valid) / variance_normalisation
         wanted = refinement_classes(variance, valid)
@@ -157,8 +159,7 @@ def render_adaptive(
         for cls in (1, 2):
             todo = np.flatnonzero((wanted == cls) & (current < cls))
             if len(todo):
-                refine_pixels(octree, camera, todo, CLASS_SIDE[cls], seed, (colors, facing),
-                              result, threads, device, channel, columns)
+                refinement.refine(result, todo, CLASS_SIDE[cls])
                 current.reshape(-1)[todo] = cls
                 refined += len(todo)
         if not refined:
@@ -174,42 +175,94 @@ def render_adaptive(
     return result
 
 
-def refine_pixels(octree, camera, pixels, side, seed, colours, result, threads,
-                  device: str = "cpu", channel: str = "albedo", columns: bool = True) -> None:
-    """Re-render the listed pixels with side×side rays at LOD 0 into ``result`` (colours as
-    ``Octree.kernel_colours`` gives them, of ``channel`` on a GPU); their rays and steps add to
-    what they had."""
-    n = len(pixels)
-    pixels = pixels.astype(np.int64)
-    with thread_count(threads):
-        beam = primary_beam(octree, camera, stop_level=octree.depth, side=side, pixels=pixels)
-    if device == "cuda":
-        (color, depth, normal, rays, hits, steps, lod), _ = trace_pixels_cuda(
-            octree, camera, pixels, side=side, stop_level=octree.depth, cone_scale=0.0,
-            seed=seed, channel=channel, beam_bound=beam.bound, block=beam.block)
-    else:
-        color = np.empty((n, 3), np.float32)
-        depth = np.empty(n, np.float32)
-        normal = np.empty((n, 3), np.float32)
-        rays = np.empty(n, np.int32)
-        hits = np.empty(n, np.int32)
-        steps = np.empty(n, np.int64)
-        lod = np.empty(n, np.int8)
-        with thread_count(threads):
-            render_pixels(camera.params, camera.width, camera.height, pixels, -1, side,
-                          seed, octree_view(octree.inner_nodes, octree.depth, *colours),
-                          octree.depth, 0.0, BeamBounds(beam.bound, beam.block),
-                          PixelOutputs(color, depth, normal, rays, hits, steps, lod),
-                          pixel_columns(octree, columns, side, beam.bound),
-                          numba.get_num_threads())
-    steps += beam.pixel_steps(pixels, camera.width)
-    flat = {name: getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])
-            for name in ("image", "depth", "normal", "ray_count", "hit_count", "steps",
-                         "finest_lod")}
-    flat["image"][pixels] = color
-    flat["depth"][pixels] = depth
-    flat["normal"][pixels] = normal
-    flat["ray_count"][pixels] += rays
-    flat["hit_count"][pixels] = hits
-    flat["steps"][pixels] += steps
-    flat["finest_lod"][pixels] = np.where(hits > 0, 0, flat["finest_lod"][pixels])
+#: Steps a refinement ray saves starting at its pixel's drawn bound instead of the block
+#: beam's: 8-13 on the 2048² mountain terrain (512² image, 2×2 and 4×4 rays a pixel, top
+#: and 45°, 0.5-20 % of the pixels refined). The lower end, so that a pass draws only where
+#: the drawing clearly pays for itself.
+DRAWN_BOUND_SAVING = 8
+
+
+class PixelRefinement:
+    """Re-renders chosen pixels of a finished render with side×side rays at LOD 0: the
+    adaptive renderer's refinement, also the EA hybrid's and the oracle curve's.
+
+    Its rays start where every primary renderer's do (``render.beam.pixel_start_bounds``),
+    at their pixel's bound from the pyramid drawn into the image for rays anywhere in the
+    pixel, once a pass has rays enough to pay for the drawing: its cells (one a pixel at
+    most, ``raster_cells``) against ``DRAWN_BOUND_SAVING`` steps a ray. The drawing then
+    serves every later pass of the render, its cells shared out over the image as every
+    render's drawing is. Passes before it, and every pass where nothing can be drawn (a GPU,
+    no pyramid, a camera it cannot draw for), start at the block beam of their pixels'
+    blocks, whose steps go to those pixels. On the 2048² mountain terrain (512² image) the
+    adaptive renderer at its defaults then counts 0.56-0.61× the steps of the block beam
+    alone, in 0.9× the time, the same images."""
+
+    def __init__(self, octree: Octree, camera: Camera, seed: int, colours, threads=None,
+                 device: str = "cpu", channel: str = "albedo", columns: bool = True):
+        self.octree, self.camera, self.seed, self.colours = octree, camera, seed, colours
+        self.threads, self.device, self.channel, self.columns = threads, device, channel, columns
+        self.drawn: Beam | None = None
+        self.pyramid = octree_column_tops(octree) if device == "cpu" and columns else None
+        self.level = None if self.pyramid is None else raster_level(
+            camera, self.pyramid, stop_level=octree.depth, depth=octree.depth,
+            whole_pixel=True)
+
+    def start_bounds(self, result: RenderResult, pixels: np.ndarray, side: int) -> Beam:
+        """The pass's start bounds; a drawing's cells are charged to ``result`` when it is
+        drawn, the block beam's steps by ``refine``."""
+        if (self.drawn is None and self.level is not None
+                and len(pixels) * side * side * DRAWN_BOUND_SAVING
+                >= raster_cells(self.pyramid, self.level)):
+            with thread_count(self.threads):
+                self.drawn = raster_beam(self.camera, self.pyramid,
+                                         stop_level=self.octree.depth,
+                                         depth=self.octree.depth, whole_pixel=True)
+            if self.drawn is None:
+                self.level = None  # a box across the eye plane: never drawable here
+            else:
+                result.steps += self.drawn.image_steps(self.camera.height, self.camera.width)
+        if self.drawn is not None:
+            return self.drawn
+        with thread_count(self.threads):
+            return primary_beam(self.octree, self.camera, stop_level=self.octree.depth,
+                                side=side, pixels=pixels)
+
+    def refine(self, result: RenderResult, pixels: np.ndarray, side: int) -> None:
+        """Re-render ``pixels`` (flat indices) into ``result``; their rays and steps add to
+        what they had."""
+        octree, camera = self.octree, self.camera
+        n = len(pixels)
+        pixels = np.asarray(pixels, np.int64)
+        beam = self.start_bounds(result, pixels, side)
+        if self.device == "cuda":
+            (color, depth, normal, rays, hits, steps, lod), _ = trace_pixels_cuda(
+                octree, camera, pixels, side=side, stop_level=octree.depth, cone_scale=0.0,
+                seed=self.seed, channel=self.channel, beam_bound=beam.bound, block=beam.block)
+        else:
+            color = np.empty((n, 3), np.float32)
+            depth = np.empty(n, np.float32)
+            normal = np.empty((n, 3), np.float32)
+            rays = np.empty(n, np.int32)
+            hits = np.empty(n, np.int32)
+            steps = np.empty(n, np.int64)
+            lod = np.empty(n, np.int8)
+            with thread_count(self.threads):
+                render_pixels(camera.params, camera.width, camera.height, pixels, -1, side,
+                              self.seed, octree_view(octree.inner_nodes, octree.depth,
+                                                     *self.colours),
+                              octree.depth, 0.0, BeamBounds(beam.bound, beam.block),
+                              PixelOutputs(color, depth, normal, rays, hits, steps, lod),
+                              pixel_columns(octree, self.columns, side, beam.bound),
+                              numba.get_num_threads())
+        if beam is not self.drawn:
+            steps += beam.pixel_steps(pixels, camera.width)
+        flat = {name: getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])
+                for name in ("image", "depth", "normal", "ray_count", "hit_count", "steps",
+                             "finest_lod")}
+        flat["image"][pixels] = color
+        flat["depth"][pixels] = depth
+        flat["normal"][pixels] = normal
+        flat["ray_count"][pixels] += rays
+        flat["hit_count"][pixels] = hits
+        flat["steps"][pixels] += steps
+        flat["finest_lod"][pixels] = np.where(hits > 0, 0, flat["finest_lod"][pixels])

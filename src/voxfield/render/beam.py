@@ -156,16 +156,11 @@ def raster_beam(camera: Camera, columns, *, stop_level: int, depth: int,
     (``RASTER_CELL_PIXELS_SUPERSAMPLED`` for whole pixels), not finer than the sampled
     nodes. Its steps are the cells drawn, shared out over the image like
     one beam block's."""
-    levels = columns.level_width.shape[0]
-    node_level = depth - min(stop_level, depth)
-    if levels == 0 or camera.kind != PINHOLE or node_level >= levels:
+    level = raster_level(camera, columns, stop_level=stop_level, depth=depth,
+                         whole_pixel=whole_pixel)
+    if level is None:
         return None
-    pixels = camera.width * camera.height
-    cell_pixels = RASTER_CELL_PIXELS_SUPERSAMPLED if whole_pixel else RASTER_CELL_PIXELS
-    level = node_level
-    while (level + 1 < levels
-           and columns.level_width[level] * columns.level_depth[level] * cell_pixels > pixels):
-        level += 1
+    node_level = depth - min(stop_level, depth)
     cam = camera.params
     # No cells: compiles (or loads) the kernel outside the timing, as ``plan_beam`` does.
     draw_cell_boxes(cam, np.eye(3), 1, 1, columns.tops, columns.floors, 0, 0, 0, 0, 0, 0.0,
@@ -190,6 +185,30 @@ def raster_beam(camera: Camera, columns, *, stop_level: int, depth: int,
     whole = max(camera.width, camera.height)
     beam.steps.append((whole, np.array([[int(drawn.sum())]], np.int64)))
     return beam
+
+
+def raster_level(camera: Camera, columns, *, stop_level: int, depth: int,
+                 whole_pixel: bool) -> int | None:
+    """The pyramid level ``raster_beam`` draws for these arguments, or None where it draws
+    nothing (before it tries the camera's eye plane)."""
+    levels = columns.level_width.shape[0]
+    node_level = depth - min(stop_level, depth)
+    if levels == 0 or camera.kind != PINHOLE or node_level >= levels:
+        return None
+    pixels = camera.width * camera.height
+    cell_pixels = RASTER_CELL_PIXELS_SUPERSAMPLED if whole_pixel else RASTER_CELL_PIXELS
+    level = node_level
+    while (level + 1 < levels
+           and columns.level_width[level] * columns.level_depth[level] * cell_pixels > pixels):
+        level += 1
+    return level
+
+
+def raster_cells(columns, level: int) -> int:
+    """The cells ``raster_beam`` draws at ``level``, its steps: the level's occupied ones."""
+    first = int(columns.level_offset[level])
+    count = int(columns.level_width[level]) * int(columns.level_depth[level])
+    return int(np.count_nonzero(columns.tops[first:first + count]))
 
 
 def pixel_start_bounds(octree: Octree, camera: Camera, columns, *, stop_level: int,

@@ -35,7 +35,11 @@ from voxfield.error_table.table import THESIS_DECAY
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.camera_rays import ORTHOGRAPHIC
 from voxfield.progress import progress_bar
-from voxfield.render.adaptive import VARIANCE_NORMALISATION, refine_pixels, render_adaptive
+from voxfield.render.adaptive import (
+    VARIANCE_NORMALISATION,
+    PixelRefinement,
+    render_adaptive,
+)
 from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_lod, render_reference
@@ -251,8 +255,8 @@ def render_oracle(octree: Octree, camera: Camera, reference, *, fraction: float,
     worst = np.argsort(-error, kind="stable")[:count]
     worst = np.sort(worst[error[worst] > 0.0])
     if len(worst):
-        refine_pixels(octree, camera, worst, side, seed, octree.kernel_colours(channel),
-                      result, None)
+        PixelRefinement(octree, camera, seed, octree.kernel_colours(channel)).refine(
+            result, worst, side)
     result.renderer = "oracle"
     return result
 
