@@ -160,3 +160,20 @@ def test_a_pass_draws_once_it_has_rays_enough_and_later_passes_reuse_it():
         got = getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])
         want = getattr(truth, name).reshape(-1, *getattr(truth, name).shape[2:])
         assert np.array_equal(got[pixels], want[pixels]), name
+
+
+@pytest.mark.parametrize("scene", [overhanging_terrain(1), hollow_shell_terrain(2)],
+                         ids=["overhangs", "hollow"])
+def test_refining_every_pixel_costs_what_a_reference_render_does(scene):
+    """Every renderer counts alike: 4×4 refinements of every pixel of a LOD-1 render add
+    exactly a 4×4 reference render's steps to each pixel (its drawing's share included) and
+    leave the reference's pixels."""
+    octree, cam = _refinement_scene(scene)
+    result = render_lod(octree, cam, lod=1)
+    first_steps = result.steps.copy()
+    PixelRefinement(octree, cam, 0, octree.kernel_colours("albedo")).refine(
+        result, np.arange(cam.width * cam.height), 4)
+    truth = render_reference(octree, cam, side=4)
+    assert np.array_equal(result.steps - first_steps, truth.steps)
+    for name in ("image", "depth", "normal", "hit_count"):
+        assert np.array_equal(getattr(result, name), getattr(truth, name)), name
