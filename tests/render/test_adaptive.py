@@ -177,3 +177,21 @@ def test_refining_every_pixel_costs_what_a_reference_render_does(scene):
     assert np.array_equal(result.steps - first_steps, truth.steps)
     for name in ("image", "depth", "normal", "hit_count"):
         assert np.array_equal(getattr(result, name), getattr(truth, name)), name
+
+
+def test_a_camera_the_bound_cannot_be_drawn_for_refines_from_the_block_beam():
+    """A camera among the columns (a box across its eye plane): the drawing is tried once,
+    given up, and every pass starts at the block beam, with the reference's pixels."""
+    octree = build_octree(overhanging_terrain(1))
+    lo, hi = octree.voxel_bounds
+    inside = Camera.look_at((lo[0] + 3.5, lo[1] + 1.5, lo[2] + 3.5),
+                            (hi[0], lo[1] + 1.5, hi[2]), fov_deg=70, width=24, height=24)
+    result = render_lod(octree, inside, lod=1)
+    refinement = PixelRefinement(octree, inside, 0, octree.kernel_colours("albedo"))
+    assert refinement.level is not None  # drawable as far as the pyramid and camera kind go
+    for pixels in (np.arange(0, 576, 2), np.arange(1, 576, 2)):
+        refinement.refine(result, pixels, 4)
+        assert refinement.drawn is None and refinement.level is None
+    truth = render_reference(octree, inside, side=4)
+    for name in ("image", "depth", "normal", "hit_count"):
+        assert np.array_equal(getattr(result, name), getattr(truth, name)), name
