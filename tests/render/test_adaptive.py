@@ -123,7 +123,7 @@ def test_refinements_from_the_drawn_bound_change_no_pixel(scene, monkeypatch):
     assert np.array_equal(drawn.steps[kept], first.steps[kept] + share[kept])
 
 
-def test_a_pass_draws_once_it_has_rays_enough_and_later_passes_reuse_it():
+def test_a_pass_draws_once_it_has_rays_enough_and_later_passes_reuse_it(monkeypatch):
     """``DRAWN_BOUND_SAVING`` steps a ray against the drawing's cells: one refined pixel
     starts at the block beam (no other pixel's steps change), a pass refining most of the
     image draws (every other pixel takes its share of the cells once), and a later small
@@ -137,23 +137,28 @@ def test_a_pass_draws_once_it_has_rays_enough_and_later_passes_reuse_it():
     assert side * side * adaptive.DRAWN_BOUND_SAVING < cells  # one pixel: no drawing
     result = render_lod(octree, cam, lod=1)
     truth = render_reference(octree, cam, side=side)
-    refinement = PixelRefinement(octree, cam, 0, octree.kernel_colours("albedo"))
+    refinement = PixelRefinement(octree, cam, result, 0, octree.kernel_colours("albedo"))
     pixels = np.flatnonzero(result.hit_count.ravel() > 0)
     lone, many, last = pixels[:1], pixels[1:-1], pixels[-1:]
     before = result.steps.copy().ravel()
-    refinement.refine(result, lone, side)
+    refinement.refine(lone, side)
     others = np.setdiff1d(np.arange(before.size), lone)
     assert np.array_equal(result.steps.ravel()[others], before[others])
     assert len(many) * side * side * adaptive.DRAWN_BOUND_SAVING >= cells
     before = result.steps.copy().ravel()
-    refinement.refine(result, many, side)
+    refinement.refine(many, side)
     assert refinement.drawn is not None
     share = refinement.drawn.image_steps(cam.height, cam.width).ravel()
     assert share.sum() == cells
     others = np.setdiff1d(np.arange(before.size), many)
     assert np.array_equal(result.steps.ravel()[others], before[others] + share[others])
     before = result.steps.copy().ravel()
-    refinement.refine(result, last, side)
+
+    def no_block_beam(*args, **kwargs):
+        raise AssertionError("a pass after the drawing started at the block beam")
+
+    monkeypatch.setattr(adaptive, "primary_beam", no_block_beam)
+    refinement.refine(last, side)
     others = np.setdiff1d(np.arange(before.size), last)
     assert np.array_equal(result.steps.ravel()[others], before[others])
     for name in ("image", "depth", "normal", "hit_count"):
@@ -164,15 +169,23 @@ def test_a_pass_draws_once_it_has_rays_enough_and_later_passes_reuse_it():
 
 @pytest.mark.parametrize("scene", [overhanging_terrain(1), hollow_shell_terrain(2)],
                          ids=["overhangs", "hollow"])
-def test_refining_every_pixel_costs_what_a_reference_render_does(scene):
+@pytest.mark.parametrize("kind", ["pinhole", "orthographic"])
+def test_refining_every_pixel_costs_what_a_reference_render_does(scene, kind):
     """Every renderer counts alike: 4×4 refinements of every pixel of a LOD-1 render add
-    exactly a 4×4 reference render's steps to each pixel (its drawing's share included) and
-    leave the reference's pixels."""
+    exactly a 4×4 reference render's steps to each pixel, the share of its start bounds'
+    search included (the drawing's under a pinhole camera, the block beam's under an
+    orthographic one, where nothing is drawn), and leave the reference's pixels."""
     octree, cam = _refinement_scene(scene)
+    if kind == "orthographic":
+        lo, hi = (np.asarray(b, float) for b in octree.voxel_bounds)
+        centre = (lo + hi) / 2.0
+        cam = Camera.orthographic((centre[0], hi[1] + 20.0, centre[2]), (0.3, -1.0, 0.2),
+                                  (0.0, 0.0, -1.0), view_height=float(hi[0] - lo[0]), width=32)
     result = render_lod(octree, cam, lod=1)
     first_steps = result.steps.copy()
-    PixelRefinement(octree, cam, 0, octree.kernel_colours("albedo")).refine(
-        result, np.arange(cam.width * cam.height), 4)
+    refinement = PixelRefinement(octree, cam, result, 0, octree.kernel_colours("albedo"))
+    refinement.refine(np.arange(cam.width * cam.height), 4)
+    assert (refinement.drawn is None) == (kind == "orthographic")
     truth = render_reference(octree, cam, side=4)
     assert np.array_equal(result.steps - first_steps, truth.steps)
     for name in ("image", "depth", "normal", "hit_count"):
@@ -187,11 +200,12 @@ def test_a_camera_the_bound_cannot_be_drawn_for_refines_from_the_block_beam():
     inside = Camera.look_at((lo[0] + 3.5, lo[1] + 1.5, lo[2] + 3.5),
                             (hi[0], lo[1] + 1.5, hi[2]), fov_deg=70, width=24, height=24)
     result = render_lod(octree, inside, lod=1)
-    refinement = PixelRefinement(octree, inside, 0, octree.kernel_colours("albedo"))
-    assert refinement.level is not None  # drawable as far as the pyramid and camera kind go
+    refinement = PixelRefinement(octree, inside, result, 0, octree.kernel_colours("albedo"))
+    # Drawable as far as the pyramid and the camera's kind go.
+    assert refinement.drawing_cells is not None
     for pixels in (np.arange(0, 576, 2), np.arange(1, 576, 2)):
-        refinement.refine(result, pixels, 4)
-        assert refinement.drawn is None and refinement.level is None
+        refinement.refine(pixels, 4)
+        assert refinement.drawn is None and refinement.drawing_cells is None
     truth = render_reference(octree, inside, side=4)
     for name in ("image", "depth", "normal", "hit_count"):
         assert np.array_equal(getattr(result, name), getattr(truth, name)), name

@@ -108,12 +108,13 @@ def refine_by_variance(octree: Octree, camera: Camera, result: RenderResult,
     wanted = refinement_classes(window_variance(luminance(result.image), valid)
                                 / normalisation, valid)
     rays = result.ray_count.reshape(-1)
-    refinement = PixelRefinement(octree, camera, seed, colours, threads, columns=columns)
+    refinement = PixelRefinement(octree, camera, result, seed, colours, threads,
+                                 columns=columns)
     for cls in (2, 1):
         side = CLASS_SIDE[cls]
         todo = np.flatnonzero((wanted.reshape(-1) == cls) & (rays < side * side))
         if len(todo):
-            refinement.refine(result, todo, side)
+            refinement.refine(todo, side)
     return wanted
 
 
@@ -150,8 +151,8 @@ def render_adaptive(
     valid = first.hit_count > 0
     current = np.zeros(valid.shape, np.int8)
     variance = np.zeros(valid.shape)
-    refinement = PixelRefinement(octree, camera, seed, octree.kernel_colours(channel), threads,
-                                 device, channel, columns)
+    refinement = PixelRefinement(octree, camera, result, seed, octree.kernel_colours(channel),
+                                 threads, device, channel, columns)
     for _ in range(iterations):
         variance = window_variance(luminance(result.image), valid) / variance_normalisation
         wanted = refinement_classes(variance, valid)
@@ -159,7 +160,7 @@ def render_adaptive(
         for cls in (1, 2):
             todo = np.flatnonzero((wanted == cls) & (current < cls))
             if len(todo):
-                refinement.refine(result, todo, CLASS_SIDE[cls])
+                refinement.refine(todo, CLASS_SIDE[cls])
                 current.reshape(-1)[todo] = cls
                 refined += len(todo)
         if not refined:
@@ -183,57 +184,61 @@ DRAWN_BOUND_SAVING = 8
 
 
 class PixelRefinement:
-    """Re-renders chosen pixels of a finished render with side×side rays at LOD 0: the
-    adaptive renderer's refinement, also the EA hybrid's and the oracle curve's.
+    """Re-renders chosen pixels of a finished render ``result`` with side×side rays at LOD 0,
+    pass after pass: the adaptive renderer's refinement, also the EA hybrid's and the oracle
+    curve's.
 
     Its rays start where every primary renderer's do (``render.beam.pixel_start_bounds``),
     at their pixel's bound from the pyramid drawn into the image for rays anywhere in the
     pixel, once a pass has rays enough to pay for the drawing: its cells (one a pixel at
     most, ``raster_cells``) against ``DRAWN_BOUND_SAVING`` steps a ray. The drawing then
-    serves every later pass of the render, its cells shared out over the image as every
-    render's drawing is. Passes before it, and every pass where nothing can be drawn (a GPU,
-    no pyramid, a camera it cannot draw for), start at the block beam of their pixels'
-    blocks, whose steps go to those pixels. On the 2048² mountain terrain (512² image) the
-    adaptive renderer at its defaults then counts 0.56-0.61× the steps of the block beam
-    alone, in 0.9× the time, the same images."""
+    serves every later pass, its cells shared out over the image as every render's drawing
+    is. Passes before it, and every pass where nothing can be drawn (a GPU, no pyramid, a
+    camera it cannot draw for), start at the block beam of their pixels' blocks, whose steps
+    go to those pixels. On the 2048² mountain terrain (512² image) the adaptive renderer at
+    its defaults then counts 0.58-0.61× the steps of the block beam alone, in 0.90-0.97×
+    the time, the same images."""
 
-    def __init__(self, octree: Octree, camera: Camera, seed: int, colours, threads=None,
-                 device: str = "cpu", channel: str = "albedo", columns: bool = True):
-        self.octree, self.camera, self.seed, self.colours = octree, camera, seed, colours
-        self.threads, self.device, self.channel, self.columns = threads, device, channel, columns
+    def __init__(self, octree: Octree, camera: Camera, result: RenderResult, seed: int,
+                 colours, threads=None, device: str = "cpu", channel: str = "albedo",
+                 columns: bool = True):
+        self.octree, self.camera, self.result, self.seed = octree, camera, result, seed
+        self.colours, self.threads, self.device, self.channel = colours, threads, device, channel
+        self.columns = columns
         self.drawn: Beam | None = None
         self.pyramid = octree_column_tops(octree) if device == "cpu" and columns else None
-        self.level = None if self.pyramid is None else raster_level(
+        level = None if self.pyramid is None else raster_level(
             camera, self.pyramid, stop_level=octree.depth, depth=octree.depth,
             whole_pixel=True)
+        # The drawing's cost in steps; None where nothing can be drawn.
+        self.drawing_cells = None if level is None else raster_cells(self.pyramid, level)
 
-    def start_bounds(self, result: RenderResult, pixels: np.ndarray, side: int) -> Beam:
-        """The pass's start bounds; a drawing's cells are charged to ``result`` when it is
+    def start_bounds(self, pixels: np.ndarray, side: int) -> Beam:
+        """The pass's start bounds; a drawing's cells are charged to the result when it is
         drawn, the block beam's steps by ``refine``."""
-        if (self.drawn is None and self.level is not None
-                and len(pixels) * side * side * DRAWN_BOUND_SAVING
-                >= raster_cells(self.pyramid, self.level)):
+        if (self.drawn is None and self.drawing_cells is not None
+                and len(pixels) * side * side * DRAWN_BOUND_SAVING >= self.drawing_cells):
             with thread_count(self.threads):
                 self.drawn = raster_beam(self.camera, self.pyramid,
                                          stop_level=self.octree.depth,
                                          depth=self.octree.depth, whole_pixel=True)
             if self.drawn is None:
-                self.level = None  # a box across the eye plane: never drawable here
+                self.drawing_cells = None  # a box across the eye plane: never drawable here
             else:
-                result.steps += self.drawn.image_steps(self.camera.height, self.camera.width)
+                self.result.steps += self.drawn.image_steps(self.camera.height,
+                                                            self.camera.width)
         if self.drawn is not None:
             return self.drawn
         with thread_count(self.threads):
             return primary_beam(self.octree, self.camera, stop_level=self.octree.depth,
                                 side=side, pixels=pixels)
 
-    def refine(self, result: RenderResult, pixels: np.ndarray, side: int) -> None:
-        """Re-render ``pixels`` (flat indices) into ``result``; their rays and steps add to
-        what they had."""
-        octree, camera = self.octree, self.camera
+    def refine(self, pixels: np.ndarray, side: int) -> None:
+        """Re-render ``pixels`` (flat indices); their rays and steps add to what they had."""
+        octree, camera, result = self.octree, self.camera, self.result
         n = len(pixels)
         pixels = np.asarray(pixels, np.int64)
-        beam = self.start_bounds(result, pixels, side)
+        beam = self.start_bounds(pixels, side)
         if self.device == "cuda":
             (color, depth, normal, rays, hits, steps, lod), _ = trace_pixels_cuda(
                 octree, camera, pixels, side=side, stop_level=octree.depth, cone_scale=0.0,

@@ -255,8 +255,8 @@ def render_oracle(octree: Octree, camera: Camera, reference, *, fraction: float,
     worst = np.argsort(-error, kind="stable")[:count]
     worst = np.sort(worst[error[worst] > 0.0])
     if len(worst):
-        PixelRefinement(octree, camera, seed, octree.kernel_colours(channel)).refine(
-            result, worst, side)
+        PixelRefinement(octree, camera, result, seed, octree.kernel_colours(channel)).refine(
+            worst, side)
     result.renderer = "oracle"
     return result
 
