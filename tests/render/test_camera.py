@@ -5,8 +5,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from random_scenes import overhanging_terrain
 from voxfield.errors import CameraError
-from voxfield.render.camera import Camera, cube_cameras, top_down_camera
+from voxfield.render import render_lod
+from voxfield.render.beam import pixel_start_bounds
+from voxfield.render.camera import Camera, cube_cameras, ortho_top_camera, top_down_camera
+from voxfield.svo import build_octree
+from voxfield.svo.column_tops import octree_column_tops
 
 
 def test_pinhole_centre_ray_looks_at_target_and_corners_span_fov():
@@ -110,3 +115,32 @@ def test_octahedral_render_depth_is_the_ray_cast_distance():
     hits = trace(octree, origins, directions)
     assert np.all(hits.hit)
     assert np.allclose(result.depth.ravel(), hits.t)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_ortho_top_renders_what_a_camera_just_above_sees_with_every_block_bounded(seed):
+    """The preset's height changes no colour (a camera one voxel above the top sees the same
+    image at every LOD), every hit has the face it entered (from one voxel above, rays start
+    inside coarse nodes, with none), and the beam bounds every block, so no ray walks the
+    pyramid down from the eye: at most the close camera's steps."""
+    octree = build_octree(overhanging_terrain(seed, size=40))
+    lo, hi = (np.asarray(b, float) for b in octree.voxel_bounds)
+    preset = ortho_top_camera(lo, hi, size=32)
+    centre = (lo + hi) / 2.0
+    close = Camera.orthographic((centre[0], hi[1] + 1.0, centre[2]), (0, -1, 0), (0, 0, -1),
+                                view_height=float(max(hi[0] - lo[0], hi[2] - lo[2])),
+                                width=32)
+    fewer = 0
+    for lod in range(4):
+        bounds = pixel_start_bounds(octree, preset, octree_column_tops(octree),
+                                    stop_level=octree.depth - lod)
+        assert np.all(bounds.bound > 0)
+        high, low = render_lod(octree, preset, lod=lod), render_lod(octree, close, lod=lod)
+        for name in ("image", "hit_count", "finest_lod"):
+            assert np.array_equal(getattr(high, name), getattr(low, name)), (lod, name)
+        faced = np.any(low.normal != 0, axis=-1)
+        assert np.array_equal(high.normal[faced], low.normal[faced])
+        assert np.all(np.any(high.normal != 0, axis=-1)[high.hit_count > 0])
+        assert high.steps.sum() <= low.steps.sum()
+        fewer += int(high.steps.sum() < low.steps.sum())
+    assert fewer > 0

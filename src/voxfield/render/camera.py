@@ -218,13 +218,19 @@ def room_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 70.
 
 
 def ortho_top_camera(bounds_min, bounds_max, *, size: int = 512) -> Camera:
-    """Orthographic, straight down, the view just spanning the box's horizontal extent."""
+    """Orthographic, straight down, the view just spanning the box's horizontal extent.
+
+    The image is the same from any height; the eye sits one extent above the box, above
+    the coarse nodes' boxes and the beam's reach, so that the beam bounds every block. From
+    one voxel above the top, a third of the 512² desert's rays (256² image) started at the
+    eye and walked the whole pyramid down: 5.3 steps a ray at LOD 2 and 6.0 at LOD 0,
+    against 3.2 from above, the same pixels."""
     lo = np.asarray(bounds_min, np.float64)
     hi = np.asarray(bounds_max, np.float64)
     c = (lo + hi) / 2.0
     extent = float(max(hi[0] - lo[0], hi[2] - lo[2]))
-    return Camera.orthographic((c[0], hi[1] + 1.0, c[2]), (0.0, -1.0, 0.0), (0.0, 0.0, -1.0),
-                               view_height=extent, width=size)
+    return Camera.orthographic((c[0], hi[1] + max(extent, 1.0), c[2]), (0.0, -1.0, 0.0),
+                               (0.0, 0.0, -1.0), view_height=extent, width=size)
 
 
 def framing_camera(points, *, size: int = 512) -> Camera:
