@@ -267,3 +267,30 @@ def test_climb_patience_changes_the_route_not_the_answer():
                 assert np.array_equal(times[handed_over], eager[1][handed_over])
             assert np.any(walks[-1][2] != eager[2])  # patience took other routes
             assert np.any(eager[0][:, 0] == HANDED_OVER) and np.any(eager[0][:, 0] == MISSED)
+
+
+def test_rays_from_the_camera_begin_at_the_level_of_their_height():
+    """A ray from the camera (``tmin`` 0) begins its walk at the level of its height over the
+    ground below it, one level above the sampled one at least: straight down onto a flat 64²
+    field from 0.5 voxels above, it visits two cells and lands, where from the top it
+    would go down all seven levels; from higher up it begins higher, and every ray lands
+    on the same voxel as from the octree alone."""
+    from voxfield.kernels.surface_approach import NEAR_START_LEVELS
+
+    x, z = np.meshgrid(np.arange(64), np.arange(64), indexing="ij")
+    coords = np.stack([x.ravel(), np.zeros(x.size, np.int64), z.ravel()], axis=1)
+    octree = build_octree(VoxelScene(coords, np.full((x.size, 3), 0.5), name="ground"))
+    columns = column_tops(octree.node_coords(octree.depth))
+    levels = columns.level_width.shape[0]
+    cells = {}
+    for height in (0.5, 8.0, 40.0):
+        visited = []
+        for ox, oz in ((10.5, 20.5), (33.25, 47.75), (60.5, 2.5)):
+            verdict, _, walked, cx, cz, y, t, normal = walk_over_columns(
+                ox, 1.0 + height, oz, 0.0, -1.0, 0.0, 0.0, math.inf, octree.depth,
+                octree.depth, columns)
+            assert (cx, cz, y, normal) == (int(ox), int(oz), 0, 3) and t == height
+            visited.append(walked)
+        cells[height] = max(visited)
+    assert cells[0.5] == NEAR_START_LEVELS + 1 < levels
+    assert cells[0.5] < cells[8.0] < cells[40.0] <= levels

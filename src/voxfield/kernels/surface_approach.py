@@ -56,10 +56,10 @@ HANDED_OVER = 1
 WALKS = 2
 #: Levels above the sampled one at which a primary ray's walk from a start bound (``tmin >
 #: 0``: a beam bound or a continued ray, near the surface) begins; from the camera it begins
-#: at the top. With ``CLIMB_PATIENCE`` and the raster's slanted bounds
-#: (``kernels.column_raster``), one level up made the top and 45° views' walks 1.02-1.11×
-#: as fast as two on the 2048² mountain terrain, a ground-level view's 0.99-1.01×; three
-#: were 0.87-0.99× as fast.
+#: at the level of its height (``BY_HEIGHT``), this one at least. With ``CLIMB_PATIENCE``
+#: and the raster's slanted bounds (``kernels.column_raster``), one level up made the top
+#: and 45° views' walks 1.02-1.11× as fast as two on the 2048² mountain terrain, a
+#: ground-level view's 0.99-1.01×; three were 0.87-0.99× as fast.
 NEAR_START_LEVELS = 1
 #: Cells a walk from a start bound skips in a row at one level before it climbs to the
 #: parent (``approach_surface``). Such a ray starts beside the surface, so the parent of
@@ -70,6 +70,11 @@ NEAR_START_LEVELS = 1
 #: view's 1.00-1.03×; rays leaving a surface (``FROM_SURFACE``) and from the camera climb at
 #: once, as before.
 CLIMB_PATIENCE = 4
+#: ``walk_plan``'s start level for a ray from the camera: ``walk_entry`` picks the level of
+#: the entry point's height over the surface below it, ``NEAR_START_LEVELS`` up at least.
+#: Begun at the top whatever its height, a ray from a camera just above the ground went
+#: down every level (a vertical one: 11 cells on the 512² desert against 2).
+BY_HEIGHT = -1
 #: ``start`` for ``trace_over_columns``: primary rays (as above) and rays that leave the
 #: surface (secondary rays: from the finest level, climbing as they rise).
 FROM_CAMERA = 0
@@ -145,7 +150,7 @@ def walk_plan(tmin: float, depth: int, stop_level: int, columns,
     level the walk begins at and the cells it skips before it climbs (``approach_surface``).
     Rays leaving a surface begin at the finest level and climb at once; primary rays from a
     start bound ``NEAR_START_LEVELS`` up, waiting ``CLIMB_PATIENCE`` cells; from the camera at
-    the top."""
+    the level of their height (``BY_HEIGHT``, which ``walk_entry`` settles)."""
     stop_level = min(stop_level, depth)
     if columns.level_width.shape[0] == 0 or stop_level <= 0:
         return -1, 0, 0
@@ -154,7 +159,7 @@ def walk_plan(tmin: float, depth: int, stop_level: int, columns,
         return finest, finest, 0
     if tmin > 0.0:
         return finest, finest + NEAR_START_LEVELS, CLIMB_PATIENCE
-    return finest, depth, 0
+    return finest, BY_HEIGHT, 0
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -302,7 +307,10 @@ def walk_entry(
     ``(entry, t, t_end, ox, dx, ix, dy, iy, oz, dz, iz, level, cx, cz)``, the ray prepared as
     the traversal prepares it (``axis_setup``) and clipped to the footprint, rounded out to
     whole cells of the finest level (nothing lies beside it, and a ray leaves it only once),
-    and the cell of ``start_level`` (clamped to the pyramid) that holds it. ``entry`` is
+    and the cell of ``start_level`` (clamped to the pyramid) that holds it; for
+    ``BY_HEIGHT``, of the coarsest level whose cells are no taller than the entry point's
+    height over the top of the cell ``NEAR_START_LEVELS`` above the finest that holds it
+    (that level at least). ``entry`` is
     ``WALKS``, else the walk's verdict with no cell visited: ``HANDED_OVER`` at ``tmin``
     (no such level, or a non-finite ray) or ``MISSED`` (the ray misses the footprint)."""
     level_width, level_depth = columns.level_width, columns.level_depth
@@ -323,7 +331,20 @@ def walk_entry(
     t_end = min(min(x_out, z_out), tmax)
     if not t < t_end:
         return MISSED, t, t_end, ox, dx, ix, dy, iy, oz, dz, iz, 0, -1, -1
-    level = min(max(start_level, finest_level), levels - 1)
+    if start_level == BY_HEIGHT:
+        level = min(finest_level + NEAR_START_LEVELS, levels - 1)
+        cx = cell_holding(ox, dx, ix, t, level, 0, level_width[level] - 1)
+        cz = cell_holding(oz, dz, iz, t, level, 0, level_depth[level] - 1)
+        height = oy + t * dy - columns.tops[columns.level_offset[level]
+                                            + cx * level_depth[level] + cz]
+        coarser = level
+        while coarser + 1 < levels and height >= float(2 << coarser):
+            coarser += 1
+        if coarser == level:
+            return WALKS, t, t_end, ox, dx, ix, dy, iy, oz, dz, iz, level, cx, cz
+        level = coarser
+    else:
+        level = min(max(start_level, finest_level), levels - 1)
     cx = cell_holding(ox, dx, ix, t, level, 0, level_width[level] - 1)
     cz = cell_holding(oz, dz, iz, t, level, 0, level_depth[level] - 1)
     return WALKS, t, t_end, ox, dx, ix, dy, iy, oz, dz, iz, level, cx, cz
