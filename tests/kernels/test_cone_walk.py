@@ -23,6 +23,9 @@ from voxfield.kernels.cone_walk import (
     walk_cone_over_columns,
 )
 from voxfield.kernels.traversal import new_scratch, trace_ray
+from voxfield.scene.voxel_scene import VoxelScene
+from voxfield.svo import build_octree
+from voxfield.svo.column_tops import column_tops
 
 
 @njit
@@ -89,3 +92,36 @@ def test_the_cone_level_is_the_traversals_own_test():
     assert cone_level(np.nextafter(10.0, 0.0), 0.0, 0.2, 10) == 0
     assert cone_level(-5.0, 4.0, 1.0, 10) == 2  # behind the eye the cone is its radius
     assert cone_level(1e9, 0.0, 1.0, 6) == 6  # never past the root
+
+
+def test_cone_rays_from_the_camera_begin_at_the_level_of_their_height():
+    """A cone ray from the camera (``tmin`` 0) begins its walk at the level of its height
+    over the ground below it, as a fixed-level walk does (``surface_approach.BY_HEIGHT``):
+    steeply down onto a flat 64² field from 0.5 voxels above, a cone that takes voxels
+    visits two cells, where from the top it would go down all seven levels; from higher up
+    it begins higher, and every ray ends where the octree alone ends it, bit for bit."""
+    from voxfield.kernels.surface_approach import NEAR_START_LEVELS
+
+    x, z = np.meshgrid(np.arange(64), np.arange(64), indexing="ij")
+    coords = np.stack([x.ravel(), np.zeros(x.size, np.int64), z.ravel()], axis=1)
+    octree = build_octree(VoxelScene(coords, np.full((x.size, 3), 0.5), name="ground"))
+    columns = column_tops(octree.node_coords(octree.depth))
+    levels = columns.level_width.shape[0]
+    radius, spread = 0.4, 0.002  # voxels all the way down from 40 voxels up
+    direction = np.array([0.25, -1.0, 0.125]) / np.linalg.norm([0.25, -1.0, 0.125])
+    cells = {}
+    for height in (0.5, 8.0, 40.0):
+        starts = [(ox, 1.0 + height, oz) for ox, oz in ((10.5, 20.5), (33.25, 47.75),
+                                                        (40.5, 2.5))]
+        rays = np.array([[*start, *direction, 0.0] for start in starts])
+        walked = np.zeros((len(rays), 5))
+        alone = np.zeros((len(rays), 5))
+        ends = np.zeros((len(rays), 2), np.int64)
+        _both(rays, octree.depth, octree.inner_nodes, columns, radius, spread, walked,
+              alone, ends)
+        np.testing.assert_array_equal(walked[:, :4], alone[:, :4])
+        assert (walked[:, 1] == octree.depth).all() and (walked[:, 3] == 3).all()
+        assert (ends[:, 0] >= 0).all()  # every one lands on its cell's top voxel
+        cells[height] = ends[:, 1].max()
+    assert cells[0.5] == NEAR_START_LEVELS + 1 < levels
+    assert cells[0.5] < cells[8.0] < cells[40.0]

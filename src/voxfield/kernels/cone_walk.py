@@ -40,6 +40,7 @@ from voxfield.kernels.surface_approach import (
     NEAR_START_LEVELS,
     WALKS,
     landed_node,
+    level_of_height,
     level_shape,
     prefetch_landing,
     top_node_hit,
@@ -85,8 +86,12 @@ def walk_cone_over_columns(
     if entry != WALKS or start > top_level:
         return tmin, 0, -1, -1, 0  # the octree from the start (or nodes past the top cell)
     # From a start bound (near the surface) a level above the nodes the cone takes there,
-    # from the camera at the top; a cell past the footprint's is nothing.
-    level = min(start + NEAR_START_LEVELS, top_level) if tmin > 0.0 else top_level
+    # from the camera at the level of its height (``surface_approach.BY_HEIGHT``); a cell
+    # past the footprint's is nothing.
+    if tmin > 0.0:
+        level = min(start + NEAR_START_LEVELS, top_level)
+    else:
+        level = level_of_height(ox, dx, ix, oy, dy, oz, dz, iz, t, start, columns)
     cx = cell_holding(ox, dx, ix, t, level, -1, columns.level_width[level])
     cz = cell_holding(oz, dz, iz, t, level, -1, columns.level_depth[level])
     tops, gap_floor, gap_ceiling = columns.tops, columns.gap_floor, columns.gap_ceiling
