@@ -8,6 +8,8 @@
 
 from __future__ import annotations
 
+import copy
+
 import numpy as np
 import pytest
 from tests.random_scenes import random_scene
@@ -298,6 +300,44 @@ def test_the_hybrid_refines_colour_edges_the_geometric_error_cannot_see(table):
     assert _psnr(reference.image, hybrid.image) > _psnr(reference.image, plain.image) + 3
     with pytest.raises(VoxfieldError, match="colour variance"):
         render_error_aware(octree, cam, table, colour_variance=0.0)
+
+
+@pytest.mark.parametrize("base_lod", [0, 2])
+def test_the_hybrid_refines_from_the_bounds_its_first_pass_started_at(table, base_lod,
+                                                                       monkeypatch):
+    """At a fixed base LOD the error-aware pass's start bounds hold for every ray through a
+    pixel down to the voxels, and are counted already: the variance refinements start there
+    and search for none of their own, so a pixel they leave keeps the plain render's steps,
+    and every pixel is what refinements from bounds of their own give."""
+    from voxfield.render import adaptive, orbit_camera
+
+    octree = build_octree(random_scene(seed=4, n=2500, size=24))
+    lo, hi = octree.voxel_bounds
+    cam = orbit_camera(lo, hi, size=48)
+    options = dict(threshold=0.1, base_lod=base_lod)
+    plain = render_error_aware(octree, cam, table, **options)
+    own = {}
+    for saving in (0, 10**9):  # every pass from the block beam; every pass drawing
+        monkeypatch.setattr(adaptive, "DRAWN_BOUND_SAVING", saving)
+        own[saving] = copy.deepcopy(plain)
+        adaptive.refine_by_variance(octree, cam, own[saving], 0.08, 0,
+                                    octree.kernel_colours("albedo"))
+
+    def no_search(*args, **kwargs):
+        raise AssertionError("a refinement searched for start bounds of its own")
+
+    monkeypatch.setattr(adaptive, "raster_beam", no_search)
+    monkeypatch.setattr(adaptive, "primary_beam", no_search)
+    hybrid = render_error_aware(octree, cam, table, colour_variance=0.08, **options)
+    redone = hybrid.maps["variance_refined"].astype(bool)
+    assert redone.any() and (~redone & (plain.hit_count > 0)).any()
+    assert np.array_equal(hybrid.steps[~redone], plain.steps[~redone])
+    for other in own.values():
+        for name in ("image", "depth", "normal", "ray_count", "hit_count", "finest_lod"):
+            assert np.array_equal(getattr(hybrid, name), getattr(other, name)), name
+    # (Bounds of their own cost the block beam's search or the drawing's cells, which
+    # every pixel shares.)
+    assert (own[10**9].steps[~redone] > plain.steps[~redone]).any()
 
 
 def test_colour_spread_is_the_luminance_deviation_of_the_visible_children():

@@ -124,7 +124,8 @@ def render_error_aware(
     descend to LOD 0 at once (with ``reuse_parent``, the continued ray too).
     ``colour_variance`` makes it a hybrid: the geometric error refines first, then pixels
     whose image variance asks for more rays are re-rendered as the adaptive renderer does
-    (``adaptive.refine_by_variance``; their earlier rays count as spent).
+    (``adaptive.refine_by_variance``; their earlier rays count as spent), from this pass's
+    start bounds at a fixed base LOD.
     ``columns`` lets rays at a fixed level cross the air in the column-top pyramid first, as
     ``render_lod``'s do (same image; steps count its cells); with a fixed base LOD the
     pixels then start at their bound from the pyramid drawn into the image
@@ -209,8 +210,14 @@ def render_error_aware(
         start = time.perf_counter()
         hits_before = result.hit_count.copy()
         rays_before = result.ray_count.copy()
+        # At a fixed base LOD the refinements start at this pass's bounds, searched for and
+        # counted already: on the 2048² mountain terrain (512², four views) 0.94-0.97× the
+        # steps of searching their own at base LOD 0, 0.99× at 2, the same pixels. The cone
+        # base's bound is drawn for the coarsest nodes any cone takes, far above the voxels:
+        # from it the refinements took 1.00-1.03× the steps of their own.
         refine_by_variance(octree, camera, result, colour_variance, seed, (colors, facing),
-                           threads, columns)
+                           threads, columns,
+                           counted_bounds=beam if base_lod is not None else None)
         redone = result.ray_count != rays_before
         discarded[redone] += hits_before[redone]  # their earlier samples no longer show
         result.maps["variance_refined"] = redone.astype(np.int32)
