@@ -16,7 +16,6 @@ from voxfield.render.adaptive import (
     window_variance,
 )
 from voxfield.render.beam import raster_beam, raster_cells, raster_level
-from voxfield.render.primary import image_start_bounds
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
 from voxfield.svo.column_tops import octree_column_tops
@@ -166,39 +165,6 @@ def test_a_pass_draws_once_it_has_rays_enough_and_later_passes_reuse_it(monkeypa
         got = getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])
         want = getattr(truth, name).reshape(-1, *getattr(truth, name).shape[2:])
         assert np.array_equal(got[pixels], want[pixels]), name
-
-
-@pytest.mark.parametrize("columns", [True, False], ids=["drawn", "block-beam"])
-def test_from_base_lod_0_the_refinements_start_where_the_first_pass_did(columns,
-                                                                       monkeypatch):
-    """From base LOD 0 the first pass starts at bounds for every ray through a pixel, and
-    the refinements start there too, searching for none of their own: a pixel left alone
-    has the first pass's steps and no more, and a refined one is the reference render's at
-    its class's rays a pixel."""
-    octree, cam = _refinement_scene(overhanging_terrain(1))
-    bounds = image_start_bounds(octree, cam, stop_level=octree.depth, whole_pixel=True,
-                                columns=columns)
-    assert (bounds.block == 1) == columns  # the drawing, or the block beam
-    first = render_lod(octree, cam, lod=0, start_bounds=bounds, columns=columns)
-
-    def no_search(*args, **kwargs):
-        raise AssertionError("a refinement searched for start bounds of its own")
-
-    monkeypatch.setattr(adaptive, "raster_beam", no_search)
-    monkeypatch.setattr(adaptive, "primary_beam", no_search)
-    result = render_adaptive(octree, cam, base_lod=0, columns=columns)
-    classes = result.maps["refinement_class"]
-    kept = classes == 0
-    assert kept.any() and (classes == 1).any() and (classes == 2).any()
-    assert np.array_equal(result.steps[kept], first.steps[kept])
-    assert np.array_equal(result.image[kept], first.image[kept])
-    for cls in (1, 2):
-        truth = render_reference(octree, cam, side=CLASS_SIDE[cls])
-        for name in ("image", "depth", "normal", "hit_count", "ray_count"):
-            got, want = getattr(result, name), getattr(truth, name)
-            if name == "ray_count":
-                want = want + 1  # the first pass's ray, spent
-            assert np.array_equal(got[classes == cls], want[classes == cls]), name
 
 
 @pytest.mark.parametrize("scene", [overhanging_terrain(1), hollow_shell_terrain(2)],

@@ -24,7 +24,7 @@ from voxfield.parallel import thread_count
 from voxfield.render.beam import Beam, primary_beam, raster_beam, raster_cells, raster_level
 from voxfield.render.camera import Camera
 from voxfield.render.device import check_device, trace_pixels_cuda
-from voxfield.render.primary import image_start_bounds, pixel_columns, render_lod
+from voxfield.render.primary import pixel_columns, render_lod
 from voxfield.render.result import RenderResult
 from voxfield.svo.column_tops import octree_column_tops
 from voxfield.svo.octree import Octree
@@ -141,16 +141,8 @@ def render_adaptive(
     iterations = integer_in(iterations, "iterations", 0)
     if not real_number(variance_normalisation, "variance normalisation", finite=False) > 0:
         raise VoxfieldError("the variance normalisation must be positive")
-    # From base LOD 0 the refinements would search for the very bounds a first pass found
-    # for every ray through a pixel: the first pass searches for those, once for both
-    # (2048² mountain, 512², three views: 0.95-0.98× the steps, the same pixels). From a
-    # coarser base the first pass's rays would pay for that reach alone (1.02-1.05×).
-    bounds = None if base_lod != 0 else image_start_bounds(
-        octree, camera, stop_level=octree.depth, whole_pixel=True, device=device,
-        columns=columns, threads=threads)
     first = render_lod(octree, camera, lod=base_lod, seed=seed, channel=channel,
-                       threads=threads, progress=progress, device=device, columns=columns,
-                       start_bounds=bounds)
+                       threads=threads, progress=progress, device=device, columns=columns)
     start = time.perf_counter()
     result = RenderResult(
         first.image.copy(), first.depth.copy(), first.normal.copy(), first.ray_count.copy(),
@@ -161,7 +153,7 @@ def render_adaptive(
     current = np.zeros(valid.shape, np.int8)
     variance = np.zeros(valid.shape)
     refinement = PixelRefinement(octree, camera, result, seed, octree.kernel_colours(channel),
-                                 threads, device, channel, columns, counted_bounds=bounds)
+                                 threads, device, channel, columns)
     for _ in range(iterations):
         variance = window_variance(luminance(result.image), valid) / variance_normalisation
         wanted = refinement_classes(variance, valid)

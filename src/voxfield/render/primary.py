@@ -13,7 +13,7 @@ from voxfield.errors import VoxfieldError
 from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import run_in_bands, thread_count
-from voxfield.render.beam import Beam, pixel_start_bounds
+from voxfield.render.beam import pixel_start_bounds
 from voxfield.render.camera import Camera
 from voxfield.render.device import check_device, trace_image_cuda
 from voxfield.render.result import RenderResult
@@ -47,7 +47,7 @@ def trace_image(
     octree: Octree, camera: Camera, *, side: int, stop_level: int, cone_scale: float,
     seed: int, channel: str = "albedo", threads: int | None = None,
     progress: bool = False, label: str = "render", beam: bool = True, device: str = "cpu",
-    columns: bool = True, start_bounds: Beam | None = None,
+    columns: bool = True,
 ) -> RenderResult:
     """Trace ``side²`` rays per pixel; the shared engine of the reference and LOD renderers.
 
@@ -59,15 +59,17 @@ def trace_image(
     fixed level, ``kernels.cone_walk`` with a cone; built once per structure): the same
     image, in less time; the steps then count the pyramid's cells.
     ``device="cuda"`` traces the pixels on a GPU (``render.device``), with the same image
-    and the octree's steps alone. ``start_bounds`` are ``image_start_bounds`` the caller
-    has already found (to start later rays there too); they are counted here all the same.
+    and the octree's steps alone.
     """
     side = integer_in(side, "samples per pixel side", 1, 16)
     seed = seed_value(seed)
     check_device(device)
-    bounds = start_bounds or image_start_bounds(
-        octree, camera, stop_level=stop_level, cone_scale=cone_scale, side=side,
-        beam=beam, device=device, columns=columns, threads=threads)
+    drawn = beam and device == "cpu" and columns
+    with thread_count(threads):
+        bounds = pixel_start_bounds(
+            octree, camera, octree_column_tops(octree) if drawn else no_column_tops(),
+            stop_level=stop_level, cone_scale=cone_scale, side=side, whole_pixel=side > 1,
+            enabled=beam)
     if device == "cuda":
         result = trace_image_cuda(
             octree, camera, side=side, stop_level=stop_level, cone_scale=cone_scale,
@@ -81,22 +83,6 @@ def trace_image(
     result.seconds += bounds.seconds
     result.steps += bounds.image_steps(camera.height, camera.width)
     return result
-
-
-def image_start_bounds(
-    octree: Octree, camera: Camera, *, stop_level: int, cone_scale: float = 0.0,
-    side: int = 1, whole_pixel: bool = False, beam: bool = True, device: str = "cpu",
-    columns: bool = True, threads: int | None = None,
-) -> Beam:
-    """Where ``trace_image``'s rays start (``render.beam.pixel_start_bounds``): at a bound
-    drawn from the pyramid where the CPU walks it, else at the block beam's; for every ray
-    through a pixel where ``side`` > 1 or ``whole_pixel``."""
-    drawn = beam and device == "cpu" and columns
-    with thread_count(threads):
-        return pixel_start_bounds(
-            octree, camera, octree_column_tops(octree) if drawn else no_column_tops(),
-            stop_level=stop_level, cone_scale=cone_scale, side=side,
-            whole_pixel=whole_pixel or side > 1, enabled=beam)
 
 
 def trace_image_cpu(
@@ -194,14 +180,13 @@ def render_lod(
     cone_scale: float = LodOptions.cone_scale, side: int = LodOptions.side, seed: int = 0,
     channel: str = "albedo",
     threads: int | None = None, progress: bool = False, beam: bool = True,
-    device: str = "cpu", columns: bool = True, start_bounds: Beam | None = None,
+    device: str = "cpu", columns: bool = True,
 ) -> RenderResult:
     """One ray per pixel sampling a fixed LOD, or (``lod=None``) the LOD whose nodes match the
     pixel cone: a node is sampled once it is no larger than ``cone_scale`` pixel footprints.
     ``beam=False`` starts every ray at the camera (same image, more steps); ``columns``
     crosses the air in the column-top pyramid first, at a fixed LOD or as the cone allows
-    (``trace_image``; same image); ``device`` is ``"cpu"`` or ``"cuda"`` (same image);
-    ``start_bounds``: as ``trace_image``'s."""
+    (``trace_image``; same image); ``device`` is ``"cpu"`` or ``"cuda"`` (same image)."""
     if lod is not None:
         lod = integer_in(lod, "LOD", 0, octree.depth)
     else:
@@ -211,7 +196,7 @@ def render_lod(
         octree, camera, side=side, stop_level=stop_level,
         cone_scale=cone_scale if lod is None else 0.0, seed=seed,
         channel=channel, threads=threads, progress=progress, label="lod", beam=beam,
-        device=device, columns=columns, start_bounds=start_bounds,
+        device=device, columns=columns,
     )
     result.renderer = "lod"
     result.params = {
