@@ -125,7 +125,7 @@ def render_error_aware(
     ``colour_variance`` makes it a hybrid: the geometric error refines first, then pixels
     whose image variance asks for more rays are re-rendered as the adaptive renderer does
     (``adaptive.refine_by_variance``; their earlier rays count as spent), from this pass's
-    start bounds at a fixed base LOD.
+    start bounds at base LOD 0.
     ``columns`` lets rays at a fixed level cross the air in the column-top pyramid first, as
     ``render_lod``'s do (same image; steps count its cells); with a fixed base LOD the
     pixels then start at their bound from the pyramid drawn into the image
@@ -210,14 +210,15 @@ def render_error_aware(
         start = time.perf_counter()
         hits_before = result.hit_count.copy()
         rays_before = result.ray_count.copy()
-        # At a fixed base LOD the refinements start at this pass's bounds, searched for and
-        # counted already: on the 2048² mountain terrain (512², four views) 0.94-0.97× the
-        # steps of searching their own at base LOD 0, 0.99× at 2, the same pixels. The cone
-        # base's bound is drawn for the coarsest nodes any cone takes, far above the voxels:
-        # from it the refinements took 1.00-1.03× the steps of their own.
+        # From base LOD 0 this pass's bounds are those the refinements would search for,
+        # counted already: they start there (mountain terrain, 0.94-0.97× the steps at 2048²
+        # and 512², 0.91-1.00× at 512² and 256² over colour variances 0.005-50; the same
+        # pixels). From a coarser base's bounds they took up to 1.28× the steps where few
+        # pixels were refined (the curves study's high thresholds), 0.99× at the defaults:
+        # there they search for their own.
         refine_by_variance(octree, camera, result, colour_variance, seed, (colors, facing),
                            threads, columns,
-                           counted_bounds=beam if base_lod is not None else None)
+                           counted_bounds=beam if base_lod == 0 else None)
         redone = result.ray_count != rays_before
         discarded[redone] += hits_before[redone]  # their earlier samples no longer show
         result.maps["variance_refined"] = redone.astype(np.int32)
