@@ -167,6 +167,45 @@ def test_a_pass_draws_once_it_has_rays_enough_and_later_passes_reuse_it(monkeypa
         assert np.array_equal(got[pixels], want[pixels]), name
 
 
+def test_passes_of_a_round_too_small_alone_draw_together(monkeypatch):
+    """``refine_round`` decides on its passes' rays together: a 2×2 and a 4×4 pass that would
+    each start at the block beam alone pay for the drawing together, so the first draws
+    (every pixel takes its share once) and the second starts there; the refined pixels are
+    the reference renders'."""
+    octree, cam = _refinement_scene(overhanging_terrain(1))
+    pyramid = octree_column_tops(octree)
+    cells = raster_cells(pyramid, raster_level(cam, pyramid, stop_level=octree.depth,
+                                               depth=octree.depth, whole_pixel=True))
+    result = render_lod(octree, cam, lod=1)
+    pixels = np.flatnonzero(result.hit_count.ravel() > 0)
+    saving = adaptive.DRAWN_BOUND_SAVING
+    fours = pixels[: cells // (4 * saving)]  # each pass just short of paying alone
+    sixteens = pixels[len(fours):][: cells // (16 * saving)]
+    assert len(fours) * 4 * saving < cells and len(sixteens) * 16 * saving < cells
+    assert (len(fours) * 4 + len(sixteens) * 16) * saving >= cells
+    alone = PixelRefinement(octree, cam, render_lod(octree, cam, lod=1), 0,
+                            octree.kernel_colours("albedo"))
+    alone.refine(fours, 2)
+    alone.refine(sixteens, 4)
+    assert alone.drawn is None
+    before = result.steps.copy().ravel()
+    together = PixelRefinement(octree, cam, result, 0, octree.kernel_colours("albedo"))
+    searches = []
+    monkeypatch.setattr(adaptive, "primary_beam",
+                        lambda *args, **kwargs: searches.append(1))  # never called
+    together.refine_round([(fours, 2), (sixteens, 4), (pixels[:0], 4)])
+    assert together.drawn is not None and not searches and together.round_rays == 0
+    share = together.drawn.image_steps(cam.height, cam.width).ravel()
+    others = np.setdiff1d(np.arange(before.size), np.concatenate([fours, sixteens]))
+    assert np.array_equal(result.steps.ravel()[others], before[others] + share[others])
+    for side, chosen in ((2, fours), (4, sixteens)):
+        truth = render_reference(octree, cam, side=side)
+        for name in ("image", "depth", "normal", "hit_count"):
+            got = getattr(result, name).reshape(-1, *getattr(result, name).shape[2:])
+            want = getattr(truth, name).reshape(-1, *getattr(truth, name).shape[2:])
+            assert np.array_equal(got[chosen], want[chosen]), name
+
+
 @pytest.mark.parametrize("scene", [overhanging_terrain(1), hollow_shell_terrain(2)],
                          ids=["overhangs", "hollow"])
 @pytest.mark.parametrize("kind", ["pinhole", "orthographic"])

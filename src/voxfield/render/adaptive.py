@@ -111,11 +111,9 @@ def refine_by_variance(octree: Octree, camera: Camera, result: RenderResult,
     rays = result.ray_count.reshape(-1)
     refinement = PixelRefinement(octree, camera, result, seed, colours, threads,
                                  columns=columns, counted_bounds=counted_bounds)
-    for cls in (2, 1):
-        side = CLASS_SIDE[cls]
-        todo = np.flatnonzero((wanted.reshape(-1) == cls) & (rays < side * side))
-        if len(todo):
-            refinement.refine(todo, side)
+    refinement.refine_round([
+        (np.flatnonzero((wanted.reshape(-1) == cls) & (rays < CLASS_SIDE[cls] ** 2)),
+         CLASS_SIDE[cls]) for cls in (2, 1)])
     return wanted
 
 
@@ -157,13 +155,13 @@ def render_adaptive(
     for _ in range(iterations):
         variance = window_variance(luminance(result.image), valid) / variance_normalisation
         wanted = refinement_classes(variance, valid)
+        passes = [(np.flatnonzero((wanted == cls) & (current < cls)), CLASS_SIDE[cls])
+                  for cls in (1, 2)]
+        refinement.refine_round(passes)
         refined = 0
-        for cls in (1, 2):
-            todo = np.flatnonzero((wanted == cls) & (current < cls))
-            if len(todo):
-                refinement.refine(todo, CLASS_SIDE[cls])
-                current.reshape(-1)[todo] = cls
-                refined += len(todo)
+        for cls, (todo, _) in zip((1, 2), passes, strict=True):
+            current.reshape(-1)[todo] = cls
+            refined += len(todo)
         if not refined:
             break  # the image is unchanged, so every further iteration would be this one
     result.seconds = first.seconds + time.perf_counter() - start
@@ -212,6 +210,7 @@ class PixelRefinement:
         self.colours, self.threads, self.device, self.channel = colours, threads, device, channel
         self.columns = columns
         self.drawn = counted_bounds
+        self.round_rays = 0  # the rays of the passes ``refine_round`` is running
         self.pyramid = octree_column_tops(octree) if device == "cpu" and columns else None
         level = None if self.pyramid is None or counted_bounds is not None else raster_level(
             camera, self.pyramid, stop_level=octree.depth, depth=octree.depth,
@@ -222,8 +221,9 @@ class PixelRefinement:
     def start_bounds(self, pixels: np.ndarray, side: int) -> Beam:
         """The pass's start bounds; a drawing's cells are charged to the result when it is
         drawn, the block beam's steps by ``refine``."""
+        rays = max(len(pixels) * side * side, self.round_rays)
         if (self.drawn is None and self.drawing_cells is not None
-                and len(pixels) * side * side * DRAWN_BOUND_SAVING >= self.drawing_cells):
+                and rays * DRAWN_BOUND_SAVING >= self.drawing_cells):
             with thread_count(self.threads):
                 self.drawn = raster_beam(self.camera, self.pyramid,
                                          stop_level=self.octree.depth,
@@ -238,6 +238,17 @@ class PixelRefinement:
         with thread_count(self.threads):
             return primary_beam(self.octree, self.camera, stop_level=self.octree.depth,
                                 side=side, pixels=pixels)
+
+    def refine_round(self, passes) -> None:
+        """Run the ``(pixels, side)`` passes in order, whether to draw decided on all their
+        rays together: passes too small to pay for the drawing alone may pay together."""
+        passes = [(pixels, side) for pixels, side in passes if len(pixels)]
+        self.round_rays = sum(len(pixels) * side * side for pixels, side in passes)
+        try:
+            for pixels, side in passes:
+                self.refine(pixels, side)
+        finally:
+            self.round_rays = 0
 
     def refine(self, pixels: np.ndarray, side: int) -> None:
         """Re-render ``pixels`` (flat indices); their rays and steps add to what they had."""
