@@ -189,8 +189,9 @@ class PixelRefinement:
 
     Its rays start where every primary renderer's do (``render.beam.pixel_start_bounds``),
     at their pixel's bound from the pyramid drawn into the image for rays anywhere in the
-    pixel, once a pass has rays enough to pay for the drawing: its cells (one a pixel at
-    most, ``raster_cells``) against ``DRAWN_BOUND_SAVING`` steps a ray. The drawing then
+    pixel, once a pass (or the round of passes it is part of, ``refine_round``) has rays
+    enough to pay for the drawing: its cells (one a pixel at most, ``raster_cells``) against
+    ``DRAWN_BOUND_SAVING`` steps a ray. The drawing then
     serves every later pass, its cells shared out over the image as every render's drawing
     is. Passes before it, and every pass where nothing can be drawn (a GPU, no pyramid, a
     camera it cannot draw for), start at the block beam of their pixels' blocks, whose steps
