@@ -125,3 +125,23 @@ def test_cone_rays_from_the_camera_begin_at_the_level_of_their_height():
         cells[height] = ends[:, 1].max()
     assert cells[0.5] == NEAR_START_LEVELS + 1 < levels
     assert cells[0.5] < cells[8.0] < cells[40.0]
+
+
+def test_vertical_rays_of_a_cone_with_no_spread_land_on_the_nodes_it_takes():
+    """An orthographic camera's cone has no spread: as wide where a vertical ray would leave
+    its column (never) as anywhere. Straight down onto a flat 64² field, a cone that takes
+    nodes of side 2 walks to their level and lands on the cell's top node (the walk's cells
+    and one step), where the octree alone ends it."""
+    x, z = np.meshgrid(np.arange(64), np.arange(64), indexing="ij")
+    coords = np.stack([x.ravel(), np.zeros(x.size, np.int64), z.ravel()], axis=1)
+    octree = build_octree(VoxelScene(coords, np.full((x.size, 3), 0.5), name="ground"))
+    columns = column_tops(octree.node_coords(octree.depth))
+    starts = [(10.5, 20.0, 20.5), (33.25, 5.0, 47.75), (40.5, 60.0, 2.5)]
+    rays = np.array([[*start, 0.0, -1.0, 0.0, tmin] for start in starts for tmin in (0.0, 3.0)])
+    walked = np.zeros((len(rays), 5))
+    alone = np.zeros((len(rays), 5))
+    ends = np.zeros((len(rays), 2), np.int64)
+    _both(rays, octree.depth, octree.inner_nodes, columns, 2.5, 0.0, walked, alone, ends)
+    np.testing.assert_array_equal(walked[:, :4], alone[:, :4])
+    assert (walked[:, 1] == octree.depth - 1).all()  # nodes of side 2
+    assert (walked[:, 4] == ends[:, 1] + 1).all()  # landed: the cells, then one step

@@ -56,6 +56,8 @@ from voxfield.kernels.traversal import (
 
 #: ``walk_cone_over_columns``'s cell for a ray that meets nothing.
 MISSED_ALL = -2
+#: The time ``walk_cone_over_columns`` judges a cone at for a ray that never leaves a cell.
+_LONGEST = 1e300
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -110,7 +112,9 @@ def walk_cone_over_columns(
         tz = face_time((cz + ahead_z) << level, oz, iz)
         t_exit = min(tx, tz)
         t_leave = min(t_exit, t_end)
-        accepted = cone_level(t_leave, radius, spread, depth)
+        # (Finite: a vertical ray never leaves its column, and a cone of no spread, an
+        # orthographic camera's, is as wide there as anywhere, where 0 · inf is no width.)
+        accepted = cone_level(min(t_leave, _LONGEST), radius, spread, depth)
         if level < accepted:
             if level >= top_level:
                 return t, cells, -1, -1, 0
