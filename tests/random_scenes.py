@@ -64,6 +64,14 @@ def octree_and_columns(scene: VoxelScene):
     return octree, voxels, column_tops(voxels, records=True)
 
 
+def flat_ground(size: int = 64) -> VoxelScene:
+    """One layer of grey voxels at y = 0, ``size`` on a side: ground whose top is at y = 1
+    everywhere, so a ray's height over it is known exactly."""
+    x, z = np.meshgrid(np.arange(size), np.arange(size), indexing="ij")
+    coords = np.stack([x.ravel(), np.zeros(x.size, np.int64), z.ravel()], axis=1)
+    return VoxelScene(coords, np.full((x.size, 3), 0.5), name="ground")
+
+
 def pillar_field(seed: int = 0, size: int = 80) -> VoxelScene:
     """Low solid ground with thin pillars of every height scattered over it: a ray that
     clears the ground around it may still meet a tall pillar far away."""

@@ -10,6 +10,7 @@ from numba import njit
 
 from random_scenes import (
     any_rays,
+    flat_ground,
     hollow_shell_terrain,
     octree_and_columns,
     overhanging_terrain,
@@ -23,9 +24,6 @@ from voxfield.kernels.cone_walk import (
     walk_cone_over_columns,
 )
 from voxfield.kernels.traversal import new_scratch, trace_ray
-from voxfield.scene.voxel_scene import VoxelScene
-from voxfield.svo import build_octree
-from voxfield.svo.column_tops import column_tops
 
 
 @njit
@@ -50,6 +48,16 @@ def _both(rays, depth, inner_nodes, columns, radius, spread, walked, alone, ends
         ends[k, 1] = cells
 
 
+def _walk_both(rays, octree, columns, radius, spread):
+    """``_both``'s rows for ``rays``: ``(walked, alone, ends)``."""
+    walked = np.zeros((len(rays), 5))
+    alone = np.zeros((len(rays), 5))
+    ends = np.zeros((len(rays), 2), np.int64)
+    _both(rays, octree.depth, octree.inner_nodes, columns, radius, spread, walked, alone,
+          ends)
+    return walked, alone, ends
+
+
 def _rays(voxels, n, seed):
     """``any_rays``, from their origin or from a start bound part of the way along."""
     origins, directions = any_rays(voxels, n, seed=seed)
@@ -70,11 +78,7 @@ def test_cone_rays_over_the_pyramid_are_the_octrees(scene, radius, spread):
     octree, voxels, columns = octree_and_columns(scene)
     rays = _rays(voxels, 600, seed=len(voxels))
     n = len(rays)
-    walked = np.zeros((n, 5))
-    alone = np.zeros((n, 5))
-    ends = np.zeros((n, 2), np.int64)
-    _both(rays, octree.depth, octree.inner_nodes, columns, radius, spread, walked, alone,
-          ends)
+    walked, alone, ends = _walk_both(rays, octree, columns, radius, spread)
     np.testing.assert_array_equal(walked[:, [0, 1, 3]], alone[:, [0, 1, 3]])
     assert np.array_equal(walked[:, 2], alone[:, 2])  # bit for bit, infinities too
     hits = alone[:, 0] >= 0
@@ -102,10 +106,7 @@ def test_cone_rays_from_the_camera_begin_at_the_level_of_their_height():
     it begins higher, and every ray ends where the octree alone ends it, bit for bit."""
     from voxfield.kernels.surface_approach import NEAR_START_LEVELS
 
-    x, z = np.meshgrid(np.arange(64), np.arange(64), indexing="ij")
-    coords = np.stack([x.ravel(), np.zeros(x.size, np.int64), z.ravel()], axis=1)
-    octree = build_octree(VoxelScene(coords, np.full((x.size, 3), 0.5), name="ground"))
-    columns = column_tops(octree.node_coords(octree.depth))
+    octree, _, columns = octree_and_columns(flat_ground())
     levels = columns.level_width.shape[0]
     radius, spread = 0.4, 0.002  # voxels all the way down from 40 voxels up
     direction = np.array([0.25, -1.0, 0.125]) / np.linalg.norm([0.25, -1.0, 0.125])
@@ -114,11 +115,7 @@ def test_cone_rays_from_the_camera_begin_at_the_level_of_their_height():
         starts = [(ox, 1.0 + height, oz) for ox, oz in ((10.5, 20.5), (33.25, 47.75),
                                                         (40.5, 2.5))]
         rays = np.array([[*start, *direction, 0.0] for start in starts])
-        walked = np.zeros((len(rays), 5))
-        alone = np.zeros((len(rays), 5))
-        ends = np.zeros((len(rays), 2), np.int64)
-        _both(rays, octree.depth, octree.inner_nodes, columns, radius, spread, walked,
-              alone, ends)
+        walked, alone, ends = _walk_both(rays, octree, columns, radius, spread)
         np.testing.assert_array_equal(walked[:, :4], alone[:, :4])
         assert (walked[:, 1] == octree.depth).all() and (walked[:, 3] == 3).all()
         assert (ends[:, 0] >= 0).all()  # every one lands on its cell's top voxel
@@ -132,16 +129,10 @@ def test_vertical_rays_of_a_cone_with_no_spread_land_on_the_nodes_it_takes():
     its column (never) as anywhere. Straight down onto a flat 64² field, a cone that takes
     nodes of side 2 walks to their level and lands on the cell's top node (the walk's cells
     and one step), where the octree alone ends it."""
-    x, z = np.meshgrid(np.arange(64), np.arange(64), indexing="ij")
-    coords = np.stack([x.ravel(), np.zeros(x.size, np.int64), z.ravel()], axis=1)
-    octree = build_octree(VoxelScene(coords, np.full((x.size, 3), 0.5), name="ground"))
-    columns = column_tops(octree.node_coords(octree.depth))
+    octree, _, columns = octree_and_columns(flat_ground())
     starts = [(10.5, 20.0, 20.5), (33.25, 5.0, 47.75), (40.5, 60.0, 2.5)]
     rays = np.array([[*start, 0.0, -1.0, 0.0, tmin] for start in starts for tmin in (0.0, 3.0)])
-    walked = np.zeros((len(rays), 5))
-    alone = np.zeros((len(rays), 5))
-    ends = np.zeros((len(rays), 2), np.int64)
-    _both(rays, octree.depth, octree.inner_nodes, columns, 2.5, 0.0, walked, alone, ends)
+    walked, alone, ends = _walk_both(rays, octree, columns, 2.5, 0.0)
     np.testing.assert_array_equal(walked[:, :4], alone[:, :4])
     assert (walked[:, 1] == octree.depth - 1).all()  # nodes of side 2
     assert (walked[:, 4] == ends[:, 1] + 1).all()  # landed: the cells, then one step

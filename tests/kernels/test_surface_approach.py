@@ -9,6 +9,7 @@ from numba import njit
 
 from random_scenes import (
     any_rays,
+    flat_ground,
     hollow_shell_terrain,
     octree_and_columns,
     overhanging_terrain,
@@ -277,10 +278,7 @@ def test_rays_from_the_camera_begin_at_the_level_of_their_height():
     on the same voxel as from the octree alone."""
     from voxfield.kernels.surface_approach import NEAR_START_LEVELS
 
-    x, z = np.meshgrid(np.arange(64), np.arange(64), indexing="ij")
-    coords = np.stack([x.ravel(), np.zeros(x.size, np.int64), z.ravel()], axis=1)
-    octree = build_octree(VoxelScene(coords, np.full((x.size, 3), 0.5), name="ground"))
-    columns = column_tops(octree.node_coords(octree.depth))
+    octree, _, columns = octree_and_columns(flat_ground())
     levels = columns.level_width.shape[0]
     cells = {}
     for height in (0.5, 8.0, 40.0):

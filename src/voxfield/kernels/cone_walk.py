@@ -56,15 +56,18 @@ from voxfield.kernels.traversal import (
 
 #: ``walk_cone_over_columns``'s cell for a ray that meets nothing.
 MISSED_ALL = -2
-#: The time ``walk_cone_over_columns`` judges a cone at for a ray that never leaves a cell.
+#: The time ``cone_level`` judges a cone at for a ray that never leaves a cell.
 _LONGEST = 1e300
 
 
 @njit(cache=True, nogil=True, inline="always")
 def cone_level(t: float, radius: float, spread: float, depth: int) -> int:
     """The level (node side ``2^level``) of the largest node the cone ``radius + spread·t``
-    accepts at ``t``, by ``traversal.traverse``'s own test; 0 (voxels) when none larger."""
-    cone = cone_width(radius, spread, t)
+    accepts at ``t``, by ``traversal.traverse``'s own test; 0 (voxels) when none larger.
+    ``t`` may be infinite (a vertical ray never leaves its column): it is judged at a finite
+    time, where a cone of no spread (an orthographic camera's) keeps its width rather than
+    ``0 · inf``, no width."""
+    cone = cone_width(radius, spread, min(t, _LONGEST))
     level = 0
     while level < depth and float(2 << level) <= cone:
         level += 1
@@ -112,9 +115,7 @@ def walk_cone_over_columns(
         tz = face_time((cz + ahead_z) << level, oz, iz)
         t_exit = min(tx, tz)
         t_leave = min(t_exit, t_end)
-        # (Finite: a vertical ray never leaves its column, and a cone of no spread, an
-        # orthographic camera's, is as wide there as anywhere, where 0 · inf is no width.)
-        accepted = cone_level(min(t_leave, _LONGEST), radius, spread, depth)
+        accepted = cone_level(t_leave, radius, spread, depth)
         if level < accepted:
             if level >= top_level:
                 return t, cells, -1, -1, 0

@@ -191,13 +191,12 @@ class PixelRefinement:
     at their pixel's bound from the pyramid drawn into the image for rays anywhere in the
     pixel, once a pass (or the round of passes it is part of, ``refine_round``) has rays
     enough to pay for the drawing: its cells (one a pixel at most, ``raster_cells``) against
-    ``DRAWN_BOUND_SAVING`` steps a ray. The drawing then
-    serves every later pass, its cells shared out over the image as every render's drawing
-    is. Passes before it, and every pass where nothing can be drawn (a GPU, no pyramid, a
-    camera it cannot draw for), start at the block beam of their pixels' blocks, whose steps
-    go to those pixels. On the 2048² mountain terrain (512² image) the adaptive renderer at
-    its defaults then counts 0.58-0.61× the steps of the block beam alone, in 0.90-0.97×
-    the time, the same images.
+    ``DRAWN_BOUND_SAVING`` steps a ray. The drawing then serves every later pass, its cells
+    shared out over the image as every render's drawing is. Passes before it, and every pass
+    where nothing can be drawn (a GPU, no pyramid, a camera it cannot draw for), start at
+    the block beam of their pixels' blocks, whose steps go to those pixels. On the 2048²
+    mountain terrain (512² image) the adaptive renderer at its defaults then counts
+    0.58-0.61× the steps of the block beam alone, in 0.90-0.97× the time, the same images.
 
     ``counted_bounds`` are start bounds the render being refined has already searched for
     and counted, good for every ray through a pixel down to LOD 0 (a bound before nodes of
