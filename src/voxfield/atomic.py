@@ -37,6 +37,25 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         tmp_path.unlink(missing_ok=True)
 
 
+def check_writable(path: str | os.PathLike) -> Path:
+    """Fail now, before the work, where ``atomic_path`` would fail after it: a folder in
+    the way, a file where a folder should be, a folder that cannot be created or written.
+    Creates the target's missing folders (as writing it would) and leaves no file behind;
+    errors name the target, not the probe file."""
+    path = Path(path)
+    try:
+        if path.is_dir():
+            raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", str(path))
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, probe = tempfile.mkstemp(prefix=f".{path.stem[:64]}.", suffix=".probe",
+                                     dir=path.parent)
+    except OSError as exc:
+        raise type(exc)(exc.errno, exc.strerror, str(path)) from None
+    os.close(fd)
+    os.unlink(probe)
+    return path
+
+
 def _mode_for(path: Path) -> int:
     """The permission bits ``path`` should get: its own if it exists, else 0666 & ~umask."""
     try:

@@ -8,12 +8,13 @@ import os
 import stat
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 from PIL import Image
 
-from voxfield.atomic import atomic_path
+from voxfield.atomic import atomic_path, check_writable
 from voxfield.cli import main
 from voxfield.cli.main import _note_warning
 
@@ -22,6 +23,10 @@ def _one_error_line(capsys) -> str:
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("voxfield: error: "), err
     return err[0]
+
+
+LIGHT = ["light", "builtin:pillars", "--times", "noon", "--sky-rays", "0", "--preview-size",
+         "8", "--quiet"]
 
 
 @pytest.fixture
@@ -35,6 +40,45 @@ def test_output_under_a_file_is_one_line(a_file, capsys):
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
                  "--out", str(a_file / "x.png")]) == 2
     assert str(a_file) in _one_error_line(capsys)
+
+
+@pytest.mark.parametrize("command, out", [
+    (["render", "builtin:sphere", "--size", "8"], "cmd_render"),
+    (["build", "builtin:sphere"], "cmd_scenes"),
+    (LIGHT, "cmd_light"),
+    (["calibrate", "builtin:sphere", "--target-rays", "100"], "cmd_calibrate"),
+])
+def test_an_unusable_output_fails_before_the_scene_loads(command, out, a_file, capsys,
+                                                         monkeypatch):
+    # A render or bake may take minutes: an output it could never write must end the
+    # command before that work, not after it.
+    def never(args):
+        raise AssertionError("the scene was opened for an output that cannot be written")
+
+    monkeypatch.setattr(f"voxfield.cli.{out}.open_octree", never)
+    assert main([*command, "--quiet", "--out", str(a_file / "x.png")]) == 2
+    assert str(a_file) in _one_error_line(capsys)
+
+
+def test_an_image_format_render_cannot_write_fails_before_the_scene_loads(
+        tmp_path, capsys, monkeypatch):
+    def never(args):
+        raise AssertionError("the scene was opened for an image that cannot be written")
+
+    monkeypatch.setattr("voxfield.cli.cmd_render.open_octree", never)
+    assert main(["render", "builtin:sphere", "--quiet", "--out", str(tmp_path / "x.jpg")]) == 2
+    assert "'.jpg'" in _one_error_line(capsys)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_checking_an_output_leaves_nothing_but_its_folders(tmp_path):
+    target = tmp_path / "a" / "b" / "x.png"
+    assert check_writable(target) == target
+    assert [p.relative_to(tmp_path) for p in sorted(tmp_path.rglob("*"))] == [
+        Path("a"), Path("a/b")]
+    (tmp_path / "x.png").mkdir()
+    with pytest.raises(IsADirectoryError):
+        check_writable(tmp_path / "x.png")
 
 
 def test_output_naming_a_folder_is_one_line(tmp_path, capsys):
@@ -55,10 +99,6 @@ def test_bake_into_a_file_is_one_line(a_file, capsys):
     assert main(["bake", "builtin:cornell", "--grid", "1x1x1", "--resolution", "8",
                  "--quiet", "--out", str(a_file / "pb")]) == 2
     _one_error_line(capsys)
-
-
-LIGHT = ["light", "builtin:pillars", "--times", "noon", "--sky-rays", "0", "--preview-size",
-         "8", "--quiet"]
 
 
 def test_light_onto_a_folder_is_one_line_and_writes_nothing(tmp_path, capsys):

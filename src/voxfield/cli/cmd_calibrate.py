@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from voxfield.atomic import atomic_path
+from voxfield.atomic import atomic_path, check_writable
 from voxfield.cli.options import (
     add_channel_option,
     add_renderer_options,
@@ -42,6 +42,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    if args.out:
+        check_writable(args.out)  # before the renders, not after them
     octree = open_octree(args)
     view = scene_camera(args, octree)
     cal = calibrate_threshold(

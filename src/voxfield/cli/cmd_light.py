@@ -5,11 +5,10 @@ from __future__ import annotations
 import argparse
 import json
 from concurrent.futures import ThreadPoolExecutor
-from pathlib import Path
 
 import numpy as np
 
-from voxfield.atomic import atomic_path
+from voxfield.atomic import atomic_path, check_writable
 from voxfield.cli.options import (
     add_quiet,
     add_scene_options,
@@ -69,13 +68,13 @@ def register(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     suns = parse_suns(args.times)  # before the (slow) scene load: bad input fails fast
     check_scheduler(args.scheduler)
+    out = check_writable(args.out or default_output("lit", args.scene, ".npz"))
     args.quiet = quiet = getattr(args, "quiet", False)  # as ``voxfield.cli.main`` sets it
     octree = open_octree(args)
     lit, report = bake_sun_lighting(
         octree, suns, sky_rays=args.sky_rays, shadow_rays=args.shadow_rays, seed=args.seed,
         threads=args.threads, progress=not quiet, scheduler=args.scheduler,
     )
-    out = Path(args.out) if args.out else default_output("lit", args.scene, ".npz")
     details = {
         "scene": args.scene,
         "octree": str(out),

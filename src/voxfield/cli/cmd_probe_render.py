@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.atomic import atomic_path
+from voxfield.atomic import atomic_path, check_writable
 from voxfield.cli.options import (
     add_hit_options,
     add_view_options,
@@ -132,6 +132,7 @@ def run(args) -> int:
         "probe_render", Path(args.probes).name or "probes", f"_{args.method}.png")
     if out.suffix.lower() not in (".png", ".exr"):
         raise VoxfieldError(f"--out must name a .png or .exr file, not {out.name!r}")
+    check_writable(out)
     if args.compare and args.scene is None:
         raise VoxfieldError("--compare renders the scene itself: name it with --scene")
     if (args.box_min is None) != (args.box_max is None):

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.atomic import check_writable
 from voxfield.cli.options import (
     add_channel_option,
     add_quiet,
@@ -204,6 +205,7 @@ def run_show(args) -> int:
     out = Path(args.out) if args.out else folder / "show.png"
     if out.suffix.lower() != ".png":
         raise VoxfieldError(f"probes show writes PNG; name the output .png, not {out.name!r}")
+    check_writable(out)
     octree = None if args.no_scene else _reopen_scene(header, args.scene, args.quiet)
     s = probe_set.cost_summary()
     title = (f"{header['scene'].get('name', 'scene')}: {s['baked']} of {s['probes']} probes, "

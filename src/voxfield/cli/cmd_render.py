@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from voxfield.cli.options import (
     add_renderer_options,
@@ -16,7 +15,7 @@ from voxfield.cli.options import (
 )
 from voxfield.render.counter_maps import write_counter_maps
 from voxfield.render.device import CUDA_RENDERERS, DEVICES, check_device
-from voxfield.render.image_io import save_result_image, shade_for_display
+from voxfield.render.image_io import check_image_output, save_result_image, shade_for_display
 from voxfield.render.registry import RENDERERS, render
 
 
@@ -51,13 +50,13 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     check_device(args.device, args.renderer)  # before the scene loads: fail fast
+    out = check_image_output(args.out)
     octree = open_octree(args)
     view = scene_camera(args, octree)
     on_gpu = {"device": "cuda"} if args.device == "cuda" else {}
     result = render(octree, view, args.renderer, renderer_options_from(args, args.renderer),
                     seed=args.seed, channel=args.channel, threads=args.threads,
                     progress=not args.quiet, **on_gpu)
-    out = Path(args.out)
     # Baked light channels are lit already: only the albedo gets the display light unasked.
     if args.shade or (out.suffix.lower() == ".png" and not args.albedo
                       and args.channel == "albedo"):

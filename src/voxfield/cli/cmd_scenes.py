@@ -7,6 +7,7 @@ import json
 import time
 from pathlib import Path
 
+from voxfield.atomic import check_writable
 from voxfield.cli.options import add_quiet, add_scene_options, open_octree
 from voxfield.scene.builtin import BUILTIN_SCENES
 from voxfield.scene.loaders import npz_kind
@@ -77,6 +78,7 @@ def run_info(args) -> int:
 
 
 def run_build(args) -> int:
+    check_writable(args.out)  # before the build, not after it
     octree = open_octree(args)
     path = save_octree(octree, args.out)
     if not args.quiet:

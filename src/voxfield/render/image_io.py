@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from voxfield.atomic import atomic_path
+from voxfield.atomic import atomic_path, check_writable
 from voxfield.errors import VoxfieldError
 from voxfield.scene.voxel_scene import linear_to_srgb
 
@@ -65,15 +65,28 @@ def load_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:
     return channels
 
 
+def image_format(path: str | os.PathLike) -> str:
+    """``".png"`` or ``".exr"``, from the path's suffix in any case; anything else is bad
+    input."""
+    suffix = Path(path).suffix.lower()
+    if suffix not in (".png", ".exr"):
+        raise VoxfieldError(f"unsupported image format {suffix!r} in {os.fspath(path)!r}; "
+                            "use .png or .exr")
+    return suffix
+
+
+def check_image_output(path: str | os.PathLike) -> Path:
+    """An image path ``save_result_image`` will accept and can write, checked before the
+    render rather than after it."""
+    image_format(path)
+    return check_writable(path)
+
+
 def save_result_image(result, path: str | os.PathLike) -> Path:
     """Save a RenderResult: ``.png`` gives the sRGB image, ``.exr`` linear RGB plus depth Z."""
-    path = Path(path)
-    suffix = path.suffix.lower()
-    if suffix == ".png":
+    if image_format(path) == ".png":
         return save_png(result.image, path)
-    if suffix == ".exr":
-        return save_exr({"RGB": result.image, "Z": result.depth}, path)
-    raise VoxfieldError(f"unsupported image format {suffix!r}; use .png or .exr")
+    return save_exr({"RGB": result.image, "Z": result.depth}, path)
 
 
 #: Display shading: a fixed key light (normalised) and a weak side light on the face normals.
