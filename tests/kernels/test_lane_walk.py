@@ -20,6 +20,7 @@ from voxfield.kernels.lane_walk import (
     SLOTS,
     compiles_wide_vectors,
     land_walks,
+    pick,
     walk_queue_in_lanes,
     walk_to_nodes_in_lanes,
 )
@@ -233,3 +234,29 @@ def test_only_avx_512_targets_walk_their_batches_in_lanes():
     assert not compiles_wide_vectors("+sse4.2,+avx,+avx2,+fma,-avx512f,-avx512dq")
     assert not compiles_wide_vectors("+avx2,+avx512fp16x")  # a name that only starts alike
     assert not compiles_wide_vectors("")
+
+
+@njit(cache=True)
+def _picks(conditions, ints, floats):
+    out_ints = np.empty(len(conditions), np.int64)
+    out_floats = np.empty(len(conditions))
+    out_bools = np.empty(len(conditions), np.bool_)
+    for i in range(len(conditions)):
+        c = conditions[i]
+        out_ints[i] = pick(c, ints[i], 0) + pick(not c, 1, np.int32(2))
+        out_floats[i] = pick(c, floats[i], ints[i])  # an int side is converted
+        out_bools[i] = pick(c, floats[i] > 0.0, pick(ints[i] > 0, True, c))
+    return out_ints, out_floats, out_bools
+
+
+def test_pick_is_a_conditional_expression_of_the_sides_common_type():
+    conditions = np.array([True, False, True, False])
+    ints = np.array([5, -3, 0, 7])
+    floats = np.array([0.5, -1.5, -2.0, 3.0])
+    out_ints, out_floats, out_bools = _picks(conditions, ints, floats)
+    np.testing.assert_array_equal(out_ints, np.where(conditions, ints, 0)
+                                  + np.where(conditions, 2, 1))
+    np.testing.assert_array_equal(out_floats, np.where(conditions, floats, ints))
+    np.testing.assert_array_equal(out_bools, np.where(conditions, floats > 0.0,
+                                                      (ints > 0) | conditions))
+    assert out_floats.dtype == np.float64

@@ -33,8 +33,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import config, njit
+from numba import config, njit, types
 from numba.core.codegen import get_host_cpu_features
+from numba.extending import intrinsic
 
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import RECORD_FIELD_BITS
@@ -346,11 +347,26 @@ def _record_lane(floats: np.ndarray, ints: np.ndarray, columns, lane: int, fines
     prefetch_landing(columns, cx, cz, finest)
 
 
-@njit(cache=True, nogil=True, inline="always")
-def pick(condition: bool, if_true, if_false):
-    """``if_true`` where ``condition`` holds, else ``if_false``: in a lane pass, a select
-    (both sides computed), so the pass has no branch on a ray's route."""
-    return if_true if condition else if_false
+@intrinsic
+def pick(typingctx, condition, if_true, if_false):
+    """``if_true`` where ``condition`` holds, else ``if_false``: one ``select``, both sides
+    computed, so a lane pass has no branch on a ray's route. An intrinsic rather than an
+    inlined function, because Numba inlines a function anew at each of its call sites (a
+    lane pass has 21): each lane walk compiles in about 4 s less (the LOD-0 one in 9.5-10.8 s
+    instead of 13.5-14.0), to the same machine code."""
+    result = typingctx.unify_pairs(types.unliteral(if_true), types.unliteral(if_false))
+    if result is None or not isinstance(condition, types.Boolean):
+        return None
+
+    def codegen(context, builder, signature, args):
+        condition_value, true_value, false_value = args
+        _, true_type, false_type = signature.args
+        return builder.select(
+            condition_value,
+            context.cast(builder, true_value, true_type, signature.return_type),
+            context.cast(builder, false_value, false_type, signature.return_type))
+
+    return result(condition, if_true, if_false), codegen
 
 
 # A record's field is shifted up to the int64's top bits, then arithmetically back down.
