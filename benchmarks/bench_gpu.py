@@ -29,6 +29,7 @@ import numpy as np
 
 from voxfield.cli.exits import report_failures
 from voxfield.cli.options import int_at_least, int_between
+from voxfield.errors import VoxfieldError
 from voxfield.scene.terrain import MAX_FOOTPRINT
 
 
@@ -140,12 +141,13 @@ def probe_rows(octree, scene: str, args) -> None:
 def check_ptx() -> int:
     from types import SimpleNamespace
 
-    try:
-        import numba.cuda.dispatcher as cuda_dispatcher
-        from numba import cuda, types
-    except ImportError:
-        print("bench_gpu --check-ptx: numba-cuda is not installed", file=sys.stderr)
-        return 2
+    from voxfield.render.device import numba_cuda_installed
+
+    if not numba_cuda_installed():  # Numba's own, deprecated CUDA target cannot compile them
+        raise VoxfieldError("--check-ptx compiles with numba-cuda: pip install -e '.[cuda]'")
+    import numba.cuda.dispatcher as cuda_dispatcher
+    from numba import cuda, types
+
     cuda_dispatcher.get_current_device = lambda: SimpleNamespace(compute_capability=(9, 0))
     from voxfield.kernels import cuda_primary
 

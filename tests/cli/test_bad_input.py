@@ -233,6 +233,22 @@ def test_values_with_a_leading_minus_reach_their_own_check(tmp_path, capsys):
     assert not (tmp_path / "pb").exists()
 
 
+def test_a_gpu_seen_only_through_numbas_own_cuda_target_is_no_gpu(monkeypatch):
+    # Numba's deprecated CUDA target sees the GPU but cannot compile the kernels: without
+    # numba-cuda, --device cuda must end in the one-line "no CUDA GPU", not a traceback.
+    import numba
+    from numba import cuda
+
+    from voxfield.render import device
+
+    monkeypatch.setattr(numba.config, "ENABLE_CUDASIM", False)
+    monkeypatch.setattr(cuda, "is_available", lambda: True)
+    monkeypatch.setattr(device, "numba_cuda_installed", lambda: False)
+    assert not device.cuda_available()
+    monkeypatch.setattr(device, "numba_cuda_installed", lambda: True)
+    assert device.cuda_available()
+
+
 def test_cuda_without_a_gpu_or_for_a_cpu_only_renderer_is_one_line(tmp_path, capsys,
                                                                    monkeypatch):
     from voxfield.render import device

@@ -260,3 +260,5 @@ def test_pick_is_a_conditional_expression_of_the_sides_common_type():
     np.testing.assert_array_equal(out_bools, np.where(conditions, floats > 0.0,
                                                       (ints > 0) | conditions))
     assert out_floats.dtype == np.float64
+    # and plain Python, where the CUDA simulator runs the CPU's walks uncompiled
+    assert (pick(True, 1, 2.5), pick(False, 1, 2.5)) == (1, 2.5)

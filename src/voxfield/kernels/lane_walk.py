@@ -35,7 +35,7 @@ import math
 import numpy as np
 from numba import config, njit, types
 from numba.core.codegen import get_host_cpu_features
-from numba.extending import intrinsic
+from numba.extending import intrinsic, overload
 
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import RECORD_FIELD_BITS
@@ -347,15 +347,27 @@ def _record_lane(floats: np.ndarray, ints: np.ndarray, columns, lane: int, fines
     prefetch_landing(columns, cx, cz, finest)
 
 
+def pick(condition: bool, if_true, if_false):
+    """``if_true`` where ``condition`` holds, else ``if_false``: in compiled code one
+    ``select``, both sides computed, so a lane pass has no branch on a ray's route. Compiled
+    once per type (``_pick``) and left to LLVM to inline, rather than a function Numba
+    inlines anew at each of its call sites (a lane pass has 21): each lane walk compiles in
+    about 4 s less (the LOD-0 one in 9.5-10.8 s instead of 13.5-14.0), to the same
+    machine code. Plain Python here for ``NUMBA_DISABLE_JIT`` (the CUDA simulator)."""
+    return if_true if condition else if_false
+
+
+@overload(pick)
+def _pick(condition, if_true, if_false):
+    if not isinstance(condition, types.Boolean):
+        return None
+    return lambda condition, if_true, if_false: _select(condition, if_true, if_false)
+
+
 @intrinsic
-def pick(typingctx, condition, if_true, if_false):
-    """``if_true`` where ``condition`` holds, else ``if_false``: one ``select``, both sides
-    computed, so a lane pass has no branch on a ray's route. An intrinsic rather than an
-    inlined function, because Numba inlines a function anew at each of its call sites (a
-    lane pass has 21): each lane walk compiles in about 4 s less (the LOD-0 one in 9.5-10.8 s
-    instead of 13.5-14.0), to the same machine code."""
+def _select(typingctx, condition, if_true, if_false):
     result = typingctx.unify_pairs(types.unliteral(if_true), types.unliteral(if_false))
-    if result is None or not isinstance(condition, types.Boolean):
+    if result is None:
         return None
 
     def codegen(context, builder, signature, args):

@@ -8,6 +8,7 @@ The beam pass itself runs on the CPU; its bounds, and so every step count, are t
 
 from __future__ import annotations
 
+import importlib.util
 import time
 
 import numpy as np
@@ -22,12 +23,22 @@ DEVICES = ("cpu", "cuda")
 CUDA_RENDERERS = ("reference", "lod", "adaptive")
 
 
+def numba_cuda_installed() -> bool:
+    """Whether numba-cuda (the ``cuda`` extra) is installed. Numba still ships a CUDA
+    target of its own, deprecated, which sees a GPU as well but fails to compile the
+    kernels (its CPU ``max`` overload does not type for the GPU)."""
+    return importlib.util.find_spec("numba_cuda") is not None
+
+
 def cuda_available() -> bool:
-    """Whether Numba sees a CUDA GPU (or its simulator, under ``NUMBA_ENABLE_CUDASIM=1``)."""
+    """Whether Numba sees a CUDA GPU through numba-cuda (or its simulator, under
+    ``NUMBA_ENABLE_CUDASIM=1``)."""
     try:
         # optional: numba.cuda loads only when a GPU is asked about
-        from numba import cuda
+        from numba import config, cuda
     except ImportError:
+        return False
+    if not (config.ENABLE_CUDASIM or numba_cuda_installed()):
         return False
     try:
         return bool(cuda.is_available())
