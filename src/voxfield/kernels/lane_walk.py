@@ -353,7 +353,8 @@ def pick(condition: bool, if_true, if_false):
     once per type (``_pick``) and left to LLVM to inline, rather than a function Numba
     inlines anew at each of its call sites (a lane pass has 21): each lane walk compiles in
     about 4 s less (the LOD-0 one in 9.5-10.8 s instead of 13.5-14.0), to the same
-    machine code. Plain Python here for ``NUMBA_DISABLE_JIT`` (the CUDA simulator)."""
+    instructions but for mask and compare choices, and renders as fast. Plain Python here
+    for ``NUMBA_DISABLE_JIT`` (the CUDA simulator)."""
     return if_true if condition else if_false
 
 
