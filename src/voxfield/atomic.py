@@ -20,10 +20,7 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     result has the mode a plain ``open`` would give it: an existing file's own, else
     0666 less the umask (``mkstemp`` alone would leave every output 0600).
     """
-    path = Path(path)
-    if path.is_dir():
-        raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", str(path))
-    path.parent.mkdir(parents=True, exist_ok=True)
+    path = _ready_folder(path)
     fd, tmp = tempfile.mkstemp(
         prefix=f".{path.stem[:64]}.", suffix=f".tmp{path.suffix[:16]}", dir=path.parent
     )
@@ -44,15 +41,22 @@ def check_writable(path: str | os.PathLike) -> Path:
     errors name the target, not the probe file."""
     path = Path(path)
     try:
-        if path.is_dir():
-            raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", str(path))
-        path.parent.mkdir(parents=True, exist_ok=True)
+        _ready_folder(path)
         fd, probe = tempfile.mkstemp(prefix=f".{path.stem[:64]}.", suffix=".probe",
                                      dir=path.parent)
     except OSError as exc:
         raise type(exc)(exc.errno, exc.strerror, str(path)) from None
     os.close(fd)
     os.unlink(probe)
+    return path
+
+
+def _ready_folder(path: str | os.PathLike) -> Path:
+    """``path``, refused if it names a folder, its folder created if missing."""
+    path = Path(path)
+    if path.is_dir():
+        raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", str(path))
+    path.parent.mkdir(parents=True, exist_ok=True)
     return path
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.atomic import atomic_path, check_writable
+from voxfield.atomic import atomic_path
 from voxfield.cli.options import (
     add_hit_options,
     add_view_options,
@@ -53,7 +53,7 @@ from voxfield.lightfield.trace import (
 from voxfield.metrics import compare_images
 from voxfield.probes.probe_folder import open_probe_set
 from voxfield.render.device import DEVICES
-from voxfield.render.image_io import save_result_image
+from voxfield.render.image_io import check_image_output, save_result_image
 from voxfield.render.placement import camera_placement_problem
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.scene.loaders import SceneOptions
@@ -130,9 +130,7 @@ def run(args) -> int:
     check_probe_device(args.device, args.method)  # before anything loads: fail fast
     out = Path(args.out) if args.out else default_output(
         "probe_render", Path(args.probes).name or "probes", f"_{args.method}.png")
-    if out.suffix.lower() not in (".png", ".exr"):
-        raise VoxfieldError(f"--out must name a .png or .exr file, not {out.name!r}")
-    check_writable(out)
+    check_image_output(out)  # the format save_result_image writes, and a usable path
     if args.compare and args.scene is None:
         raise VoxfieldError("--compare renders the scene itself: name it with --scene")
     if (args.box_min is None) != (args.box_max is None):

@@ -155,14 +155,11 @@ def render_adaptive(
     for _ in range(iterations):
         variance = window_variance(luminance(result.image), valid) / variance_normalisation
         wanted = refinement_classes(variance, valid)
-        passes = [(np.flatnonzero((wanted == cls) & (current < cls)), CLASS_SIDE[cls])
-                  for cls in (1, 2)]
-        refinement.refine_round(passes)
-        refined = 0
-        for cls, (todo, _) in zip((1, 2), passes, strict=True):
-            current.reshape(-1)[todo] = cls
-            refined += len(todo)
-        if not refined:
+        todo = {cls: np.flatnonzero((wanted == cls) & (current < cls)) for cls in (1, 2)}
+        refinement.refine_round([(pixels, CLASS_SIDE[cls]) for cls, pixels in todo.items()])
+        for cls, pixels in todo.items():
+            current.reshape(-1)[pixels] = cls
+        if not any(len(pixels) for pixels in todo.values()):
             break  # the image is unchanged, so every further iteration would be this one
     result.seconds = first.seconds + time.perf_counter() - start
     result.maps["variance"] = variance

@@ -33,12 +33,14 @@ def numba_cuda_installed() -> bool:
 def cuda_available() -> bool:
     """Whether Numba sees a CUDA GPU through numba-cuda (or its simulator, under
     ``NUMBA_ENABLE_CUDASIM=1``)."""
+    from numba import config
+
+    if not (config.ENABLE_CUDASIM or numba_cuda_installed()):
+        return False  # before Numba's own CUDA target loads, to no use
     try:
         # optional: numba.cuda loads only when a GPU is asked about
-        from numba import config, cuda
+        from numba import cuda
     except ImportError:
-        return False
-    if not (config.ENABLE_CUDASIM or numba_cuda_installed()):
         return False
     try:
         return bool(cuda.is_available())
