@@ -12,6 +12,7 @@ import importlib.util
 import time
 
 import numpy as np
+from numba import config
 
 from voxfield.errors import VoxfieldError
 from voxfield.kernels import cuda_primary
@@ -33,8 +34,6 @@ def numba_cuda_installed() -> bool:
 def cuda_available() -> bool:
     """Whether Numba sees a CUDA GPU through numba-cuda (or its simulator, under
     ``NUMBA_ENABLE_CUDASIM=1``)."""
-    from numba import config
-
     if not (config.ENABLE_CUDASIM or numba_cuda_installed()):
         return False  # before Numba's own CUDA target loads, to no use
     try:
