@@ -7,7 +7,8 @@ from __future__ import annotations
 
 from numba import njit
 
-from voxfield.kernels.traversal import face_time, floor_float
+from voxfield.kernels.scalar_ops import face_time
+from voxfield.kernels.traversal import floor_float
 
 #: Nodes the pyramid keeps per column (``ColumnTops.top_nodes``): those of its top run's
 #: highest voxels, top down, one 16-byte record. A primary ray the pyramid lands on a

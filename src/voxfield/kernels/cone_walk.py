@@ -36,6 +36,7 @@ from voxfield.kernels.column_walk import (
     step_across,
     step_down,
 )
+from voxfield.kernels.scalar_ops import face_time
 from voxfield.kernels.surface_approach import (
     NEAR_START_LEVELS,
     WALKS,
@@ -50,7 +51,6 @@ from voxfield.kernels.traversal import (
     MISS,
     NO_NORMAL,
     cone_width,
-    face_time,
     traverse,
 )
 

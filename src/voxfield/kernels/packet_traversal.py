@@ -29,14 +29,13 @@ from numba import njit
 
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.node_descriptor import SOLID_BIT, child_index
+from voxfield.kernels.scalar_ops import fmax, fmin
 from voxfield.kernels.traversal import (
     MISS,
     NO_NORMAL,
     axis_setup,
     entry_normal,
     flush_uninvertible,
-    fmax,
-    fmin,
 )
 
 #: Most rays one packet holds (one bit each in an int64 mask).

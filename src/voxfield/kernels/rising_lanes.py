@@ -30,8 +30,8 @@ from voxfield.kernels.lane_walk import (
     unpack_record,
 )
 from voxfield.kernels.memory_hints import prefetch
+from voxfield.kernels.scalar_ops import face_time
 from voxfield.kernels.stack_arrays import stack_matrix
-from voxfield.kernels.traversal import face_time
 from voxfield.kernels.upward_rays import (
     BLOCKED,
     CLEAR,

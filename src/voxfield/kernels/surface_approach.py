@@ -41,10 +41,10 @@ from voxfield.kernels.column_walk import (
     step_down,
 )
 from voxfield.kernels.memory_hints import prefetch
+from voxfield.kernels.scalar_ops import face_time
 from voxfield.kernels.traversal import (
     axis_setup,
     entry_normal,
-    face_time,
     flush_uninvertible,
     node_at_level,
     trace_ray_from,

@@ -49,22 +49,11 @@ import numpy as np
 from numba import njit
 
 from voxfield.kernels.node_descriptor import SOLID_BIT, child_index
+from voxfield.kernels.scalar_ops import face_time, fmin
 
 MISS = -1
 #: Face-normal codes: 0..5 = -x, +x, -y, +y, -z, +z; -1 = none (origin inside the hit node).
 NO_NORMAL = -1
-
-
-@njit(cache=True, nogil=True, inline="always")
-def fmax(a: float, b: float) -> float:
-    """max for non-NaN floats without the NaN handling of the builtin (a plain select, which
-    loops over many rays vectorise)."""
-    return a if a > b else b
-
-
-@njit(cache=True, nogil=True, inline="always")
-def fmin(a: float, b: float) -> float:
-    return a if a < b else b
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -155,12 +144,6 @@ def popcount32(x: int) -> int:
     x = (x & 0x33333333) + ((x >> 2) & 0x33333333)
     x = (x + (x >> 4)) & 0x0F0F0F0F
     return ((x * 0x01010101) & 0xFFFFFFFF) >> 24
-
-
-@njit(cache=True, nogil=True, inline="always")
-def face_time(plane: int, o: float, inv: float) -> float:
-    """Crossing time of the integer plane ``plane`` on one axis: the contract's one formula."""
-    return (float(plane) - o) * inv
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -37,7 +37,8 @@ from numba import njit
 
 from voxfield.kernels.borrowing import borrowing
 from voxfield.kernels.column_walk import cell_holding, in_the_gap, step_across, step_down
-from voxfield.kernels.traversal import axis_setup, face_time, floor_float
+from voxfield.kernels.scalar_ops import face_time
+from voxfield.kernels.traversal import axis_setup, floor_float
 
 CLEAR = 0
 BLOCKED = 1
