@@ -30,8 +30,29 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         yield tmp_path
         os.chmod(tmp_path, _mode_for(path))
         os.replace(tmp_path, path)
+    except OSError as exc:
+        if exc.filename in (None, str(tmp_path)):  # a writer that names no file, or ours
+            raise type(exc)(exc.errno, exc.strerror or str(exc), str(path)) from exc
+        raise
     finally:
         tmp_path.unlink(missing_ok=True)
+
+
+@contextlib.contextmanager
+def atomic_paths(paths) -> Iterator[list[Path]]:
+    """``atomic_path`` for several files that belong together (an image and its maps): all
+    are renamed into place if the block succeeds, none if it fails part way. An error that
+    names a staged file is reported for its target; one that names no file, for them all."""
+    paths = [Path(path) for path in paths]
+    with contextlib.ExitStack() as stack:
+        staged = [stack.enter_context(atomic_path(path)) for path in paths]
+        try:
+            yield staged
+        except OSError as exc:
+            if exc.filename is not None:
+                raise
+            raise type(exc)(exc.errno, exc.strerror or str(exc),
+                            ", ".join(map(str, paths))) from exc
 
 
 def check_writable(path: str | os.PathLike) -> Path:

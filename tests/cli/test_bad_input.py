@@ -4,6 +4,7 @@ the option parser (status 2), never a traceback."""
 
 from __future__ import annotations
 
+import errno
 import os
 import stat
 import subprocess
@@ -14,9 +15,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from voxfield.atomic import atomic_path, check_writable
+from voxfield.atomic import atomic_path, atomic_paths, check_writable
 from voxfield.cli import main
 from voxfield.cli.main import _note_warning
+from voxfield.render import counter_maps
 
 
 def _one_error_line(capsys) -> str:
@@ -154,6 +156,7 @@ def test_a_closed_pipe_is_one_line():
     ["calibrate", "builtin:pillars", "--target-psnr", "nan"],
     ["calibrate", "builtin:pillars", "--target-rays", "10", "--iterations", "100000000"],
     ["info", "dem:jacksboro", "--vertical-scale", "-5"],
+    ["sweep", "builtin:sphere", "--thresholds", "0.1,nan"],
 ])
 def test_nonsense_values_are_refused_by_the_parser(argv, capsys):
     with pytest.raises(SystemExit) as exc:
@@ -271,3 +274,109 @@ def test_cuda_without_a_gpu_or_for_a_cpu_only_renderer_is_one_line(tmp_path, cap
                  "environment", "--out", str(out)]) == 2
     assert "CPU only" in _one_error_line(capsys)
     assert not out.exists()
+
+
+def test_a_straight_down_eye_and_target_render(tmp_path):
+    """No option sets the up vector, so a vertical --eye/--target view must pick its own."""
+    out = tmp_path / "down.png"
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--eye", "8,100,8",
+                 "--target", "8,0,8", "--out", str(out)]) == 0
+    assert out.is_file()
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--camera", "orbit", "--eye", "1,2,3", "--target", "0,0,0"], "give one of them"),
+    (["--camera", "ortho-top", "--fov", "10"], "no field of view"),
+    (["--camera", "cube", "--fov", "10"], "no field of view"),
+])
+def test_options_that_contradict_each_other_are_one_line(extra, words, tmp_path, capsys):
+    """Once accepted, with one of them silently ignored."""
+    out = tmp_path / "x.png"
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", *extra,
+                 "--out", str(out)]) == 2
+    assert words in _one_error_line(capsys)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["info", "terrain:mountain", "--footprint", "1"], "2 or more"),
+    (["render", "builtin:sphere", "--fov", "1e-300", "--out", "x.png"], "at least 0.01"),
+])
+def test_the_parser_states_the_range_the_work_needs(argv, words, capsys):
+    """A footprint of 1 passed the parser's 1..16384 and failed later with 2..16384."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert words in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("scene, words", [("", "no scene named"), (".", "a folder")])
+def test_an_empty_scene_name_or_a_folder_says_so(scene, words, tmp_path, capsys):
+    assert main(["info", scene, "--quiet"]) == 2
+    assert words in _one_error_line(capsys)
+
+
+def test_minus_infinity_reaches_its_own_check(tmp_path, capsys):
+    """``-inf`` was taken for an option ("expected one argument")."""
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--eye", "-inf,1,1",
+                 "--target", "0,0,0", "--out", str(tmp_path / "x.png")]) == 2
+    assert "-inf" in _one_error_line(capsys)
+
+
+def test_an_image_and_its_counter_maps_appear_together_or_not_at_all(tmp_path, monkeypatch,
+                                                                    capsys):
+    """A full disk while writing the LOD map left the image behind without its maps, and the
+    message named no file."""
+    real_save_png = counter_maps.save_png
+
+    def full_disk_for_the_lod_map(image, path, **kwargs):
+        if "_lod" in Path(path).name:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))  # as Pillow raises it
+        return real_save_png(image, path, **kwargs)
+
+    monkeypatch.setattr(counter_maps, "save_png", full_disk_for_the_lod_map)
+    out = tmp_path / "c.png"
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--counters",
+                 "--out", str(out)]) == 2
+    line = _one_error_line(capsys)
+    assert "the disk is full" in line and "c_lod.png" in line
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_an_exr_the_disk_has_no_room_for_is_one_line(tmp_path, monkeypatch, capsys):
+    """OpenEXR reports a full disk as a RuntimeError with the system's text: a traceback."""
+    openexr = pytest.importorskip("OpenEXR")
+
+    class FullDiskFile:
+        def __init__(self, *args, **kwargs):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def write(self, path):
+            raise RuntimeError(f"Failed to write pixel data to image file \"{path}\". "
+                               f"{os.strerror(errno.ENOSPC)}")
+
+    monkeypatch.setattr(openexr, "File", FullDiskFile)
+    out = tmp_path / "big.exr"
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--out", str(out)]) == 2
+    line = _one_error_line(capsys)
+    assert "the disk is full" in line and str(out) in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_staged_file_that_fails_is_reported_for_its_target_and_none_appear(tmp_path):
+    first, second = tmp_path / "a.txt", tmp_path / "b.txt"
+    with pytest.raises(OSError) as caught, atomic_paths([first, second]) as (a, b):
+        a.write_text("written")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(b))  # as open() names it
+    assert caught.value.filename == str(second)
+    assert list(tmp_path.iterdir()) == []
+    with atomic_paths([first, second]) as (a, b):
+        a.write_text("1")
+        b.write_text("2")
+    assert first.read_text() + second.read_text() == "12"

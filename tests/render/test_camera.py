@@ -67,6 +67,27 @@ def test_top_down_camera_spans_the_map_at_ground_level():
     assert ground[:, 0].min() > 0 and ground[:, 0].max() < 64
 
 
+@pytest.mark.parametrize("target_y", [0.0, 200.0])
+def test_a_view_straight_down_or_up_takes_the_top_views_up(target_y):
+    """With no up given, a vertical view cannot use the world's up; it once refused with
+    "pick another up", which no command lets a user do. It now turns as the top view does."""
+    straight = Camera.look_at((32, 100, 32), (32, target_y, 32), fov_deg=90, width=4)
+    top = top_down_camera((0, 0, 0), (64, 10, 64), size=4)
+    assert np.allclose(straight.forward, (0.0, np.sign(target_y - 100.0), 0.0))
+    assert abs(straight.up[2]) == 1.0 and np.allclose(
+        np.cross(straight.forward, straight.up), straight.right)
+    if target_y == 0.0:
+        # the same picture as the top view
+        assert np.allclose(straight.right, top.right) and np.allclose(straight.up, top.up)
+
+
+def test_a_far_eye_keeps_its_direction():
+    """|eye - target| overflowed to inf at 1e308 and the direction became zero, reported as
+    an up vector parallel to it."""
+    camera = Camera.look_at((1e308, 1.0, 1.0), (0.0, 0.0, 0.0), width=4)
+    assert np.allclose(camera.forward, (-1.0, 0.0, 0.0))
+
+
 @pytest.mark.parametrize(
     "make",
     [
@@ -74,6 +95,7 @@ def test_top_down_camera_spans_the_map_at_ground_level():
         lambda: Camera.look_at((0, 0, np.nan), (0, 0, 1)),
         lambda: Camera.look_at((0, 0, 0), (0, 1, 0), up=(0, 1, 0)),
         lambda: Camera.look_at((0, 0, 0), (0, 0, 1), fov_deg=0),
+        lambda: Camera.look_at((0, 0, 0), (0, 0, 1), fov_deg=1e-300),  # eye lost past 1e300
         lambda: Camera.look_at((0, 0, 0), (0, 0, 1), width=0),
         lambda: Camera.look_at((0, 0, 0), (0, 0, 1), width=16.5),  # once silently 16
         lambda: Camera.look_at((0, 0, 0), (0, 0, 1), width=True),  # once a 1-pixel image

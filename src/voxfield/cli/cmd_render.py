@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from voxfield.atomic import atomic_paths
 from voxfield.cli.options import (
     add_renderer_options,
     add_scene_options,
@@ -13,7 +14,7 @@ from voxfield.cli.options import (
     renderer_options_from,
     scene_camera,
 )
-from voxfield.render.counter_maps import write_counter_maps
+from voxfield.render.counter_maps import counter_map_paths, write_counter_files
 from voxfield.render.device import CUDA_RENDERERS, DEVICES, check_device
 from voxfield.render.image_io import check_image_output, save_result_image, shade_for_display
 from voxfield.render.registry import RENDERERS, render
@@ -61,10 +62,12 @@ def run(args) -> int:
     if args.shade or (out.suffix.lower() == ".png" and not args.albedo
                       and args.channel == "albedo"):
         result.image = shade_for_display(result)
-    save_result_image(result, out)
-    written = [out]
-    if args.counters:
-        written += write_counter_maps(result, out, octree.depth)
+    # The image and its counter maps appear together or not at all (a full disk part way).
+    written = [out] + (counter_map_paths(out) if args.counters else [])
+    with atomic_paths(written) as staged:
+        save_result_image(result, staged[0])
+        if args.counters:
+            write_counter_files(result, staged[1:], octree.depth)
     if not args.quiet:
         s = result.summary()
         print(

@@ -55,8 +55,8 @@ def _note_warning(message, category, filename, lineno, file=None, line=None) -> 
     print(f"voxfield: note: {message}", file=sys.stderr)
 
 
-#: A value that starts like a negative number: ``-10,20,30``, ``-1x2x2``, ``-.5``.
-_NEGATIVE_VALUE = re.compile(r"^-\.?\d")
+#: A value that starts like a negative number: ``-10,20,30``, ``-1x2x2``, ``-.5``, ``-inf``.
+_NEGATIVE_VALUE = re.compile(r"^-(\.?\d|inf(inity)?\b)", re.IGNORECASE)
 
 
 def join_negative_values(argv: list[str]) -> list[str]:

@@ -18,12 +18,18 @@ import numpy as np
 from voxfield.checks import MAX_SEED
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import COLOUR_PROBES, EPSILON_MODES, LightFieldOptions
-from voxfield.render.camera import CAMERA_PRESETS, MAX_IMAGE_SIDE, Camera, preset_camera
+from voxfield.render.camera import (
+    CAMERA_PRESETS,
+    MAX_IMAGE_SIDE,
+    MIN_FOV_DEG,
+    Camera,
+    preset_camera,
+)
 from voxfield.render.framing import content_box
 from voxfield.render.registry import RENDERERS
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
 from voxfield.scene.loaders import SceneOptions
-from voxfield.scene.terrain.columns import MAX_FOOTPRINT
+from voxfield.scene.terrain.columns import MAX_FOOTPRINT, MIN_FOOTPRINT
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree as open_octree_from_spec
 
@@ -108,11 +114,11 @@ def positive_float(text: str) -> float:
 
 
 def fov_arg(text: str) -> float:
-    """A field of view strictly between 0 and 180 degrees."""
+    """A field of view from ``MIN_FOV_DEG`` to below 180 degrees."""
     value = finite_float(text)
-    if not 0.0 < value < 180.0:
+    if not MIN_FOV_DEG <= value < 180.0:
         raise argparse.ArgumentTypeError(
-            f"a field of view is between 0 and 180 degrees (exclusive), got {text!r}")
+            f"a field of view is at least {MIN_FOV_DEG} and below 180 degrees, got {text!r}")
     return value
 
 
@@ -125,11 +131,14 @@ MAX_MESH_RESOLUTION = 8192
 
 
 def float_list(text: str) -> tuple[float, ...]:
-    """Comma-separated numbers, at least one."""
+    """Comma-separated numbers, at least one; infinity is a number here (a threshold nothing
+    passes), NaN is not."""
     try:
         values = tuple(float(v) for v in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected numbers like 0.1,0.2, got {text!r}") from None
+    if any(math.isnan(v) for v in values):
+        raise argparse.ArgumentTypeError(f"expected numbers, got NaN in {text!r}")
     return values
 
 
@@ -173,8 +182,8 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
                    help=f"voxels along a mesh's longest side, 1..{MAX_MESH_RESOLUTION} "
                    "(default 256)")
     p.add_argument("--footprint", default=512, metavar="N",
-                   type=int_between(1, MAX_FOOTPRINT, "a terrain's largest footprint"),
-                   help=f"terrain footprint in voxels per side, 1..{MAX_FOOTPRINT} "
+                   type=int_between(MIN_FOOTPRINT, MAX_FOOTPRINT, "a terrain's largest footprint"),
+                   help=f"terrain footprint in voxels per side, {MIN_FOOTPRINT}..{MAX_FOOTPRINT} "
                    "(default 512)")
     p.add_argument("--vertical-scale", type=positive_float, default=None, metavar="S",
                    help="DEM height multiplier, > 0 (default: true scale; terrain:RECIPE "
@@ -197,15 +206,24 @@ def add_channel_option(p: argparse.ArgumentParser) -> None:
                    help="colour channel: albedo or a baked time of day (`voxfield light`)")
 
 
+class _ChosenView(argparse.Action):
+    """Stores ``--camera`` and notes that it was given: a preset given beside --eye/--target
+    is a contradiction to refuse, a command's default preset is not."""
+
+    def __call__(self, parser, namespace, values, option_string=None) -> None:
+        setattr(namespace, self.dest, values)
+        namespace.camera_given = True
+
+
 def add_view_options(p: argparse.ArgumentParser, size: int = 512) -> None:
     """Camera and image options shared by every command that renders, plus --quiet."""
-    p.add_argument("--camera", default="top",
+    p.add_argument("--camera", default="top", action=_ChosenView,
                    help=f"preset view: {', '.join(_preset_names())} (default top)")
     p.add_argument("--eye", type=vector_arg, default=None, metavar="X,Y,Z",
                    help="pinhole eye position in octree voxel units (with --target)")
     p.add_argument("--target", type=vector_arg, default=None, metavar="X,Y,Z")
     p.add_argument("--fov", type=fov_arg, default=None,
-                   help="vertical field of view in degrees, between 0 and 180")
+                   help=f"vertical field of view in degrees, {MIN_FOV_DEG} to below 180")
     p.add_argument("--size", type=int_between(1, MAX_IMAGE_SIDE, "pixels a side"),
                    default=size, help=f"image width = height, 1..{MAX_IMAGE_SIDE} "
                    f"(default {size})")
@@ -321,7 +339,13 @@ def camera(args, bounds) -> Camera:
     if args.eye is not None or args.target is not None:
         if args.eye is None or args.target is None:
             raise VoxfieldError("--eye and --target must be given together")
+        if getattr(args, "camera_given", False):
+            raise VoxfieldError(f"--camera {args.camera} and --eye/--target both name the "
+                                "view; give one of them")
         return Camera.look_at(args.eye, args.target, fov_deg=args.fov or 60.0, width=args.size)
+    preset = "cube+x" if args.camera == "cube" else args.camera
+    if args.fov is not None and preset in CAMERA_PRESETS and CAMERA_PRESETS[preset][0] is None:
+        raise VoxfieldError(f"--camera {args.camera} has no field of view to set with --fov")
     return preset_camera(args.camera, lo, hi, size=args.size, fov_deg=args.fov)
 
 

@@ -31,6 +31,12 @@ def _vector(value, what: str) -> np.ndarray:
     return v
 
 
+#: Narrowest field of view: the preset views stand back by the field's cotangent, and at
+#: far narrower angles the eye is so far away that float64 positions on the map lose their
+#: voxels (1e-300°, accepted before, drew an empty image).
+MIN_FOV_DEG = 0.01
+
+
 #: Largest image side, for the library's cameras and the command line alike.
 MAX_IMAGE_SIDE = 16384
 
@@ -45,13 +51,27 @@ def _image_size(width, height) -> tuple[int, int]:
         raise CameraError(str(exc)) from None
 
 
-def _basis(forward, up) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Orthonormal (forward, right, up) with right = forward × up (right-handed, y-up)."""
+#: The world's up (y), and the up a camera looking straight down or up takes instead: -z,
+#: as ``top_down_camera``'s, so such a view shows the map as the top view does.
+WORLD_UP = (0.0, 1.0, 0.0)
+VERTICAL_VIEW_UP = (0.0, 0.0, -1.0)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    """``v / |v|``, scaled first so that the length of a finite vector cannot overflow."""
+    v = v / np.max(np.abs(v))
+    return v / np.linalg.norm(v)
+
+
+def _basis(forward, up=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Orthonormal (forward, right, up) with right = forward × up (right-handed, y-up).
+    ``up=None``: the world's up, or ``VERTICAL_VIEW_UP`` for a view along it."""
     f = _vector(forward, "direction")
-    length = np.linalg.norm(f)
-    if length == 0.0:
+    if not np.any(f):
         raise CameraError("camera direction is zero (eye and target coincide?)")
-    f = f / length
+    f = _unit(f)
+    if up is None:
+        up = VERTICAL_VIEW_UP if np.linalg.norm(np.cross(f, WORLD_UP)) < 1e-9 else WORLD_UP
     u = _vector(up, "up vector")
     r = np.cross(f, u)
     if np.linalg.norm(r) < 1e-9:
@@ -84,13 +104,15 @@ class Camera:
 
     @classmethod
     def look_at(
-        cls, eye, target, up=(0.0, 1.0, 0.0), *, fov_deg: float = 60.0,
+        cls, eye, target, up=None, *, fov_deg: float = 60.0,
         width: int = 512, height: int | None = None,
     ) -> Camera:
-        """Pinhole camera; ``fov_deg`` is the vertical field of view."""
+        """Pinhole camera; ``fov_deg`` is the vertical field of view. ``up`` defaults to the
+        world's, or to ``VERTICAL_VIEW_UP`` for a view straight down or up."""
         width, height = _image_size(width, height)
-        if not (0.0 < float(fov_deg) < 180.0):
-            raise CameraError(f"field of view must be between 0 and 180 degrees, got {fov_deg}")
+        if not (MIN_FOV_DEG <= float(fov_deg) < 180.0):
+            raise CameraError(f"field of view must be at least {MIN_FOV_DEG} and below 180 "
+                              f"degrees, got {fov_deg}")
         eye = _vector(eye, "eye")
         f, r, u = _basis(_vector(target, "target") - eye, up)
         half_h = float(np.tan(np.radians(fov_deg) / 2.0))
@@ -98,10 +120,11 @@ class Camera:
 
     @classmethod
     def orthographic(
-        cls, center, direction, up=(0.0, 1.0, 0.0), *, view_height: float,
+        cls, center, direction, up=None, *, view_height: float,
         width: int = 512, height: int | None = None,
     ) -> Camera:
-        """Parallel projection; rays start on the image plane through ``center``."""
+        """Parallel projection; rays start on the image plane through ``center``; ``up`` as
+        ``look_at``'s."""
         width, height = _image_size(width, height)
         f, r, u = _basis(direction, up)
         half_h = float(view_height) / 2.0

@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 from matplotlib import colormaps
 
-from voxfield.atomic import atomic_path
 from voxfield.render.image_io import save_png
 from voxfield.render.result import RenderResult
 
@@ -29,16 +28,18 @@ def lod_map(result: RenderResult, depth: int) -> np.ndarray:
     return rgb
 
 
-def write_counter_maps(result: RenderResult, image_path: str | Path, depth: int) -> list[Path]:
-    """``<stem>_steps.png``, ``<stem>_lod.png`` and ``<stem>_summary.json`` beside an image."""
-    image_path = Path(image_path)
-    stem = image_path.with_suffix("")
-    written = [
-        save_png(steps_heatmap(result), f"{stem}_steps.png", encode_srgb=False),
-        save_png(lod_map(result, depth), f"{stem}_lod.png", encode_srgb=False),
-    ]
-    summary = Path(f"{stem}_summary.json")
-    with atomic_path(summary) as tmp:
-        tmp.write_text(json.dumps(result.summary(), indent=2))
-    written.append(summary)
-    return written
+def counter_map_paths(image_path: str | Path) -> list[Path]:
+    """Where an image's counter maps go: ``<stem>_steps.png``, ``<stem>_lod.png`` and
+    ``<stem>_summary.json`` beside it."""
+    stem = Path(image_path).with_suffix("")
+    return [Path(f"{stem}_steps.png"), Path(f"{stem}_lod.png"), Path(f"{stem}_summary.json")]
+
+
+def write_counter_files(result: RenderResult, paths: list[Path], depth: int) -> None:
+    """The steps heat map, the LOD map and the summary into ``paths`` (``counter_map_paths``'
+    order) as given: to write them atomically, pass the staged paths of
+    ``atomic.atomic_paths``, with the image's if they belong to one."""
+    steps_path, lod_path, summary_path = paths
+    save_png(steps_heatmap(result), steps_path, encode_srgb=False)
+    save_png(lod_map(result, depth), lod_path, encode_srgb=False)
+    Path(summary_path).write_text(json.dumps(result.summary(), indent=2))

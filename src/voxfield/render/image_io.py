@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import io
 import os
 from pathlib import Path
@@ -48,9 +49,22 @@ def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike) -> Path:
     path = Path(path)
     data = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
-    with atomic_path(path) as tmp, OpenEXR.File(header, data) as f:
-        f.write(str(tmp))
+    try:
+        with atomic_path(path) as tmp, OpenEXR.File(header, data) as f:
+            f.write(str(tmp))
+    except RuntimeError as exc:  # OpenEXR's only failure type, a full disk included
+        raise _write_failure(exc, path) from exc
     return path
+
+
+def _write_failure(exc: RuntimeError, path: Path) -> OSError:
+    """The ``OSError`` a library's text-only write failure stands for: its errno where the
+    text carries the system's message for one (the command line names those plainly)."""
+    text = str(exc)
+    for code in (errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.EACCES, errno.EIO):
+        if os.strerror(code) in text:
+            return OSError(code, os.strerror(code), str(path))
+    return OSError(None, text.splitlines()[0] if text else type(exc).__name__, str(path))
 
 
 def load_exr(path: str | os.PathLike) -> dict[str, np.ndarray]:

@@ -61,9 +61,14 @@ def load_scene(spec: str, options: SceneOptions | None = None) -> VoxelScene:
         return recipe_scene(spec.split(":", 1)[1], footprint=options.terrain_footprint)
     if spec.startswith("dem:"):
         return _terrain_from(spec.split(":", 1)[1], options)
+    if not spec.strip():
+        raise SceneFormatError("no scene named: give a scene file, builtin:NAME or "
+                               "terrain:RECIPE")
     path = Path(spec)
     if not path.exists():
         raise DataNotFoundError(f"{spec}: no such file (or use builtin:NAME, terrain:RECIPE)")
+    if path.is_dir():
+        raise SceneFormatError(f"{spec}: a folder, not a scene file")
     suffix = path.suffix.lower()
     if suffix == ".vox":
         return load_vox(path)

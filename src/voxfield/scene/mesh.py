@@ -158,8 +158,13 @@ def load_mesh(path: str | Path) -> TriangleMesh:
 
 
 def _check_extents(mesh: TriangleMesh, path: Path) -> None:
-    ext = mesh.extents
-    if not np.isfinite(ext).all() or ext.max() <= 0.0:
+    with np.errstate(over="ignore"):  # the overflow is the finding, reported below
+        ext = mesh.extents
+    if not np.isfinite(ext).all():
+        raise SceneFormatError(
+            f"{path}: mesh extents {ext.tolist()} are not finite (vertex coordinates too "
+            "large, or not numbers)")
+    if ext.max() <= 0.0:
         raise SceneFormatError(
             f"{path}: mesh extents {ext.tolist()} are degenerate (all vertices at one point)"
         )

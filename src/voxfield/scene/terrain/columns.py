@@ -20,6 +20,8 @@ from voxfield.scene.terrain.resample import fill_voids, resample
 
 #: Largest footprint accepted (columns per side); 16384² columns is already ~1.3G voxels.
 MAX_FOOTPRINT = 16384
+#: Smallest: a terrain needs two columns a side to have a slope.
+MIN_FOOTPRINT = 2
 
 
 @dataclass(frozen=True)
@@ -63,12 +65,13 @@ class TerrainColumns:
 
 
 def check_footprint(footprint) -> int:
-    """``footprint`` as an int: an integer number of columns in 2..MAX_FOOTPRINT."""
+    """``footprint`` as an int: an integer number of columns in MIN_FOOTPRINT..MAX_FOOTPRINT."""
     if not is_integer(footprint):
         raise VoxfieldError(f"footprint must be an integer number of columns, got {footprint!r}")
-    if not 2 <= footprint <= MAX_FOOTPRINT:
+    if not MIN_FOOTPRINT <= footprint <= MAX_FOOTPRINT:
         raise VoxfieldError(
-            f"footprint must be between 2 and {MAX_FOOTPRINT} columns, got {footprint}"
+            f"footprint must be between {MIN_FOOTPRINT} and {MAX_FOOTPRINT} columns, "
+            f"got {footprint}"
         )
     return int(footprint)
 
