@@ -1,11 +1,15 @@
-"""``scaleout.scheduler_client``: the local process cluster it starts for a job."""
+"""``scaleout.scheduler_client``: the local process cluster it starts for a job, and addresses
+where no scheduler answers."""
 
 import contextlib
 import socket
+import threading
+import time
 import warnings
 
 import pytest
 
+from voxfield import scaleout
 from voxfield.scaleout import scheduler_client
 
 DASK_DEFAULT_HTTP_PORT = 8787
@@ -28,3 +32,82 @@ def test_a_process_cluster_leaves_dasks_default_port_to_others():
     assert http_port != DASK_DEFAULT_HTTP_PORT
     assert http_host == "127.0.0.1"
     assert not [w for w in caught if str(DASK_DEFAULT_HTTP_PORT) in str(w.message)]
+
+
+@contextlib.contextmanager
+def _server(answer: bytes | None):
+    """A loopback TCP server that accepts connections and either never answers (``None``)
+    or sends ``answer`` and closes, as a web server on the wrong port would."""
+    listener = socket.socket()
+    listener.bind(("127.0.0.1", 0))
+    listener.listen()
+    held: list[socket.socket] = []
+    stop = threading.Event()
+
+    def serve() -> None:
+        listener.settimeout(0.1)
+        while not stop.is_set():
+            try:
+                connection, _ = listener.accept()
+            except OSError:
+                continue
+            if answer is None:
+                held.append(connection)  # keep it open and silent
+            else:
+                with connection:
+                    connection.recv(65536)
+                    connection.sendall(answer)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    try:
+        yield f"tcp://127.0.0.1:{listener.getsockname()[1]}"
+    finally:
+        stop.set()
+        thread.join()
+        for connection in held:
+            connection.close()
+        listener.close()
+
+
+@pytest.mark.parametrize("answer", [None, b"HTTP/1.0 400 Bad Request\r\n\r\n" * 4])
+def test_an_address_where_no_scheduler_answers_is_one_error_in_bounded_time(
+        answer, monkeypatch):
+    """A server that never answers once kept the job waiting for ever (Dask's connect timeout
+    ends at the open connection); one that answers with something else ended in a traceback
+    (its reply read as a 3 EiB message length)."""
+    pytest.importorskip("distributed")
+    monkeypatch.setattr(scaleout, "CONNECT_SECONDS", 1.0)
+    with _server(answer) as address:
+        start = time.monotonic()
+        with pytest.raises(scaleout.SchedulerError, match="cannot reach the Dask scheduler"):
+            with scheduler_client(address):
+                pass
+        assert time.monotonic() - start < 10.0
+
+
+def _square_plus(shared, argument, kernel_threads):
+    return argument * argument + shared["offset"]
+
+
+@pytest.mark.parametrize("count", [1, 7, 50])
+def test_threads_deliver_every_result_once_by_index_in_runs_of_neighbours(count, monkeypatch):
+    """Past ``MAX_DASK_TASKS`` arguments the threaded scheduler gets runs of neighbours (a
+    probe grid of 100,000 once sat for minutes in Dask's graph optimisation); each result
+    still arrives once, under its own index, as the serial loop gives it."""
+    pytest.importorskip("dask")
+    monkeypatch.setattr(scaleout, "MAX_DASK_TASKS", 6)
+    arguments = list(range(100, 100 + count))
+    got: dict[int, int] = {}
+    serial: dict[int, int] = {}
+
+    def collect(into):
+        def emit(index, value):
+            assert index not in into
+            into[index] = value
+        return emit
+
+    scaleout.run_tasks(_square_plus, {"offset": 3}, arguments, collect(got), scheduler="threads")
+    scaleout.run_tasks(_square_plus, {"offset": 3}, arguments, collect(serial),
+                       scheduler="serial")
+    assert got == serial == {i: a * a + 3 for i, a in enumerate(arguments)}
