@@ -15,6 +15,7 @@ from voxfield.error_table.lighting_table import (
 from voxfield.error_table.plot import plot_mask_error
 from voxfield.error_table.symmetry import distinct_mask_count
 from voxfield.error_table.table import DEFAULT_TABLE, ENCODINGS, THESIS_THRESHOLD
+from voxfield.errors import VoxfieldError
 
 
 def mask_arg(text: str) -> int:
@@ -29,10 +30,17 @@ def mask_arg(text: str) -> int:
     return value
 
 
+#: Framebuffer sides in rays per direction that ``raycast_errors`` and
+#: ``raycast_colour_errors`` accept (they refuse others themselves, after the parser; the
+#: library names no constant for the range).
+MIN_RESOLUTION, MAX_RESOLUTION = 2, 4096
+
+
 def _add_raycast_options(p: argparse.ArgumentParser) -> None:
-    p.add_argument("--resolution", type=int_between(1, 4096, "rays per direction side"),
-                   default=512, help="framebuffer side in rays per direction, 1..4096 "
-                   "(default 512, as the thesis)")
+    p.add_argument("--resolution",
+                   type=int_between(MIN_RESOLUTION, MAX_RESOLUTION, "rays per direction side"),
+                   default=512, help=f"framebuffer side in rays per direction, "
+                   f"{MIN_RESOLUTION}..{MAX_RESOLUTION} (default 512, as the thesis)")
     p.add_argument("--oct-resolution", type=int_between(2, 256, "texels a side"), default=32,
                    help="octahedral map side in texels, 2..256 (default 32)")
     p.add_argument("--seed", type=seed_arg, default=0, help="CMJ jitter seed")
@@ -54,7 +62,7 @@ def register(subparsers) -> None:
                    "(default 1024; thesis 256)")
     _add_raycast_options(p)
     p.add_argument("--out", default=None,
-                   help="output file (default: the table shipped with the package)")
+                   help="output .npz file (default: the table shipped with the package)")
     p.add_argument("--report", action="store_true",
                    help="also measure both encodings against held-out directions")
     add_quiet(p)
@@ -66,7 +74,8 @@ def register(subparsers) -> None:
         "children flagged bright (EA §6.1), one octahedral map per cube-symmetry class.")
     _add_raycast_options(p)
     p.add_argument("--out", default=None,
-                   help="output file (default: the lighting table shipped with the package)")
+                   help="output .npz file (default: the lighting table shipped with the "
+                   "package)")
     add_quiet(p)
     p.set_defaults(func=run_build_lighting)
 
@@ -92,12 +101,22 @@ def register(subparsers) -> None:
     p.set_defaults(func=run_show)
 
 
+def _table_output(out: str | None, default: Path) -> Path:
+    """Where a built table goes: an ``.npz`` archive, whatever ``--out`` names (checked
+    before the ray casts, which take minutes)."""
+    path = Path(out) if out else default
+    if path.suffix.lower() != ".npz":
+        raise VoxfieldError(f"{path}: an error table is written as an .npz archive; give "
+                            "--out a name ending in .npz")
+    return path
+
+
 def run_build(args) -> int:
+    out = _table_output(args.out, DEFAULT_TABLE)
     table = build_error_table(
         n_directions=args.directions, resolution=args.resolution,
         oct_resolution=args.oct_resolution, seed=args.seed, progress=not args.quiet,
     )
-    out = Path(args.out) if args.out else DEFAULT_TABLE
     save_error_table(table, out)
     if not args.quiet:
         p = table.params
@@ -109,10 +128,10 @@ def run_build(args) -> int:
 
 
 def run_build_lighting(args) -> int:
+    out = _table_output(args.out, DEFAULT_LIGHTING_TABLE)
     table = build_lighting_error_table(resolution=args.resolution,
                                        oct_resolution=args.oct_resolution, seed=args.seed,
                                        progress=not args.quiet)
-    out = Path(args.out) if args.out else DEFAULT_LIGHTING_TABLE
     save_lighting_error_table(table, out)
     if not args.quiet:
         p = table.params

@@ -47,8 +47,10 @@ from voxfield.lightfield.probe_render_figures import (
 from voxfield.lightfield.trace import (
     COLOUR_FILTERS,
     MARCHERS,
+    MAX_STEP,
     ORDERINGS,
     LightFieldOptions,
+    march_step_problem,
 )
 from voxfield.metrics import compare_images
 from voxfield.probes.probe_folder import open_probe_set
@@ -59,6 +61,19 @@ from voxfield.render.primary import render_lod, render_reference
 from voxfield.scene.loaders import SceneOptions
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree
+
+
+def march_step(text: str) -> float:
+    """An argparse type: the 3D march's step in voxels, in the range ``LightFieldOptions``
+    takes with its default step cap (``march_step_problem`` says why)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    problem = march_step_problem(value, LightFieldOptions().max_steps)
+    if problem is not None:
+        raise argparse.ArgumentTypeError(problem)
+    return value
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -84,8 +99,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help=f"light-field: which probe of each cage goes first (default "
                    f"{defaults.ordering}; signed-dot is the probe thesis's)")
     add_hit_options(p, prefix="light-field: ")
-    p.add_argument("--step", type=float, default=defaults.step,
-                   help=f"light-field, march3d: step in voxels (default {defaults.step})")
+    p.add_argument("--step", type=march_step, default=defaults.step,
+                   help=f"light-field, march3d: step in voxels, {1 / defaults.max_steps:g}.."
+                   f"{MAX_STEP:g} (default {defaults.step})")
     p.add_argument("--colour-filter", choices=COLOUR_FILTERS, default=defaults.colour_filter,
                    help=f"light-field: how a hit's radiance is read (default "
                    f"{defaults.colour_filter})")

@@ -40,12 +40,30 @@ COLOUR_PROBES = {"footprint": mk.COLOUR_FOOTPRINT, "parallel": mk.COLOUR_PARALLE
 ORDERINGS = {"signed-dot": mk.ORDER_SIGNED_DOT, "nearest": mk.ORDER_NEAREST,
              "fixed": mk.ORDER_FIXED}
 
+#: The 3D march's longest step, in voxels (world units): a scene's thinnest solid is one
+#: voxel thick, and a longer step can carry the march through it with no point inside,
+#: the texels before and after it showing what lies beyond.
+MAX_STEP = 1.0
+
+
+def march_step_problem(step, max_steps: int) -> str | None:
+    """Why ``step`` (voxels) cannot be the 3D march's step with at most ``max_steps`` points
+    per probe, or ``None``. The shortest step is ``1 / max_steps``: a finer march stops at
+    its step cap before it has gone one voxel, so every probe hands the ray on unanswered;
+    the longest is ``MAX_STEP``."""
+    if is_real(step) and 1.0 / max_steps <= step <= MAX_STEP:
+        return None
+    return (f"the march step must be {1.0 / max_steps:g}..{MAX_STEP:g} voxels, got {step!r}: "
+            f"with at most {max_steps} points per probe a shorter step stops before it has "
+            f"gone one voxel, and a longer one can pass through a one-voxel wall")
+
 
 @dataclass(frozen=True)
 class LightFieldOptions:
     """How rays are marched against probes.
 
-    ``marcher``: ``"march3d"`` (fixed world ``step``, at most ``max_steps`` points per probe),
+    ``marcher``: ``"march3d"`` (fixed world ``step``, at most ``max_steps`` points per probe;
+    the step is ``1 / max_steps`` to ``MAX_STEP`` voxels, see ``march_step_problem``),
     ``"dda"`` (texel by texel in octahedral space) or ``"hierarchical"`` (over the min-distance
     mips; same answers as ``"dda"``, fewer fetches).
     ``epsilon``: hit acceptance — ``"footprint"`` (the default: ``epsilon_value`` plus the
@@ -112,10 +130,11 @@ class LightFieldOptions:
         if self.colour_filter not in COLOUR_FILTERS:
             raise VoxfieldError(f"unknown colour filter {self.colour_filter!r}; choose one of "
                                 f"{', '.join(COLOUR_FILTERS)}")
-        if not (_finite(self.step) and self.step > 0):
-            raise VoxfieldError(f"the march step must be a positive distance, got {self.step!r}")
         if not is_integer(self.max_steps) or self.max_steps < 1:
             raise VoxfieldError(f"max_steps must be an integer >= 1, got {self.max_steps!r}")
+        problem = march_step_problem(self.step, self.max_steps)
+        if problem is not None:
+            raise VoxfieldError(problem)
         if not (_finite(self.epsilon_value) and self.epsilon_value >= 0):
             raise VoxfieldError(f"epsilon_value must be a distance >= 0, got "
                                 f"{self.epsilon_value!r}")

@@ -74,8 +74,8 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
         differs = differences(identity(old), identity(header))
         if differs:
             raise ProbeSetMismatchError(
-                f"{folder} holds probes baked from a different " + " and ".join(differs)
-                + "; use another --out, or --fresh to discard them"
+                f"{folder} holds probes baked {_listing(differs)}; use another --out, or "
+                "--fresh to discard them"
             )
         header["probes"] = old["probes"]
     folder.mkdir(parents=True, exist_ok=True)
@@ -121,3 +121,8 @@ def _scheduler_name(scheduler) -> str:
         return scheduler or "threads"
     address = getattr(getattr(scheduler, "scheduler", None), "address", None)
     return str(address or type(scheduler).__name__)
+
+
+def _listing(phrases: list[str]) -> str:
+    """``a``, ``a and b``, ``a, b and c``."""
+    return phrases[0] if len(phrases) == 1 else ", ".join(phrases[:-1]) + " and " + phrases[-1]

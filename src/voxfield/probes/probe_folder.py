@@ -210,16 +210,17 @@ def identity(header: dict) -> dict:
 
 
 def differences(old: dict, new: dict) -> list[str]:
-    """Human-readable names of what differs between two identities."""
+    """What differs between two identities, as phrases that follow "probes baked", e.g.
+    ``["on another probe grid", "with other bake options (resolution)"]``."""
     out = []
     if old["scene"] != new["scene"]:
-        out.append("the scene (or its colour channel)")
+        out.append("from another scene (or colour channel)")
     if old["grid"] != new["grid"]:
-        out.append("the probe grid")
+        out.append("on another probe grid")
     if old["options"] != new["options"]:
         keys = sorted(k for k in set(old["options"]) | set(new["options"])
                       if old["options"].get(k) != new["options"].get(k))
-        out.append("bake options (" + ", ".join(keys) + ")")
+        out.append("with other bake options (" + ", ".join(keys) + ")")
     return out
 
 

@@ -1,0 +1,116 @@
+"""Option values outside what the library can use are refused by the parser (exit 2, one
+line) with the library's own range, before any work: ``probe-render --step``, ``errors
+build --resolution``; and a table built with ``errors build`` must be named ``.npz``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from voxfield.cli import main
+from voxfield.error_table.table import raycast_errors
+from voxfield.errors import VoxfieldError
+from voxfield.lightfield.trace import LightFieldOptions
+
+BUILDERS = [("build", "build_error_table"), ("build-lighting", "build_lighting_error_table")]
+
+
+def _one_error_line(capsys) -> str:
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("voxfield: error: "), err
+    return err[0]
+
+
+def _refused_by_the_parser(argv, capsys) -> str:
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    err = capsys.readouterr().err
+    assert "error:" in err and "Traceback" not in err
+    return " ".join(err.split())
+
+
+def _library_takes_step(step: float) -> bool:
+    try:
+        LightFieldOptions(marcher="march3d", step=step)
+    except VoxfieldError:
+        return False
+    return True
+
+
+def test_probe_render_takes_exactly_the_steps_the_library_takes(tmp_path, capsys):
+    # The folder does not exist: a step the parser takes ends on it, one line; a step it
+    # refuses is refused first, with the range, before anything is opened.
+    out = tmp_path / "p.png"
+    for step in ["1e-6", "1e-30", "1e308", "2", "1.0000001", "0.000244", "0", "-1", "nan",
+                 "inf", str(1 / 4096), "0.25", "1"]:
+        argv = ["probe-render", str(tmp_path / "none"), "--marcher", "march3d", "--step",
+                step, "--out", str(out)]
+        expected = 1 / 4096 <= float(step) <= 1  # 4096: LightFieldOptions' default cap
+        assert _library_takes_step(float(step)) == expected, step
+        if expected:
+            assert main(argv) == 2
+            assert "no such probe-set folder" in _one_error_line(capsys)
+        else:
+            err = _refused_by_the_parser(argv, capsys)
+            assert "--step" in err and "0.000244141..1 voxels" in err, err
+        assert not out.exists()
+
+
+def test_probe_render_help_states_the_step_range(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["probe-render", "--help"])
+    assert exc.value.code == 0
+    assert "step in voxels, 0.000244141..1" in " ".join(capsys.readouterr().out.split())
+
+
+def _library_takes_resolution(n: int) -> bool:
+    # No directions: a resolution the library takes fails on them instead, before any cast.
+    try:
+        raycast_errors(np.zeros((0, 3)), resolution=n)
+    except VoxfieldError as exc:
+        return "resolution" not in str(exc)
+    raise AssertionError("no directions were accepted")
+
+
+@pytest.mark.parametrize("action, builder", BUILDERS)
+def test_errors_build_takes_exactly_the_resolutions_the_library_takes(
+        action, builder, tmp_path, capsys, monkeypatch):
+    def reached(**kwargs):
+        raise VoxfieldError("parsed")
+
+    monkeypatch.setattr(f"voxfield.cli.cmd_errors.{builder}", reached)
+    for n in (0, 1, 2, 3, 4096, 4097):
+        argv = ["errors", action, "--resolution", str(n), "--out", str(tmp_path / "t.npz")]
+        if _library_takes_resolution(n):
+            assert main(argv) == 2
+            assert "parsed" in _one_error_line(capsys)
+        else:
+            assert "--resolution" in _refused_by_the_parser(argv, capsys)
+    assert [n for n in (1, 2, 4096, 4097) if _library_takes_resolution(n)] == [2, 4096]
+
+
+@pytest.mark.parametrize("action", ["build", "build-lighting"])
+def test_errors_help_states_the_resolution_range(action, capsys):
+    with pytest.raises(SystemExit):
+        main(["errors", action, "--help"])
+    assert "rays per direction, 2..4096" in " ".join(capsys.readouterr().out.split())
+
+
+@pytest.mark.parametrize("action, builder", BUILDERS)
+def test_errors_build_writes_only_npz_and_says_so_first(action, builder, tmp_path, capsys,
+                                                       monkeypatch):
+    calls = []
+
+    def count(**kwargs):
+        calls.append(kwargs)
+        raise VoxfieldError("cast")
+
+    monkeypatch.setattr(f"voxfield.cli.cmd_errors.{builder}", count)
+    for name in ["x.png", "x", "x.npz.tmp"]:
+        assert main(["errors", action, "--quiet", "--out", str(tmp_path / name)]) == 2
+        assert ".npz" in _one_error_line(capsys)
+        assert calls == [], "the table was ray-cast for an output it cannot be written as"
+    assert list(tmp_path.iterdir()) == []
+    assert main(["errors", action, "--quiet", "--out", str(tmp_path / "t.NPZ")]) == 2
+    assert "cast" in _one_error_line(capsys) and len(calls) == 1
