@@ -40,10 +40,15 @@ def write_html_report(folder: str | Path) -> Path:
 def render_report(folder: Path) -> str:
     """The page's HTML text for a study folder."""
     results = _read_results(folder)
-    comparisons = [_comparison(folder, entry) for entry in results.get("comparisons", [])]
+    entries = results.get("comparisons")
+    if entries is None:
+        entries = []
+    if not isinstance(entries, list):
+        raise VoxfieldError(f"{folder / 'results.json'}: \"comparisons\" is "
+                            f"{_kind(entries)}, not a list of comparisons")
+    comparisons = [_comparison(folder, entry) for entry in entries]
     used = {name for c in comparisons for name in c.pop("files")}
-    markdown_path = folder / "results.md"
-    text = markdown_path.read_text(encoding="utf-8") if markdown_path.is_file() else ""
+    text = _read_markdown(folder / "results.md")
     return render_page(title=_title(results), subtitle=_subtitle(results), markdown_text=text,
                        figures=[p for p in _figures(folder) if p.name not in used],
                        comparisons=comparisons)
@@ -83,9 +88,21 @@ def _read_results(folder: Path) -> dict:
         results = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
         raise VoxfieldError(f"{path}: unreadable results ({exc})") from exc
+    except RecursionError as exc:
+        raise VoxfieldError(f"{path}: unreadable results (nested too deeply)") from exc
     if not isinstance(results, dict):
         raise VoxfieldError(f"{path}: not a voxfield results file (expected an object)")
     return results
+
+
+def _read_markdown(path: Path) -> str:
+    """``results.md``'s text; a folder without one has no tables."""
+    if not path.is_file():
+        return ""
+    try:
+        return path.read_text(encoding="utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise VoxfieldError(f"{path}: unreadable results ({exc})") from exc
 
 
 def markdown_to_html(text: str) -> str:
@@ -122,10 +139,14 @@ def _subtitle(results: dict) -> str:
     parts = []
     scene = results.get("scene")
     if isinstance(scene, dict) and "voxels" in scene:
-        parts.append(f"{scene['voxels']:,} voxels")
+        voxels = scene["voxels"]
+        whole = isinstance(voxels, int) and not isinstance(voxels, bool)
+        count = f"{voxels:,}" if whole else str(voxels)
+        parts.append(f"{count} voxels")
     camera = results.get("camera")
     if isinstance(camera, dict) and "width" in camera:
-        parts.append(f"{camera['width']}×{camera['height']}, camera {camera.get('label', '')}")
+        parts.append(f"{camera['width']}×{camera.get('height', '?')}, camera "
+                     f"{camera.get('label', '')}")
     parts.append(f"voxfield {voxfield.__version__}")
     return " · ".join(parts)
 
@@ -142,14 +163,20 @@ def _label(stem: str) -> str:
 
 def _comparison(folder: Path, entry: dict) -> dict:
     """One image against its reference: both embedded, the difference map, the cost maps."""
-    try:
-        name = str(entry["name"])
-        image_path = _inside(folder, entry["image"])
-        reference_path = _inside(folder, entry["reference"])
-        maps = {str(label): _inside(folder, file) for label, file in
-                dict(entry.get("maps", {})).items()}
-    except (KeyError, TypeError, ValueError) as exc:
-        raise VoxfieldError(f"{folder / 'results.json'}: a comparison entry lacks {exc}") from exc
+    where = folder / "results.json"
+    if not isinstance(entry, dict):
+        raise VoxfieldError(f"{where}: a comparison entry is {_kind(entry)}, not an object")
+    missing = [key for key in ("name", "image", "reference") if key not in entry]
+    if missing:
+        raise VoxfieldError(f"{where}: a comparison entry lacks {', '.join(missing)}")
+    name = str(entry["name"])
+    maps = entry.get("maps") or {}
+    if not isinstance(maps, dict):
+        raise VoxfieldError(f"{where}: the maps of comparison {name!r} are {_kind(maps)}, "
+                            "not an object")
+    image_path = _inside(folder, entry["image"])
+    reference_path = _inside(folder, entry["reference"])
+    maps = {str(label): _inside(folder, file) for label, file in maps.items()}
     for path in (image_path, reference_path):
         if not path.is_file():
             raise VoxfieldError(f"{path}: an image the results list is missing")
@@ -166,11 +193,20 @@ def _comparison(folder: Path, entry: dict) -> dict:
     }
 
 
+def _kind(value) -> str:
+    """What a JSON value is, in JSON's words."""
+    if value is None or isinstance(value, bool):
+        return json.dumps(value)
+    if isinstance(value, (int, float)):
+        return "a number"
+    return {str: "a string", list: "a list", dict: "an object"}.get(type(value), "a value")
+
+
 def _inside(folder: Path, name) -> Path:
     """A file the results name, which must lie in the folder itself: a report embeds only
     the study's own images."""
     path = folder / str(name)
-    if path.resolve().parent != folder.resolve():
+    if "\0" in str(name) or path.resolve().parent != folder.resolve():
         raise VoxfieldError(f"{folder / 'results.json'} names {name!r}, which is not a file "
                             "in the study folder")
     return path

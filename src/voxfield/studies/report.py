@@ -70,6 +70,11 @@ def result_to_arrays(result: RenderResult) -> tuple[dict, dict[str, np.ndarray]]
     return meta, arrays
 
 
+def _is_render(data, arrays: dict) -> bool:
+    """Whether a cached item holds what ``result_from_arrays`` needs."""
+    return isinstance(data, dict) and all(name in arrays for name in _RESULT_ARRAYS)
+
+
 def result_from_arrays(meta: dict, arrays: dict[str, np.ndarray]) -> RenderResult:
     """The RenderResult that ``result_to_arrays`` split."""
     missing = [name for name in _RESULT_ARRAYS if name not in arrays]
@@ -131,11 +136,13 @@ class StudyFolder:
 
     def item(
         self, name: str, params: dict,
-        compute: Callable[[], tuple[dict, dict[str, np.ndarray]]],
+        compute: Callable[[], tuple[dict, dict[str, np.ndarray]]], *,
+        valid: Callable[[object, dict], bool] | None = None,
     ) -> tuple[dict, dict[str, np.ndarray]]:
         """``compute()``'s (JSON data, arrays), or the cached copy from an earlier run with the
-        same ``params``; a cache file that cannot be read is recomputed, not trusted."""
-        cached = self._cached(name, params)
+        same ``params``; a cache file that cannot be read, or whose (data, arrays) ``valid``
+        refuses, is recomputed, not trusted."""
+        cached = self._cached(name, params, valid)
         if cached is not None:
             self.reused.append(name)
             return cached
@@ -146,10 +153,12 @@ class StudyFolder:
         # Not with_suffix: item names may hold dots (thresholds like 0.154).
         return Path(f"{stem}.json"), Path(f"{stem}.npz")
 
-    def _cached(self, name: str, params: dict):
+    def _cached(self, name: str, params: dict, valid=None):
         json_path, npz_path = self._paths(name, params)
         if (not self.fresh or json_path in self._written) and json_path.is_file():
-            return self._load(json_path, npz_path)
+            cached = self._load(json_path, npz_path)
+            if cached is not None and (valid is None or valid(*cached)):
+                return cached
         return None
 
     def _store(self, name: str, params: dict, data, arrays) -> tuple[dict, dict]:
@@ -164,17 +173,18 @@ class StudyFolder:
         return to_json(data), dict(arrays)
 
     def batch(self, specs: Sequence[tuple[str, dict, Callable]], *, shared=None,
-              bar=None) -> list[tuple[dict, dict[str, np.ndarray]]]:
+              bar=None, valid: Callable[[object, dict], bool] | None = None,
+              ) -> list[tuple[dict, dict[str, np.ndarray]]]:
         """``item`` for independent items at once: each spec is (name, params,
         ``compute(shared)`` → (JSON data, arrays)). Cached items are read back; the missing
         ones run as tasks on ``self.scheduler`` (``shared`` is scattered to a cluster once,
         ``compute`` must be picklable by cloudpickle there) and each is cached the moment it
         lands, so an interrupted batch resumes. Results come back in spec order; ``bar``
-        (a progress bar) advances once per item."""
+        (a progress bar) advances once per item; ``valid`` as in ``item``."""
         results: list = [None] * len(specs)
         missing = []
         for k, (name, params, _) in enumerate(specs):
-            cached = self._cached(name, params)
+            cached = self._cached(name, params, valid)
             if cached is None:
                 missing.append(k)
                 continue
@@ -197,7 +207,8 @@ class StudyFolder:
         """``batch`` of renders: ``render(shared)`` → RenderResult per spec."""
         wrapped = [(name, params, _as_arrays(render)) for name, params, render in specs]
         return [result_from_arrays(meta, arrays)
-                for meta, arrays in self.batch(wrapped, shared=shared, bar=bar)]
+                for meta, arrays in self.batch(wrapped, shared=shared, bar=bar,
+                                               valid=_is_render)]
 
     def value_batch(self, specs, *, shared=None, bar=None) -> list[dict]:
         """``batch`` of JSON-only results: ``compute(shared)`` → dict per spec."""
@@ -207,7 +218,8 @@ class StudyFolder:
     def render_item(self, name: str, params: dict, render: Callable[[], RenderResult]
                     ) -> RenderResult:
         """A render, cached like ``item``."""
-        meta, arrays = self.item(name, params, lambda: result_to_arrays(render()))
+        meta, arrays = self.item(name, params, lambda: result_to_arrays(render()),
+                                 valid=_is_render)
         return result_from_arrays(meta, arrays)
 
     def value_item(self, name: str, params: dict, compute: Callable[[], dict]) -> dict:
@@ -217,14 +229,22 @@ class StudyFolder:
 
     @staticmethod
     def _load(json_path: Path, npz_path: Path):
+        """The cached (data, arrays), or None for a file ``_store`` did not write (empty,
+        truncated, damaged, or JSON of another shape): such an item is recomputed."""
         try:
             record = json.loads(json_path.read_text())
+            if not isinstance(record, dict) or "data" not in record:
+                return None
+            names = record.get("arrays") or []
+            if not isinstance(names, list) or not all(isinstance(k, str) for k in names):
+                return None
             arrays = {}
-            if record.get("arrays"):
+            if names:
                 with np.load(npz_path, allow_pickle=False) as npz:
-                    arrays = {k: npz[k] for k in record["arrays"]}
+                    arrays = {k: npz[k] for k in names}
             return record["data"], arrays
-        except (OSError, ValueError, KeyError, TypeError, EOFError, zipfile.BadZipFile, zlib.error):
+        except (OSError, ValueError, KeyError, TypeError, EOFError, RecursionError,
+                zipfile.BadZipFile, zlib.error):
             return None
 
     # --- outputs ------------------------------------------------------------------------------

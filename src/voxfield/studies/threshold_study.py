@@ -105,6 +105,21 @@ def _markdown(report) -> str:
     ])
 
 
+#: The largest threshold magnitude a linear x axis holds: near the float limit (1.8e308)
+#: matplotlib's axis margins and tick steps overflow.
+LINEAR_AXIS_LIMIT = 1e300
+
+
+def threshold_axis(thresholds) -> tuple[list[float], list[str] | None]:
+    """Where the figure plots each threshold: at its value on a linear axis, or, where one
+    is infinite, NaN or beyond ``LINEAR_AXIS_LIMIT``, at evenly spaced positions labelled
+    with the values (then also the labels)."""
+    values = [float(t) for t in thresholds]
+    if all(math.isfinite(t) and abs(t) <= LINEAR_AXIS_LIMIT for t in values):
+        return values, None
+    return [float(k) for k in range(len(values))], [f"{t:g}" for t in values]
+
+
 def plot_value(value) -> float:
     """A plottable float: None (an infinite PSNR in JSON) becomes NaN."""
     return math.nan if value is None else float(value)
@@ -119,7 +134,7 @@ def _figure(report):
     import matplotlib.pyplot as plt
 
     rows = sorted(report["rows"], key=lambda r: r["threshold"])
-    x = [r["threshold"] for r in rows]
+    x, labels = threshold_axis(r["threshold"] for r in rows)
     fig, axes = plt.subplots(1, len(PANELS), figsize=(17, 3.4))
     for ax, (key, label, log) in zip(axes, PANELS, strict=True):
         ax.plot(x, [plot_value(r["error_aware"][key]) for r in rows], marker="o",
@@ -131,7 +146,10 @@ def _figure(report):
                    label="adaptive")
         if log:
             ax.set_yscale("log")
-        ax.set_xlabel("error threshold")
+        if labels is not None:
+            ax.set_xticks(x, labels, rotation=30, fontsize=7)
+            ax.set_xlim(-0.5, len(x) - 0.5)
+        ax.set_xlabel("error threshold" + (" (evenly spaced)" if labels is not None else ""))
         ax.set_title(label)
         ax.legend(fontsize=7)
     fig.suptitle(f"error threshold — {report['scene']}, decay {report['decay']}")
