@@ -31,8 +31,6 @@ import threading
 import uuid
 from collections.abc import Callable, Sequence
 
-import numpy as np
-
 from voxfield.errors import VoxfieldError
 
 LOCAL_SCHEDULERS = ("threads", "processes", "serial")
@@ -84,8 +82,9 @@ MAX_DASK_TASKS = 1000
 
 
 def _run_threads(task, shared, arguments, emit, name: str) -> None:
-    """Dask's threaded scheduler; a post-task callback hands each result over as it lands
-    (the local scheduler runs callbacks in the calling thread)."""
+    """Dask's threaded scheduler, one task per run of neighbouring arguments (one argument
+    each up to ``MAX_DASK_TASKS``); a post-task callback hands a run's results over as it
+    lands (the local scheduler runs callbacks in the calling thread)."""
     # heavy: Dask loads only when a job runs on a scheduler
     import dask
     from dask.callbacks import Callback
@@ -98,13 +97,13 @@ def _run_threads(task, shared, arguments, emit, name: str) -> None:
     # fields; every task reads the same object.
     shared_node = dask.delayed(shared, name=f"voxfield-{name}-shared", traverse=False)
 
-    def run_batch(shared, first: int, last: int, kernel_threads):
-        return [task(shared, arguments[i], kernel_threads) for i in range(first, last)]
+    def run_run(shared_value, first: int, last: int, kernel_threads):
+        return [task(shared_value, arguments[i], kernel_threads) for i in range(first, last)]
 
-    run = dask.delayed(run_batch, pure=True)
-    bounds = np.linspace(0, len(arguments), min(len(arguments), MAX_DASK_TASKS) + 1,
-                         dtype=np.int64)
-    keys = {f"voxfield-{name}-{first}": (int(first), int(last))
+    run = dask.delayed(run_run, pure=True)
+    runs = min(len(arguments), MAX_DASK_TASKS)
+    bounds = [len(arguments) * k // runs for k in range(runs + 1)]
+    keys = {f"voxfield-{name}-{first}": (first, last)
             for first, last in zip(bounds[:-1], bounds[1:], strict=True)}
     tasks = [run(shared_node, first, last, kernel_threads, dask_key_name=key)
              for key, (first, last) in keys.items()]
