@@ -15,17 +15,11 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from cli_output import one_error_line
 from voxfield.atomic import atomic_path, atomic_paths, check_writable
 from voxfield.cli import main
 from voxfield.cli.main import _note_warning
 from voxfield.render import counter_maps
-
-
-def _one_error_line(capsys) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("voxfield: error: "), err
-    return err[0]
-
 
 LIGHT = ["light", "builtin:pillars", "--times", "noon", "--sky-rays", "0", "--preview-size",
          "8", "--quiet"]
@@ -41,7 +35,7 @@ def a_file(tmp_path):
 def test_output_under_a_file_is_one_line(a_file, capsys):
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
                  "--out", str(a_file / "x.png")]) == 2
-    assert str(a_file) in _one_error_line(capsys)
+    assert str(a_file) in one_error_line(capsys)
 
 
 @pytest.mark.parametrize("command, out", [
@@ -59,7 +53,7 @@ def test_an_unusable_output_fails_before_the_scene_loads(command, out, a_file, c
 
     monkeypatch.setattr(f"voxfield.cli.{out}.open_octree", never)
     assert main([*command, "--quiet", "--out", str(a_file / "x.png")]) == 2
-    assert str(a_file) in _one_error_line(capsys)
+    assert str(a_file) in one_error_line(capsys)
 
 
 def test_an_image_format_render_cannot_write_fails_before_the_scene_loads(
@@ -69,7 +63,7 @@ def test_an_image_format_render_cannot_write_fails_before_the_scene_loads(
 
     monkeypatch.setattr("voxfield.cli.cmd_render.open_octree", never)
     assert main(["render", "builtin:sphere", "--quiet", "--out", str(tmp_path / "x.jpg")]) == 2
-    assert "'.jpg'" in _one_error_line(capsys)
+    assert "'.jpg'" in one_error_line(capsys)
     assert list(tmp_path.iterdir()) == []
 
 
@@ -88,25 +82,25 @@ def test_output_naming_a_folder_is_one_line(tmp_path, capsys):
     folder.mkdir()
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
                  "--out", str(folder)]) == 2
-    assert "folder" in _one_error_line(capsys)
+    assert "folder" in one_error_line(capsys)
 
 
 def test_output_name_too_long_is_one_line(tmp_path, capsys):
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
                  "--out", str(tmp_path / ("x" * 300 + ".png"))]) == 2
-    assert "too long" in _one_error_line(capsys)
+    assert "too long" in one_error_line(capsys)
 
 
 def test_bake_into_a_file_is_one_line(a_file, capsys):
     assert main(["bake", "builtin:cornell", "--grid", "1x1x1", "--resolution", "8",
                  "--quiet", "--out", str(a_file / "pb")]) == 2
-    _one_error_line(capsys)
+    one_error_line(capsys)
 
 
 def test_light_onto_a_folder_is_one_line_and_writes_nothing(tmp_path, capsys):
     (tmp_path / "lit.npz").mkdir()
     assert main([*LIGHT, "--out", str(tmp_path / "lit.npz")]) == 2
-    _one_error_line(capsys)
+    one_error_line(capsys)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["lit.npz"]
 
 
@@ -119,7 +113,7 @@ def test_a_failed_octree_write_leaves_no_report_previews_or_temporary_file(
 
     monkeypatch.setattr("voxfield.cli.cmd_light.write_octree_file", fail)
     assert main([*LIGHT, "--out", str(tmp_path / "lit.npz")]) == 2
-    assert "disk is full" in _one_error_line(capsys)
+    assert "disk is full" in one_error_line(capsys)
     assert list(tmp_path.iterdir()) == []
 
 
@@ -131,7 +125,7 @@ def test_read_only_folder_is_one_line(tmp_path, capsys):
     try:
         assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
                      "--out", str(folder / "x.png")]) == 2
-        _one_error_line(capsys)
+        one_error_line(capsys)
     finally:
         folder.chmod(0o755)
 
@@ -170,13 +164,13 @@ def test_an_unknown_scheduler_writes_nothing(tmp_path, capsys):
     out = tmp_path / "probes"
     assert main(["bake", "builtin:cornell", "--grid", "1x1x1", "--resolution", "8", "--quiet",
                  "--scheduler", "nowhere", "--out", str(out)]) == 2
-    assert "scheduler" in _one_error_line(capsys)
+    assert "scheduler" in one_error_line(capsys)
     assert not (out / "probes.json").exists()
 
 
 def test_a_recipe_refuses_a_vertical_scale(capsys):
     assert main(["info", "terrain:mountain", "--vertical-scale", "2", "--quiet"]) == 2
-    assert "vertical-scale" in _one_error_line(capsys)
+    assert "vertical-scale" in one_error_line(capsys)
 
 
 def test_outputs_respect_the_umask_and_keep_an_existing_mode(tmp_path):
@@ -210,14 +204,14 @@ def test_a_one_pixel_tiff_says_what_a_dem_needs(tmp_path, capsys):
     path = tmp_path / "tiny.tif"
     Image.fromarray(np.zeros((1, 1), np.int16)).save(path)
     assert main(["info", str(path), "--quiet"]) == 2
-    assert "2×2" in _one_error_line(capsys)
+    assert "2×2" in one_error_line(capsys)
 
 
 def test_gltf_with_broken_json_says_so(tmp_path, capsys):
     path = tmp_path / "broken.gltf"
     path.write_text("{ not json")
     assert main(["info", str(path), "--quiet"]) == 2
-    assert "not valid glTF" in _one_error_line(capsys)
+    assert "not valid glTF" in one_error_line(capsys)
 
 
 def test_library_warnings_are_one_plain_note(capsys):
@@ -232,7 +226,7 @@ def test_values_with_a_leading_minus_reach_their_own_check(tmp_path, capsys):
     assert (tmp_path / "eye.png").is_file()
     assert main(["bake", "builtin:cornell", "--grid", "-1x2x2", "--quiet",
                  "--out", str(tmp_path / "pb")]) == 2
-    assert "-1x2x2" in _one_error_line(capsys)
+    assert "-1x2x2" in one_error_line(capsys)
     assert not (tmp_path / "pb").exists()
 
 
@@ -260,19 +254,19 @@ def test_cuda_without_a_gpu_or_for_a_cpu_only_renderer_is_one_line(tmp_path, cap
     out = tmp_path / "x.png"
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--device", "cuda",
                  "--out", str(out)]) == 2
-    assert "no CUDA GPU" in _one_error_line(capsys)
+    assert "no CUDA GPU" in one_error_line(capsys)
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--device", "cuda",
                  "--renderer", "error-aware", "--out", str(out)]) == 2
-    assert "CPU only" in _one_error_line(capsys)
+    assert "CPU only" in one_error_line(capsys)
     assert not out.exists()
     # probe-render: the light field needs the GPU; the baselines run on the CPU only.
     probes = tmp_path / "probes"
     assert main(["probe-render", str(probes), "--quiet", "--device", "cuda",
                  "--out", str(out)]) == 2
-    assert "no CUDA GPU" in _one_error_line(capsys)
+    assert "no CUDA GPU" in one_error_line(capsys)
     assert main(["probe-render", str(probes), "--quiet", "--device", "cuda", "--method",
                  "environment", "--out", str(out)]) == 2
-    assert "CPU only" in _one_error_line(capsys)
+    assert "CPU only" in one_error_line(capsys)
     assert not out.exists()
 
 
@@ -294,7 +288,7 @@ def test_options_that_contradict_each_other_are_one_line(extra, words, tmp_path,
     out = tmp_path / "x.png"
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet", *extra,
                  "--out", str(out)]) == 2
-    assert words in _one_error_line(capsys)
+    assert words in one_error_line(capsys)
     assert not out.exists()
 
 
@@ -313,14 +307,14 @@ def test_the_parser_states_the_range_the_work_needs(argv, words, capsys):
 @pytest.mark.parametrize("scene, words", [("", "no scene named"), (".", "a folder")])
 def test_an_empty_scene_name_or_a_folder_says_so(scene, words, tmp_path, capsys):
     assert main(["info", scene, "--quiet"]) == 2
-    assert words in _one_error_line(capsys)
+    assert words in one_error_line(capsys)
 
 
 def test_minus_infinity_reaches_its_own_check(tmp_path, capsys):
     """``-inf`` was taken for an option ("expected one argument")."""
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--eye", "-inf,1,1",
                  "--target", "0,0,0", "--out", str(tmp_path / "x.png")]) == 2
-    assert "-inf" in _one_error_line(capsys)
+    assert "-inf" in one_error_line(capsys)
 
 
 def test_an_image_and_its_counter_maps_appear_together_or_not_at_all(tmp_path, monkeypatch,
@@ -338,7 +332,7 @@ def test_an_image_and_its_counter_maps_appear_together_or_not_at_all(tmp_path, m
     out = tmp_path / "c.png"
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--counters",
                  "--out", str(out)]) == 2
-    line = _one_error_line(capsys)
+    line = one_error_line(capsys)
     assert "the disk is full" in line and "c_lod.png" in line
     assert sorted(p.name for p in tmp_path.iterdir()) == []
 
@@ -364,7 +358,7 @@ def test_an_exr_the_disk_has_no_room_for_is_one_line(tmp_path, monkeypatch, caps
     monkeypatch.setattr(openexr, "File", FullDiskFile)
     out = tmp_path / "big.exr"
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--out", str(out)]) == 2
-    line = _one_error_line(capsys)
+    line = one_error_line(capsys)
     assert "the disk is full" in line and str(out) in line
     assert list(tmp_path.iterdir()) == []
 

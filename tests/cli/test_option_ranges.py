@@ -7,18 +7,13 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from cli_output import one_error_line
 from voxfield.cli import main
 from voxfield.error_table.table import raycast_errors
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import LightFieldOptions
 
 BUILDERS = [("build", "build_error_table"), ("build-lighting", "build_lighting_error_table")]
-
-
-def _one_error_line(capsys) -> str:
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("voxfield: error: "), err
-    return err[0]
 
 
 def _refused_by_the_parser(argv, capsys) -> str:
@@ -50,7 +45,7 @@ def test_probe_render_takes_exactly_the_steps_the_library_takes(tmp_path, capsys
         assert _library_takes_step(float(step)) == expected, step
         if expected:
             assert main(argv) == 2
-            assert "no such probe-set folder" in _one_error_line(capsys)
+            assert "no such probe-set folder" in one_error_line(capsys)
         else:
             err = _refused_by_the_parser(argv, capsys)
             assert "--step" in err and "0.000244141..1 voxels" in err, err
@@ -84,7 +79,7 @@ def test_errors_build_takes_exactly_the_resolutions_the_library_takes(
         argv = ["errors", action, "--resolution", str(n), "--out", str(tmp_path / "t.npz")]
         if _library_takes_resolution(n):
             assert main(argv) == 2
-            assert "parsed" in _one_error_line(capsys)
+            assert "parsed" in one_error_line(capsys)
         else:
             assert "--resolution" in _refused_by_the_parser(argv, capsys)
     assert [n for n in (1, 2, 4096, 4097) if _library_takes_resolution(n)] == [2, 4096]
@@ -109,8 +104,8 @@ def test_errors_build_writes_only_npz_and_says_so_first(action, builder, tmp_pat
     monkeypatch.setattr(f"voxfield.cli.cmd_errors.{builder}", count)
     for name in ["x.png", "x", "x.npz.tmp"]:
         assert main(["errors", action, "--quiet", "--out", str(tmp_path / name)]) == 2
-        assert ".npz" in _one_error_line(capsys)
+        assert ".npz" in one_error_line(capsys)
         assert calls == [], "the table was ray-cast for an output it cannot be written as"
     assert list(tmp_path.iterdir()) == []
     assert main(["errors", action, "--quiet", "--out", str(tmp_path / "t.NPZ")]) == 2
-    assert "cast" in _one_error_line(capsys) and len(calls) == 1
+    assert "cast" in one_error_line(capsys) and len(calls) == 1

@@ -7,6 +7,7 @@ import json
 
 import pytest
 
+from cli_output import one_error_line
 from voxfield.cli import main
 from voxfield.errors import VoxfieldError
 from voxfield.studies.html_report import write_html_report
@@ -24,9 +25,7 @@ def _folder(tmp_path, results, markdown: bytes | None = b"# A study\n\n| a |\n|-
 
 def _report_error(folder, capsys) -> str:
     assert main(["report", str(folder), "--quiet"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith("voxfield: error: "), err
-    return err[0]
+    return one_error_line(capsys)
 
 
 def test_a_results_md_that_is_not_utf8_is_one_line(tmp_path, capsys):
