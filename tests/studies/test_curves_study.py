@@ -110,7 +110,7 @@ def test_curves_from_the_command_line(tmp_path, capsys):
     assert set(report["cameras"]) == {"top", "ortho-top"}
 
 
-@pytest.mark.parametrize("bad", [["--thresholds", "nan,0.1"], ["--decays", "-1"],
+@pytest.mark.parametrize("bad", [["--thresholds", "inf,0.1"], ["--decays", "-1"],
                                  ["--cameras", "nowhere"]])
 def test_bad_curve_values_are_one_line_and_exit_2(bad, tmp_path, capsys):
     code = main(["--quiet", "study", "curves", "builtin:pillars", "--size", "16",
