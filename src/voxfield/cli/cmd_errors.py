@@ -14,7 +14,13 @@ from voxfield.error_table.lighting_table import (
 )
 from voxfield.error_table.plot import plot_mask_error
 from voxfield.error_table.symmetry import distinct_mask_count
-from voxfield.error_table.table import DEFAULT_TABLE, ENCODINGS, THESIS_THRESHOLD
+from voxfield.error_table.table import (
+    DEFAULT_TABLE,
+    ENCODINGS,
+    MAX_RESOLUTION,
+    MIN_RESOLUTION,
+    THESIS_THRESHOLD,
+)
 from voxfield.errors import VoxfieldError
 
 
@@ -28,12 +34,6 @@ def mask_arg(text: str) -> int:
     if not 0 <= value <= 255:
         raise argparse.ArgumentTypeError(f"a child mask is 0..255, got {value}")
     return value
-
-
-#: Framebuffer sides in rays per direction that ``raycast_errors`` and
-#: ``raycast_colour_errors`` accept (they refuse others themselves, after the parser; the
-#: library names no constant for the range).
-MIN_RESOLUTION, MAX_RESOLUTION = 2, 4096
 
 
 def _add_raycast_options(p: argparse.ArgumentParser) -> None:

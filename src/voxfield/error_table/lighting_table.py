@@ -22,7 +22,12 @@ import numpy as np
 
 from voxfield.atomic import atomic_path
 from voxfield.error_table.symmetry import cube_symmetries, octant_permutation
-from voxfield.error_table.table import ErrorTableError, _checksum, read_table_file
+from voxfield.error_table.table import (
+    ErrorTableError,
+    _checksum,
+    check_resolution,
+    read_table_file,
+)
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.error_lookup import colour_error_many
 from voxfield.kernels.error_raycast import image_plane_samples
@@ -114,8 +119,7 @@ class LightingErrorTable:
 def raycast_colour_errors(masks, brights, directions, resolution: int = 512,
                           seed: int = 0) -> np.ndarray:
     """(n_configurations, n_directions) ray-cast colour errors (the table's ground truth)."""
-    if not 2 <= int(resolution) <= 4096:
-        raise VoxfieldError(f"framebuffer resolution must be in 2..4096, got {resolution}")
+    check_resolution(resolution)
     dirs = np.ascontiguousarray(directions, np.float64)
     dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
     samples = image_plane_samples(int(resolution), int(seed))

@@ -88,10 +88,22 @@ class ErrorTable:
         return np.clip(out, 0.0, 1.0).reshape(masks.shape)
 
 
+#: Framebuffer sides (rays per direction) a ray-cast error table takes: two rays a side at
+#: least to cover a node, 4096 (16.8M rays a direction) at most.
+MIN_RESOLUTION, MAX_RESOLUTION = 2, 4096
+
+
+def check_resolution(resolution) -> int:
+    """``resolution`` as an int in ``MIN_RESOLUTION..MAX_RESOLUTION``."""
+    if not MIN_RESOLUTION <= int(resolution) <= MAX_RESOLUTION:
+        raise VoxfieldError(f"framebuffer resolution must be in {MIN_RESOLUTION}.."
+                            f"{MAX_RESOLUTION}, got {resolution}")
+    return int(resolution)
+
+
 def raycast_errors(directions: np.ndarray, resolution: int = 512, seed: int = 0) -> np.ndarray:
     """(256, n) ray-cast errors at the given ray directions (EA Algorithm 1)."""
-    if not 2 <= int(resolution) <= 4096:
-        raise VoxfieldError(f"framebuffer resolution must be in 2..4096, got {resolution}")
+    check_resolution(resolution)
     dirs = np.ascontiguousarray(directions, dtype=np.float64)
     if dirs.ndim != 2 or dirs.shape[1] != 3 or len(dirs) == 0:
         raise VoxfieldError(f"directions must be N×3, got {dirs.shape}")
