@@ -119,10 +119,10 @@ class LightingErrorTable:
 def raycast_colour_errors(masks, brights, directions, resolution: int = 512,
                           seed: int = 0) -> np.ndarray:
     """(n_configurations, n_directions) ray-cast colour errors (the table's ground truth)."""
-    check_resolution(resolution)
+    resolution = check_resolution(resolution)
     dirs = np.ascontiguousarray(directions, np.float64)
     dirs = dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
-    samples = image_plane_samples(int(resolution), int(seed))
+    samples = image_plane_samples(resolution, int(seed))
     return configuration_colour_errors(dirs, samples, np.asarray(masks, np.int64),
                                        np.asarray(brights, np.int64))
 

@@ -103,7 +103,7 @@ def check_resolution(resolution) -> int:
 
 def raycast_errors(directions: np.ndarray, resolution: int = 512, seed: int = 0) -> np.ndarray:
     """(256, n) ray-cast errors at the given ray directions (EA Algorithm 1)."""
-    check_resolution(resolution)
+    resolution = check_resolution(resolution)
     dirs = np.ascontiguousarray(directions, dtype=np.float64)
     if dirs.ndim != 2 or dirs.shape[1] != 3 or len(dirs) == 0:
         raise VoxfieldError(f"directions must be N×3, got {dirs.shape}")
@@ -111,7 +111,7 @@ def raycast_errors(directions: np.ndarray, resolution: int = 512, seed: int = 0)
     if not (np.all(np.isfinite(dirs)) and np.all(norms > 0)):
         raise VoxfieldError("directions must be finite and non-zero")
     dirs = dirs / norms[:, None]
-    samples = image_plane_samples(int(resolution), int(seed))
+    samples = image_plane_samples(resolution, int(seed))
     return errors_from_histograms(child_hit_histograms(dirs, samples))
 
 

@@ -50,7 +50,8 @@ def _common_number_type(context, *values):
     return context.unify_types(*plain)
 
 
-def _greater(context, builder, type_, a, b):
+def _greater(builder, type_, a, b):
+    """``a > b`` in ``type_``: ordered for floats, signed or unsigned for integers."""
     if isinstance(type_, types.Float):
         return builder.fcmp_ordered(">", a, b)
     return builder.icmp_signed(">", a, b) if type_.signed else builder.icmp_unsigned(">", a, b)
@@ -76,13 +77,13 @@ def _type_fmin(context):
 @lower_builtin(fmax, types.Number, types.Number)
 def _lower_fmax(context, builder, signature_, args):
     a, b = args
-    return builder.select(_greater(context, builder, signature_.return_type, a, b), a, b)
+    return builder.select(_greater(builder, signature_.return_type, a, b), a, b)
 
 
 @lower_builtin(fmin, types.Number, types.Number)
 def _lower_fmin(context, builder, signature_, args):
     a, b = args
-    return builder.select(_greater(context, builder, signature_.return_type, b, a), a, b)
+    return builder.select(_greater(builder, signature_.return_type, b, a), a, b)
 
 
 @type_callable(face_time)
