@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import sys
 
-from numba.core import event
 from tqdm import tqdm
 
 #: What ``compile_notice`` says, once per process.
@@ -26,20 +25,25 @@ def progress_bar(*, total: int, desc: str, unit: str = "it", enabled: bool = Tru
         bar.close()
 
 
-class _FirstCompile(event.Listener):
-    """Writes ``COMPILING`` when the first kernel of the process starts compiling."""
+def _first_compile_listener(stream):
+    """A context in which a Numba event listener writes ``COMPILING`` when the first kernel
+    of the process starts compiling."""
+    # Deferred: Numba takes 0.2 s to import, which commands that compile nothing (the
+    # listing, `scenes`, `report`) need not pay.
+    from numba.core import event
 
-    def __init__(self, stream) -> None:
-        self.stream = stream
-        self.said = False
+    class FirstCompile(event.Listener):
+        said = False
 
-    def on_start(self, event) -> None:
-        if not self.said:
-            self.said = True
-            tqdm.write(COMPILING, file=self.stream)
+        def on_start(self, _event) -> None:
+            if not self.said:
+                self.said = True
+                tqdm.write(COMPILING, file=stream)
 
-    def on_end(self, event) -> None:
-        pass
+        def on_end(self, _event) -> None:
+            pass
+
+    return event.install_listener("numba:compile", FirstCompile())
 
 
 @contextlib.contextmanager
@@ -50,5 +54,5 @@ def compile_notice(*, enabled: bool = True, stream=None):
     if not enabled:
         yield
         return
-    with event.install_listener("numba:compile", _FirstCompile(stream or sys.stderr)):
+    with _first_compile_listener(stream or sys.stderr):
         yield

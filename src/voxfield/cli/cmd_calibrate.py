@@ -7,6 +7,7 @@ import json
 import numpy as np
 
 from voxfield.atomic import atomic_path, check_writable
+from voxfield.cli.commands import add_command
 from voxfield.cli.options import (
     add_channel_option,
     add_renderer_options,
@@ -22,8 +23,8 @@ from voxfield.studies.calibrate import calibrate_threshold
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser(
-        "calibrate", help="solve for the error threshold meeting a ray budget or PSNR",
+    p = add_command(
+        subparsers, "calibrate",
         description="Bisection on the error-aware renderer's threshold (EA §5.1.4): the "
         "smallest threshold within a ray budget, or the largest meeting a PSNR target.",
     )

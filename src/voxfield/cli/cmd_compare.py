@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from voxfield.cli.commands import add_command
 from voxfield.cli.options import (
     add_renderer_options,
     add_scene_options,
@@ -20,8 +21,8 @@ from voxfield.studies.report import fmt
 
 def register(subparsers) -> argparse.ArgumentParser:
     """Register ``compare`` on the main parser's sub-commands (scene options as ``render``)."""
-    p = subparsers.add_parser(
-        "compare", help="reference vs adaptive vs error-aware: cost and quality tables",
+    p = add_command(
+        subparsers, "compare",
         description="Render the reference (4×4 rays at LOD 0), the variance-adaptive and the "
         "error-aware renderer, measure PSNR/RMSE/SSIM/FLIP against the reference and count "
         "rays and traversal steps (EA thesis Tables 5.2–5.5, figs 5.1–5.3). Writes "

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from voxfield.cli.options import add_quiet, finite_float, int_between, seed_arg
+from voxfield.cli.commands import add_command, add_quiet
+from voxfield.cli.options import finite_float, int_between, seed_arg
 from voxfield.error_table import build_error_table, fit_report, load_error_table, save_error_table
 from voxfield.error_table.lighting_table import (
     DEFAULT_LIGHTING_TABLE,
@@ -47,8 +48,8 @@ def _add_raycast_options(p: argparse.ArgumentParser) -> None:
 
 
 def register(subparsers) -> None:
-    errors = subparsers.add_parser(
-        "errors", help="error tables: build, inspect, picture one mask",
+    errors = add_command(
+        subparsers, "errors",
         description="The error of sampling a node instead of its children (EA §3.1–3.2).",
     )
     actions = errors.add_subparsers(dest="errors_command", required=True, metavar="ACTION")

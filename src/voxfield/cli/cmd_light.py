@@ -9,8 +9,8 @@ from concurrent.futures import ThreadPoolExecutor
 import numpy as np
 
 from voxfield.atomic import atomic_path, check_writable
+from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
-    add_quiet,
     add_scene_options,
     default_output,
     int_between,
@@ -29,8 +29,8 @@ from voxfield.svo.io import write_octree_file
 
 def register(subparsers) -> argparse.ArgumentParser:
     """Register ``light`` on the main parser's sub-commands (scene options as ``render``)."""
-    p = subparsers.add_parser(
-        "light", help="bake sun and sky lighting for times of day into colour channels",
+    p = add_command(
+        subparsers, "light",
         description="Per voxel and sun: lit colour = albedo × (sun × cos θ × shadow-ray "
         "visibility + sky × cosine-weighted sky visibility), traced through the octree at "
         "LOD 0 and stored as one channel per sun next to the albedo (render it with "

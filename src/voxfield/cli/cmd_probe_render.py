@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.atomic import atomic_path
+from voxfield.cli.commands import add_command
 from voxfield.cli.options import (
     add_hit_options,
     add_view_options,
@@ -78,8 +79,8 @@ def march_step(text: str) -> float:
 
 def register(subparsers) -> argparse.ArgumentParser:
     """Register ``probe-render`` on the main parser's sub-commands."""
-    p = subparsers.add_parser(
-        "probe-render", help="render a camera view from a baked probe set",
+    p = add_command(
+        subparsers, "probe-render",
         description="Render one ray per pixel centre from a probe-set folder (voxfield bake) "
         "with the light-field ray query or a baseline: environment-map lookup (phi = omega) "
         "or a parallax-corrected box proxy (Bjorke 2004). Writes the image (.png sRGB, or "

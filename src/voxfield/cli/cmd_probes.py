@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.atomic import check_writable
+from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_channel_option,
-    add_quiet,
     add_scene_options,
     default_output,
     int_between,
@@ -41,8 +41,8 @@ def register(subparsers) -> None:
 
     defaults = BakeOptions()
 
-    p = subparsers.add_parser(
-        "bake", help="bake a grid of light probes (radiance, distance, normals)",
+    p = add_command(
+        subparsers, "bake",
         description="Bake octahedral light probes straight from the octree into a probe-set "
         "folder (probes.json, one .npz per probe, EXR atlases). Probes are written as they "
         "finish: re-running the same command resumes a stopped bake. Probes run through Dask: "
@@ -87,8 +87,9 @@ def register(subparsers) -> None:
     add_quiet(p)
     p.set_defaults(func=run_bake)
 
-    probes = subparsers.add_parser("probes", help="inspect a baked probe set",
-                                   description="Look at a probe-set folder.")
+    probes = add_command(
+        subparsers, "probes",
+        description="Look at a probe-set folder.")
     sub = probes.add_subparsers(dest="probes_command", required=True, metavar="ACTION")
     s = sub.add_parser(
         "show", help="PNG of the radiance, distance and normal atlases and a 3D overview",

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from voxfield.atomic import atomic_paths
+from voxfield.cli.commands import add_command
 from voxfield.cli.options import (
     add_renderer_options,
     add_scene_options,
@@ -21,8 +22,9 @@ from voxfield.render.registry import RENDERERS, render
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    p = subparsers.add_parser("render", help="render a scene to PNG or EXR",
-                              description="Trace a scene with any of voxfield's renderers.")
+    p = add_command(
+        subparsers, "render",
+        description="Trace a scene with any of voxfield's renderers.")
     add_scene_options(p)
     p.add_argument("--renderer", choices=tuple(RENDERERS), default="reference",
                    help="; ".join(f"{name}: {entry.summary}" for name, entry in RENDERERS.items())

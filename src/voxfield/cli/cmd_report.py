@@ -2,13 +2,13 @@
 
 from __future__ import annotations
 
-from voxfield.cli.options import add_quiet
+from voxfield.cli.commands import add_command, add_quiet
 from voxfield.studies.html_report import write_html_report
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser(
-        "report", help="rebuild a study folder's report.html",
+    p = add_command(
+        subparsers, "report",
         description="Rebuild FOLDER/report.html (one self-contained page: each image beside "
         "the reference with a slider, difference and cost maps, the figures and the tables) "
         "from the folder's results.json, results.md and images. Studies, compare and sweep "

@@ -8,7 +8,8 @@ import time
 from pathlib import Path
 
 from voxfield.atomic import check_writable
-from voxfield.cli.options import add_quiet, add_scene_options, open_octree
+from voxfield.cli.commands import add_command, add_quiet
+from voxfield.cli.options import add_scene_options, open_octree
 from voxfield.scene.builtin import BUILTIN_SCENES
 from voxfield.scene.loaders import npz_kind
 from voxfield.scene.terrain import RECIPES
@@ -16,23 +17,22 @@ from voxfield.svo.io import load_octree, save_octree
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser("info", help="build a scene's octree and print its structure",
-                              description="Levels, node counts per level, bytes per node, "
-                              "build time.")
+    p = add_command(subparsers, "info",
+                    description="Levels, node counts per level, bytes per node, build time.")
     add_scene_options(p)
     p.add_argument("--json", action="store_true", help="print JSON")
     add_quiet(p)
     p.set_defaults(func=run_info)
 
-    p = subparsers.add_parser("build", help="build a scene's octree and save it (.npz)",
-                              description="Build the SVO once and save it for fast reuse.")
+    p = add_command(subparsers, "build",
+                    description="Build the SVO once and save it for fast reuse.")
     add_scene_options(p)
     p.add_argument("--out", required=True, help="output octree file (.npz)")
     add_quiet(p)
     p.set_defaults(func=run_build)
 
-    p = subparsers.add_parser("scenes", help="list built-in scenes and terrain recipes",
-                              description="Scenes that need no files, and terrain recipes.")
+    p = add_command(subparsers, "scenes",
+                    description="Scenes that need no files, and terrain recipes.")
     p.set_defaults(func=run_scenes)
 
 

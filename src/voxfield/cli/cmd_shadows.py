@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 
+from voxfield.cli.commands import add_command
 from voxfield.cli.options import (
     add_renderer_options,
     add_scene_options,
@@ -21,8 +22,8 @@ from voxfield.studies.shadow_study import run_shadow_study, summary_text
 DEFAULT_SCENE = "builtin:shadowbox"
 def register(subparsers) -> argparse.ArgumentParser:
     """Register ``shadows`` on the main parser's sub-commands."""
-    p = subparsers.add_parser(
-        "shadows", help="shadow-ray LOD test: reference vs distance-LOD vs error-aware",
+    p = add_command(
+        subparsers, "shadows",
         description="The EA thesis's shadow-ray test (§3.2.2): direct light with "
         "importance-sampled shadow rays at full resolution, at a LOD growing with distance "
         "(the baseline) and error-aware. Writes images, LOD-used maps, the light reaching "

@@ -6,10 +6,10 @@ from __future__ import annotations
 import argparse
 import math
 
+from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_channel_option,
     add_hit_options,
-    add_quiet,
     add_renderer_options,
     add_scene_options,
     add_study_folder,
@@ -64,9 +64,9 @@ from voxfield.studies.threshold_study import THESIS_THRESHOLDS, run_threshold_st
 
 
 def register(subparsers) -> argparse.ArgumentParser:
-    """Register ``study`` with its ``thresholds`` and ``resolution`` actions."""
-    p = subparsers.add_parser(
-        "study", help="thesis studies: error threshold (§5.4), resolution (§5.5)",
+    """Register ``study`` with one action per study."""
+    p = add_command(
+        subparsers, "study",
         description="Resumable studies writing results.json, results.md and a plot.",
     )
     actions = p.add_subparsers(dest="study", required=True, metavar="STUDY")

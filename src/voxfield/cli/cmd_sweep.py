@@ -4,6 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from voxfield.cli.commands import add_command
 from voxfield.cli.options import (
     add_channel_option,
     add_renderer_options,
@@ -18,8 +19,8 @@ from voxfield.studies.sweep import THESIS_DECAYS, THESIS_THRESHOLDS, run_sweep
 
 
 def register(subparsers) -> None:
-    p = subparsers.add_parser(
-        "sweep", help="decay × threshold grid of ray counts and quality (EA Table 5.1)",
+    p = add_command(
+        subparsers, "sweep",
         description="Render the error-aware renderer over a decay × threshold grid, beside "
         "the adaptive renderer and the 4×4 reference; resumable.",
     )

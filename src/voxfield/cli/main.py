@@ -1,4 +1,5 @@
-"""The ``voxfield`` entry point: the main parser, one sub-command group per ``cmd_*`` module.
+"""The ``voxfield`` entry point: the main parser, one sub-command group per ``cmd_*`` module,
+of which a command line loads only the one it runs (``commands``).
 
 Bad input prints one line, ``voxfield: error: ...``, and exits with status 2.
 """
@@ -6,46 +7,37 @@ Bad input prints one line, ``voxfield: error: ...``, and exits with status 2.
 from __future__ import annotations
 
 import argparse
+import importlib
 import re
 import sys
 import warnings
 
-from voxfield.cli import (
-    cmd_calibrate,
-    cmd_compare,
-    cmd_errors,
-    cmd_light,
-    cmd_probe_render,
-    cmd_probes,
-    cmd_render,
-    cmd_report,
-    cmd_scenes,
-    cmd_shadows,
-    cmd_study,
-    cmd_sweep,
-)
+from voxfield.cli.commands import COMMANDS, QUIET_HELP, chosen_command, command_modules
 from voxfield.cli.exits import EXIT_INTERRUPTED, EXIT_USAGE, report_failures
-from voxfield.cli.options import QUIET_HELP
 from voxfield.progress import compile_notice
 
 __all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "build_parser", "main"]
 
-#: Command groups in the order ``voxfield --help`` lists them.
-COMMAND_GROUPS = (
-    cmd_render, cmd_scenes, cmd_errors, cmd_calibrate, cmd_sweep, cmd_compare, cmd_study,
-    cmd_light, cmd_shadows, cmd_probes, cmd_probe_render, cmd_report,
-)
 
-
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """The whole parser (``command`` None), or the one a command line needs: ``command``'s
+    module registers its arguments, and every other command is listed by name and summary
+    only, its module (and all that imports) unloaded. An empty or unknown ``command`` loads
+    none: the listing, and argparse's "invalid choice", read the same as the whole parser's."""
     parser = argparse.ArgumentParser(
         prog="voxfield",
         description="Sparse voxel octrees with error-aware LOD, light probes and ray queries.",
     )
     parser.add_argument("--quiet", action="store_true", help=QUIET_HELP)
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
-    for group in COMMAND_GROUPS:
-        group.register(sub)
+    loaded = {module: importlib.import_module(f"voxfield.cli.{module}")
+              for module in command_modules(command)}
+    for name, (module, summary) in COMMANDS.items():
+        if module in loaded:
+            # A module registers all its commands at its first one's place in the listing.
+            loaded.pop(module).register(sub)
+        elif name not in sub.choices:
+            sub.add_parser(name, help=summary)
     return parser
 
 
@@ -79,8 +71,8 @@ def join_negative_values(argv: list[str]) -> list[str]:
 
 def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _note_warning
-    parser = build_parser()
     argv = join_negative_values(sys.argv[1:] if argv is None else list(argv))
+    parser = build_parser(chosen_command(argv))
     for token in argv:
         # argparse drops a value of "--" (its end-of-options marker) and hands the option an
         # empty list, which no option's type check sees.

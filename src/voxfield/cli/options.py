@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.checks import MAX_SEED
+from voxfield.cli.commands import add_quiet
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import COLOUR_PROBES, EPSILON_MODES, LightFieldOptions
 from voxfield.render.camera import (
@@ -32,9 +33,6 @@ from voxfield.scene.loaders import SceneOptions
 from voxfield.scene.terrain.columns import MAX_FOOTPRINT, MIN_FOOTPRINT
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree as open_octree_from_spec
-
-QUIET_HELP = "no progress bars or summaries"
-
 
 # --------------------------------------------------------------------------- argument types
 
@@ -163,11 +161,6 @@ _FIELD_TYPES = {"lod": lod_arg, "positive": positive_int, "positive_float": posi
 
 
 # --------------------------------------------------------------------------- option groups
-
-
-def add_quiet(p: argparse.ArgumentParser) -> None:
-    """``--quiet`` on a sub-command (the main parser's own --quiet still works before it)."""
-    p.add_argument("--quiet", action="store_true", default=argparse.SUPPRESS, help=QUIET_HELP)
 
 
 def add_scene_options(p: argparse.ArgumentParser) -> None:

@@ -1,0 +1,76 @@
+"""The command table: a command line loads only its own command's module, and the parser it
+gets reads and lists every command exactly as the whole parser does."""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+
+import pytest
+
+from voxfield.cli.commands import COMMANDS, chosen_command
+from voxfield.cli.main import build_parser
+
+WHOLE = build_parser()
+
+
+def _commands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    sub = next(a for a in parser._actions if isinstance(a, argparse._SubParsersAction))
+    return dict(sub.choices)
+
+
+def _help_of(parser: argparse.ArgumentParser) -> str:
+    """A parser's help and, recursively, every action's under it."""
+    nested = [_help_of(child) for child in _commands(parser).values()] \
+        if any(isinstance(a, argparse._SubParsersAction) for a in parser._actions) else []
+    return "\n".join([parser.format_help(), *nested])
+
+
+def test_the_table_lists_the_commands_the_modules_register_in_their_order():
+    whole = _commands(WHOLE)
+    assert list(whole) == list(COMMANDS)
+    listing = WHOLE.format_help()
+    for name, (_, summary) in COMMANDS.items():
+        assert " ".join(summary.split()[:3]) in " ".join(listing.split())
+        assert whole[name].prog == f"voxfield {name}"
+
+
+@pytest.mark.parametrize("name", list(COMMANDS))
+def test_a_command_lines_parser_reads_its_command_as_the_whole_parser_does(name):
+    lazy = build_parser(name)
+    assert lazy.format_help() == WHOLE.format_help()
+    assert _help_of(_commands(lazy)[name]) == _help_of(_commands(WHOLE)[name])
+
+
+@pytest.mark.parametrize("argv", [[], ["--help"], ["rendr"], ["--quiet", "probes", "show"]])
+def test_the_named_command_is_the_first_argument_that_is_not_an_option(argv):
+    named = chosen_command(argv)
+    assert named == next((t for t in argv if not t.startswith("-")), "")
+    assert build_parser(named).format_help() == WHOLE.format_help()
+
+
+def test_an_end_of_options_marker_loads_every_command():
+    assert chosen_command(["--", "render"]) is None
+    assert list(_commands(build_parser(None))) == list(COMMANDS)
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["report", "--help"], ["nosuch"]])
+def test_listing_and_light_commands_load_no_kernels(argv):
+    """Numba and SciPy (0.2 s and more to import) stay unloaded until a command needs them."""
+    script = ("import sys\nfrom voxfield.cli.main import main\n"
+              f"try:\n    main({argv!r})\nexcept SystemExit:\n    pass\n"
+              "print(sorted(m for m in ('numba', 'scipy', 'voxfield.kernels') "
+              "if m in sys.modules))")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=120, check=True)
+    assert proc.stdout.strip().splitlines()[-1] == "[]"
+
+
+def test_a_rendering_command_still_loads_what_it_runs():
+    script = ("import sys\nfrom voxfield.cli.main import main\n"
+              "try:\n    main(['render', '--help'])\nexcept SystemExit:\n    pass\n"
+              "print('voxfield.kernels' in sys.modules)")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=120, check=True)
+    assert proc.stdout.strip().splitlines()[-1] == "True"
