@@ -14,7 +14,6 @@ from dataclasses import dataclass, field
 
 import numba
 import numpy as np
-from scipy import ndimage
 
 from voxfield.checks import integer_in, real_number
 from voxfield.errors import VoxfieldError
@@ -64,6 +63,9 @@ def window_variance(lum: np.ndarray, valid: np.ndarray) -> np.ndarray:
 
     Uses SSD = Σ y² − (Σ y)² / n over the valid pixels, with window sums from a box filter.
     """
+    # Deferred: SciPy's ndimage adds 0.1 s to every command's start; only this uses it.
+    from scipy import ndimage
+
     y = np.where(valid, lum, 0.0).astype(np.float64)
     kernel = np.ones((3, 3))
     n = ndimage.convolve(valid.astype(np.float64), kernel, mode="constant")

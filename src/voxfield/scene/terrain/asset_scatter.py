@@ -13,7 +13,6 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import ndimage
 
 from voxfield.errors import VoxfieldError
 from voxfield.scene.terrain.columns import TerrainColumns
@@ -139,6 +138,9 @@ def place_assets(cols: TerrainColumns, group: AssetGroup, rng: np.random.Generat
     turns = rng.integers(4, size=len(pts)) if group.rotate else np.zeros(len(pts), np.int64)
     keep_u = rng.random(len(pts))
     if group.clumping > 0:
+        # Deferred: SciPy's ndimage adds 0.1 s to every command's start; terrains use it.
+        from scipy import ndimage
+
         noise = rng.standard_normal((max(f // 16, 2),) * 2)
         noise = ndimage.gaussian_filter(noise, sigma=max(f // 16, 2) / 12, mode="wrap")
         noise = (noise - noise.mean()) / (noise.std() + 1e-12)

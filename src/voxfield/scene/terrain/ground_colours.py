@@ -11,7 +11,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import gaussian_filter
 
 from voxfield.errors import SceneFormatError, VoxfieldError
 from voxfield.scene.terrain.columns import TerrainColumns, square_crop
@@ -96,6 +95,9 @@ def smoothed(rgb: np.ndarray, sigma: float) -> np.ndarray:
     """Per-column colours blurred over ``sigma`` columns (Gaussian), edges held."""
     if sigma <= 0:
         return rgb
+    # Deferred: SciPy's ndimage adds 0.1 s to every command's start; terrains use it.
+    from scipy.ndimage import gaussian_filter
+
     return gaussian_filter(rgb, sigma=(sigma, sigma, 0), mode="nearest").astype(np.float32)
 
 

@@ -8,11 +8,14 @@ columns and the clumping field of the asset scatter are resampled with them too.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy import ndimage, sparse
 
 from voxfield.errors import SceneFormatError, VoxfieldError
+
+if TYPE_CHECKING:
+    from scipy import sparse
 
 
 def fill_voids(elevation: np.ndarray, iterations: int = 64) -> np.ndarray:
@@ -29,6 +32,9 @@ def fill_voids(elevation: np.ndarray, iterations: int = 64) -> np.ndarray:
         return elev.copy()
     if void.all():
         raise SceneFormatError("every sample is a void; nothing to fill from")
+    # Deferred: SciPy adds 0.1 s to every command's start; terrains use it.
+    from scipy import ndimage
+
     idx = ndimage.distance_transform_edt(void, return_distances=False, return_indices=True)
     filled = elev[tuple(idx)]
     if iterations > 0:
@@ -72,6 +78,9 @@ def axis_weights(pos: np.ndarray, n_in: int, kind: str, scale: float) -> sparse.
     idx = base[:, None] + taps[None, :]
     w = kernel((idx - pos[:, None]) / scale)
     w /= w.sum(axis=1, keepdims=True)
+    # Deferred: SciPy adds 0.1 s to every command's start; terrains use it.
+    from scipy import sparse
+
     rows = np.repeat(np.arange(len(pos)), len(taps))
     cols = np.clip(idx, 0, n_in - 1).ravel()
     return sparse.csr_matrix((w.ravel(), (rows, cols)), shape=(len(pos), n_in))
