@@ -1,4 +1,5 @@
-"""Independent tasks on a Dask scheduler, results handed back as they finish.
+"""Independent tasks on a pool of threads or a Dask scheduler, results handed back as they
+finish.
 
 Every long job whose work splits into independent pieces (probes of a bake, voxel chunks of
 the sun bake, items of a study) runs through ``run_tasks``. A task is a pure function of a
@@ -6,10 +7,11 @@ large shared argument and a small per-task one, so where it runs does not change
 returns, and callers merge results by task index: every scheduler gives the same output as
 the plain loop. Schedulers (``--scheduler`` on the command line):
 
-- ``"serial"``: no Dask; one task after another in this process, each task's kernels on every
-  core.
-- ``None`` or ``"threads"``: Dask's threaded scheduler in this process. The shared argument is
-  not copied; the Numba kernels release the GIL, so tasks overlap on all cores.
+- ``"serial"``: one task after another in this process, each task's kernels on every core.
+- ``None`` or ``"threads"``: a pool of threads in this process, one per core (the standard
+  library's; Dask's threaded scheduler added a graph to optimise, 0.3 s of imports and, with
+  many tasks, minutes). The shared argument is not copied; the Numba kernels release the GIL,
+  so tasks overlap on all cores.
 - ``"processes"``: a ``distributed.LocalCluster`` of one single-threaded worker process per
   core, started for the job and closed after it (``local_cluster``).
 - any other string with a colon: the address of a running Dask scheduler
@@ -26,17 +28,19 @@ the parallel axis and the cores are not oversubscribed. Callers decide what ``No
 
 from __future__ import annotations
 
+import itertools
 import os
 import threading
 import uuid
 from collections.abc import Callable, Sequence
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
 from voxfield.errors import VoxfieldError
 
 LOCAL_SCHEDULERS = ("threads", "processes", "serial")
-SCHEDULER_HELP = ("where independent pieces run: threads (Dask's threaded scheduler), "
-                  "processes (a local Dask cluster), serial (no Dask), or a Dask scheduler "
-                  "address like tcp://host:8786")
+SCHEDULER_HELP = ("where independent pieces run: threads (a pool in this process), "
+                  "processes (a local Dask cluster), serial (one after another), or a Dask "
+                  "scheduler address like tcp://host:8786")
 
 
 class SchedulerError(VoxfieldError):
@@ -69,53 +73,43 @@ def run_tasks(
         for index, argument in enumerate(arguments):
             emit(index, task(shared, argument, None))
     elif scheduler is None or scheduler == "threads":
-        _run_threads(task, shared, arguments, emit, name)
+        _run_threads(task, shared, arguments, emit)
     else:
         with scheduler_client(scheduler) as client:
             _run_client(client, task, shared, arguments, emit, name)
 
 
-#: Most tasks handed to Dask's threaded scheduler; more arguments go in runs of neighbours.
-#: Its overhead grows faster than the task count: 1,000 tiny tasks took 0.3 s, 10,000 took
-#: 6.7 s, and 100,000 (a probe grid of 100,000) sat in graph optimisation for minutes.
-MAX_DASK_TASKS = 1000
+#: Tasks in flight per thread: enough that a thread never waits for the next, few enough that
+#: results are handed over (and released) as they land, not held until the job ends.
+TASKS_AHEAD_PER_THREAD = 2
 
 
-def _run_threads(task, shared, arguments, emit, name: str) -> None:
-    """Dask's threaded scheduler, one task per run of neighbouring arguments (one argument
-    each up to ``MAX_DASK_TASKS``); a post-task callback hands a run's results over as it
-    lands (the local scheduler runs callbacks in the calling thread)."""
-    # heavy: Dask loads only when a job runs on a scheduler
-    import dask
-    from dask.callbacks import Callback
-
+def _run_threads(task, shared, arguments, emit) -> None:
+    """A pool of threads in this process, the shared argument read in place by every task.
+    Results are handed over in this thread as they land, in task order when several land
+    together; an error or Ctrl-C cancels the tasks not yet started and waits for those
+    running (one per thread) before it is raised."""
     cores = os.cpu_count() or 1
     workers = max(1, min(len(arguments), cores))
     # The cores shared out: a few big tasks still use them all.
     kernel_threads = None if workers == 1 else max(1, cores // workers)
-    # A named, untraversed delayed: Dask neither hashes the shared arrays nor walks its
-    # fields; every task reads the same object.
-    shared_node = dask.delayed(shared, name=f"voxfield-{name}-shared", traverse=False)
-
-    def run_run(shared_value, first: int, last: int, kernel_threads):
-        return [task(shared_value, arguments[i], kernel_threads) for i in range(first, last)]
-
-    run = dask.delayed(run_run, pure=True)
-    runs = min(len(arguments), MAX_DASK_TASKS)
-    bounds = [len(arguments) * k // runs for k in range(runs + 1)]
-    keys = {f"voxfield-{name}-{first}": (first, last)
-            for first, last in zip(bounds[:-1], bounds[1:], strict=True)}
-    tasks = [run(shared_node, first, last, kernel_threads, dask_key_name=key)
-             for key, (first, last) in keys.items()]
-
-    class Deliver(Callback):
-        def _posttask(self, key, result, dsk, state, worker_id):
-            if key in keys:
-                for index, value in enumerate(result, start=keys[key][0]):
-                    emit(index, value)
-
-    with Deliver():
-        dask.compute(*tasks, scheduler="threads", num_workers=workers)
+    upcoming = iter(enumerate(arguments))
+    running: dict = {}
+    with ThreadPoolExecutor(workers, thread_name_prefix="voxfield-task") as pool:
+        try:
+            while True:
+                for index, argument in itertools.islice(
+                        upcoming, TASKS_AHEAD_PER_THREAD * workers - len(running)):
+                    running[pool.submit(task, shared, argument, kernel_threads)] = index
+                if not running:
+                    return
+                done, _ = wait(running, return_when=FIRST_COMPLETED)
+                for future in sorted(done, key=running.get):
+                    emit(running.pop(future), future.result())
+        except BaseException:
+            for future in running:
+                future.cancel()
+            raise
 
 
 def _run_client(client, task, shared, arguments, emit, name: str) -> None:

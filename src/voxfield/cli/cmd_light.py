@@ -53,7 +53,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")
     p.add_argument("--scheduler", type=scheduler_name, default=None, metavar="WHERE",
                    help=SCHEDULER_HELP + "; voxel chunks become tasks, the result is "
-                   "bit-identical (default: no Dask, each chunk on every core here)")
+                   "bit-identical (default: serial, each chunk on every core here)")
     p.add_argument("--out", default=None,
                    help="output octree file (default out/lit_NAME.npz, NAME from the scene)")
     p.add_argument("--preview-size", type=int_between(1, 4096, "pixels per side"),

@@ -45,8 +45,8 @@ def register(subparsers) -> None:
         subparsers, "bake",
         description="Bake octahedral light probes straight from the octree into a probe-set "
         "folder (probes.json, one .npz per probe, EXR atlases). Probes are written as they "
-        "finish: re-running the same command resumes a stopped bake. Probes run through Dask: "
-        "local threads by default, --scheduler processes or a cluster address.",
+        "finish: re-running the same command resumes a stopped bake. Probes run on threads "
+        "by default, or on Dask: --scheduler processes or a cluster address.",
     )
     add_scene_options(p)
     p.add_argument("--grid", required=True, metavar="SPEC",

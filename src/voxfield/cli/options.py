@@ -232,7 +232,7 @@ def add_study_folder(p: argparse.ArgumentParser, prefix: str, cached: str = "ite
                      scheduled: bool = False) -> None:
     """``--out`` (the study folder, ``out/PREFIX_SCENE`` by default) and ``--fresh``: every
     resumable study reuses what its folder holds unless told to start over. ``scheduled``
-    studies also take ``--scheduler``: their independent items run as Dask tasks."""
+    studies also take ``--scheduler``: their independent items run as tasks (``scaleout``)."""
     p.add_argument("--out", default=None,
                    help=f"output folder (default out/{prefix}_SCENE, SCENE from the scene)")
     p.add_argument("--fresh", action="store_true", help=f"ignore cached {cached} in --out")

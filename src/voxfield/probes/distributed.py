@@ -1,4 +1,4 @@
-"""Scale-out probe baking with Dask: probes bake independently, so each is one task.
+"""Scale-out probe baking: probes bake independently, so each is one task (``scaleout``).
 
 ``bake_probe`` is a pure function of (octree, position, options), so where a probe runs does
 not change its maps or counts: every scheduler of ``voxfield.scaleout`` gives arrays
@@ -56,7 +56,8 @@ def bake_each(
 
 
 def bake_probes_dask(octree, grid, options, *, scheduler=None, progress: bool = False):
-    """``bake.bake_probes`` through a Dask scheduler, in memory: the same ``ProbeSet``."""
+    """``bake.bake_probes`` through a scheduler of ``scaleout``, in memory: the same
+    ``ProbeSet``."""
     enabled = np.asarray(grid.enabled, bool).reshape(-1)
     probes: list = [None] * len(enabled)
 
