@@ -17,14 +17,28 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e ".[dev]"
 	touch $(STAMP)
 
+# The demo's pictures render side by side, one per core: on a first run each compiles its
+# own kernels, which takes most of the time, and one compilation uses one core.
+DEMO_RENDER := $(BIN)/voxfield render builtin:pillars --camera orbit --size 384
+DEMO_JOBS   := $(shell nproc 2>/dev/null || echo 2)
+DEMO_IMAGES := demo-reference demo-lod2 demo-cone demo-error-mask
+.PHONY: $(DEMO_IMAGES)
+
 demo: $(STAMP)
 	$(BIN)/voxfield info builtin:pillars
-	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer reference --size 384 --counters --out out/pillars_reference.png
-	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer lod --lod 2 --size 384 --out out/pillars_lod2.png
-	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer lod --lod cone --size 384 --counters --out out/pillars_cone.png
-	$(BIN)/voxfield render builtin:pillars --camera orbit --renderer reference --size 384 --out out/pillars_reference.exr
-	$(BIN)/voxfield errors show 0b00110011 --threshold 0.3 --out out/error_mask_51.png
+	@echo "rendering $(words $(DEMO_IMAGES)) pictures ($(DEMO_JOBS) at a time; a first run compiles the kernels: a minute or two)"
+	@$(MAKE) --no-print-directory -j$(DEMO_JOBS) --output-sync=target $(DEMO_IMAGES)
+	$(DEMO_RENDER) --renderer reference --out out/pillars_reference.exr
 	@echo "demo images written to out/"
+
+demo-reference: $(STAMP)
+	$(DEMO_RENDER) --renderer reference --counters --out out/pillars_reference.png
+demo-lod2: $(STAMP)
+	$(DEMO_RENDER) --renderer lod --lod 2 --out out/pillars_lod2.png
+demo-cone: $(STAMP)
+	$(DEMO_RENDER) --renderer lod --lod cone --counters --out out/pillars_cone.png
+demo-error-mask: $(STAMP)
+	$(BIN)/voxfield errors show 0b00110011 --threshold 0.3 --out out/error_mask_51.png
 
 # The CUDA kernels run under Numba's simulator (no GPU needed; JIT off so the shared @njit
 # code runs as Python inside simulated threads), then the suite proper in TEST_WORKERS
