@@ -247,14 +247,14 @@ def coarsest_cone_level(octree: Octree, camera: Camera, cone_scale: float, side:
     spread *= cone_scale / side
     eye = np.asarray(camera.params[1:4], np.float64)
     lo, hi = (np.asarray(b, np.float64) for b in octree.voxel_bounds)
+    nodes = np.ldexp(1.0, np.arange(1, octree.depth + 1))[:, None]
+    # The farthest of a box's corners takes the farther face on each axis.
+    reach = np.maximum((np.floor(lo / nodes) * nodes - eye) ** 2,
+                       (np.ceil(hi / nodes) * nodes - eye) ** 2)
+    farthest = np.sqrt(reach.sum(axis=1))
     coarsest = 0
-    for level in range(1, octree.depth + 1):
-        node = float(1 << level)
-        corners = np.stack(np.meshgrid(*[(np.floor(a / node) * node, np.ceil(b / node) * node)
-                                         for a, b in zip(lo, hi, strict=True)],
-                                       indexing="ij"), axis=-1).reshape(-1, 3)
-        farthest = float(np.sqrt(((corners - eye) ** 2).sum(axis=1)).max())
+    for level, (node, far) in enumerate(zip(nodes[:, 0], farthest, strict=True), start=1):
         # (A margin over the rounding of the traversal's own entry times.)
-        if node <= cone_width(radius, spread, farthest * (1.0 + 1e-9) + 1e-6):
+        if node <= cone_width(radius, spread, float(far) * (1.0 + 1e-9) + 1e-6):
             coarsest = level
     return coarsest

@@ -81,6 +81,13 @@ def _basis(forward, up=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return f, r, u
 
 
+#: The octahedral camera's fixed frame (its kernels map directions, not this basis), made
+#: once, read-only as every camera shares it: a probe bake makes a camera per probe.
+_OCTAHEDRAL_BASIS = _basis((0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
+for _axis in _OCTAHEDRAL_BASIS:
+    _axis.flags.writeable = False
+
+
 @dataclass(frozen=True)
 class Camera:
     """A camera producing one ray per image position; immutable, packed for kernels."""
@@ -149,9 +156,8 @@ class Camera:
         """A light probe at ``position``: an R×R octahedral map of every direction; pixel
         (row, col) is texel (v, u) of ``kernels.octahedral`` (y up)."""
         resolution, _ = _image_size(resolution, resolution)
-        f, r, u = _basis((0.0, 0.0, -1.0), (0.0, 1.0, 0.0))
-        return cls(OCTAHEDRAL, _vector(position, "probe position"), f, r, u, 1.0, 1.0,
-                   resolution, resolution)
+        return cls(OCTAHEDRAL, _vector(position, "probe position"), *_OCTAHEDRAL_BASIS, 1.0,
+                   1.0, resolution, resolution)
 
     @property
     def params(self) -> np.ndarray:

@@ -165,7 +165,7 @@ def _setup(
     lod = ShadowLod(
         SHADOW_MODES[shadow_lod], float(lod_distance), refinements, float(threshold),
         float(decay), ENCODING_SH if encoding == "sh" else ENCODING_OCT,
-        np.ascontiguousarray(table.oct_map, np.float64), np.ascontiguousarray(table.sh, np.float64),
+        *table.kernel_maps,
     )
     params = {
         "shadow_lod": shadow_lod, "light_samples": int(light_samples), "seed": seed,

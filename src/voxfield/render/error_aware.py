@@ -162,7 +162,7 @@ def render_error_aware(
                             max_refinements, bool(reuse_parent))
     model = ErrorModel(
         float(threshold), float(decay), ENCODING_SH if encoding == "sh" else ENCODING_OCT,
-        np.ascontiguousarray(table.oct_map, np.float64), np.ascontiguousarray(table.sh, np.float64),
+        *table.kernel_maps,
         octree_children_sh_means(octree, table) if encoding == "sh" else np.zeros((0, 9)),
         bool(lighting_aware), float(bright_ratio), *light, float(colour_term),
         (octree.derived(("colour_error", channel, float(decay)),

