@@ -1,4 +1,5 @@
-"""The notice while kernels compile: said once, only when something compiles."""
+"""Progress on stderr: bars only on a terminal, and the notice while kernels compile, said
+once, only when something compiles."""
 
 from __future__ import annotations
 
@@ -6,7 +7,26 @@ import io
 
 from numba import njit
 
-from voxfield.progress import COMPILING, compile_notice
+from voxfield.progress import COMPILING, compile_notice, progress_bar
+
+
+class _Terminal(io.StringIO):
+    def isatty(self) -> bool:
+        return True
+
+
+def _bar_output(monkeypatch, stream, *, enabled: bool = True) -> str:
+    monkeypatch.setattr("sys.stderr", stream)
+    with progress_bar(total=3, desc="baking", enabled=enabled) as bar:
+        for _ in range(3):
+            bar.update(1)
+    return stream.getvalue()
+
+
+def test_a_bar_draws_on_a_terminal_only(monkeypatch):
+    assert "baking" in _bar_output(monkeypatch, _Terminal())
+    assert _bar_output(monkeypatch, io.StringIO()) == ""  # a log or a pipe
+    assert _bar_output(monkeypatch, _Terminal(), enabled=False) == ""  # --quiet
 
 
 def test_a_first_compile_is_announced_once_and_a_compiled_kernel_not_at_all():

@@ -22,8 +22,10 @@ class _NoBar:
 
 @contextlib.contextmanager
 def progress_bar(*, total: int, desc: str, unit: str = "it", enabled: bool = True):
-    """A tqdm bar that writes to stderr, when enabled; its ``update`` is all callers use."""
-    if not enabled:
+    """A tqdm bar on stderr when enabled and stderr is a terminal: redrawn in place there,
+    a bar written to a log or a pipe is a trail of carriage returns. Its ``update`` is all
+    callers use."""
+    if not enabled or not _is_terminal(sys.stderr):
         yield _NoBar()
         return
     bar = tqdm(
@@ -33,6 +35,11 @@ def progress_bar(*, total: int, desc: str, unit: str = "it", enabled: bool = Tru
         yield bar
     finally:
         bar.close()
+
+
+def _is_terminal(stream) -> bool:
+    isatty = getattr(stream, "isatty", None)
+    return bool(isatty and isatty())
 
 
 def _first_compile_listener(stream):
