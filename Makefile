@@ -22,12 +22,14 @@ $(STAMP): pyproject.toml
 DEMO_RENDER := $(BIN)/voxfield render builtin:pillars --camera orbit --size 384
 DEMO_JOBS   := $(shell nproc 2>/dev/null || echo 2)
 DEMO_IMAGES := demo-reference demo-lod2 demo-cone demo-error-mask
+# Each command's lines kept together where make can (GNU make 4; macOS's 3.81 interleaves).
+DEMO_SYNC   := $(if $(filter output-sync,$(.FEATURES)),--output-sync=target)
 .PHONY: $(DEMO_IMAGES)
 
 demo: $(STAMP)
 	$(BIN)/voxfield info builtin:pillars
 	@echo "rendering $(words $(DEMO_IMAGES)) pictures ($(DEMO_JOBS) at a time; a first run compiles the kernels: a minute or two)"
-	@$(MAKE) --no-print-directory -j$(DEMO_JOBS) --output-sync=target $(DEMO_IMAGES)
+	@$(MAKE) --no-print-directory -j$(DEMO_JOBS) $(DEMO_SYNC) $(DEMO_IMAGES)
 	$(DEMO_RENDER) --renderer reference --out out/pillars_reference.exr
 	@echo "demo images written to out/"
 
