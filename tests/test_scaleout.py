@@ -11,6 +11,7 @@ import threading
 import time
 import warnings
 
+import numba
 import pytest
 
 from voxfield import scaleout
@@ -160,3 +161,21 @@ def test_threads_need_no_dask():
     proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
                           timeout=60, check=True)
     assert proc.stdout.strip() == "False"
+
+
+def _kernel_threads_seen(shared, argument, kernel_threads):
+    return kernel_threads, numba.get_num_threads()
+
+
+def test_each_pool_thread_runs_its_kernels_on_its_share_of_the_cores():
+    """Numba's thread count is per Python thread: every kernel a task launches, not only
+    those its code wraps, must use the task's share (a two-core parallel region started off
+    the main thread took 70 µs to launch)."""
+    seen: dict[int, tuple] = {}
+    scaleout.run_tasks(_kernel_threads_seen, None, list(range(8)), seen.__setitem__,
+                       scheduler="threads")
+    cores = os.cpu_count() or 1
+    expected = None if cores == 1 else max(1, cores // min(8, cores))
+    assert {given for given, _ in seen.values()} == {expected}
+    if expected is not None:
+        assert {count for _, count in seen.values()} == {expected}

@@ -28,6 +28,16 @@ def thread_count(threads: int | None):
         numba.set_num_threads(previous)
 
 
+def use_threads_in_this_thread(threads: int | None) -> None:
+    """From now on, kernels this Python thread launches run on ``threads`` threads (None:
+    leave Numba's default). Numba's count is per Python thread, and a worker thread that
+    launched its kernels on every core paid for it: a parallel region started from a thread
+    other than the main one took 70 µs to launch on two cores, against 1 µs on one thread,
+    which made a bake of small probes on two worker threads 2.6× slower than serial."""
+    if threads is not None:
+        numba.set_num_threads(min(int(threads), numba.config.NUMBA_NUM_THREADS))
+
+
 #: Rays a band holds at least when its caller says how many a row casts: each band is a
 #: kernel call whose threads meet at its end, and a render of a 512² image in 16 bands took
 #: 0.97-1.11× the time of one call, 1.05× typically (mountain terrain, one ray a pixel,

@@ -36,6 +36,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
 from voxfield.errors import VoxfieldError
+from voxfield.parallel import use_threads_in_this_thread
 
 LOCAL_SCHEDULERS = ("threads", "processes", "serial")
 SCHEDULER_HELP = ("where independent pieces run: threads (a pool in this process), "
@@ -95,7 +96,9 @@ def _run_threads(task, shared, arguments, emit) -> None:
     kernel_threads = None if workers == 1 else max(1, cores // workers)
     upcoming = iter(enumerate(arguments))
     running: dict = {}
-    with ThreadPoolExecutor(workers, thread_name_prefix="voxfield-task") as pool:
+    with ThreadPoolExecutor(workers, thread_name_prefix="voxfield-task",
+                            initializer=use_threads_in_this_thread,
+                            initargs=(kernel_threads,)) as pool:
         try:
             while True:
                 for index, argument in itertools.islice(
