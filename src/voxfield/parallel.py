@@ -21,7 +21,7 @@ def thread_count(threads: int | None):
     if threads < 1:
         raise VoxfieldError(f"thread count must be at least 1, got {threads}")
     previous = numba.get_num_threads()
-    numba.set_num_threads(min(int(threads), numba.config.NUMBA_NUM_THREADS))
+    use_threads_in_this_thread(threads)
     try:
         yield
     finally:
