@@ -4,6 +4,7 @@ gets reads and lists every command exactly as the whole parser does."""
 from __future__ import annotations
 
 import argparse
+import ast
 import subprocess
 import sys
 
@@ -55,24 +56,23 @@ def test_an_end_of_options_marker_loads_every_command():
     assert list(_commands(build_parser(None))) == list(COMMANDS)
 
 
+def _loaded_after(argv: list[str], modules: tuple[str, ...]) -> list[bool]:
+    """Which of ``modules`` a fresh interpreter has imported after ``voxfield ARGV``."""
+    script = ("import sys\nfrom voxfield.cli.main import main\n"
+              f"try:\n    main({argv!r})\nexcept SystemExit:\n    pass\n"
+              f"print([m in sys.modules for m in {modules!r}])")
+    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                          timeout=120, check=True)
+    return ast.literal_eval(proc.stdout.strip().splitlines()[-1])
+
+
 @pytest.mark.parametrize("argv", [["--help"], ["report", "--help"], ["nosuch"]])
 def test_listing_and_light_commands_load_no_kernels(argv):
     """Numba and SciPy (0.2 s and more to import) stay unloaded until a command needs them."""
-    script = ("import sys\nfrom voxfield.cli.main import main\n"
-              f"try:\n    main({argv!r})\nexcept SystemExit:\n    pass\n"
-              "print(sorted(m for m in ('numba', 'scipy', 'voxfield.kernels') "
-              "if m in sys.modules))")
-    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                          timeout=120, check=True)
-    assert proc.stdout.strip().splitlines()[-1] == "[]"
+    assert _loaded_after(argv, ("numba", "scipy", "voxfield.kernels")) == [False] * 3
 
 
 def test_a_rendering_command_loads_its_kernels_and_no_terrain_filters():
     """SciPy's filters wait for the adaptive renderer or a terrain to need them."""
-    script = ("import sys\nfrom voxfield.cli.main import main\n"
-              "try:\n    main(['render', '--help'])\nexcept SystemExit:\n    pass\n"
-              "print([m in sys.modules for m in "
-              "('voxfield.kernels', 'scipy.ndimage', 'scipy.sparse')])")
-    proc = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                          timeout=120, check=True)
-    assert proc.stdout.strip().splitlines()[-1] == "[True, False, False]"
+    assert _loaded_after(["render", "--help"], ("voxfield.kernels", "scipy.ndimage",
+                                                "scipy.sparse")) == [True, False, False]
