@@ -40,6 +40,36 @@ def test_a_value_item_of_another_shape_is_recomputed(tmp_path, text):
     assert len(calls) == 2 and third.reused == ["quality"]
 
 
+def _edit_record(path, **changes) -> None:
+    record = json.loads(path.read_text())
+    record.update(changes)
+    path.write_text(json.dumps(record))
+
+
+@pytest.mark.parametrize("changes", [
+    {"data": []},                      # well formed, data of the wrong type
+    {"data": {"psnr": 99.0}},          # well formed, a value edited by hand
+    {"digest": "0" * 32},              # a damaged digest
+    {"digest": None},                  # a record from before digests
+])
+def test_a_record_this_folder_did_not_write_is_recomputed(tmp_path, changes):
+    calls = []
+
+    def compute():
+        calls.append(1)
+        return {"psnr": 30.0, "per_channel": [1.5, 2.25e-7], "nested": {"1": None}}
+
+    first = StudyFolder(tmp_path).value_item("quality", {"k": 1}, compute)
+    path = _one_item(StudyFolder(tmp_path))
+    untouched = StudyFolder(tmp_path)
+    assert untouched.value_item("quality", {"k": 1}, compute) == first
+    assert untouched.reused == ["quality"] and len(calls) == 1
+    _edit_record(path, **changes)
+    again = StudyFolder(tmp_path)
+    assert again.value_item("quality", {"k": 1}, compute) == first
+    assert again.computed == ["quality"] and len(calls) == 2
+
+
 def _render():
     h, w = 2, 3
     return RenderResult(

@@ -4,7 +4,9 @@ Every file goes through ``atomic_path``, so an interrupted study never leaves ha
 Expensive items (renders, metrics) are cached under ``items/`` as ``NAME-KEY.json`` (plus
 ``NAME-KEY.npz`` for arrays), ``KEY`` a hash of everything the item depends on; re-running the
 study with the same inputs loads them instead of recomputing, and changed inputs get new keys.
-The JSON file is written last, so it marks a complete item.
+The JSON file is written last, so it marks a complete item, and carries a digest of its own
+content, so a file this module did not write (hand-edited, or another tool's) is recomputed
+rather than trusted with data of the wrong shape.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ from voxfield.render.result import RenderResult
 from voxfield.scaleout import check_scheduler, run_tasks
 
 #: Bump when the cached item layout changes, so old caches are recomputed, not misread.
-CACHE_VERSION = 1
+CACHE_VERSION = 2
 
 _RESULT_ARRAYS = ("image", "depth", "normal", "ray_count", "hit_count", "steps", "finest_lod")
 _MAP_PREFIX = "map_"
@@ -51,6 +53,13 @@ def to_json(value):
     if isinstance(value, Path):
         return str(value)
     return value
+
+
+def _record_digest(record: dict) -> str:
+    """The hash ``_store`` writes beside an item's record: canonical JSON of the record as
+    written, which a loaded copy reproduces exactly (JSON floats round-trip)."""
+    text = json.dumps(to_json(record), sort_keys=True, allow_nan=False)
+    return hashlib.blake2b(text.encode(), digest_size=16).hexdigest()
 
 
 def params_key(params: dict) -> str:
@@ -166,8 +175,8 @@ class StudyFolder:
         if arrays:
             with atomic_path(npz_path) as tmp:
                 np.savez_compressed(tmp, **arrays)
-        self._write_json_file(json_path, {"item": name, "params": params, "data": data,
-                                          "arrays": sorted(arrays)})
+        record = {"item": name, "params": params, "data": data, "arrays": sorted(arrays)}
+        self._write_json_file(json_path, {**record, "digest": _record_digest(record)})
         self._written.add(json_path)
         self.computed.append(name)
         return to_json(data), dict(arrays)
@@ -230,10 +239,13 @@ class StudyFolder:
     @staticmethod
     def _load(json_path: Path, npz_path: Path):
         """The cached (data, arrays), or None for a file ``_store`` did not write (empty,
-        truncated, damaged, or JSON of another shape): such an item is recomputed."""
+        truncated, damaged, edited, or JSON of another shape): such an item is recomputed."""
         try:
             record = json.loads(json_path.read_text())
             if not isinstance(record, dict) or "data" not in record:
+                return None
+            digest = record.pop("digest", None)
+            if digest != _record_digest(record):
                 return None
             names = record.get("arrays") or []
             if not isinstance(names, list) or not all(isinstance(k, str) for k in names):
