@@ -47,3 +47,11 @@ def dask_client():
     with local_cluster(2, processes=False) as cluster, distributed.Client(cluster) as client:
         yield client
 
+
+
+@pytest.fixture
+def small_jobs_in_parallel(monkeypatch):
+    """Spread even the smallest job over every thread it is given: the tests that compare one
+    thread with two render small images, which would otherwise run on one thread both times
+    (``parallel.MIN_PARALLEL_RAYS``)."""
+    monkeypatch.setattr("voxfield.parallel.MIN_PARALLEL_RAYS", 1)

@@ -1,9 +1,14 @@
 """``parallel.run_in_bands``: every row once, in order, in bands of whole tiles that hold
-enough rays to be worth a kernel call."""
+enough rays to be worth a kernel call; ``threads_for``: small jobs on one thread."""
 
 import pytest
 
-from voxfield.parallel import BAND_RAYS, band_rows, run_in_bands
+from voxfield import parallel
+from voxfield.errors import VoxfieldError
+from voxfield.parallel import BAND_RAYS, MIN_PARALLEL_RAYS, band_rows, run_in_bands, threads_for
+from voxfield.render import orbit_camera, ray_query, render_lod, render_reference
+from voxfield.scene.builtin import pillars
+from voxfield.svo import build_octree
 
 
 def _bands(height: int, granule: int, rays_per_row: int) -> list[slice]:
@@ -40,3 +45,35 @@ def test_without_a_ray_count_bands_are_a_sixteenth_of_the_image():
     assert band_rows(20, 8) == 8
     # A row that alone exceeds the budget keeps the sixteenth.
     assert band_rows(512, 8, BAND_RAYS * 4) == 32
+
+
+def test_a_job_below_the_parallel_size_runs_on_one_thread():
+    assert threads_for(MIN_PARALLEL_RAYS - 1, None) == 1
+    assert threads_for(MIN_PARALLEL_RAYS - 1, 2) == 1
+    assert threads_for(0, None) == 1
+    assert threads_for(MIN_PARALLEL_RAYS, None) is None  # every thread, as before
+    assert threads_for(MIN_PARALLEL_RAYS, 2) == 2
+
+
+@pytest.mark.parametrize("rays", [1, MIN_PARALLEL_RAYS])
+@pytest.mark.parametrize("threads", [0, -1])
+def test_an_impossible_thread_count_is_refused_whatever_the_job(rays, threads):
+    with pytest.raises(VoxfieldError, match="at least 1"):
+        threads_for(rays, threads)
+
+
+@pytest.mark.parametrize("size, one_thread", [(8, True), (64, False)])
+def test_renders_and_queries_of_few_rays_launch_their_kernels_on_one_thread(
+        monkeypatch, size, one_thread):
+    octree = build_octree(pillars(16))
+    camera = orbit_camera(*octree.voxel_bounds, size=size)
+    origins, dirs = camera.rays()
+    counts = []  # the thread counts set for kernels (none: every thread, the default)
+    monkeypatch.setattr(parallel, "use_threads_in_this_thread", counts.append)
+    render_reference(octree, camera, side=1)
+    render_lod(octree, camera, lod=1)
+    ray_query.trace(octree, origins, dirs)
+    if one_thread:  # 64 rays each
+        assert counts and set(counts) == {1}
+    else:  # 4,096 rays each
+        assert counts == []

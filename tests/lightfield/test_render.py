@@ -177,7 +177,7 @@ def test_box_proxy_beats_the_environment_map_in_a_box_room(room):
     assert (env.maps["result_kind"] == result_kinds()["environment"]).all()
 
 
-def test_render_is_deterministic_and_thread_independent(room):
+def test_render_is_deterministic_and_thread_independent(room, small_jobs_in_parallel):
     _, probes = room
     camera = Camera.look_at((5.0, 7.0, 9.0), (9.0, 7.0, 2.0), width=24)
     a = render_from_probes(probes, camera, method="box-proxy", threads=1)

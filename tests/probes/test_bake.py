@@ -219,7 +219,7 @@ def test_disabled_probes_are_empty_and_flagged(box_octree):
     assert np.array_equal(probes.probe(2).radiance, single.radiance)
 
 
-def test_bake_is_deterministic_for_any_thread_count(box_octree):
+def test_bake_is_deterministic_for_any_thread_count(box_octree, small_jobs_in_parallel):
     grid = ProbeGrid.fit((1, 1, 1), (BOX - 1, BOX - 1, BOX - 1), (2, 1, 2))
     for renderer in ("reference", "error-aware"):
         options = BakeOptions(resolution=16, renderer=renderer, seed=5)

@@ -203,7 +203,7 @@ def test_one_refinement_level_at_most(box):
     assert np.array_equal(capped.image, baseline.image)
 
 
-def test_same_result_for_any_thread_count(box):
+def test_same_result_for_any_thread_count(box, small_jobs_in_parallel):
     cam = beam_camera(*box.voxel_bounds, size=32)
     one = render_direct_light(box, cam, shadow_lod="error-aware", light_samples=4, threads=1)
     two = render_direct_light(box, cam, shadow_lod="error-aware", light_samples=4, threads=2)

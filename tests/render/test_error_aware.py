@@ -96,7 +96,7 @@ def test_decay_adds_the_childrens_error(table, terrain):
     assert with_decay.total_rays >= without.total_rays
 
 
-def test_one_and_two_threads_agree(table, terrain):
+def test_one_and_two_threads_agree(table, terrain, small_jobs_in_parallel):
     cam = _top(terrain)
     a = render_error_aware(terrain, cam, table, threshold=0.1, threads=1)
     b = render_error_aware(terrain, cam, table, threshold=0.1, threads=2)
@@ -142,7 +142,7 @@ def test_parent_reuse_costs_three_new_rays_per_refinement(table, terrain):
         assert np.all(reused.maps["discarded"] <= refined)
 
 
-def test_parent_reuse_is_thread_count_independent(table, terrain):
+def test_parent_reuse_is_thread_count_independent(table, terrain, small_jobs_in_parallel):
     cam = _top(terrain)
     a = render_error_aware(terrain, cam, table, threshold=0.1, reuse_parent=True, threads=1)
     b = render_error_aware(terrain, cam, table, threshold=0.1, reuse_parent=True, threads=2)

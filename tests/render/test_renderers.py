@@ -37,7 +37,7 @@ def test_orthographic_view_of_a_flat_slab_is_its_colour_and_distance():
     assert np.all(result.finest_lod == 0)
 
 
-def test_one_and_two_threads_give_identical_output(pillar_octree):
+def test_one_and_two_threads_give_identical_output(pillar_octree, small_jobs_in_parallel):
     lo, hi = pillar_octree.voxel_bounds
     cam = orbit_camera(lo, hi, size=64)
     a = render_reference(pillar_octree, cam, side=4, seed=5, threads=1)

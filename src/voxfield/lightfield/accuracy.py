@@ -25,7 +25,7 @@ from voxfield.lightfield.trace import (
     MISS,
     UNKNOWN,
 )
-from voxfield.parallel import thread_count
+from voxfield.parallel import thread_count, threads_for
 from voxfield.render.camera import Camera
 
 #: A probe "sees" a point when its stored distance there is within this of the point's
@@ -60,7 +60,7 @@ def perfect_trace_image(packed: PackedProbes, camera: Camera, depth: np.ndarray,
     points = np.ascontiguousarray(origins[hit] + depth.reshape(-1)[hit, None] * dirs[hit])
     colour = np.zeros((len(points), 3), np.float64)
     probe = np.empty(len(points), np.int64)
-    with thread_count(threads):
+    with thread_count(threads_for(len(points), threads)):
         perfect_trace_rays(packed.positions, packed.enabled, packed.normals, packed.mips,
                            packed.radiance_bordered, packed.distance_bordered,
                            packed.resolution, points, np.ascontiguousarray(dirs[hit]),

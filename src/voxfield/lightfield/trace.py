@@ -20,7 +20,7 @@ from voxfield.kernels import probe_march as pm
 from voxfield.kernels import probe_multi as mk
 from voxfield.lightfield.cuda_trace import trace_light_field_cuda
 from voxfield.lightfield.packed import PackedProbes
-from voxfield.parallel import thread_count
+from voxfield.parallel import thread_count, threads_for
 from voxfield.render.device import check_device
 
 #: Result kinds, as stored in ``kind`` arrays.
@@ -274,7 +274,7 @@ def trace_single(packed: PackedProbes, probe: int, origins, dirs,
     col = np.empty(n, np.int32)
     fetches = np.empty(n, np.int64)
     steps = np.empty(n, np.int64)
-    with thread_count(threads):
+    with thread_count(threads_for(n, threads)):
         mk.trace_single_rays(MARCHERS[options.marcher], EPSILON_MODES[options.epsilon],
                              options.params(_pixel_angle(pixel_angle)), packed.positions,
                              packed.mips, packed.mip_offsets, packed.mip_sizes, packed.normals,
@@ -314,7 +314,7 @@ def trace_light_field(packed: PackedProbes, origins, dirs,
     if device == "cuda":
         trace_light_field_cuda(packed, modes, o, d, lo, hi, out)
         return out
-    with thread_count(threads):
+    with thread_count(threads_for(len(o), threads)):
         mk.trace_light_field_rays(
             mk.TraceModes(*modes), probe_field(packed), mk.RayBatch(o, d, lo, hi),
             mk.LightFieldOutputs(*(getattr(out, name) for name in mk.LightFieldOutputs._fields)),

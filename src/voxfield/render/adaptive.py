@@ -19,7 +19,7 @@ from voxfield.checks import integer_in, real_number
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
-from voxfield.parallel import thread_count
+from voxfield.parallel import thread_count, threads_for
 from voxfield.render.beam import Beam, primary_beam, raster_beam, raster_cells, raster_level
 from voxfield.render.camera import Camera
 from voxfield.render.device import check_device, trace_pixels_cuda
@@ -141,6 +141,7 @@ def render_adaptive(
     iterations = integer_in(iterations, "iterations", 0)
     if not real_number(variance_normalisation, "variance normalisation", finite=False) > 0:
         raise VoxfieldError("the variance normalisation must be positive")
+    threads = threads_for(camera.width * camera.height, threads)
     first = render_lod(octree, camera, lod=base_lod, seed=seed, channel=channel,
                        threads=threads, progress=progress, device=device, columns=columns)
     start = time.perf_counter()

@@ -187,13 +187,19 @@ def raster_beam(camera: Camera, columns, *, stop_level: int, depth: int,
     return beam
 
 
+def can_draw(camera: Camera, columns) -> bool:
+    """Whether ``raster_beam`` can draw any level for this camera: a pinhole and a pyramid
+    (a probe's octahedral map is not a projection of boxes to the image)."""
+    return camera.kind == PINHOLE and columns.level_width.shape[0] > 0
+
+
 def raster_level(camera: Camera, columns, *, stop_level: int, depth: int,
                  whole_pixel: bool) -> int | None:
     """The pyramid level ``raster_beam`` draws for these arguments, or None where it draws
     nothing (before it tries the camera's eye plane)."""
     levels = columns.level_width.shape[0]
     node_level = depth - min(stop_level, depth)
-    if levels == 0 or camera.kind != PINHOLE or node_level >= levels:
+    if not can_draw(camera, columns) or node_level >= levels:
         return None
     pixels = camera.width * camera.height
     cell_pixels = RASTER_CELL_PIXELS_SUPERSAMPLED if whole_pixel else RASTER_CELL_PIXELS
@@ -221,7 +227,7 @@ def pixel_start_bounds(octree: Octree, camera: Camera, columns, *, stop_level: i
     largest nodes their cones accept anywhere in the octree (``coarsest_cone_level``): on
     the 2048² mountain terrain (512²) their renders took 0.73-0.76× the block beam's time
     from the top, 0.79-0.81× at 45°, with one ray a pixel or 16, the same pixels."""
-    if enabled:
+    if enabled and can_draw(camera, columns):
         drawn_stop = stop_level
         if cone_scale > 0.0:
             drawn_stop = octree.depth - coarsest_cone_level(octree, camera, cone_scale, side)

@@ -37,7 +37,7 @@ from voxfield.kernels.direct_light import (
     render_direct_light_rows,
 )
 from voxfield.kernels.error_aware import ENCODING_OCT, ENCODING_SH
-from voxfield.parallel import run_in_bands, thread_count
+from voxfield.parallel import run_in_bands, thread_count, threads_for
 from voxfield.render.camera import Camera
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
@@ -205,6 +205,7 @@ def render_direct_light(
     colors = octree.channel("albedo")
     emission = octree.attributes["emission"]
     h, w = camera.height, camera.width
+    threads = threads_for(h * w * setup.params["light_samples"], threads)
     result = RenderResult.allocate(h, w, renderer=f"direct-{shadow_lod}")
     shadow_rays = np.empty((h, w), np.int32)
     shadow_traversals = np.empty((h, w), np.int32)
@@ -259,7 +260,7 @@ def light_on_surface(
     radiance = np.empty((n, 3))
     steps = np.empty(n, np.int64)
     lod = np.empty(n, np.float32)
-    with thread_count(threads):
+    with thread_count(threads_for(n * setup.params["light_samples"], threads)):
         direct_light_points(pts, nrm, seed, *setup.grid, setup.scene, setup.emitters, setup.lod,
                             radiance, steps, lod)
     return radiance, steps, lod

@@ -31,7 +31,7 @@ from voxfield.kernels.error_aware import (
     render_error_aware_rows,
 )
 from voxfield.kernels.neighbour_context import same_shape_neighbours
-from voxfield.parallel import run_in_bands, thread_count
+from voxfield.parallel import run_in_bands, thread_count, threads_for
 from voxfield.render.adaptive import luminance, refine_by_variance
 from voxfield.render.beam import pixel_start_bounds
 from voxfield.render.camera import Camera
@@ -153,6 +153,7 @@ def render_error_aware(
     colors, facing = octree.kernel_colours(channel)
     light = _lighting_arrays(lighting_table, lighting_aware)
     h, w = camera.height, camera.width
+    threads = threads_for(h * w, threads)
     result = RenderResult.allocate(h, w, renderer="error-aware")
     refined = np.empty((h, w), np.int32)
     discarded = np.empty((h, w), np.int32)

@@ -12,7 +12,7 @@ from voxfield.checks import integer_in, real_number, seed_value
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
-from voxfield.parallel import run_in_bands, thread_count
+from voxfield.parallel import run_in_bands, thread_count, threads_for
 from voxfield.render.beam import pixel_start_bounds
 from voxfield.render.camera import Camera
 from voxfield.render.device import check_device, trace_image_cuda
@@ -64,6 +64,7 @@ def trace_image(
     side = integer_in(side, "samples per pixel side", 1, 16)
     seed = seed_value(seed)
     check_device(device)
+    threads = threads_for(camera.width * camera.height * side * side, threads)
     drawn = beam and device == "cpu" and columns
     with thread_count(threads):
         bounds = pixel_start_bounds(

@@ -10,7 +10,7 @@ import numpy as np
 
 from voxfield.checks import integer_in, ray_arrays, real_number
 from voxfield.kernels.ray_batch import occlude_rays, trace_rays
-from voxfield.parallel import thread_count
+from voxfield.parallel import thread_count, threads_for
 from voxfield.svo.column_tops import no_column_tops, octree_column_tops
 from voxfield.svo.octree import Octree
 
@@ -53,7 +53,7 @@ def trace(
         node=np.empty(n, np.int64), level=np.empty(n, np.int64), t=np.empty(n),
         normal_code=np.empty(n, np.int64), steps=np.empty(n, np.int64),
     )
-    with thread_count(threads):
+    with thread_count(threads_for(n, threads)):
         trace_rays(
             o, d, tmin, tmax, octree.inner_nodes, octree.depth, octree.depth - lod,
             hits.node, hits.level, hits.t, hits.normal_code, hits.steps,
@@ -88,7 +88,7 @@ def occluded(
     n = len(o)
     result = Occlusions(blocked=np.empty(n, bool), steps=np.empty(n, np.int64))
     pyramid = octree_column_tops(octree) if columns else no_column_tops()
-    with thread_count(threads):
+    with thread_count(threads_for(n, threads)):
         occlude_rays(o, d, tmin, tmax, octree.inner_nodes, octree.depth,
                      pyramid, result.blocked, result.steps, numba.get_num_threads())
     return result
