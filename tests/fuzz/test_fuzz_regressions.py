@@ -7,7 +7,9 @@ import json
 
 import numpy as np
 import pytest
+from PIL import Image
 
+from cli_output import one_error_line
 from voxfield.cli import main
 from voxfield.data import data_root
 from voxfield.errors import OctreeFormatError, SceneFormatError
@@ -156,3 +158,75 @@ def test_a_header_without_a_scene_fingerprint_is_a_header_error(tmp_path, scene)
     _edit_header(folder, lambda header: header.update(scene=scene))
     with pytest.raises(ProbeHeaderError, match="fingerprint"):
         open_probe_set(folder)
+
+
+@pytest.mark.parametrize("arrays, words", [
+    ({"spacing": [1.0, 2.0, 3.0]}, "unreadable coordinates or spacing"),
+    ({"spacing": ["a"]}, "unreadable coordinates or spacing"),
+    ({"dx": np.ones(3), "dy": 1.0, "xmin": 0.0, "xmax": 9.0, "ymin": 0.0, "ymax": 9.0},
+     "unreadable coordinates or spacing"),
+    ({"latitude": np.array(["a"] * 10), "longitude": np.arange(10.0)},
+     "unreadable coordinates or spacing"),
+    # Metres per voxel that multiply to zero divided by zero in the column builder.
+    ({"dx": 1e-300, "dy": 1e-300, "xmin": 0.0, "xmax": 1e-299, "ymin": 0.0, "ymax": 1e-299},
+     "spacing must be at least"),
+])
+def test_dem_npz_metadata_that_is_not_numbers_is_one_clear_error(tmp_path, capsys, arrays,
+                                                                  words):
+    path = tmp_path / "dem.npz"
+    np.savez(path, elevation=np.arange(100.0).reshape(10, 10), **arrays)
+    assert main(["render", str(path), "--footprint", "32", "--quiet",
+                 "--out", str(tmp_path / "r.png")]) == 2
+    assert words in one_error_line(capsys)
+    assert not (tmp_path / "r.png").exists()
+
+
+@pytest.mark.parametrize("heights, words", [
+    # Their range overflows: every column once became a one-voxel slab, exit 0.
+    ([[0.0, 1.7e308], [0.0, -1.7e308]], "span more than a number can hold"),
+    # A range of one denormal metre: its voxels per metre overflow.
+    ([[0.0, 5e-324], [0.0, 0.0]], "too little to scale"),
+])
+def test_heights_whose_range_cannot_be_scaled_are_refused(tmp_path, capsys, heights, words):
+    path = tmp_path / "dem.npz"
+    np.savez(path, elevation=np.array(heights))
+    assert main(["render", str(path), "--footprint", "32", "--quiet",
+                 "--out", str(tmp_path / "r.png")]) == 2
+    assert words in one_error_line(capsys)
+
+
+@pytest.mark.parametrize("text, words", [
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 99999999999999999999999\n", "malformed face"),
+    ("v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/99999999999999999999 2/1 3/1\n",
+     "malformed face"),
+    ("v 0 0 0\nv 5e-324 0 0\nv 0 5e-324 0\nf 1 2 3\n", "too small to voxelize"),
+])
+def test_obj_indices_past_int64_and_denormal_meshes_are_one_clear_error(tmp_path, capsys,
+                                                                        text, words):
+    path = tmp_path / "m.obj"
+    path.write_text(text)
+    assert main(["render", str(path), "--quiet", "--out", str(tmp_path / "r.png")]) == 2
+    assert words in one_error_line(capsys)
+
+
+def test_a_texture_claiming_a_huge_size_is_skipped_with_a_note(tmp_path, capsys):
+    """Pillow refuses an image past its decompression-bomb limit with its own error."""
+    Image.MAX_IMAGE_PIXELS, before = 500, Image.MAX_IMAGE_PIXELS  # 40² is past twice it
+    try:
+        Image.fromarray(np.zeros((40, 40, 3), np.uint8)).save(tmp_path / "big.png")
+        (tmp_path / "m.mtl").write_text("newmtl a\nKd 0.5 0.5 0.5\nmap_Kd big.png\n")
+        (tmp_path / "m.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                        "vt 0 0\nvt 1 0\nvt 0 1\nusemtl a\nf 1/1 2/2 3/3\n")
+        assert main(["info", str(tmp_path / "m.obj")]) == 0
+    finally:
+        Image.MAX_IMAGE_PIXELS = before
+    assert "cannot be read" in capsys.readouterr().err
+
+
+def test_a_probe_header_nested_past_the_recursion_limit_is_one_clear_error(tmp_path):
+    bake_to_folder(build_octree(cornell(16)), ProbeGrid.fit([2, 2, 2], [14, 14, 14], [1, 1, 1]),
+                   BakeOptions(resolution=4), tmp_path / "p")
+    (tmp_path / "p" / "probes.json").write_text("[" * 100_000 + "]" * 100_000)
+    with pytest.raises(ProbeHeaderError, match="unreadable header"):
+        open_probe_set(tmp_path / "p")
+

@@ -244,7 +244,6 @@ def test_hierarchical_and_dda_agree_whatever_the_front_epsilon(cornell, cornell_
 
 @pytest.mark.parametrize(("origins", "dirs", "bounds", "message"), [
     ([[1.0, 2.0, 3.0]], [[0.0, 0.0, 0.0]], {}, "zero vector"),
-    ([[1.0, 2.0, 3.0]], [[1e-200, 0.0, 0.0]], {}, "too short to normalise"),  # squares to 0
     ([[1.0, 2.0, math.nan]], [[1.0, 0.0, 0.0]], {}, "NaN or infinity"),
     ([[1.0, 2.0]], [[1.0, 0.0]], {}, "N×3"),
     ([[1.0, 2.0, 3.0]], [[1.0, 0.0, 0.0]], {"tmin": math.nan}, "tmin must be finite"),
@@ -253,3 +252,34 @@ def test_hierarchical_and_dda_agree_whatever_the_front_epsilon(cornell, cornell_
 def test_bad_rays_are_refused(cornell_probe64, origins, dirs, bounds, message):
     with pytest.raises(VoxfieldError, match=message):
         trace_single(cornell_probe64, 0, origins, dirs, **bounds)
+
+
+@pytest.mark.parametrize("direction", [[1e-200, 0.0, 0.0], [1e200, 1e200, 0.0],
+                                       [5e-324, -5e-324, 1e-320], [1e308, -1e308, 1e308]])
+def test_a_direction_of_any_finite_length_is_normalised(cornell_probe64, direction):
+    """Its square underflows to 0 or overflows to infinity: the ray is still the unit one."""
+    origin = [CORNELL_PROBE - [3.0, 2.0, 1.0]]
+    unit = np.sign(direction)[None, :]
+    got = trace_single(cornell_probe64, 0, origin, [direction])
+    want = trace_single(cornell_probe64, 0, origin, unit)
+    assert got.kind[0] == want.kind[0]
+    assert got.t[0] == pytest.approx(want.t[0], abs=1e-9)
+
+
+@pytest.mark.parametrize("marcher", ["hierarchical", "dda", "march3d"])
+@pytest.mark.parametrize("axis", range(6))
+def test_a_ray_through_the_probe_centre_answers_as_one_from_it(cornell_probe64, marcher,
+                                                                axis):
+    """An axis-aligned ray through the centre has an octant piece that ends there exactly,
+    a single texel (every point of it lies along -ω): its answer past the centre is that of
+    the ray starting at the centre, a hit two voxels further on (the probe sees the two
+    voxels before it empty). Rays out of the open side miss or leave what it sees."""
+    direction = np.zeros((1, 3))
+    direction[0, axis // 2] = 1.0 if axis % 2 == 0 else -1.0
+    options = LightFieldOptions(marcher=marcher)
+    through = trace_single(cornell_probe64, 0, CORNELL_PROBE - 2.0 * direction, direction,
+                           options)
+    start = trace_single(cornell_probe64, 0, CORNELL_PROBE[None, :], direction, options)
+    assert through.kind[0] == start.kind[0]
+    if start.kind[0] == HIT:
+        assert through.t[0] == pytest.approx(start.t[0] + 2.0, abs=1e-6)

@@ -182,7 +182,11 @@ def piece_setup(ax: float, ay: float, az: float, dx: float, dy: float, dz: float
         else:  # the piece ends at the probe centre, arriving along -ω
             u1, v1 = encode_in_octant(-dx, -dy, -dz, sx, sy, sz)
         tau1 = t1 - t0
-        scale = tau1 / (a0 + tau1 * b)
+        # 0 where the ray runs through the probe centre: every point of the piece lies
+        # along -ω, one texel, and ``walk_piece`` takes the degenerate segment without
+        # ``piece_t``.
+        end_l1 = a0 + tau1 * b
+        scale = tau1 / end_l1 if end_l1 != 0.0 else math.inf
     xa = u0 * resolution
     ya = v0 * resolution
     return xa, ya, u1 * resolution - xa, v1 * resolution - ya, a0, b, scale

@@ -240,10 +240,10 @@ class LightFieldHits:
 
 def _rays(origins, dirs, tmin, tmax):
     o, d = ray_arrays(origins, dirs)
-    length = np.linalg.norm(d, axis=1)
-    if not np.all(length > 0):  # (1e-200, 0, 0) squares to zero
-        raise VoxfieldError("a ray direction is too short to normalise")
-    d = np.ascontiguousarray(d / length[:, None])
+    # Scaled to a largest component of 1 first: (1e-200, 0, 0) squares to zero and
+    # (1e200, 1e200, 0) to infinity.
+    d = d / np.abs(d).max(axis=1)[:, None]
+    d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1)[:, None])
     n = len(o)
     lo = np.ascontiguousarray(np.broadcast_to(np.asarray(tmin, np.float64), (n,)))
     hi = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, np.float64), (n,)))

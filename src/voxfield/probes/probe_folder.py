@@ -173,7 +173,7 @@ def read_header(folder: str | os.PathLike) -> dict:
                                "or its bake never started (run voxfield bake)")
     try:
         header = json.loads(path.read_text())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise ProbeHeaderError(f"{path}: unreadable header ({exc}); re-bake with --fresh") from exc
     if not isinstance(header, dict) or header.get("format") != FORMAT_NAME:
         raise ProbeHeaderError(f"{path}: not a {FORMAT_NAME} header")

@@ -373,7 +373,7 @@ def _parse_faces(rows: list[str], path: Path) -> tuple[np.ndarray, np.ndarray, n
         fields = [t.split("/") for t in tokens]
         v = np.array([f[0] for f in fields], dtype=np.int64)
         vt = np.array([f[1] if len(f) > 1 and f[1] else "0" for f in fields], dtype=np.int64)
-    except ValueError as exc:
+    except (ValueError, OverflowError) as exc:  # an index past int64 overflows
         raise SceneFormatError(f"{path}: malformed face ('f') line ({exc})") from exc
     return v, vt, counts
 
@@ -460,7 +460,7 @@ def _read_texture(path: Path, owner: Path) -> np.ndarray | None:
     try:
         with Image.open(path) as img:
             rgb = np.asarray(img.convert("RGB"), dtype=np.float32) / 255.0
-    except (OSError, UnidentifiedImageError, ValueError) as exc:
+    except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError) as exc:
         warnings.warn(
             f"{owner}: texture {path} cannot be read ({exc}); using the material colour",
             stacklevel=4,

@@ -76,6 +76,9 @@ def place_mesh(mesh: TriangleMesh, resolution: int = 512, *, padding: int = 0) -
     if not np.isfinite(longest) or longest <= 0.0:
         raise VoxfieldError(f"mesh {mesh.name!r} has no extent to voxelize")
     scale = resolution * (1.0 - 2.0 * INSET) / longest
+    if not np.isfinite(scale):  # a side of a few denormals: its reciprocal overflows
+        raise VoxfieldError(f"mesh {mesh.name!r} is too small to voxelize (its longest side "
+                            f"is {longest:g})")
     span = (hi - lo) * scale
     # Each axis gets the fewest whole voxels that hold it, with the mesh centred in them, so
     # no outer face sits on a grid plane (which would occupy one extra layer).

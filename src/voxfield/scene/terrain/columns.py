@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from voxfield.checks import is_integer, is_real
-from voxfield.errors import VoxfieldError
+from voxfield.errors import SceneFormatError, VoxfieldError
 from voxfield.scene.terrain.dem import Heightmap, load_heightmap
 from voxfield.scene.terrain.resample import fill_voids, resample
 
@@ -148,6 +148,10 @@ def terrain_columns(
         surface = np.maximum(elev, sea_level)
     lo = float(surface.min())
     relief = float(surface.max()) - lo
+    if not (np.isfinite(surface).all() and math.isfinite(relief)):
+        low, high = np.nanmin(hm.elevation), np.nanmax(hm.elevation)
+        raise SceneFormatError(f"{hm.name}: heights from {low:g} to {high:g} m span more than "
+                               "a number can hold; nothing to build")
 
     metres_per_voxel = None
     if hm.spacing is not None:
@@ -158,6 +162,9 @@ def terrain_columns(
         vpm = vertical_scale * (footprint // 4) / relief if relief > 0 else 1.0
     if relief * vpm > relief_cap:
         vpm = relief_cap / relief
+    if not math.isfinite(vpm):  # a relief of a few denormal metres
+        raise SceneFormatError(f"{hm.name}: heights span only {relief:g} m, too little to "
+                               "scale into voxels")
 
     top = np.minimum(np.rint((surface - lo) * vpm), relief_cap).astype(np.int32)
     low_nbr = top.copy()

@@ -96,9 +96,10 @@ class Heightmap:
             spacing = self.geo.spacing_m(elev.shape[0])
         if spacing is not None:
             spacing = tuple(float(s) for s in np.broadcast_to(np.asarray(spacing, float), (2,)))
-            if not all(math.isfinite(s) and s > 0 for s in spacing):
+            if not all(math.isfinite(s) and s >= MIN_PIXEL_SCALE for s in spacing):
                 raise SceneFormatError(
-                    f"{self.name}: spacing must be positive metres, got {spacing}"
+                    f"{self.name}: spacing must be at least {MIN_PIXEL_SCALE:g} m, got "
+                    f"{spacing}"
                 )
         object.__setattr__(self, "spacing", spacing)
 
@@ -333,12 +334,15 @@ def read_npz(path, name: str | None = None) -> Heightmap:
     elev = np.asarray(elev)
     if elev.ndim != 2:
         raise SceneFormatError(f"{path}: 'elevation' must be 2-D, got shape {elev.shape}")
-    geo, flip = _npz_grid(data, elev.shape)
+    try:
+        geo, flip = _npz_grid(data, elev.shape)
+        spacing = None
+        if "spacing" in data:
+            spacing = tuple(np.broadcast_to(np.asarray(data["spacing"], float), (2,)))
+    except (ValueError, TypeError) as exc:  # coordinates or spacing not numbers, or shaped
+        raise SceneFormatError(f"{path}: unreadable coordinates or spacing ({exc})") from exc
     if flip:
         elev = elev[::-1]
-    spacing = None
-    if "spacing" in data:
-        spacing = tuple(np.broadcast_to(np.asarray(data["spacing"], float), (2,)))
     return Heightmap(elev, spacing=spacing, geo=geo, name=name)
 
 
