@@ -230,3 +230,15 @@ def test_a_probe_header_nested_past_the_recursion_limit_is_one_clear_error(tmp_p
     with pytest.raises(ProbeHeaderError, match="unreadable header"):
         open_probe_set(tmp_path / "p")
 
+
+def test_probe_records_swapped_in_the_header_are_caught(tmp_path):
+    """Each record's file and checksum agree, so only the file's name tells that probe 0's
+    record now points at probe 1's maps."""
+    folder = tmp_path / "p"
+    bake_to_folder(build_octree(cornell(16)), ProbeGrid.fit([2, 2, 2], [14, 14, 14], [2, 1, 1]),
+                   BakeOptions(resolution=4), folder)
+    header = json.loads((folder / "probes.json").read_text())
+    header["probes"]["0"], header["probes"]["1"] = header["probes"]["1"], header["probes"]["0"]
+    (folder / "probes.json").write_text(json.dumps(header))
+    with pytest.raises(ProbeFileError, match="probe 0"):
+        open_probe_set(folder)

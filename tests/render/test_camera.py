@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -161,3 +163,19 @@ def test_ortho_top_renders_what_a_camera_just_above_sees_with_every_block_bounde
         faced = np.any(low.normal != 0, axis=-1)
         assert np.array_equal(high.normal[faced], low.normal[faced])
         assert np.all(np.any(high.normal != 0, axis=-1)[high.hit_count > 0])
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"position": np.full(3, np.nan)}, "position"),
+    ({"position": np.array([1.0, 2.0])}, "position"),
+    ({"forward": np.zeros(3)}, "orthonormal"),
+    ({"up": np.array([0.0, 2.0, 0.0])}, "orthonormal"),
+    ({"right": np.array([np.inf, 0.0, 0.0])}, "right"),
+    ({"kind": 9}, "kind"),
+])
+def test_a_camera_built_or_replaced_field_by_field_is_checked(change, words):
+    """The constructors make valid cameras; one assembled by hand, or by
+    ``dataclasses.replace``, rendered black or its packed parameters shifted."""
+    camera = Camera.look_at((40.0, 40.0, 40.0), (16.0, 16.0, 16.0), width=8)
+    with pytest.raises(CameraError, match=words):
+        dataclasses.replace(camera, **change)

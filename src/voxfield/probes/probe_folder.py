@@ -285,7 +285,11 @@ def read_probe(folder: Path, index: int, header: dict) -> tuple[np.ndarray, ...]
     if not isinstance(record, dict):
         raise ProbeHeaderError(f"{Path(folder) / HEADER_NAME}: probe {index}'s record is "
                                f"{record!r}, not an object; re-bake with --fresh")
-    path = Path(folder) / str(record.get("file", probe_file_name(index)))
+    name = str(record.get("file", probe_file_name(index)))
+    if name != probe_file_name(index):  # records swapped or edited: another probe's maps
+        raise ProbeFileError(f"{Path(folder) / HEADER_NAME}: probe {index}'s record names "
+                             f"{name!r}, not its own file; resume the bake to re-bake it")
+    path = Path(folder) / name
     if not path.is_file():
         raise ProbeFileError(f"{path}: probe {index}'s file is missing; resume the bake to "
                              "re-bake it")

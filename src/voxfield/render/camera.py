@@ -103,7 +103,21 @@ class Camera:
     height: int
 
     def __post_init__(self) -> None:
+        """The constructors make valid cameras; this catches one assembled field by field
+        (or by ``dataclasses.replace``), whose packed parameters the kernels would misread."""
         _image_size(self.width, self.height)
+        if self.kind not in (PINHOLE, ORTHOGRAPHIC, OCTAHEDRAL):
+            raise CameraError(f"unknown camera kind {self.kind!r}")
+        try:
+            vectors = np.array([self.position, self.forward, self.right, self.up], np.float64)
+        except (TypeError, ValueError):  # ragged, or not numbers
+            vectors = None
+        if vectors is None or vectors.shape != (4, 3) or not np.isfinite(vectors).all():
+            raise CameraError("camera position, forward, right and up must be three finite "
+                              "numbers each")
+        basis = vectors[1:]
+        if not np.abs(basis @ basis.T - np.eye(3)).max() <= 1e-9:
+            raise CameraError("camera forward, right and up must be orthonormal")
         if not (np.isfinite(self.half_width) and np.isfinite(self.half_height)):
             raise CameraError("camera field of view or extent is not finite")
         if self.half_width <= 0.0 or self.half_height <= 0.0:
