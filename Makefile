@@ -3,11 +3,10 @@ PYTHON ?= python3
 VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
-# Numba compiles once per machine; keep its cache inside the checkout. Numba checks only a
-# cached function's own file, not the kernels it inlines from other files, so the cache
-# folder is keyed on the text of every file with a kernel: an edit anywhere recompiles.
-KERNEL_HASH := $(shell grep -rl --include='*.py' njit src | sort | xargs cat | sha1sum | cut -c1-12)
-export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache/$(KERNEL_HASH)
+# Numba compiles once per machine; keep its cache inside the checkout. voxfield keys a folder
+# inside it on its source (Numba checks only a cached function's own file, not the code it
+# inlines from other files), so an edit recompiles.
+export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
 
 .PHONY: demo test fuzz lint bench clean
 

@@ -64,9 +64,9 @@ from typing import NamedTuple
 
 import numpy as np
 
-# First, so that Numba's kernel cache is the folder voxfield keys on its source digest (or
-# the caller's NUMBA_CACHE_DIR): a fixed folder would keep kernels compiled against another
-# file's old code after an edit.
+# First, so that Numba's kernel cache is the folder voxfield keys on its source digest
+# (inside the caller's NUMBA_CACHE_DIR, if set): an unkeyed folder would keep kernels
+# compiled against another file's old code after an edit.
 import voxfield  # noqa: F401
 
 PEER_HELP = (

@@ -11,21 +11,9 @@ import pytest
 sys.path.insert(0, str(Path(__file__).parent))
 
 
-def _kernel_cache_dir() -> Path:
-    """``.numba_cache/<hash of every file with a kernel>``: Numba revalidates a cached function
-    against its own file only, so an edited kernel inlined elsewhere needs a fresh folder."""
-    import hashlib
-
-    src = Path(__file__).parents[1] / "src"
-    digest = hashlib.sha1()
-    for path in sorted(src.rglob("*.py")):
-        text = path.read_bytes()
-        if b"njit" in text:
-            digest.update(text)
-    return Path(__file__).parents[1] / ".numba_cache" / digest.hexdigest()[:12]
-
-
-os.environ.setdefault("NUMBA_CACHE_DIR", str(_kernel_cache_dir()))
+# Compiled kernels stay in the checkout; voxfield keys a folder inside on its source, so an
+# edited kernel (or code it inlines from another file) is compiled afresh.
+os.environ.setdefault("NUMBA_CACHE_DIR", str(Path(__file__).parents[1] / ".numba_cache"))
 
 from voxfield.data import data_root  # noqa: E402
 from voxfield.scaleout import local_cluster  # noqa: E402

@@ -2,6 +2,7 @@
 
 import hashlib
 import os
+import sys
 from pathlib import Path
 
 
@@ -18,15 +19,29 @@ def _source_digest() -> str:
 SOURCE_DIGEST = _source_digest()
 
 
+#: The folder of Numba's cache this source compiles into, inside the chosen cache folder.
+KERNEL_CACHE_KEY = f"voxfield-{SOURCE_DIGEST}"
+
+
 def _keyed_numba_cache() -> None:
-    """Point Numba's cache at a folder keyed on this package's source, unless the user chose
-    one: Numba revalidates a cached kernel against its own file only, so a kernel that inlines
-    an edited kernel from another file would otherwise run stale code after an upgrade.
-    (No effect if Numba was imported before voxfield.)"""
-    if "NUMBA_CACHE_DIR" in os.environ:
-        return
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
-    os.environ["NUMBA_CACHE_DIR"] = str(base / "voxfield" / "numba" / SOURCE_DIGEST)
+    """Point Numba's cache at ``KERNEL_CACHE_KEY`` inside the folder ``NUMBA_CACHE_DIR``
+    names, or inside ``~/.cache/voxfield/numba``. Numba revalidates a cached kernel against
+    its own file only, so a kernel that inlines code from another file (an edited helper, a
+    constant, a lowering in ``kernels.scalar_ops``) would otherwise run stale code after an
+    edit or an upgrade, in a folder the user chose as much as in ours. A folder already keyed
+    (a child process's inherited setting) is kept. Numba imported before voxfield rereads its
+    settings, before any kernel of ours asks where its cache is."""
+    chosen = os.environ.get("NUMBA_CACHE_DIR")
+    if chosen:
+        base = Path(chosen)
+    else:
+        base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache")
+        base = base / "voxfield" / "numba"
+    if base.name != KERNEL_CACHE_KEY:
+        os.environ["NUMBA_CACHE_DIR"] = str(base / KERNEL_CACHE_KEY)
+    config = sys.modules.get("numba.core.config")
+    if config is not None:
+        config.reload_config()
 
 
 _keyed_numba_cache()
