@@ -5,7 +5,14 @@ import pytest
 
 from voxfield import parallel
 from voxfield.errors import VoxfieldError
-from voxfield.parallel import BAND_RAYS, MIN_PARALLEL_RAYS, band_rows, run_in_bands, threads_for
+from voxfield.parallel import (
+    BAND_RAYS,
+    MIN_PARALLEL_RAYS,
+    band_rows,
+    run_in_bands,
+    thread_count,
+    threads_for,
+)
 from voxfield.render import orbit_camera, ray_query, render_lod, render_reference
 from voxfield.scene.builtin import pillars
 from voxfield.svo import build_octree
@@ -56,10 +63,13 @@ def test_a_job_below_the_parallel_size_runs_on_one_thread():
 
 
 @pytest.mark.parametrize("rays", [1, MIN_PARALLEL_RAYS])
-@pytest.mark.parametrize("threads", [0, -1])
+@pytest.mark.parametrize("threads", [0, -1, 1.5, "2", True])
 def test_an_impossible_thread_count_is_refused_whatever_the_job(rays, threads):
-    with pytest.raises(VoxfieldError, match="at least 1"):
+    with pytest.raises(VoxfieldError, match="thread count must be an integer"):
         threads_for(rays, threads)
+    with pytest.raises(VoxfieldError, match="thread count must be an integer"):
+        with thread_count(threads):
+            pass
 
 
 @pytest.mark.parametrize("size, one_thread", [(8, True), (64, False)])

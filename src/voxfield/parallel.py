@@ -8,7 +8,7 @@ import time
 
 import numba
 
-from voxfield.errors import VoxfieldError
+from voxfield.checks import integer_in
 from voxfield.progress import progress_bar
 
 #: Fewest rays (pixels times their samples, or queries) a job spreads over more than one
@@ -23,19 +23,18 @@ MIN_PARALLEL_RAYS = 1024
 def threads_for(rays: int, threads: int | None) -> int | None:
     """The thread count for a job of ``rays`` rays: one below ``MIN_PARALLEL_RAYS``, else
     ``threads`` (None: all). Results do not depend on it."""
-    _check_threads(threads)
+    threads = _checked_threads(threads)
     return 1 if rays < MIN_PARALLEL_RAYS else threads
 
 
-def _check_threads(threads: int | None) -> None:
-    if threads is not None and threads < 1:
-        raise VoxfieldError(f"thread count must be at least 1, got {threads}")
+def _checked_threads(threads) -> int | None:
+    return None if threads is None else integer_in(threads, "thread count", 1)
 
 
 @contextlib.contextmanager
 def thread_count(threads: int | None):
     """Run kernels on ``threads`` threads (None: all); results do not depend on it."""
-    _check_threads(threads)
+    threads = _checked_threads(threads)
     if threads is None:
         yield
         return
