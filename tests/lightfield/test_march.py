@@ -283,3 +283,12 @@ def test_a_ray_through_the_probe_centre_answers_as_one_from_it(cornell_probe64, 
     assert through.kind[0] == start.kind[0]
     if start.kind[0] == HIT:
         assert through.t[0] == pytest.approx(start.t[0] + 2.0, abs=1e-6)
+
+
+def test_options_none_are_the_defaults_and_another_type_is_refused(cornell_probe64):
+    origin, direction = [CORNELL_PROBE], [[0.3, -0.2, 0.9]]
+    default = trace_single(cornell_probe64, 0, origin, direction, LightFieldOptions())
+    none = trace_single(cornell_probe64, 0, origin, direction, None)
+    assert none.kind[0] == default.kind[0] and none.t[0] == default.t[0]
+    with pytest.raises(VoxfieldError, match="LightFieldOptions"):
+        trace_single(cornell_probe64, 0, origin, direction, {"marcher": "dda"})

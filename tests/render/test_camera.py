@@ -11,7 +11,13 @@ from random_scenes import overhanging_terrain
 from voxfield.errors import CameraError
 from voxfield.render import render_lod
 from voxfield.render.beam import pixel_start_bounds
-from voxfield.render.camera import Camera, cube_cameras, ortho_top_camera, top_down_camera
+from voxfield.render.camera import (
+    Camera,
+    cube_cameras,
+    ortho_top_camera,
+    preset_camera,
+    top_down_camera,
+)
 from voxfield.svo import build_octree
 from voxfield.svo.column_tops import octree_column_tops
 
@@ -179,3 +185,13 @@ def test_a_camera_built_or_replaced_field_by_field_is_checked(change, words):
     camera = Camera.look_at((40.0, 40.0, 40.0), (16.0, 16.0, 16.0), width=8)
     with pytest.raises(CameraError, match=words):
         dataclasses.replace(camera, **change)
+
+
+@pytest.mark.parametrize("lo, hi, fov, words", [
+    ([0.0, 0.0], [32.0, 32.0], None, "box minimum"),
+    ([32.0, 0.0, 0.0], [0.0, 32.0, 32.0], None, "exceeds its maximum"),
+    ([0.0, 0.0, 0.0], [32.0, 32.0, 32.0], 0.0, "field of view"),  # once the preset's own
+])
+def test_a_preset_view_of_an_impossible_box_or_field_is_refused(lo, hi, fov, words):
+    with pytest.raises(CameraError, match=words):
+        preset_camera("top", lo, hi, size=8, fov_deg=fov)

@@ -37,7 +37,7 @@ from voxfield.lightfield.baselines import (
     nearest_probe,
 )
 from voxfield.lightfield.packed import PackedProbes
-from voxfield.lightfield.trace import KIND_NAMES, LightFieldOptions, trace_light_field
+from voxfield.lightfield.trace import KIND_NAMES, checked_options, trace_light_field
 from voxfield.parallel import run_in_bands
 from voxfield.render.camera import Camera
 from voxfield.render.device import check_device
@@ -151,9 +151,7 @@ def _baseline_query(probe_set, method: str, filter: str, box):
 def _light_field_query(probe_set, camera: Camera, options, packed, device: str):
     """A band function for ``trace_light_field``, and the options to record."""
 
-    options = LightFieldOptions() if options is None else options
-    if not isinstance(options, LightFieldOptions):
-        raise VoxfieldError(f"options must be LightFieldOptions, got {type(options).__name__}")
+    options = checked_options(options)
     if packed is None:
         packed = (probe_set if isinstance(probe_set, PackedProbes)
                   else PackedProbes.from_probe_set(probe_set))

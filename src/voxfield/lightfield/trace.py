@@ -238,6 +238,15 @@ class LightFieldHits:
         return out
 
 
+def checked_options(options) -> LightFieldOptions:
+    """The trace's options: the defaults for None."""
+    if options is None:
+        return LightFieldOptions()
+    if not isinstance(options, LightFieldOptions):
+        raise VoxfieldError(f"options must be LightFieldOptions, got {type(options).__name__}")
+    return options
+
+
 def _rays(origins, dirs, tmin, tmax):
     o, d = ray_arrays(origins, dirs)
     # Scaled to a largest component of 1 first: (1e-200, 0, 0) squares to zero and
@@ -266,6 +275,7 @@ def trace_single(packed: PackedProbes, probe: int, origins, dirs,
     if not -packed.count <= probe < packed.count:
         raise VoxfieldError(f"probe index {probe} is outside 0..{packed.count - 1}")
     probe = int(probe) % packed.count
+    options = checked_options(options)
     o, d, lo, hi = _rays(origins, dirs, tmin, tmax)
     n = len(o)
     kind = np.empty(n, np.int8)
@@ -304,6 +314,7 @@ def trace_light_field(packed: PackedProbes, origins, dirs,
     ``device="cuda"`` traces them on a GPU (``lightfield.cuda_trace``) with the same
     results."""
     check_device(device)
+    options = checked_options(options)
     if not packed.enabled.any():
         raise VoxfieldError("no probe of the set is enabled; bake some probes first")
     o, d, lo, hi = _rays(origins, dirs, tmin, tmax)

@@ -37,6 +37,12 @@ def _vector(value, what: str) -> np.ndarray:
 MIN_FOV_DEG = 0.01
 
 
+def _check_fov(fov_deg) -> None:
+    if not (MIN_FOV_DEG <= float(fov_deg) < 180.0):
+        raise CameraError(f"field of view must be at least {MIN_FOV_DEG} and below 180 "
+                          f"degrees, got {fov_deg}")
+
+
 #: Largest image side, for the library's cameras and the command line alike.
 MAX_IMAGE_SIDE = 16384
 
@@ -131,9 +137,7 @@ class Camera:
         """Pinhole camera; ``fov_deg`` is the vertical field of view. ``up`` defaults to the
         world's, or to ``VERTICAL_VIEW_UP`` for a view straight down or up."""
         width, height = _image_size(width, height)
-        if not (MIN_FOV_DEG <= float(fov_deg) < 180.0):
-            raise CameraError(f"field of view must be at least {MIN_FOV_DEG} and below 180 "
-                              f"degrees, got {fov_deg}")
+        _check_fov(fov_deg)
         eye = _vector(eye, "eye")
         f, r, u = _basis(_vector(target, "target") - eye, up)
         half_h = float(np.tan(np.radians(fov_deg) / 2.0))
@@ -307,9 +311,13 @@ def preset_camera(name: str, bounds_min, bounds_max, *, size: int = 512,
     if name not in CAMERA_PRESETS:
         raise CameraError(f"unknown camera {name!r}; use {', '.join(CAMERA_PRESETS)} "
                             "or --eye/--target")
-    fov = fov_deg or CAMERA_PRESETS[name][0]
-    lo = np.asarray(bounds_min, np.float64)
-    hi = np.asarray(bounds_max, np.float64)
+    fov = CAMERA_PRESETS[name][0] if fov_deg is None else fov_deg
+    if fov is not None:
+        _check_fov(fov)
+    lo = _vector(bounds_min, "box minimum")
+    hi = _vector(bounds_max, "box maximum")
+    if np.any(lo > hi):
+        raise CameraError(f"the box's minimum {lo.tolist()} exceeds its maximum {hi.tolist()}")
     if name.startswith("cube"):
         return Camera.cube_face((lo + hi) / 2.0, name[4:], size=size)
     if name == "ortho-top":

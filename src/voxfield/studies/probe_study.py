@@ -40,7 +40,7 @@ from voxfield.lightfield.packed import PackedProbes
 from voxfield.lightfield.probe_render import render_from_probes, result_kinds
 from voxfield.lightfield.trace import MARCHERS as KNOWN_MARCHERS
 from voxfield.lightfield.trace import ORDERINGS as KNOWN_ORDERINGS
-from voxfield.lightfield.trace import LightFieldOptions
+from voxfield.lightfield.trace import checked_options
 from voxfield.metrics import compare_images
 from voxfield.probes.bake import bake_probes
 from voxfield.probes.distributed import bake_probes_dask
@@ -113,9 +113,9 @@ def run_probe_study(
     ``relocate_probes`` probes are moved out of geometry (``probes.grid.relocate``) first.
     """
 
-    options = LightFieldOptions() if options is None else options
+    options = checked_options(options)
     plan = _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, marchers,
-                         count_resolution, options, timing_repeats)
+                         count_resolution, timing_repeats)
     folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
     study = _Study(octree, camera, folder, options, channel=channel, seed=seed,
                    relocate_probes=relocate_probes, scene_name=scene_name)
@@ -188,12 +188,10 @@ def run_probe_study(
 
 
 def _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, marchers,
-                  count_resolution, options, timing_repeats) -> dict:
+                  count_resolution, timing_repeats) -> dict:
     """The study's parameters, validated, as plain tuples; bad ones raise VoxfieldError."""
     if not isinstance(camera, Camera):
         raise VoxfieldError(f"camera must be a voxfield Camera, got {type(camera).__name__}")
-    if not isinstance(options, LightFieldOptions):
-        raise VoxfieldError(f"options must be LightFieldOptions, got {type(options).__name__}")
     resolutions = tuple(sorted(set(_positive_ints(resolutions, "probe resolutions"))))
     for r in resolutions:
         if not MIN_RESOLUTION <= r <= MAX_RESOLUTION:
