@@ -13,10 +13,12 @@ from voxfield.progress import progress_bar
 
 #: Fewest rays (pixels times their samples, or queries) a job spreads over more than one
 #: thread. A parallel region's threads meet at its end, so a region waits for a thread that
-#: another process holds off its core: beside one busy process, a serial bake of 16×16
-#: probes took 53-61 ms a probe on two threads against 0.74 ms on one, and a render of a few
-#: hundred rays gains nothing from a second thread on a quiet machine either (8×8 probes
-#: 0.47 against 0.44 ms). 32×32 probes bake 1.2× as fast on two (0.95 against 1.18 ms).
+#: another process holds off its core: serial bakes of 16×16 probes took 1.5-7 ms a probe
+#: two at a time on two cores, and 41-139 ms beside a third busy process, against 0.8-0.9
+#: and 0.8-2.9 ms on one thread each. Alone on a quiet machine two threads bake 8×8 probes
+#: no faster (0.51 against 0.49 ms), 16×16 ones 1.1× as fast (0.70 against 0.79 ms) and
+#: 32×32 ones 1.25× (0.99 against 1.25 ms): one thread below about a thousand rays costs
+#: little there and keeps small jobs from stalling beside others.
 MIN_PARALLEL_RAYS = 1024
 
 
