@@ -197,3 +197,22 @@ def test_a_render_runs_only_the_kernel_of_its_traversal(pillar_octree, monkeypat
     result = render_lod(pillar_octree, cam, lod=lod, side=side, columns=columns)
     assert set(calls) == {runs}
     assert result.hit_count.sum() > 0
+
+
+@pytest.mark.parametrize("arguments, keywords, words", [
+    ((None, "camera"), {}, "Octree"),
+    (("octree", None), {}, "Camera"),
+    (("octree", "camera", "lod"), {"bogus": 1}, "takes no bogus"),
+    (("octree", "camera", "error-aware"), {"decay": "x"}, "decay must be a number"),
+    (("octree", "camera", "error-aware"), {"colour_term": None}, "colour term"),
+    (("octree", "camera", "error-aware"), {"threshold": math.nan}, "threshold"),
+    (("octree", "camera", "error-aware"), {"bright_ratio": "x", "lighting_aware": True},
+     "bright ratio"),
+])
+def test_render_refuses_what_it_cannot_use_in_one_clear_error(pillar_octree, arguments,
+                                                              keywords, words):
+    """Each was an AttributeError or TypeError from deep inside the renderer."""
+    camera = orbit_camera(*pillar_octree.voxel_bounds, size=8)
+    given = {"octree": pillar_octree, "camera": camera}
+    with pytest.raises(VoxfieldError, match=words):
+        render(*(given.get(a, a) for a in arguments), **keywords)

@@ -9,7 +9,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from voxfield.checks import integer_in, seed_value
+from voxfield.checks import integer_in, real_number, seed_value
 from voxfield.error_table.lighting_table import LightingErrorTable, load_lighting_error_table
 from voxfield.error_table.table import (
     ENCODINGS,
@@ -139,14 +139,16 @@ def render_error_aware(
     if base_lod is not None:
         base_lod = integer_in(base_lod, "base LOD", 0, octree.depth)
     seed = seed_value(seed)
-    if np.isnan(threshold) or not (np.isfinite(decay) and decay >= 0):
-        raise VoxfieldError("threshold must be a number (inf: never refine) and decay >= 0")
-    if lighting_aware and not (np.isfinite(bright_ratio) and bright_ratio >= 0):
+    threshold = real_number(threshold, "threshold (inf: never refine)", finite=False)
+    decay = real_number(decay, "decay")
+    if decay < 0:
+        raise VoxfieldError(f"decay must be >= 0, got {decay}")
+    if lighting_aware and not real_number(bright_ratio, "bright ratio") >= 0:
         raise VoxfieldError(f"bright ratio must be a number >= 0, got {bright_ratio}")
-    if not (np.isfinite(colour_term) and colour_term >= 0):
+    if not real_number(colour_term, "colour term weight") >= 0:
         raise VoxfieldError(f"colour term weight must be a number >= 0, got {colour_term}")
-    if colour_variance is not None and not (np.isfinite(colour_variance)
-                                            and colour_variance > 0):
+    if colour_variance is not None and not real_number(
+            colour_variance, "colour variance normalisation") > 0:
         raise VoxfieldError(f"colour variance normalisation must be > 0, got {colour_variance}")
     if base_lod is None:
         cone_scale = cone_scale_value(cone_scale)
