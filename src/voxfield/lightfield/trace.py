@@ -254,8 +254,10 @@ def _rays(origins, dirs, tmin, tmax):
     d = d / np.abs(d).max(axis=1)[:, None]
     d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1)[:, None])
     n = len(o)
-    lo = np.ascontiguousarray(np.broadcast_to(np.asarray(tmin, np.float64), (n,)))
-    hi = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, np.float64), (n,)))
+    # Copies: for 0 or 1 rays the broadcast view is already contiguous and stays read-only,
+    # another type to Numba, so a probe render compiled its kernel again inside the timing.
+    lo = np.array(np.broadcast_to(np.asarray(tmin, np.float64), (n,)))
+    hi = np.array(np.broadcast_to(np.asarray(tmax, np.float64), (n,)))
     if np.isnan(lo).any() or np.isnan(hi).any() or np.any(lo < 0) or np.isinf(lo).any():
         raise VoxfieldError("tmin must be finite and >= 0 and tmax not NaN")
     return o, d, lo, hi
