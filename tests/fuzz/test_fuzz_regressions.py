@@ -242,3 +242,24 @@ def test_probe_records_swapped_in_the_header_are_caught(tmp_path):
     (folder / "probes.json").write_text(json.dumps(header))
     with pytest.raises(ProbeFileError, match="probe 0"):
         open_probe_set(folder)
+
+
+@pytest.mark.parametrize("line", ["Ke 1e39 0 0", "Kd 0.5 -1e39 0.5"])
+def test_an_mtl_colour_past_single_precision_is_one_line(tmp_path, capsys, line):
+    """It passed the finite check in double precision and overflowed when stored: two
+    NumPy notes before the error."""
+    (tmp_path / "m.mtl").write_text(f"newmtl a\n{line}\n")
+    (tmp_path / "m.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\n"
+                                    "f 1 2 3\n")
+    assert main(["render", str(tmp_path / "m.obj"), "--quiet",
+                 "--out", str(tmp_path / "r.png")]) == 2
+    assert "not a finite colour" in one_error_line(capsys)
+
+
+@pytest.mark.parametrize("shape", [(1, 1000), (1000, 1)])
+def test_a_one_row_tiff_says_what_a_dem_needs(tmp_path, capsys, shape):
+    """It was called "an RGB image?"."""
+    path = tmp_path / "strip.tif"
+    Image.fromarray(np.zeros(shape, np.int16)).save(path)
+    assert main(["info", str(path), "--quiet"]) == 2
+    assert "2×2" in one_error_line(capsys)

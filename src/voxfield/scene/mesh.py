@@ -127,7 +127,8 @@ class TriangleMesh:
 
 
 def _rgb(values, n: int, what: str, where: str, upper: float | None = 1.0) -> np.ndarray:
-    arr = np.asarray(values, dtype=np.float32)
+    with np.errstate(over="ignore"):  # past float32's range: infinite, refused just below
+        arr = np.asarray(values, dtype=np.float32)
     if arr.shape != (n, 3):
         raise SceneFormatError(f"{where}: {what} must be {n}×3, got {arr.shape}")
     if not np.isfinite(arr).all():
@@ -435,8 +436,9 @@ def _parse_mtl(path: Path) -> dict[str, _Material]:
             except ValueError as exc:
                 raise SceneFormatError(f"{path}: malformed {key} line {rest!r}") from exc
             rgb = (nums[0],) * 3 if len(nums) < 3 else tuple(nums)
-            if not np.isfinite(rgb).all():
-                raise SceneFormatError(f"{path}: {key} {rest!r} is not finite")
+            # Colours are stored as float32: a value past its range would overflow there.
+            if not (np.isfinite(rgb).all() and np.abs(rgb).max() <= np.finfo(np.float32).max):
+                raise SceneFormatError(f"{path}: {key} {rest!r} is not a finite colour")
             if key == "Kd":
                 cur.kd = rgb
             else:

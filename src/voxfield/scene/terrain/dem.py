@@ -251,7 +251,7 @@ def read_geotiff(path) -> Heightmap:
                                f"{geo.dx} × {geo.dy}; a DEM needs a positive, finite one")
     raw_shape = arr.shape
     arr = np.squeeze(arr)
-    if arr.ndim < 2 and arr.size < 4:
+    if arr.ndim < 2:  # one pixel, or one row or column of them
         raise SceneFormatError(
             f"{path}: a DEM needs at least 2×2 heights, this TIFF holds {arr.size} "
             f"(shape {raw_shape})"
