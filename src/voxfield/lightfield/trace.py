@@ -21,6 +21,7 @@ from voxfield.kernels import probe_multi as mk
 from voxfield.lightfield.cuda_trace import trace_light_field_cuda
 from voxfield.lightfield.packed import PackedProbes
 from voxfield.parallel import thread_count, threads_for
+from voxfield.render.camera import unit_vectors
 from voxfield.render.device import check_device
 
 #: Result kinds, as stored in ``kind`` arrays.
@@ -249,10 +250,7 @@ def checked_options(options) -> LightFieldOptions:
 
 def _rays(origins, dirs, tmin, tmax):
     o, d = ray_arrays(origins, dirs)
-    # Scaled to a largest component of 1 first: (1e-200, 0, 0) squares to zero and
-    # (1e200, 1e200, 0) to infinity.
-    d = d / np.abs(d).max(axis=1)[:, None]
-    d = np.ascontiguousarray(d / np.linalg.norm(d, axis=1)[:, None])
+    d = np.ascontiguousarray(unit_vectors(d))
     n = len(o)
     # Copies: for 0 or 1 rays the broadcast view is already contiguous and stays read-only,
     # another type to Numba, so a probe render compiled its kernel again inside the timing.

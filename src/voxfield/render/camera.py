@@ -63,10 +63,13 @@ WORLD_UP = (0.0, 1.0, 0.0)
 VERTICAL_VIEW_UP = (0.0, 0.0, -1.0)
 
 
-def _unit(v: np.ndarray) -> np.ndarray:
-    """``v / |v|``, scaled first so that the length of a finite vector cannot overflow."""
-    v = v / np.max(np.abs(v))
-    return v / np.linalg.norm(v)
+def unit_vectors(v: np.ndarray) -> np.ndarray:
+    """``v / |v|`` along the last axis, each vector scaled to a largest component of 1
+    first: the length of a finite vector cannot then overflow ((1e200, 1e200, 0) squares to
+    infinity) nor underflow ((1e-200, 0, 0) squares to zero). Zero vectors are the
+    caller's to refuse."""
+    v = v / np.abs(v).max(axis=-1, keepdims=True)
+    return v / np.linalg.norm(v, axis=-1, keepdims=True)
 
 
 def _basis(forward, up=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -75,7 +78,7 @@ def _basis(forward, up=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     f = _vector(forward, "direction")
     if not np.any(f):
         raise CameraError("camera direction is zero (eye and target coincide?)")
-    f = _unit(f)
+    f = unit_vectors(f)
     if up is None:
         up = VERTICAL_VIEW_UP if np.linalg.norm(np.cross(f, WORLD_UP)) < 1e-9 else WORLD_UP
     u = _vector(up, "up vector")

@@ -436,8 +436,9 @@ def _parse_mtl(path: Path) -> dict[str, _Material]:
             except ValueError as exc:
                 raise SceneFormatError(f"{path}: malformed {key} line {rest!r}") from exc
             rgb = (nums[0],) * 3 if len(nums) < 3 else tuple(nums)
-            # Colours are stored as float32: a value past its range would overflow there.
-            if not (np.isfinite(rgb).all() and np.abs(rgb).max() <= np.finfo(np.float32).max):
+            # Colours are stored as float32: a value past its range would overflow there (and
+            # NaN fails the comparison too).
+            if not np.abs(rgb).max() <= np.finfo(np.float32).max:
                 raise SceneFormatError(f"{path}: {key} {rest!r} is not a finite colour")
             if key == "Kd":
                 cur.kd = rgb

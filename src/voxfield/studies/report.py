@@ -55,19 +55,23 @@ def to_json(value):
     return value
 
 
+def _json_hash(value, digest_size: int) -> str:
+    """A hash of ``value``'s canonical JSON (sorted keys), which a copy loaded from JSON
+    reproduces exactly (JSON floats round-trip)."""
+    text = json.dumps(to_json(value), sort_keys=True)
+    return hashlib.blake2b(text.encode(), digest_size=digest_size).hexdigest()
+
+
 def _record_digest(record: dict) -> str:
-    """The hash ``_store`` writes beside an item's record: canonical JSON of the record as
-    written, which a loaded copy reproduces exactly (JSON floats round-trip)."""
-    text = json.dumps(to_json(record), sort_keys=True, allow_nan=False)
-    return hashlib.blake2b(text.encode(), digest_size=16).hexdigest()
+    """The hash ``_store`` writes beside an item's record, over the record as written."""
+    return _json_hash(record, 16)
 
 
 def params_key(params: dict) -> str:
     """A short stable hash of an item's parameters (canonical JSON, sorted keys) and of the
     code that computes it: a changed renderer never serves results of the old one."""
-    text = json.dumps(to_json({"cache_version": CACHE_VERSION, "code": voxfield.SOURCE_DIGEST,
-                               **params}), sort_keys=True)
-    return hashlib.blake2b(text.encode(), digest_size=8).hexdigest()
+    return _json_hash({"cache_version": CACHE_VERSION, "code": voxfield.SOURCE_DIGEST,
+                       **params}, 8)
 
 
 def result_to_arrays(result: RenderResult) -> tuple[dict, dict[str, np.ndarray]]:
@@ -175,11 +179,12 @@ class StudyFolder:
         if arrays:
             with atomic_path(npz_path) as tmp:
                 np.savez_compressed(tmp, **arrays)
-        record = {"item": name, "params": params, "data": data, "arrays": sorted(arrays)}
+        record = to_json({"item": name, "params": params, "data": data,
+                          "arrays": sorted(arrays)})
         self._write_json_file(json_path, {**record, "digest": _record_digest(record)})
         self._written.add(json_path)
         self.computed.append(name)
-        return to_json(data), dict(arrays)
+        return record["data"], dict(arrays)
 
     def batch(self, specs: Sequence[tuple[str, dict, Callable]], *, shared=None,
               bar=None, valid: Callable[[object, dict], bool] | None = None,
