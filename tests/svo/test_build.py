@@ -9,7 +9,7 @@ import pytest
 
 from random_scenes import random_scene
 from voxfield.errors import OctreeFormatError, VoxfieldError
-from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT
+from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree, load_octree, morton_encode, save_octree
 from voxfield.svo.io import validate_octree
@@ -137,6 +137,59 @@ def test_corrupt_octree_files_give_clear_errors(tmp_path):
         load_octree(outside)
 
 
+def test_octree_files_whose_solid_flags_or_voxel_box_lie_are_refused(tmp_path):
+    """Traversal trusts both: a cleared solid bit costs speed, a set one on a node with a hole
+    paints the hole, a box cut short clips the render; none may load as a good file."""
+    octree = build_octree(random_scene(8, n=900, size=8))
+    solid_bits = (octree.descriptors & SOLID_BIT) != 0
+    assert solid_bits.any() and not solid_bits.all()
+    lies = {
+        "every solid bit cleared": replace(octree, descriptors=octree.descriptors & ~SOLID_BIT),
+        "a node with a hole said solid": replace(
+            octree, descriptors=octree.descriptors | SOLID_BIT * ~solid_bits),
+    }
+    for axis in range(3):
+        for side in (0, 1):
+            box = octree.voxel_box.copy()
+            box[side, axis] += 1 - 2 * side  # one voxel layer of the box cut off
+            lies[f"box cut on axis {axis}, side {side}"] = replace(octree, voxel_box=box)
+    for what, lie in lies.items():
+        path = save_octree(lie, tmp_path / "lie.npz")
+        with pytest.raises(OctreeFormatError, match="solid flags|leaves out voxels"):
+            load_octree(path)
+            pytest.fail(what)
+    # A box larger than the voxels is harmless (rays merely start earlier) and loads.
+    roomy = replace(octree, voxel_box=np.array([[0, 0, 0], [octree.size] * 3]))
+    assert np.array_equal(load_octree(save_octree(roomy, tmp_path / "roomy.npz")).voxel_box,
+                          roomy.voxel_box)
+
+
+def _under_a_new_root(octree, octant: int):
+    """The octree as child ``octant`` of a root one level up: its voxels move away from the
+    origin (a built octree's start at 0), so each face's descent meets both halves."""
+    shifted = octree.descriptors + (1 << FIRST_CHILD_SHIFT)  # every node one index later
+    root = np.array([(1 << FIRST_CHILD_SHIFT) | (1 << octant)], np.int64)
+    corner = np.array([(octant >> axis) & 1 for axis in range(3)]) << octree.depth
+    return replace(
+        octree, depth=octree.depth + 1, descriptors=np.concatenate((root, shifted)),
+        level_offsets=np.concatenate(([0], octree.level_offsets + 1)),
+        attributes={k: np.concatenate((v[:1], v)) for k, v in octree.attributes.items()},
+        voxel_box=octree.voxel_box + corner,
+        facing=None if octree.facing is None else np.concatenate((octree.facing[:1],
+                                                                  octree.facing)))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_occupied_box_is_the_voxels_bounding_box(seed):
+    octree = build_octree(random_scene(seed, n=40 + 60 * seed, size=16 << seed % 2))
+    for tree in (octree, _under_a_new_root(octree, 7), _under_a_new_root(octree, 2 + seed)):
+        validate_octree(tree)
+        leaves = tree.node_coords(tree.depth)
+        expected = np.array([leaves.min(axis=0), leaves.max(axis=0) + 1])
+        assert np.array_equal(tree.occupied_box(), expected)
+        assert np.array_equal(tree.voxel_box, expected)  # the builder's box is the tight one
+
+
 def test_surface_lod_colour_ignores_buried_voxels():
     # A solid 4³ block, bright outside and black inside: the mean darkens the root, the
     # surface rule gives the colour of the voxels a ray can see.
@@ -188,6 +241,7 @@ def test_solid_flags_match_a_brute_force_fill_check():
             full = all(tuple(corner + b) in occupied for b in block)
             assert solid[node] == full, (level, corner)
     assert solid[octree.level_slice(octree.depth - 1)].any()  # the check is not vacuous
+    assert np.array_equal(octree.derived_solid_flags(), solid[: octree.inner_count])
 
 
 def test_srgb8_albedo_keeps_8_bit_inputs_exactly_and_rounds_the_rest_to_a_code():

@@ -10,8 +10,8 @@ import numpy as np
 
 from voxfield.atomic import atomic_path
 from voxfield.errors import OctreeFormatError
-from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, pack_descriptors
-from voxfield.svo.octree import Octree
+from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT, pack_descriptors
+from voxfield.svo.octree import Octree, solid_flags
 
 FORMAT = "voxfield-octree"
 #: 2: packed descriptors and the voxel box; node positions and per-node masks are derived.
@@ -104,19 +104,11 @@ def _from_version_1(data, offsets: np.ndarray, where: str) -> tuple[np.ndarray, 
     coords = np.asarray(data["node_coord"])
     if masks.ndim != 1 or first.shape != masks.shape or len(masks) < inner or coords.ndim != 2:
         raise OctreeFormatError(f"{where}: node arrays disagree in length")
-    solid = np.ones(len(masks), bool)
-    for level in range(len(offsets) - 3, -1, -1):
-        sl = slice(int(offsets[level]), int(offsets[level + 1]))
-        full = np.flatnonzero(masks[sl] == 0xFF)
-        level_solid = np.zeros(sl.stop - sl.start, bool)
-        if len(full):
-            children = first[sl][full].astype(np.int64)[:, None] + np.arange(8)
-            level_solid[full] = solid[np.minimum(children, len(solid) - 1)].all(axis=1)
-        solid[sl] = level_solid
     leaves = coords[inner:].astype(np.int64)
     box = np.array([leaves.min(axis=0), leaves.max(axis=0) + 1]) if len(leaves) else np.zeros(
         (2, 3), np.int64)
-    return pack_descriptors(masks[:inner], first[:inner], solid[:inner]), box
+    solid = solid_flags(masks[:inner], first[:inner], offsets)
+    return pack_descriptors(masks[:inner], first[:inner], solid), box
 
 
 def validate_octree(octree: Octree, where: str = "octree") -> None:
@@ -164,3 +156,10 @@ def validate_octree(octree: Octree, where: str = "octree") -> None:
             raise OctreeFormatError(f"{where}: child pointers of level {level} are not contiguous")
         if off[level + 2] - off[level + 1] != counts[sl].sum():
             raise OctreeFormatError(f"{where}: level {level + 1} holds the wrong number of nodes")
+    if not np.array_equal((octree.descriptors & SOLID_BIT) != 0, octree.derived_solid_flags()):
+        raise OctreeFormatError(f"{where}: solid flags disagree with the child masks")
+    occupied = octree.occupied_box()
+    if np.any(occupied[0] < box[0]) or np.any(occupied[1] > box[1]):
+        raise OctreeFormatError(
+            f"{where}: the voxel box {box[0].tolist()}..{box[1].tolist()} leaves out voxels "
+            f"(they span {occupied[0].tolist()}..{occupied[1].tolist()})")

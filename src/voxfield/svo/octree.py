@@ -123,6 +123,24 @@ class Octree:
         solid[: self.inner_count] = (self.descriptors & SOLID_BIT) != 0
         return solid
 
+    def derived_solid_flags(self) -> np.ndarray:
+        """``(inner nodes,)`` bool: the solid bit each inner node should carry (all eight
+        children present and solid; voxels are), worked out from the child masks bottom-up.
+        A file's solid bits are checked against it: traversal trusts them."""
+        return solid_flags(self.descriptors & 0xFF, self.descriptors >> FIRST_CHILD_SHIFT,
+                           self.level_offsets)
+
+    def occupied_box(self) -> np.ndarray:
+        """``(2, 3)`` int64: the voxels' min corner and exclusive max corner as the child masks
+        give them. Each face of the box is one descent that keeps only the nodes lying on
+        that face (a node further in cannot hold a voxel further out), so it reads a slab
+        of nodes per level, not every voxel."""
+        box = np.zeros((2, 3), np.int64)
+        for axis in range(3):
+            for side in (0, 1):
+                box[side, axis] = _extreme_coordinate(self, axis, side) + side
+        return box
+
     @property
     def voxel_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """Inclusive min and exclusive max corner of the voxels, in octree space."""
@@ -224,3 +242,47 @@ class Octree:
             known = ", ".join(sorted("albedo" if k == "color" else k for k in self.attributes))
             raise VoxfieldError(f"the octree has no channel {name!r}; it has: {known}")
         return self.attributes[name]
+
+
+#: Set bits of every byte: the number of children a child mask names.
+_CHILD_COUNT = np.unpackbits(np.arange(256, dtype=np.uint8)[:, None], axis=1).sum(axis=1,
+                                                                                 dtype=np.int64)
+#: For axis ``a`` and half ``h``, the octants whose ``a`` bit is ``h``.
+_HALF_OCTANTS = np.array([[[c for c in range(8) if (c >> axis) & 1 == half] for half in (0, 1)]
+                          for axis in range(3)])
+
+
+def solid_flags(masks: np.ndarray, first: np.ndarray, level_offsets: np.ndarray) -> np.ndarray:
+    """``(inner nodes,)`` bool solid flags from inner nodes' child masks and first children
+    (``Octree.derived_solid_flags``); the pointers must already be known to be in range."""
+    masks = np.asarray(masks)
+    solid = np.zeros(len(masks), bool)
+    child_solid = np.ones(int(level_offsets[-1] - level_offsets[-2]), bool)  # the voxels
+    for level in range(len(level_offsets) - 3, -1, -1):
+        start, stop = int(level_offsets[level]), int(level_offsets[level + 1])
+        full = np.flatnonzero(masks[start:stop] == 0xFF)
+        level_solid = np.zeros(stop - start, bool)
+        if len(full):
+            children = (first[start:stop][full][:, None] + np.arange(8)) - stop
+            level_solid[full] = child_solid[children].all(axis=1)
+        solid[start:stop] = level_solid
+        child_solid = level_solid
+    return solid
+
+
+def _extreme_coordinate(octree: Octree, axis: int, side: int) -> int:
+    """The least (``side`` 0) or greatest (1) voxel coordinate along ``axis``."""
+    frontier = np.zeros(1, np.int64)  # flat indices of the nodes on the face, the root first
+    coordinate = 0
+    for _ in range(octree.depth):
+        descriptors = octree.descriptors[frontier]
+        masks = (descriptors & 0xFF).astype(np.uint8)
+        first = descriptors >> FIRST_CHILD_SHIFT
+        outer = _HALF_OCTANTS[axis, side]  # octants on the face's side of each node
+        half = side if np.any(masks & np.uint8(sum(1 << c for c in outer))) else 1 - side
+        coordinate = 2 * coordinate + half
+        octants = _HALF_OCTANTS[axis, half]
+        present = (masks[:, None] >> octants) & 1 == 1
+        below = masks[:, None] & ((1 << octants) - 1).astype(np.uint8)
+        frontier = (first[:, None] + _CHILD_COUNT[below])[present]
+    return coordinate
