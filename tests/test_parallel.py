@@ -1,13 +1,8 @@
 """``parallel.run_in_bands``: every row once, in order, in bands of whole tiles that hold
 enough rays to be worth a kernel call; ``threads_for``: small jobs on one thread."""
 
-import os
-import subprocess
-import sys
-
 import pytest
 
-import voxfield
 from voxfield import parallel
 from voxfield.errors import VoxfieldError
 from voxfield.parallel import (
@@ -92,40 +87,3 @@ def test_renders_and_queries_of_few_rays_launch_their_kernels_on_one_thread(
         assert counts and set(counts) == {1}
     else:  # 4,096 rays each
         assert counts == []
-
-
-def _openmp_settings(env: dict) -> dict[str, str]:
-    """libgomp's settings as it reports them when a fresh interpreter imports voxfield and
-    runs one parallel kernel (``OMP_DISPLAY_ENV``); skips where Numba uses no libgomp."""
-    script = ("import numpy as np, numba, voxfield\n"
-              "from voxfield.kernels.octree_levels import child_corners\n"
-              "child_corners(np.array([255], np.uint8), np.zeros((1, 3), np.int64),\n"
-              "              np.empty((8, 3), np.int64))\n"
-              "print('layer', numba.threading_layer())\n")
-    base = {k: v for k, v in os.environ.items()
-            if k not in ("GOMP_SPINCOUNT", "OMP_WAIT_POLICY", "NUMBA_THREADING_LAYER")}
-    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                         env={**base, **env, "OMP_DISPLAY_ENV": "VERBOSE"}, check=True)
-    if "layer omp" not in run.stdout:
-        pytest.skip(f"Numba's threading layer here is not OpenMP: {run.stdout.strip()}")
-    settings = {}
-    for line in (run.stdout + run.stderr).splitlines():
-        name, equals, value = line.strip().partition(" = ")
-        if equals:
-            settings[name] = value.strip("'")
-    return settings
-
-
-def test_openmp_threads_spin_briefly_before_they_sleep():
-    # libgomp's own 300,000 spins held cores other voxfield processes were waiting for.
-    assert _openmp_settings({})["GOMP_SPINCOUNT"] == str(voxfield.OPENMP_SPIN_COUNT)
-
-
-@pytest.mark.parametrize("choice", [{"GOMP_SPINCOUNT": "12345"}, {"OMP_WAIT_POLICY": "active"}])
-def test_a_users_own_openmp_spin_or_wait_policy_is_kept(choice):
-    settings = _openmp_settings(choice)
-    if "GOMP_SPINCOUNT" in choice:
-        assert settings["GOMP_SPINCOUNT"] == "12345"
-    else:
-        assert settings["OMP_WAIT_POLICY"] == "ACTIVE"
-        assert int(settings["GOMP_SPINCOUNT"]) > 3000

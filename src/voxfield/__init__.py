@@ -44,26 +44,7 @@ def _keyed_numba_cache() -> None:
         config.reload_config()
 
 
-#: Pause iterations an idle OpenMP thread spins before it sleeps (libgomp's own default is
-#: 300,000, several milliseconds). A thread spinning at the end of a parallel region holds
-#: a core that another process's threads are waiting for, so two voxfield jobs on one
-#: machine stalled each other: two 512² renders side by side took 70-80 ms each against
-#: 46-48 ms with this count, two serial bakes of 32² probes up to 53 ms a probe against
-#: 2.3-4.7 ms; alone, renders and bakes took the same within the noise (a few per cent).
-OPENMP_SPIN_COUNT = 3000
-
-
-def _short_openmp_spin() -> None:
-    """Set ``GOMP_SPINCOUNT`` to ``OPENMP_SPIN_COUNT`` unless the user chose a spin count or a
-    wait policy. libgomp reads it once, when Numba's threading layer first loads it (the
-    first parallel kernel call), so a program that loaded an OpenMP runtime before it
-    imported voxfield keeps that runtime's settings."""
-    if "GOMP_SPINCOUNT" not in os.environ and "OMP_WAIT_POLICY" not in os.environ:
-        os.environ["GOMP_SPINCOUNT"] = str(OPENMP_SPIN_COUNT)
-
-
 _keyed_numba_cache()
-_short_openmp_spin()
 
 from voxfield.errors import VoxfieldError  # noqa: E402
 
