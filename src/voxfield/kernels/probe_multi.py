@@ -40,7 +40,7 @@ from voxfield.kernels.probe_march import (
     texel_angle,
     trace_probe,
 )
-from voxfield.kernels.scheduling import interleaved
+from voxfield.kernels.scheduling import claim_items, new_run_queue
 
 #: First-probe heuristics.
 ORDER_SIGNED_DOT = 0  # max ω · S²(X - P) (thesis §4.3, §5.7)
@@ -272,24 +272,45 @@ def point_from_probe(positions: np.ndarray, normals: np.ndarray, mips: np.ndarra
     """Point ``Y`` as probe ``probe`` sees it: ``(length, cx, cy, cz, row, col, stored,
     slack)`` — its distance and unit direction from the probe, the nearest texel, the
     distance stored there, and how far they may differ while the probe still sees ``Y``
-    (``tolerance`` plus half the depth the texel's surface spans). ``length`` 0: ``Y`` is
-    the probe's centre (the rest undefined)."""
+    (``view_slack``). ``length`` 0: ``Y`` is the probe's centre (the rest undefined)."""
+    length, cx, cy, cz, row, col, stored = probe_view(positions, mips, resolution, probe, yx,
+                                                      yy, yz)
+    if length == 0.0:
+        return 0.0, 0.0, 0.0, 1.0, 0, 0, 0.0, 0.0
+    slack = view_slack(normals, resolution, probe, length, cx, cy, cz, row, col, tolerance)
+    return length, cx, cy, cz, row, col, stored, slack
+
+
+@njit(cache=True, nogil=True, inline="always")
+def probe_view(positions: np.ndarray, mips: np.ndarray, resolution: int, probe: int,
+               yx: float, yy: float, yz: float):
+    """``point_from_probe`` without the slack: ``(length, cx, cy, cz, row, col, stored)``.
+    The slack is at least the tolerance, so a check that the stored distance passes ``Y`` by
+    more than the slack can first test it against the tolerance and leave most probes'
+    normals unread (each is another cache miss)."""
     vx = yx - positions[probe, 0]
     vy = yy - positions[probe, 1]
     vz = yz - positions[probe, 2]
     length = math.sqrt(vx * vx + vy * vy + vz * vz)
     if length == 0.0:
-        return 0.0, 0.0, 0.0, 1.0, 0, 0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 1.0, 0, 0, 0.0
     cx = vx / length
     cy = vy / length
     cz = vz / length
     row, col = texel_of_direction(cx, cy, cz, resolution)
-    stored = np.float64(mips[probe, row * resolution + col])
-    slack = tolerance + slope_thickness(
+    return length, cx, cy, cz, row, col, np.float64(mips[probe, row * resolution + col])
+
+
+@njit(cache=True, nogil=True, inline="always")
+def view_slack(normals: np.ndarray, resolution: int, probe: int, length: float, cx: float,
+               cy: float, cz: float, row: int, col: int, tolerance: float) -> float:
+    """How far a probe's stored distance may differ from ``length`` while it still sees the
+    point: ``tolerance`` plus half the depth the texel's surface spans (never less than
+    ``tolerance``)."""
+    return tolerance + slope_thickness(
         length, cx, cy, cz, np.float64(normals[probe, row, col, 0]),
         np.float64(normals[probe, row, col, 1]), np.float64(normals[probe, row, col, 2]),
         resolution)
-    return length, cx, cy, cz, row, col, stored, slack
 
 
 @njit(cache=True, nogil=True)
@@ -306,11 +327,16 @@ def seen_through(positions: np.ndarray, enabled: np.ndarray, normals: np.ndarray
         q = corners[corner]
         if q == hit_probe or not enabled[q]:
             continue
-        length, _, _, _, _, _, stored, slack = point_from_probe(
-            positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
-        if length > 0.0 and stored > length + slack:
+        length, cx, cy, cz, row, col, stored = probe_view(positions, mips, resolution, q, yx,
+                                                          yy, yz)
+        if not (length > 0.0 and stored > length + tolerance):
+            continue  # not past Y by the tolerance, so not by the slack either
+        if stored > length + view_slack(normals, resolution, q, length, cx, cy, cz, row, col,
+                                        tolerance):
             seen += 1
-    return seen >= WITNESSES
+            if seen >= WITNESSES:
+                return True
+    return False
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -460,19 +486,36 @@ class LightFieldOutputs(NamedTuple):
     steps: np.ndarray
 
 
+#: Rays a thread claims at a time in ``trace_light_field_rays``.
+RAY_BLOCK = 256
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def trace_light_field_rays(modes: TraceModes, field: ProbeField, rays: RayBatch,
                            out: LightFieldOutputs, threads: int = 1) -> None:
-    """Every ray, in parallel blocks dealt out to the ``threads`` in turn
-    (``kernels.scheduling``); each ray's results depend only on that ray. A hit's
-    colour comes from ``hit_colour_probe``, read bilinearly at the hit point."""
-    n = len(rays.origins)
-    block = 256
+    """Every ray, in blocks of ``RAY_BLOCK`` that ``threads`` workers claim as they are free
+    (``kernels.scheduling.claim_run``: pass ``numba.get_num_threads()``); each ray's results
+    depend only on that ray. A hit's colour comes from ``hit_colour_probe``, read bilinearly
+    at the hit point."""
+    queue = new_run_queue()
     tolerance = hit_tolerance(modes.params)
-    blocks = (n + block - 1) // block
-    for k in prange(blocks):
-        b = interleaved(k, blocks, threads)
-        trace_block(modes, field, rays, out, tolerance, b * block, min(n, (b + 1) * block))
+    for _ in prange(threads):
+        trace_blocks(queue, modes, field, rays, out, tolerance)
+
+
+@njit(cache=True, nogil=True)
+def trace_blocks(queue: np.ndarray, modes: TraceModes, field: ProbeField, rays: RayBatch,
+                 out: LightFieldOutputs, tolerance: float) -> None:
+    """One worker's share of ``trace_light_field_rays``: blocks claimed from ``queue`` until
+    none is left, traced in the worker's own scratch."""
+    scratch = new_ray_scratch()
+    n = len(rays.origins)
+    while True:
+        first, last = claim_items(queue, n, RAY_BLOCK)
+        if first == last:
+            return
+        for i in range(first, last):
+            answer_ray(i, modes, field, rays, out, tolerance, scratch)
 
 
 @njit(cache=True, nogil=True)
@@ -488,16 +531,6 @@ def new_ray_scratch():
     traces of one ray. (The CUDA kernel builds the same tuple from local arrays.)"""
     return (np.empty(8, np.int64), np.empty(8, np.int64),
             np.empty(MAX_PROBE_TRACES, np.int64), np.empty(MAX_PROBE_TRACES, np.float64))
-
-
-@njit(cache=True, nogil=True)
-def trace_block(modes: TraceModes, field: ProbeField, rays: RayBatch, out: LightFieldOutputs,
-                tolerance: float, i0: int, i1: int) -> None:
-    """Rays ``[i0, i1)`` of ``trace_light_field_rays`` (a function of its own, so the
-    parallel loop only calls it)."""
-    scratch = new_ray_scratch()
-    for i in range(i0, i1):
-        answer_ray(i, modes, field, rays, out, tolerance, scratch)
 
 
 @njit(cache=True, nogil=True)
@@ -535,10 +568,13 @@ def hit_in_front(marcher: int, eps_mode: int, params: np.ndarray, positions: np.
         q = corners[corner]
         if q == hit_probe or not enabled[q]:
             continue
-        length, cx, cy, cz, _, _, stored, slack = point_from_probe(
-            positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
+        length, cx, cy, cz, view_row, view_col, stored = probe_view(positions, mips,
+                                                                    resolution, q, yx, yy, yz)
         fetches += 1
-        if not (length > 0.0 and stored < length - slack):
+        if not (length > 0.0 and stored < length - tolerance):
+            continue  # not in front of Y by the tolerance, so not by the slack either
+        if not stored < length - view_slack(normals, resolution, q, length, cx, cy, cz,
+                                            view_row, view_col, tolerance):
             continue
         # The surface it sees in front must lie by the stretch of the ray before the hit.
         w = params[P_REFINE] * max(1.0, length * texel_angle(resolution))
