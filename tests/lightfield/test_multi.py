@@ -6,7 +6,14 @@ import numpy as np
 import pytest
 from lf_helpers import bake_grid
 
-from voxfield.kernels.probe_multi import MAX_PROBE_TRACES, cage, next_corner
+from voxfield.kernels.probe_multi import (
+    MAX_PROBE_TRACES,
+    WITNESSES,
+    cage,
+    next_corner,
+    point_from_probe,
+    seen_through,
+)
 from voxfield.lightfield import (
     FALLBACK,
     HIT,
@@ -162,3 +169,30 @@ def test_signed_dot_picks_the_probe_behind_the_ray(cornell_grid):
     nearest = corners[first_corner(ORDER_NEAREST, corners, cornell_grid.positions,
                                    cornell_grid.enabled, *origin, 1.0, 0.0, 0.0)]
     assert nearest == np.argmin(np.linalg.norm(cornell_grid.positions - origin, axis=1))
+
+
+def test_the_consensus_check_counts_witnesses_as_the_full_slack_test_does(cornell_grid):
+    """``seen_through`` reads a probe's normal only once its stored distance passes the point
+    by the tolerance, and stops at the last witness it needs: it must answer as counting
+    every probe of the cage with the full slack (``point_from_probe``) does."""
+    p = cornell_grid
+    maps = (p.positions, p.enabled, p.normals, p.mips, p.resolution, p.grid_origin,
+            p.grid_spacing, p.grid_counts)
+    rng = np.random.default_rng(11)
+    corners = np.empty(8, np.int64)
+    answers = []
+    for point in rng.uniform(0.5, 31.5, (3000, 3)):
+        cage(p.grid_origin, p.grid_spacing, p.grid_counts, *point, corners)
+        finder = int(corners[rng.integers(8)])
+        tolerance = float(rng.choice([0.0, 0.5, 2.0]))
+        witnesses = 0
+        for q in corners.tolist():
+            if q == finder:
+                continue
+            length, *_, stored, slack = point_from_probe(p.positions, p.normals, p.mips,
+                                                         p.resolution, q, *point, tolerance)
+            witnesses += bool(p.enabled[q] and length > 0.0 and stored > length + slack)
+        expected = witnesses >= WITNESSES
+        assert seen_through(*maps, finder, *point, tolerance, corners) == expected
+        answers.append(expected)
+    assert 0.05 < np.mean(answers) < 0.95  # both answers are exercised
