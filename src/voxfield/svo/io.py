@@ -11,7 +11,7 @@ import numpy as np
 from voxfield.atomic import atomic_path
 from voxfield.errors import OctreeFormatError
 from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT, pack_descriptors
-from voxfield.svo.octree import Octree, solid_flags
+from voxfield.svo.octree import CHILD_COUNT, Octree, solid_flags
 
 FORMAT = "voxfield-octree"
 #: 2: packed descriptors and the voxel box; node positions and per-node masks are derived.
@@ -145,7 +145,7 @@ def validate_octree(octree: Octree, where: str = "octree") -> None:
     masks = octree.descriptors & 0xFF
     if np.any(masks == 0):
         raise OctreeFormatError(f"{where}: inner node without children")
-    counts = np.unpackbits(masks.astype(np.uint8)[:, None], axis=1).sum(axis=1)
+    counts = CHILD_COUNT[masks]
     first = octree.descriptors >> FIRST_CHILD_SHIFT
     if np.any(first < 0) or np.any(first + counts > n):
         raise OctreeFormatError(f"{where}: child pointers run past the node arrays")

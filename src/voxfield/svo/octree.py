@@ -245,7 +245,7 @@ class Octree:
 
 
 #: Set bits of every byte: the number of children a child mask names.
-_CHILD_COUNT = np.unpackbits(np.arange(256, dtype=np.uint8)[:, None], axis=1).sum(axis=1,
+CHILD_COUNT = np.unpackbits(np.arange(256, dtype=np.uint8)[:, None], axis=1).sum(axis=1,
                                                                                  dtype=np.int64)
 #: For axis ``a`` and half ``h``, the octants whose ``a`` bit is ``h``.
 _HALF_OCTANTS = np.array([[[c for c in range(8) if (c >> axis) & 1 == half] for half in (0, 1)]
@@ -284,5 +284,5 @@ def _extreme_coordinate(octree: Octree, axis: int, side: int) -> int:
         octants = _HALF_OCTANTS[axis, half]
         present = (masks[:, None] >> octants) & 1 == 1
         below = masks[:, None] & ((1 << octants) - 1).astype(np.uint8)
-        frontier = (first[:, None] + _CHILD_COUNT[below])[present]
+        frontier = (first[:, None] + CHILD_COUNT[below])[present]
     return coordinate
