@@ -99,10 +99,27 @@ def test_grid_is_read_only_and_compares_by_value():
     ((0, 0, 0), (1, 1, 1), (1, 0, 1), ">= 1"),
     ((0, 0, 0), (1, 1, 1), (1, 2.5, 1), "whole"),
     ((0, 0, 0), (1, 1, 1), (1000, 1000, 1000), "more than"),
+    # Positions past float64's reach, or too far out to resolve a voxel: a probe header
+    # edited so rendered with NumPy overflow notes and a camera at infinity, or silently.
+    ((1e308, 1e308, 1e308), (16, 16, 16), (2, 2, 2), "must lie within"),
+    ((8, 8, 8), (1e308, 16, 16), (2, 2, 2), "must lie within"),
+    ((8, 8, 8), (1e308, 16, 16), (3, 2, 2), "must lie within"),  # overflows to infinity
+    ((-2.0**51, 0, 0), (1, 1, 1), (1, 1, 1), "must lie within"),
+    # Probes a rounding step apart: 1e-310, or 16 next to 1e12.
+    ((8, 8, 8), (1e-310, 16, 16), (2, 2, 2), "too small"),
+    ((1e12, 0, 0), (16, 16, 16), (2, 2, 2), "too small"),
 ])
 def test_bad_grids_are_refused(origin, spacing, counts, match):
-    with pytest.raises(VoxfieldError, match=match):
-        ProbeGrid(origin, spacing, counts)
+    with np.errstate(over="raise", invalid="raise"):  # refused before anything overflows
+        with pytest.raises(VoxfieldError, match=match):
+            ProbeGrid(origin, spacing, counts)
+
+
+def test_grids_far_out_or_of_one_probe_with_any_spacing_are_kept():
+    far = ProbeGrid((1e9, -1e9, 2.0**49), (8, 8, 1), (2, 2, 1))  # z: one probe
+    assert np.all(np.diff(np.unique(far.positions[:, 0])) == 8)
+    lone = ProbeGrid((1e6, 0, 0), (1e-300, 1e-300, 1e-300), (1, 1, 1))
+    assert lone.positions.tolist() == [[1e6, 0.0, 0.0]]
 
 
 def test_cell_of_points_clamps_to_cells_with_eight_probes():

@@ -25,6 +25,15 @@ MAX_OFFSET_FRACTION = 0.5
 DEFAULT_CLEARANCE_FRACTION = 0.2
 #: Refuse grids larger than this: every probe gets several maps, so more is surely a typo.
 MAX_PROBES = 1 << 24
+#: A spacing must be at least this fraction of the grid's largest coordinate on its axis:
+#: probes closer than that, relative to their distance from the world's origin, are a few
+#: float64 steps apart (1e-310 apart, or 16 apart at 1e300), and the cage and march
+#: arithmetic that divides by the spacing or subtracts positions answers from rounding alone.
+MIN_RELATIVE_SPACING = 1e-9
+#: Probe positions lie within this many voxels of the world's origin (2^50): float64 still
+#: resolves an eighth of a voxel there, and the box around the grid, its cameras and the
+#: differences between positions stay finite.
+MAX_COORDINATE = 2.0**50
 #: Extra distance (in voxels) added to every move so a probe never ends exactly on a face.
 _NUDGE = 1e-4
 #: Bits per axis of a voxel key (scenes span at most 2**21 voxels per axis).
@@ -83,6 +92,7 @@ class ProbeGrid:
         if not np.isfinite(offsets).all():
             raise VoxfieldError("probe offsets hold NaN or infinity")
         _check_offset_size(offsets, spacing)
+        _check_extent(origin, spacing, counts, offsets)
         enabled = np.ones(n, bool) if self.enabled is None else np.array(self.enabled)
         if enabled.shape != (n,) or enabled.dtype != bool:
             raise VoxfieldError(f"probe enabled flags must be {n} booleans, got "
@@ -238,6 +248,28 @@ def _check_offset_size(offsets: np.ndarray, spacing: np.ndarray) -> None:
             f"{MAX_OFFSET_FRACTION} of a cell ({(MAX_OFFSET_FRACTION * spacing).tolist()}) on "
             f"some axis; move it less or use a denser grid"
         )
+
+
+def _check_extent(origin: np.ndarray, spacing: np.ndarray, counts: np.ndarray,
+                  offsets: np.ndarray) -> None:
+    """Every probe position lies within ``MAX_COORDINATE``, and along every axis with more
+    than one probe the spacing is not lost in rounding next to the coordinates
+    (``MIN_RELATIVE_SPACING``)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        far = origin + (counts - 1) * spacing
+        reach = np.maximum(np.abs(origin), np.abs(far)) + np.abs(offsets).max(axis=0)
+    if not np.all(reach <= MAX_COORDINATE):  # also an overflow to infinity
+        raise VoxfieldError(
+            f"probe grid positions reach {reach.max():.6g} voxels from the origin (origin "
+            f"{origin.tolist()}, spacing {spacing.tolist()}, counts {counts.tolist()}); they "
+            f"must lie within {MAX_COORDINATE:.6g}")
+    crowded = (spacing < MIN_RELATIVE_SPACING * reach) & (counts > 1)
+    if crowded.any():
+        axis = int(np.argmax(crowded))
+        raise VoxfieldError(
+            f"probe spacing {spacing[axis]:g} on axis {'xyz'[axis]} is too small for positions "
+            f"reaching {reach[axis]:.6g} there: probes must be at least "
+            f"{MIN_RELATIVE_SPACING:g} of that apart")
 
 
 _DIMS = re.compile(r"^\s*(\d+)\s*[x×]\s*(\d+)\s*[x×]\s*(\d+)\s*$", re.IGNORECASE)
