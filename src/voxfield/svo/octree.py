@@ -250,11 +250,15 @@ CHILD_COUNT = np.unpackbits(np.arange(256, dtype=np.uint8)[:, None], axis=1).sum
 #: For axis ``a`` and half ``h``, the octants whose ``a`` bit is ``h``.
 _HALF_OCTANTS = np.array([[[c for c in range(8) if (c >> axis) & 1 == half] for half in (0, 1)]
                           for axis in range(3)])
+#: The same halves as child-mask bits.
+_HALF_MASKS = np.bitwise_or.reduce(1 << _HALF_OCTANTS, axis=-1).astype(np.uint8)
 
 
 def solid_flags(masks: np.ndarray, first: np.ndarray, level_offsets: np.ndarray) -> np.ndarray:
     """``(inner nodes,)`` bool solid flags from inner nodes' child masks and first children
-    (``Octree.derived_solid_flags``); the pointers must already be known to be in range."""
+    (``Octree.derived_solid_flags``). A pointer past the node arrays raises IndexError
+    (``load_octree`` reports a version-1 file's as corrupt; version-2 pointers are validated
+    first)."""
     masks = np.asarray(masks)
     solid = np.zeros(len(masks), bool)
     child_solid = np.ones(int(level_offsets[-1] - level_offsets[-2]), bool)  # the voxels
@@ -278,8 +282,8 @@ def _extreme_coordinate(octree: Octree, axis: int, side: int) -> int:
         descriptors = octree.descriptors[frontier]
         masks = (descriptors & 0xFF).astype(np.uint8)
         first = descriptors >> FIRST_CHILD_SHIFT
-        outer = _HALF_OCTANTS[axis, side]  # octants on the face's side of each node
-        half = side if np.any(masks & np.uint8(sum(1 << c for c in outer))) else 1 - side
+        # The face's side of the nodes if any of them has a child there, else the other.
+        half = side if np.any(masks & _HALF_MASKS[axis, side]) else 1 - side
         coordinate = 2 * coordinate + half
         octants = _HALF_OCTANTS[axis, half]
         present = (masks[:, None] >> octants) & 1 == 1
