@@ -167,7 +167,7 @@ def test_failed_write_leaves_no_partial_file(tmp_path, monkeypatch, local):
 
     monkeypatch.setattr(probe_folder.np, "savez_compressed", broken)
     with pytest.raises(OSError, match="disk full"):
-        probe_folder.write_probe(tmp_path, 3, local.probe(3))
+        probe_folder.write_probe(tmp_path, 3, local.probe(3), local.positions[3])
     assert list(tmp_path.iterdir()) == []
 
 
@@ -232,4 +232,68 @@ def test_bad_folders_give_clear_errors(tmp_path, octree, grid):
     probe0.write_bytes(original[:-30])
     header_path.write_text(good)
     with pytest.raises(ProbeFileError, match="corrupt"):
+        open_probe_set(tmp_path)
+
+
+def _edit_grid(folder, **changes) -> None:
+    """Rewrite ``probes.json`` with its grid changed, as an editor would (records kept)."""
+    header = json.loads((folder / "probes.json").read_text())
+    header["grid"].update(changes)
+    (folder / "probes.json").write_text(json.dumps(header))
+
+
+def test_records_hold_the_positions_the_probes_were_baked_at(tmp_path, octree, grid):
+    bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial")
+    header = json.loads((tmp_path / "probes.json").read_text())
+    recorded = [header["probes"][str(i)]["position"] for i in range(grid.count)]
+    np.testing.assert_array_equal(recorded, grid.positions)
+    with np.load(tmp_path / "probe_00004.npz") as data:  # the file's own copy, for resumes
+        assert json.loads(str(data["record"]))["position"] == recorded[4]
+
+
+@pytest.mark.parametrize("changes", [
+    {"origin": [1e6, 8.0, 8.0]},  # the whole grid moved
+    {"spacing": [1.0, 1.0, 1.0]},  # squeezed: probe 0 stays, the others move
+    {"offsets": [[0.0, 0.0, 0.0]] * 5 + [[0.0, 0.25, 0.0]]},  # one probe nudged
+])
+def test_a_grid_edited_after_the_bake_is_refused(tmp_path, octree, grid, local, changes):
+    """The maps hold what was seen from where each probe stood; read at another position
+    they would draw a plausible, wrong image with exit 0."""
+    bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial")
+    _edit_grid(tmp_path, **changes)
+    with pytest.raises(ProbeHeaderError, match=r"was baked at \(.*\) but the grid puts it at"):
+        open_probe_set(tmp_path)
+
+
+def test_an_edited_grid_is_rebaked_on_resume_not_reused(tmp_path, octree, grid):
+    """Resuming with the edited grid matches the header's identity, so only the recorded
+    positions tell that every finished probe stood elsewhere."""
+    bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial")
+    moved = ProbeGrid(grid.origin + np.array([0.5, 0.0, 0.0]), grid.spacing, grid.counts)
+    _edit_grid(tmp_path, **json.loads(json.dumps(probe_folder.jsonable(moved.to_dict()))))
+    counting = Counting()
+    resumed = bake_to_folder(octree, moved, OPTIONS, tmp_path, scheduler="serial",
+                             baker=counting)
+    assert counting.indices(moved) == list(range(moved.count))
+    assert_same(resumed, bake_probes(octree, moved, OPTIONS))
+
+
+def test_folders_baked_before_positions_were_recorded_still_open(tmp_path, octree, grid,
+                                                                  local):
+    bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial")
+    header = json.loads((tmp_path / "probes.json").read_text())
+    for record in header["probes"].values():
+        del record["position"]
+    (tmp_path / "probes.json").write_text(json.dumps(header))
+    assert_same(open_probe_set(tmp_path), local)
+
+
+@pytest.mark.parametrize("position", ["here", [1.0, 2.0], [float("nan"), 0.0, 0.0], None])
+def test_a_position_that_is_not_three_numbers_is_a_header_error(tmp_path, octree, grid,
+                                                                position):
+    bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial")
+    header = json.loads((tmp_path / "probes.json").read_text())
+    header["probes"]["2"]["position"] = position
+    (tmp_path / "probes.json").write_text(json.dumps(header))
+    with pytest.raises(ProbeHeaderError, match="probe 2's position .* is not three finite"):
         open_probe_set(tmp_path)

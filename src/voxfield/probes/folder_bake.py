@@ -92,10 +92,11 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
     write_header(folder, header)
 
     last_flush = time.monotonic()
+    positions = grid.positions
 
     def store(index: int, maps) -> None:
         nonlocal last_flush
-        header["probes"][str(index)] = write_probe(folder, index, maps)
+        header["probes"][str(index)] = write_probe(folder, index, maps, positions[index])
         if time.monotonic() - last_flush >= HEADER_FLUSH_SECONDS:
             write_header(folder, header)
             last_flush = time.monotonic()

@@ -25,10 +25,14 @@ The header ``probes.json`` holds:
 - ``mapping``: texel (row, col) of every map is octahedral texel (v, u), texel centres at
   ``(i + 0.5) / R``, y up (``voxfield.kernels.octahedral``);
 - ``probes``: per finished probe (key: its index) the file name, a ``checksum`` of its three
-  arrays (blake2b over dtype, shape and bytes) and its cost (``BakeCost``: ``radiance_rays``,
-  ``radiance_steps``, ``radiance_seconds``, ``geometry_rays``, ``geometry_steps``,
-  ``geometry_seconds``). Disabled probes (``grid.enabled`` false) have no file: they read
-  back as ``ProbeMaps.empty`` (black, distance ``inf``, ``NO_NORMAL``);
+  arrays (blake2b over dtype, shape and bytes), the ``position`` it was baked at (voxel
+  units; folders baked before positions were recorded lack it and are read unchecked) and its
+  cost (``BakeCost``: ``radiance_rays``, ``radiance_steps``, ``radiance_seconds``,
+  ``geometry_rays``, ``geometry_steps``, ``geometry_seconds``). A reader refuses a probe whose
+  recorded position is not where the header's grid puts it: the maps only hold what was seen
+  from that point, so a grid edited after the bake would draw them somewhere else. Disabled
+  probes (``grid.enabled`` false) have no file: they read back as ``ProbeMaps.empty`` (black,
+  distance ``inf``, ``NO_NORMAL``);
 - ``complete``: true once every probe is baked and the atlases are written; ``atlas`` then
   describes them: ``columns`` × ``rows`` tiles of ``tile`` = R + 2 texels, probe ``i`` at tile
   ``divmod(i, columns)`` (row, column), each tile the probe's map with a one-texel octahedral
@@ -227,12 +231,14 @@ def differences(old: dict, new: dict) -> list[str]:
 # --------------------------------------------------------------------------- probe files
 
 
-def write_probe(folder: Path, index: int, maps) -> dict:
-    """Write one probe's maps atomically; returns its header record (file, checksum, cost)."""
+def write_probe(folder: Path, index: int, maps, position) -> dict:
+    """Write one probe's maps atomically; returns its header record (file, checksum, the
+    position it was baked at, cost)."""
     radiance, distance, normal = _probe_arrays(maps)
     name = probe_file_name(index)
     cost = {k: getattr(maps.cost, k) for k in COST_FIELDS}
     record = {"file": name, "checksum": maps_checksum(radiance, distance, normal),
+              "position": [float(v) for v in np.asarray(position, np.float64).reshape(3)],
               **{k: float(v) if k.endswith("seconds") else int(v) for k, v in cost.items()}}
     # The file carries its own record, so a bake killed before the header caught up can
     # take the probe back (``reconcile_probes``) instead of baking it again.
@@ -248,6 +254,7 @@ def reconcile_probes(folder: Path, header: dict) -> list[int]:
     between writing a probe and rewriting the header loses no finished probe. Returns the
     indices taken back."""
     taken = []
+    positions = header_positions(folder, header)
     for path in sorted(Path(folder).glob("probe_*.npz")):
         try:
             index = int(path.stem.split("_", 1)[1])
@@ -261,7 +268,7 @@ def reconcile_probes(folder: Path, header: dict) -> list[int]:
             if not isinstance(record, dict) or record.get("file") != path.name:
                 continue
             trial = {**header, "probes": {str(index): record}}
-            read_probe(folder, index, trial)
+            read_probe(folder, index, trial, positions)
         except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error,
                 ProbeStorageError):
             continue
@@ -276,8 +283,10 @@ def _probe_arrays(maps) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             np.ascontiguousarray(maps.normal, np.int16))
 
 
-def read_probe(folder: Path, index: int, header: dict) -> tuple[np.ndarray, ...]:
-    """One probe's (radiance, distance, normal), checked against the header's record."""
+def read_probe(folder: Path, index: int, header: dict,
+               positions: np.ndarray) -> tuple[np.ndarray, ...]:
+    """One probe's (radiance, distance, normal), checked against the header's record and
+    against ``positions`` (the header grid's probe positions, ``header_positions``)."""
     record = header["probes"].get(str(index))
     if record is None:
         raise ProbeFileError(f"{folder}: probe {index} was never finished; resume the bake "
@@ -289,6 +298,7 @@ def read_probe(folder: Path, index: int, header: dict) -> tuple[np.ndarray, ...]
     if name != probe_file_name(index):  # records swapped or edited: another probe's maps
         raise ProbeFileError(f"{Path(folder) / HEADER_NAME}: probe {index}'s record names "
                              f"{name!r}, not its own file; resume the bake to re-bake it")
+    check_position(folder, index, record, positions[index])
     path = Path(folder) / name
     if not path.is_file():
         raise ProbeFileError(f"{path}: probe {index}'s file is missing; resume the bake to "
@@ -312,15 +322,51 @@ def read_probe(folder: Path, index: int, header: dict) -> tuple[np.ndarray, ...]
     return arrays
 
 
+def header_positions(folder: Path, header: dict) -> np.ndarray:
+    """The (probe_count, 3) positions of the header's grid."""
+    positions = header_grid(folder, header).positions
+    if len(positions) != header["probe_count"]:
+        raise ProbeHeaderError(f"{Path(folder) / HEADER_NAME}: probe_count "
+                               f"{header['probe_count']} disagrees with the grid's "
+                               f"{len(positions)} probes; re-bake with --fresh")
+    return positions
+
+
+def check_position(folder: Path, index: int, record: dict, expected: np.ndarray) -> None:
+    """Refuse a probe recorded at another position than the grid's (within a rounding step
+    of the coordinates: the header's JSON carries float64 exactly, but a grid rebuilt from
+    its origin and spacing may round the last bit differently)."""
+    if "position" not in record:  # baked before positions were recorded
+        return
+    try:
+        recorded = np.asarray(record["position"], np.float64).reshape(3)
+    except (TypeError, ValueError):
+        recorded = None
+    if recorded is None or not np.all(np.isfinite(recorded)):
+        raise ProbeHeaderError(f"{Path(folder) / HEADER_NAME}: probe {index}'s position "
+                               f"{record['position']!r} is not three finite numbers; re-bake "
+                               "with --fresh")
+    if not np.allclose(recorded, expected, rtol=1e-12, atol=1e-9):
+        def shown(point) -> str:
+            return "(" + ", ".join(f"{v:.6g}" for v in point) + ")"
+        raise ProbeHeaderError(
+            f"{Path(folder) / HEADER_NAME}: probe {index} was baked at {shown(recorded)} but "
+            f"the grid puts it at {shown(expected)} (the grid was changed after the bake); "
+            "re-bake with --fresh"
+        )
+
+
 def verified_probes(folder: Path, header: dict) -> set[int]:
-    """Indices of the probes whose file exists, loads and matches its recorded checksum."""
+    """Indices of the probes whose file exists, loads, matches its recorded checksum and was
+    baked where the header's grid puts it."""
     done = set()
+    positions = header_positions(folder, header)
     for key in list(header["probes"]):
         try:
             index = int(key)
             if not 0 <= index < header["probe_count"]:
                 raise ValueError(index)
-            read_probe(folder, index, header)
+            read_probe(folder, index, header, positions)
         except (ValueError, ProbeStorageError):  # a bad record is re-baked
             continue
         done.add(index)
@@ -339,13 +385,13 @@ def open_probe_set(path: str | os.PathLike):
 
     folder = Path(path)
     header = read_header(folder)
+    grid = header_grid(folder, header)
     try:
-        grid = ProbeGrid.from_dict(header["grid"])
         options = BakeOptions.from_dict(header["options"])
     except VoxfieldError:
         raise
     except (KeyError, TypeError, ValueError) as exc:
-        raise ProbeHeaderError(f"{folder / HEADER_NAME}: bad grid or options ({exc}); "
+        raise ProbeHeaderError(f"{folder / HEADER_NAME}: bad options ({exc}); "
                                "re-bake with --fresh") from exc
     n = int(header["probe_count"])
     if grid.count != n or int(options.resolution) != header["resolution"]:
@@ -358,11 +404,24 @@ def open_probe_set(path: str | os.PathLike):
         raise ProbeFileError(f"{folder}: {len(missing)} of {int(enabled.sum())} probes are not "
                              f"baked yet ({shown}); resume the bake (run the same voxfield "
                              "bake again)")
-    probes = [_load_maps(folder, i, header) if enabled[i] else None for i in range(n)]
+    positions = grid.positions
+    probes = [_load_maps(folder, i, header, positions) if enabled[i] else None
+              for i in range(n)]
     return ProbeSet.assemble(grid, options, probes, header["scene"]["fingerprint"])
 
 
-def _load_maps(folder: Path, index: int, header: dict):
+def header_grid(folder: Path, header: dict) -> ProbeGrid:
+    """The header's probe grid, or a ``ProbeHeaderError`` saying why it is not one."""
+    try:
+        return ProbeGrid.from_dict(header["grid"])
+    except VoxfieldError:
+        raise
+    except (KeyError, TypeError, ValueError) as exc:
+        raise ProbeHeaderError(f"{Path(folder) / HEADER_NAME}: bad grid ({exc}); "
+                               "re-bake with --fresh") from exc
+
+
+def _load_maps(folder: Path, index: int, header: dict, positions: np.ndarray):
     """Probe ``index`` as ``ProbeMaps``, its cost taken from the header's record."""
     record = header["probes"][str(index)]
     try:
@@ -370,7 +429,7 @@ def _load_maps(folder: Path, index: int, header: dict):
     except (KeyError, TypeError, ValueError) as exc:
         raise ProbeHeaderError(f"{Path(folder) / HEADER_NAME}: probe {index}'s record has no "
                                f"valid cost ({exc}); re-bake with --fresh") from exc
-    return ProbeMaps(*read_probe(folder, index, header), cost)
+    return ProbeMaps(*read_probe(folder, index, header, positions), cost)
 
 
 # --------------------------------------------------------------------------- atlases
