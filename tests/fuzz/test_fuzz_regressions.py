@@ -256,6 +256,18 @@ def test_an_mtl_colour_past_single_precision_is_one_line(tmp_path, capsys, line)
     assert "not a finite colour" in one_error_line(capsys)
 
 
+@pytest.mark.parametrize("vt", ["1e300 0", "0.5 -1e39"])
+def test_a_texture_coordinate_past_single_precision_is_one_line(tmp_path, capsys, vt):
+    """It overflowed when stored as float32: two NumPy notes before the error."""
+    Image.new("RGB", (4, 4), (200, 10, 10)).save(tmp_path / "t.png")
+    (tmp_path / "m.mtl").write_text("newmtl a\nmap_Kd t.png\n")
+    (tmp_path / "m.obj").write_text(f"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt {vt}\n"
+                                    "vt 0 1\nvt 1 1\nusemtl a\nf 1/1 2/2 3/3\n")
+    assert main(["render", str(tmp_path / "m.obj"), "--quiet",
+                 "--out", str(tmp_path / "r.png")]) == 2
+    assert "texture coordinates contain NaN or infinite" in one_error_line(capsys)
+
+
 @pytest.mark.parametrize("shape", [(1, 1000), (1000, 1)])
 def test_a_one_row_tiff_says_what_a_dem_needs(tmp_path, capsys, shape):
     """It was called "an RGB image?"."""

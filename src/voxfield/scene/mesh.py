@@ -100,7 +100,8 @@ class TriangleMesh:
             return
         if self.uv is None or self.face_texture is None:
             raise SceneFormatError(f"{where}: uv and face_texture come together")
-        uv = np.asarray(self.uv, dtype=np.float32)
+        with np.errstate(over="ignore"):  # past float32's range: infinite, refused below
+            uv = np.asarray(self.uv, dtype=np.float32)
         ft = np.asarray(self.face_texture).astype(np.int32)
         if uv.shape != (n_t, 3, 2):
             raise SceneFormatError(f"{where}: uv must be {n_t}×3×2, got {uv.shape}")
@@ -356,7 +357,8 @@ def _parse_uv_table(rows: list[str], path: Path) -> np.ndarray:
         cols = np.arange(len(flat)) - np.repeat(np.cumsum(counts) - counts, counts)
         table[np.repeat(np.arange(len(counts)), counts), cols] = flat
     uv = np.zeros((len(table), 2), dtype=np.float32)
-    uv[:, : min(2, table.shape[1])] = table[:, :2]
+    with np.errstate(over="ignore"):  # past float32's range: infinite, refused where used
+        uv[:, : min(2, table.shape[1])] = table[:, :2]
     return uv
 
 
