@@ -268,6 +268,18 @@ def test_a_texture_coordinate_past_single_precision_is_one_line(tmp_path, capsys
     assert "texture coordinates contain NaN or infinite" in one_error_line(capsys)
 
 
+@pytest.mark.parametrize("field", ["color", "emission"])
+def test_a_voxel_colour_past_single_precision_is_one_line(tmp_path, capsys, field):
+    arrays = {"coords": np.array([[0, 0, 0], [1, 0, 0]]),
+              "color": np.array([[1.0, 0.0, 0.0], [0.5, 0.5, 0.5]]),
+              "emission": np.zeros((2, 3))}
+    arrays[field][0, 0] = 1e300
+    np.savez(tmp_path / "s.npz", **arrays)
+    assert main(["render", str(tmp_path / "s.npz"), "--quiet",
+                 "--out", str(tmp_path / "r.png")]) == 2
+    assert f"{field} holds NaN or infinite values" in one_error_line(capsys)
+
+
 @pytest.mark.parametrize("shape", [(1, 1000), (1000, 1)])
 def test_a_one_row_tiff_says_what_a_dem_needs(tmp_path, capsys, shape):
     """It was called "an RGB image?"."""

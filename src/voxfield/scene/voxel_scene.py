@@ -120,7 +120,8 @@ def _checked_rgb(values, n: int, what: str) -> np.ndarray:
     kind = np.asarray(values).dtype.kind
     if kind not in "fiu":
         raise VoxfieldError(f"{what} must hold real numbers, got {np.asarray(values).dtype}")
-    arr = np.asarray(values, dtype=np.float32)
+    with np.errstate(over="ignore"):  # past float32's range: infinite, refused just below
+        arr = np.asarray(values, dtype=np.float32)
     if arr.shape != (n, 3):
         raise VoxfieldError(f"{what} must be {n}×3 to match the voxel coords, got {arr.shape}")
     if n and not np.isfinite(arr).all():
