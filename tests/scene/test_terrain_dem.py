@@ -27,6 +27,11 @@ def test_all_void_dem_is_rejected():
 def test_file_errors(tmp_path):
     with pytest.raises(DataNotFoundError):
         load_heightmap(tmp_path / "missing.hgt")
+    for empty in ("", "  "):  # ``dem:`` with no name once read as the current folder
+        with pytest.raises(DataNotFoundError, match="no DEM named"):
+            load_heightmap(empty)
+    with pytest.raises(SceneFormatError, match="a folder, not a DEM file"):
+        load_heightmap(tmp_path)
     bad = tmp_path / "N40W074.hgt"
     bad.write_bytes(b"\0" * 1000)
     with pytest.raises(SceneFormatError, match="1,000 bytes"):

@@ -358,11 +358,14 @@ def load_heightmap(source) -> Heightmap:
 
         path = cbook.get_sample_data(SAMPLE_DEMS[source.lower()], asfileobj=False)
         return read_npz(path, name=source.lower())
+    samples = ", ".join(sorted(SAMPLE_DEMS))
+    if isinstance(source, str) and not source.strip():  # Path("") would be the current folder
+        raise DataNotFoundError(f"no DEM named: give a DEM file or a sample DEM ({samples})")
     path = Path(source)
     if not path.exists():
-        raise DataNotFoundError(
-            f"{path}: no such file (or name a sample DEM: {', '.join(sorted(SAMPLE_DEMS))})"
-        )
+        raise DataNotFoundError(f"{path}: no such file (or name a sample DEM: {samples})")
+    if path.is_dir():
+        raise SceneFormatError(f"{path}: a folder, not a DEM file (.hgt, .tif, .npz, .npy)")
     suffix = path.suffix.lower()
     if suffix == ".hgt":
         return read_hgt(path)
