@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import io
 import json
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,6 +25,15 @@ from voxfield.scene.terrain.dem import load_heightmap
 from voxfield.scene.voxelize import voxelize_mesh
 from voxfield.svo import build_octree, load_octree, save_octree
 from voxfield.svo.open import open_octree
+
+
+def refused_render(scene, capsys, *options: str) -> str:
+    """The one error line of a ``voxfield render`` of ``scene`` that must exit 2 and write
+    no picture."""
+    out = Path(scene).parent / "refused.png"
+    assert main(["render", str(scene), *options, "--quiet", "--out", str(out)]) == 2
+    assert not out.exists()
+    return one_error_line(capsys)
 
 
 def test_a_triangle_with_two_equal_vertices_is_skipped(tmp_path):
@@ -175,10 +185,7 @@ def test_dem_npz_metadata_that_is_not_numbers_is_one_clear_error(tmp_path, capsy
                                                                   words):
     path = tmp_path / "dem.npz"
     np.savez(path, elevation=np.arange(100.0).reshape(10, 10), **arrays)
-    assert main(["render", str(path), "--footprint", "32", "--quiet",
-                 "--out", str(tmp_path / "r.png")]) == 2
-    assert words in one_error_line(capsys)
-    assert not (tmp_path / "r.png").exists()
+    assert words in refused_render(path, capsys, "--footprint", "32")
 
 
 @pytest.mark.parametrize("heights, words", [
@@ -190,9 +197,7 @@ def test_dem_npz_metadata_that_is_not_numbers_is_one_clear_error(tmp_path, capsy
 def test_heights_whose_range_cannot_be_scaled_are_refused(tmp_path, capsys, heights, words):
     path = tmp_path / "dem.npz"
     np.savez(path, elevation=np.array(heights))
-    assert main(["render", str(path), "--footprint", "32", "--quiet",
-                 "--out", str(tmp_path / "r.png")]) == 2
-    assert words in one_error_line(capsys)
+    assert words in refused_render(path, capsys, "--footprint", "32")
 
 
 @pytest.mark.parametrize("text, words", [
@@ -205,8 +210,7 @@ def test_obj_indices_past_int64_and_denormal_meshes_are_one_clear_error(tmp_path
                                                                         text, words):
     path = tmp_path / "m.obj"
     path.write_text(text)
-    assert main(["render", str(path), "--quiet", "--out", str(tmp_path / "r.png")]) == 2
-    assert words in one_error_line(capsys)
+    assert words in refused_render(path, capsys)
 
 
 def test_a_texture_claiming_a_huge_size_is_skipped_with_a_note(tmp_path, capsys):
@@ -251,9 +255,7 @@ def test_an_mtl_colour_past_single_precision_is_one_line(tmp_path, capsys, line)
     (tmp_path / "m.mtl").write_text(f"newmtl a\n{line}\n")
     (tmp_path / "m.obj").write_text("mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\n"
                                     "f 1 2 3\n")
-    assert main(["render", str(tmp_path / "m.obj"), "--quiet",
-                 "--out", str(tmp_path / "r.png")]) == 2
-    assert "not a finite colour" in one_error_line(capsys)
+    assert "not a finite colour" in refused_render(tmp_path / "m.obj", capsys)
 
 
 @pytest.mark.parametrize("vt", ["1e300 0", "0.5 -1e39"])
@@ -263,9 +265,8 @@ def test_a_texture_coordinate_past_single_precision_is_one_line(tmp_path, capsys
     (tmp_path / "m.mtl").write_text("newmtl a\nmap_Kd t.png\n")
     (tmp_path / "m.obj").write_text(f"mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt {vt}\n"
                                     "vt 0 1\nvt 1 1\nusemtl a\nf 1/1 2/2 3/3\n")
-    assert main(["render", str(tmp_path / "m.obj"), "--quiet",
-                 "--out", str(tmp_path / "r.png")]) == 2
-    assert "texture coordinates contain NaN or infinite" in one_error_line(capsys)
+    assert "texture coordinates contain NaN or infinite" in refused_render(tmp_path / "m.obj",
+                                                                           capsys)
 
 
 @pytest.mark.parametrize("field", ["color", "emission"])
@@ -275,9 +276,7 @@ def test_a_voxel_colour_past_single_precision_is_one_line(tmp_path, capsys, fiel
               "emission": np.zeros((2, 3))}
     arrays[field][0, 0] = 1e300
     np.savez(tmp_path / "s.npz", **arrays)
-    assert main(["render", str(tmp_path / "s.npz"), "--quiet",
-                 "--out", str(tmp_path / "r.png")]) == 2
-    assert f"{field} holds NaN or infinite values" in one_error_line(capsys)
+    assert f"{field} holds NaN or infinite values" in refused_render(tmp_path / "s.npz", capsys)
 
 
 @pytest.mark.parametrize("shape", [(1, 1000), (1000, 1)])
