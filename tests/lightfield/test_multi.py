@@ -6,13 +6,19 @@ import numpy as np
 import pytest
 from lf_helpers import bake_grid
 
+from voxfield.kernels.octahedral import oct_decode
 from voxfield.kernels.probe_multi import (
+    COLOUR_FOOTPRINT,
+    COLOUR_PARALLEL,
     MAX_PROBE_TRACES,
     WITNESSES,
     cage,
+    colour_score,
+    hit_colour_probe,
     next_corner,
     point_from_probe,
     seen_through,
+    sees_front,
 )
 from voxfield.lightfield import (
     FALLBACK,
@@ -196,3 +202,44 @@ def test_the_consensus_check_counts_witnesses_as_the_full_slack_test_does(cornel
         assert seen_through(*maps, finder, *point, tolerance, corners) == expected
         answers.append(expected)
     assert 0.05 < np.mean(answers) < 0.95  # both answers are exercised
+
+
+@pytest.mark.parametrize("rule", [COLOUR_FOOTPRINT, COLOUR_PARALLEL])
+def test_the_colour_probe_is_the_best_of_every_candidate_judged_in_full(cornell_grid, rule):
+    """``hit_colour_probe`` skips a candidate whose stored distance misses the point by more
+    than any slack could allow before it reads the normal: it must pick as judging every
+    candidate with its full slack (``point_from_probe``) and normal does. The points lie on
+    surfaces the probes stored, where candidates both pass and fail."""
+    p = cornell_grid
+    r = p.resolution
+    rng = np.random.default_rng(5)
+    corners = np.empty(8, np.int64)
+    picks = []
+    for _ in range(3000):
+        finder = int(rng.integers(len(p.positions)))
+        u, v = rng.uniform(0.0, 1.0, 2)
+        row, col = min(int(v * r), r - 1), min(int(u * r), r - 1)
+        stored = float(p.mips[finder, row * r + col])
+        if not np.isfinite(stored):
+            continue
+        point = p.positions[finder] + stored * np.array(oct_decode(u, v))
+        direction = _unit(rng.normal(size=3))
+        tolerance = float(rng.choice([0.0, 0.5, 2.0]))
+        cage(p.grid_origin, p.grid_spacing, p.grid_counts, *point, corners)
+        expected, best_score = finder, -np.inf
+        for q in corners.tolist() + [finder]:
+            if not p.enabled[q]:
+                continue
+            length, cx, cy, cz, row_q, col_q, stored_q, slack = point_from_probe(
+                p.positions, p.normals, p.mips, r, q, *point, tolerance)
+            normal = [float(x) for x in p.normals[q, row_q, col_q]]
+            if sees_front(length, stored_q, slack, *normal, *direction):
+                score = colour_score(rule, length, cx, cy, cz, *direction, *normal)
+                if score > best_score:
+                    expected, best_score = q, score
+        got = hit_colour_probe(p.positions, p.enabled, p.normals, p.mips, r, p.grid_origin,
+                               p.grid_spacing, p.grid_counts, finder, *point, *direction,
+                               tolerance, corners, rule)
+        assert got == expected
+        picks.append(expected != finder)
+    assert 0.05 < np.mean(picks) < 0.95  # another probe wins often, but not always

@@ -37,6 +37,7 @@ from voxfield.kernels.probe_march import (
     P_REFINE,
     UNKNOWN,
     slope_thickness,
+    steepest_slope_thickness,
     texel_angle,
     trace_probe,
 )
@@ -378,8 +379,12 @@ def hit_colour_probe(positions: np.ndarray, enabled: np.ndarray, normals: np.nda
         q = hit_probe if corner == 8 else corners[corner]
         if not enabled[q]:
             continue
-        length, cx, cy, cz, row, col, stored, slack = point_from_probe(
-            positions, normals, mips, resolution, q, yx, yy, yz, tolerance)
+        length, cx, cy, cz, row, col, stored = probe_view(positions, mips, resolution, q, yx,
+                                                          yy, yz)
+        if not abs(stored - length) <= tolerance + steepest_slope_thickness(length,
+                                                                            resolution):
+            continue  # off by more than any slack: the normal need not be read
+        slack = view_slack(normals, resolution, q, length, cx, cy, cz, row, col, tolerance)
         nx = np.float64(normals[q, row, col, 0])
         ny = np.float64(normals[q, row, col, 1])
         nz = np.float64(normals[q, row, col, 2])
