@@ -3,11 +3,14 @@ parameters, crop fit and the thesis scale (``voxfield.scene.terrain.columns``)."
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from terrain_helpers import column_ranges, tree
 
 from voxfield.errors import VoxfieldError
+from voxfield.scene.loaders import SceneOptions, load_scene
 from voxfield.scene.terrain.columns import terrain_columns
 from voxfield.scene.terrain.dem import Heightmap
 from voxfield.scene.terrain.layout import terrain_scene
@@ -65,6 +68,32 @@ def test_max_height_caps_relief_and_scene_stays_in_cube():
     assert cols.top.max() <= 31
     scene = terrain_scene(hm, 32, fill_depth=2, max_height=20)
     assert scene.bounds[1][1] <= 21
+
+
+def test_a_relief_scaled_down_to_fit_is_marked():
+    steep = Heightmap(np.tile(np.arange(32, dtype=float), (32, 1)) * 1000.0, spacing=(1, 1))
+    assert terrain_columns(steep, 32, fill_depth=2).scale_capped
+    gentle = Heightmap(np.tile(np.arange(32, dtype=float), (32, 1)) / 2.0, spacing=(1, 1))
+    assert not terrain_columns(gentle, 32, fill_depth=2).scale_capped
+
+
+@pytest.mark.parametrize("scale, capped", [(None, False), (2.0, False), (8.0, True)])
+def test_a_vertical_scale_asked_for_but_cut_to_fit_is_a_note(tmp_path, scale, capped):
+    """Without spacing the relief spans a quarter of the footprint times the scale: 16 of
+    a 32-voxel cube at 2, 64 at 8, cut to fit. Only a scale someone asked for gets a note:
+    the default's relief is the DEM's own business."""
+    path = tmp_path / "ramp.npy"
+    np.save(path, np.tile(np.linspace(0.0, 500.0, 32), (32, 1)))
+    options = SceneOptions(terrain_footprint=32, vertical_scale=scale)
+    if capped:
+        with pytest.warns(UserWarning, match="vertical scale of 8 would raise the relief above "
+                                             "the 32³ cube; it was scaled down to fit"):
+            scene = load_scene(str(path), options)
+    else:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            scene = load_scene(str(path), options)
+    assert scene.bounds[1][1] <= 32
 
 
 def test_unknown_spacing_spans_a_quarter_of_the_footprint():

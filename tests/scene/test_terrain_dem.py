@@ -32,6 +32,10 @@ def test_file_errors(tmp_path):
             load_heightmap(empty)
     with pytest.raises(SceneFormatError, match="a folder, not a DEM file"):
         load_heightmap(tmp_path)
+    for name, data in (("garbage.npy", b"x"), ("empty.npy", b"")):
+        (tmp_path / name).write_bytes(data)  # NumPy itself would blame pickled data
+        with pytest.raises(SceneFormatError, match="not a .npy array \\(no NumPy header\\)"):
+            load_heightmap(tmp_path / name)
     bad = tmp_path / "N40W074.hgt"
     bad.write_bytes(b"\0" * 1000)
     with pytest.raises(SceneFormatError, match="1,000 bytes"):

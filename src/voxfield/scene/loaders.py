@@ -8,6 +8,7 @@ file: ``.vox``, ``.obj/.gltf/.glb/.ply`` (voxelized), ``.hgt/.tif/.tiff`` (DEM),
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -24,7 +25,7 @@ from voxfield.scene.vox import load_vox
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.scene.voxelize import voxelize_mesh
 
-DEM_SUFFIXES = (".hgt", ".tif", ".tiff")
+DEM_SUFFIXES = (".hgt", ".tif", ".tiff", ".npy")  # .npy: a bare 2-D height array
 
 
 @dataclass(frozen=True)
@@ -104,7 +105,14 @@ def _terrain_layout(source: str, options: SceneOptions):
     kwargs = {"footprint": options.terrain_footprint, "seed": options.seed}
     if options.vertical_scale is not None:
         kwargs["vertical_scale"] = options.vertical_scale
-    return terrain_layout(load_heightmap(source), **kwargs)
+    layout = terrain_layout(load_heightmap(source), **kwargs)
+    cols = layout.cols
+    if options.vertical_scale is not None and cols.scale_capped:
+        # Asked for by name and not given: say so, as the picture alone would not.
+        warnings.warn(f"{cols.name}: a vertical scale of {options.vertical_scale:g} would "
+                      f"raise the relief above the {cols.footprint}³ cube; it was scaled down "
+                      f"to fit ({cols.voxels_per_metre:.3g} voxels per metre)", stacklevel=2)
+    return layout
 
 
 def block_source(spec: str, options: SceneOptions | None = None):

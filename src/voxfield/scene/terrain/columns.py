@@ -30,7 +30,9 @@ class TerrainColumns:
 
     Column ``(z, x)`` holds voxels ``y = bottom .. top`` (inclusive). ``elevation`` is the
     resampled, void-filled DEM in metres; ``water`` marks columns below sea level (their top is
-    the flat sea surface); ``slope`` is rise per run in voxel units.
+    the flat sea surface); ``slope`` is rise per run in voxel units. ``scale_capped``: the
+    relief would have risen above the cube at the asked vertical scale and was scaled down to
+    fit (``voxels_per_metre`` is what was used).
     """
 
     top: np.ndarray
@@ -42,6 +44,7 @@ class TerrainColumns:
     metres_per_voxel: tuple[float, float] | None
     sea_level: float | None
     name: str = "terrain"
+    scale_capped: bool = False
 
     @property
     def footprint(self) -> int:
@@ -160,7 +163,8 @@ def terrain_columns(
         vpm = vertical_scale / math.sqrt(metres_per_voxel[0] * metres_per_voxel[1])
     else:
         vpm = vertical_scale * (footprint // 4) / relief if relief > 0 else 1.0
-    if relief * vpm > relief_cap:
+    scale_capped = relief * vpm > relief_cap
+    if scale_capped:
         vpm = relief_cap / relief
     if not math.isfinite(vpm):  # a relief of a few denormal metres
         raise SceneFormatError(f"{hm.name}: heights span only {relief:g} m, too little to "
@@ -188,5 +192,6 @@ def terrain_columns(
         metres_per_voxel=metres_per_voxel,
         sea_level=sea_level,
         name=hm.name,
+        scale_capped=bool(scale_capped),
     )
 

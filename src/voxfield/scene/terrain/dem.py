@@ -374,6 +374,9 @@ def load_heightmap(source) -> Heightmap:
     if suffix == ".npz":
         return read_npz(path)
     if suffix == ".npy":
+        with open(path, "rb") as f:
+            if f.read(6) != b"\x93NUMPY":  # else NumPy blames pickled data, for any bytes
+                raise SceneFormatError(f"{path}: not a .npy array (no NumPy header)")
         try:
             arr = np.load(path, allow_pickle=False)
         except Exception as exc:  # noqa: BLE001
