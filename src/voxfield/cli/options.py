@@ -167,7 +167,7 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     """The scene argument and how to read and build it."""
     p.add_argument(
         "scene",
-        help="scene: a .vox/.obj/.glb/.ply/.hgt/.tif/.npz file, builtin:NAME, terrain:RECIPE "
+        help="scene: a .vox/.obj/.glb/.ply/.hgt/.tif/.npy/.npz file, builtin:NAME, terrain:RECIPE "
         "or dem:jacksboro (see `voxfield scenes`)",
     )
     p.add_argument("--mesh-resolution", default=256, metavar="N",

@@ -2,7 +2,7 @@
 
 Descriptions: ``builtin:NAME`` (procedural), ``terrain:RECIPE`` (a documented terrain recipe
 over the shared DEMs), ``dem:jacksboro`` / ``dem:topobathy`` (matplotlib's sample DEMs), or a
-file: ``.vox``, ``.obj/.gltf/.glb/.ply`` (voxelized), ``.hgt/.tif/.tiff`` (DEM), ``.npz``
+file: ``.vox``, ``.obj/.gltf/.glb/.ply`` (voxelized), ``.hgt/.tif/.tiff/.npy`` (DEM), ``.npz``
 (a saved voxel scene, a saved octree, or a DEM array).
 """
 
