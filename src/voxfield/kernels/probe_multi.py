@@ -384,10 +384,10 @@ def hit_colour_probe(positions: np.ndarray, enabled: np.ndarray, normals: np.nda
         if not abs(stored - length) <= tolerance + steepest_slope_thickness(length,
                                                                             resolution):
             continue  # off by more than any slack: the normal need not be read
-        slack = view_slack(normals, resolution, q, length, cx, cy, cz, row, col, tolerance)
         nx = np.float64(normals[q, row, col, 0])
         ny = np.float64(normals[q, row, col, 1])
         nz = np.float64(normals[q, row, col, 2])
+        slack = tolerance + slope_thickness(length, cx, cy, cz, nx, ny, nz, resolution)
         if not sees_front(length, stored, slack, nx, ny, nz, dx, dy, dz):
             continue
         score = colour_score(rule, length, cx, cy, cz, dx, dy, dz, nx, ny, nz)
@@ -499,7 +499,7 @@ RAY_BLOCK = 256
 def trace_light_field_rays(modes: TraceModes, field: ProbeField, rays: RayBatch,
                            out: LightFieldOutputs, threads: int = 1) -> None:
     """Every ray, in blocks of ``RAY_BLOCK`` that ``threads`` workers claim as they are free
-    (``kernels.scheduling.claim_run``: pass ``numba.get_num_threads()``); each ray's results
+    (``kernels.scheduling.claim_items``; pass ``numba.get_num_threads()``); each ray's results
     depend only on that ray. A hit's colour comes from ``hit_colour_probe``, read bilinearly
     at the hit point."""
     queue = new_run_queue()

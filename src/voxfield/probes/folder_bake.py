@@ -80,8 +80,9 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
         header["probes"] = old["probes"]
     folder.mkdir(parents=True, exist_ok=True)
 
-    reconcile_probes(folder, header)
-    done = verified_probes(folder, header)
+    positions = grid.positions
+    reconcile_probes(folder, header, positions)
+    done = verified_probes(folder, header, positions)
     header["probes"] = {str(i): header["probes"][str(i)] for i in sorted(done)}
     enabled = np.asarray(grid.enabled, bool).reshape(-1)
     todo = [i for i in range(grid.count) if enabled[i] and i not in done]
@@ -92,7 +93,6 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
     write_header(folder, header)
 
     last_flush = time.monotonic()
-    positions = grid.positions
 
     def store(index: int, maps) -> None:
         nonlocal last_flush

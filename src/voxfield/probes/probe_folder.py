@@ -248,13 +248,12 @@ def write_probe(folder: Path, index: int, maps, position) -> dict:
     return record
 
 
-def reconcile_probes(folder: Path, header: dict) -> list[int]:
+def reconcile_probes(folder: Path, header: dict, positions: np.ndarray) -> list[int]:
     """Take into ``header`` every probe file on disk the header does not record yet whose own
-    record verifies (shapes as the header's encodings, checksum of its maps): a bake stopped
-    between writing a probe and rewriting the header loses no finished probe. Returns the
-    indices taken back."""
+    record verifies (shapes as the header's encodings, checksum of its maps, its position
+    among ``positions``, those of the header's grid): a bake stopped between writing a probe
+    and rewriting the header loses no finished probe. Returns the indices taken back."""
     taken = []
-    positions = header_positions(folder, header)
     for path in sorted(Path(folder).glob("probe_*.npz")):
         try:
             index = int(path.stem.split("_", 1)[1])
@@ -286,7 +285,7 @@ def _probe_arrays(maps) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
 def read_probe(folder: Path, index: int, header: dict,
                positions: np.ndarray) -> tuple[np.ndarray, ...]:
     """One probe's (radiance, distance, normal), checked against the header's record and
-    against ``positions`` (the header grid's probe positions, ``header_positions``)."""
+    against ``positions`` (those of the header's grid)."""
     record = header["probes"].get(str(index))
     if record is None:
         raise ProbeFileError(f"{folder}: probe {index} was never finished; resume the bake "
@@ -322,16 +321,6 @@ def read_probe(folder: Path, index: int, header: dict,
     return arrays
 
 
-def header_positions(folder: Path, header: dict) -> np.ndarray:
-    """The (probe_count, 3) positions of the header's grid."""
-    positions = header_grid(folder, header).positions
-    if len(positions) != header["probe_count"]:
-        raise ProbeHeaderError(f"{Path(folder) / HEADER_NAME}: probe_count "
-                               f"{header['probe_count']} disagrees with the grid's "
-                               f"{len(positions)} probes; re-bake with --fresh")
-    return positions
-
-
 def check_position(folder: Path, index: int, record: dict, expected: np.ndarray) -> None:
     """Refuse a probe recorded at another position than the grid's (within a rounding step
     of the coordinates: the header's JSON carries float64 exactly, but a grid rebuilt from
@@ -356,11 +345,10 @@ def check_position(folder: Path, index: int, record: dict, expected: np.ndarray)
         )
 
 
-def verified_probes(folder: Path, header: dict) -> set[int]:
+def verified_probes(folder: Path, header: dict, positions: np.ndarray) -> set[int]:
     """Indices of the probes whose file exists, loads, matches its recorded checksum and was
-    baked where the header's grid puts it."""
+    baked where the header's grid puts it (``positions``)."""
     done = set()
-    positions = header_positions(folder, header)
     for key in list(header["probes"]):
         try:
             index = int(key)
