@@ -8,7 +8,13 @@ import pytest
 from lf_helpers import bake_grid
 
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.probe_multi import MAX_PROBE_TRACES, cage, trace_light_field_ray
+from voxfield.kernels.probe_multi import (
+    MAX_PROBE_TRACES,
+    RING_SIZE,
+    cage,
+    probe_ring,
+    trace_light_field_ray,
+)
 from voxfield.lightfield import HIT, MISS, LightFieldOptions, trace_light_field
 from voxfield.lightfield.accuracy import depth_agreement, perfect_trace_image, pixel_classes
 from voxfield.lightfield.probe_render import render_from_probes
@@ -45,31 +51,54 @@ def _trace_logged(packed, origin, direction, options):
         False, options.params(0.0), packed.positions, packed.enabled, packed.mips,
         packed.mip_offsets, packed.mip_sizes, packed.normals, packed.resolution,
         packed.grid_origin, packed.grid_spacing, packed.grid_counts, *origin, *direction,
-        0.0, np.inf, corners, probes, starts, np.empty(8, np.int64))
+        0.0, np.inf, corners, probes, starts, np.empty(8, np.int64),
+        np.empty(RING_SIZE, np.int64), np.empty(RING_SIZE))
     tried = out[5]
     return out, probes[:tried], starts[:tried]
 
 
-def test_every_probe_is_tried_from_the_cage_around_where_the_ray_was_lost(cornell_probes):
+@pytest.mark.parametrize("ring", [False, True])
+def test_every_probe_is_tried_from_the_cage_around_where_the_ray_was_lost(cornell_probes, ring):
+    """From each point a ray reached, the probes of the cage around it are tried first;
+    with the ring, the probes one step outside follow, nearest first, only once every
+    enabled probe of the cage has lost the ray there."""
     packed = cornell_probes[3]
     rng = np.random.default_rng(4)
     origins = rng.uniform(3.0, 29.0, (400, 3))
     dirs = rng.normal(size=(400, 3))
     dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
-    options = LightFieldOptions(epsilon="constant")
+    options = LightFieldOptions(epsilon="constant", ring=ring)
     recaged = 0
+    ringed = 0
     corners = np.empty(8, np.int64)
+    ring_probes = np.empty(RING_SIZE, np.int64)
     for origin, direction in zip(origins, dirs, strict=True):
         _, probes, starts = _trace_logged(packed, origin, direction, options)
-        for p, t in zip(probes, starts, strict=True):
-            cage(packed.grid_origin, packed.grid_spacing, packed.grid_counts,
-                 *(origin + t * direction), corners)
-            assert p in corners  # a probe of the cage around the point reached
+        for t in np.unique(starts):
+            point = origin + t * direction
+            cage(packed.grid_origin, packed.grid_spacing, packed.grid_counts, *point, corners)
+            from_here = probes[starts == t].tolist()
+            in_cage = [p in corners for p in from_here]
+            if not ring:
+                assert all(in_cage)  # a probe of the cage around the point reached
+                continue
+            cage_count = sum(in_cage)
+            assert all(in_cage[:cage_count])  # the cage first
+            if cage_count < len(from_here):
+                ringed += 1
+                enabled_corners = {p for p in corners.tolist() if packed.enabled[p]}
+                assert set(from_here[:cage_count]) == enabled_corners
+                count = probe_ring(packed.grid_origin, packed.grid_spacing, packed.grid_counts,
+                                   packed.positions, packed.enabled, *point, ring_probes,
+                                   np.empty(RING_SIZE))
+                listed = ring_probes[:count].tolist()
+                assert from_here[cage_count:] == listed[:len(from_here) - cage_count]
         cage(packed.grid_origin, packed.grid_spacing, packed.grid_counts, *origin, corners)
         recaged += any(p not in corners for p in probes)
         # Never the same probe twice from the same point.
         pairs = list(zip(probes.tolist(), starts.tolist(), strict=True))
         assert len(pairs) == len(set(pairs))
+    assert ringed > 0 if ring else ringed == 0
     assert recaged > 10  # rays carried on by probes outside the origin's cage
 
 

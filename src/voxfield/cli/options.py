@@ -386,6 +386,11 @@ def add_hit_options(p: argparse.ArgumentParser, prefix: str = "") -> None:
                    help=f"{prefix}before taking a hit, ask the other probes around it "
                    "whether they see empty space there (fewer false hits, more fetches; "
                    f"default {'on' if defaults.consensus else 'off'})")
+    p.add_argument("--ring", action=argparse.BooleanOptionalAction, default=defaults.ring,
+                   help=f"{prefix}when every probe of the cage around the point a ray has "
+                   "reached loses it, let the probes one grid step further out try, nearest "
+                   "first, before falling back (fewer fallbacks on occluded scenes; "
+                   f"default {'on' if defaults.ring else 'off'}; off is the thesis)")
     p.add_argument("--backface", action="store_true",
                    help=f"{prefix}reject hits whose stored normal faces along the ray")
     p.add_argument("--no-fallback", action="store_true",
@@ -404,5 +409,6 @@ def hit_options(args) -> dict:
     return {"epsilon": args.epsilon, "epsilon_value": args.epsilon_value,
             "epsilon_k": args.epsilon_k, "epsilon_front": args.epsilon_front,
             "refine_window": args.refine_window, "consensus": args.consensus,
+            "ring": args.ring,
             "backface": args.backface, "fallback": not args.no_fallback,
             "colour_probe": args.colour_probe}

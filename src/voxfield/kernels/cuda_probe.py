@@ -16,6 +16,7 @@ from numba import types
 from voxfield.kernels.cuda_primary import jit_for_gpu
 from voxfield.kernels.probe_multi import (
     MAX_PROBE_TRACES,
+    RING_SIZE,
     LightFieldOutputs,
     ProbeField,
     RayBatch,
@@ -47,7 +48,9 @@ def _trace_light_field_cuda(
         return
     scratch = (cuda.local.array(8, types.int64), cuda.local.array(8, types.int64),
                cuda.local.array(MAX_PROBE_TRACES, types.int64),
-               cuda.local.array(MAX_PROBE_TRACES, types.float64))
+               cuda.local.array(MAX_PROBE_TRACES, types.float64),
+               cuda.local.array(RING_SIZE, types.int64),
+               cuda.local.array(RING_SIZE, types.float64))
     field = ProbeField(positions, enabled, mips, mip_offsets, mip_sizes, normals, radiance,
                        radiance_bordered, distance_bordered, resolution, grid_origin,
                        grid_spacing, grid_counts)

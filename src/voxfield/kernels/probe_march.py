@@ -93,7 +93,8 @@ P_BILINEAR = 7  # 1.0: a hit's radiance is read bilinearly (``probe_multi``), el
 P_COLOUR_PROBE = 8  # which probe answers a hit's colour (``probe_multi.COLOUR_*``)
 P_FRONT = 9  # footprint ε in front of a surface: at most this many texel widths there
 P_REFINE = 10  # a hit is re-traced against its colour probe within ± this many texel widths
-N_PARAMS = 11
+P_RING = 11  # 1.0: when a cage loses the ray, the probes one step outside it try (``probe_multi``)
+N_PARAMS = 12
 
 #: Events of one texel (or one march step): nothing yet, a hit, a loss of visibility.
 _GO = 0

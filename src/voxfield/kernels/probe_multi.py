@@ -8,8 +8,10 @@ offset ``(c & 1, c >> 1 & 1, c >> 2 & 1)``: bits zyx). Each probe continues from
 where the previous one lost visibility (Algorithm 5), so no part of the ray is marched twice;
 a probe that loses the ray further on re-forms the cage around that point, so the probes
 near where the ray now is carry it on (the thesis keeps the origin's cage, whose probes may
-all sit on one side of the ray). When no probe can carry the ray further, the nearest probe
-answers as an environment map (§5.4): its radiance in direction ω.
+all sit on one side of the ray). When every probe of a cage loses the ray at once, the probes
+one lattice step outside it (the ring) try, nearest first, before the ray is given up (the
+thesis stops at the cage; ``P_RING``). When no probe can carry the ray further, the nearest
+probe answers as an environment map (§5.4): its radiance in direction ω.
 
 A hit's colour is read at the hit point, bilinearly over the bordered map of a probe that
 sees that point (its stored distance agrees): by default the one whose texels are smallest
@@ -35,6 +37,7 @@ from voxfield.kernels.probe_march import (
     P_CONSENSUS,
     P_EPSILON,
     P_REFINE,
+    P_RING,
     UNKNOWN,
     slope_thickness,
     steepest_slope_thickness,
@@ -74,6 +77,8 @@ WITNESSES = 2
 CORNER_STRIDE = 3
 #: Most probe traces one ray makes across all the cages it passes through.
 MAX_PROBE_TRACES = 32
+#: Probes one lattice step outside a cage: the 4x4x4 block around its cell less its 8.
+RING_SIZE = 56
 
 
 @njit(cache=True, nogil=True)
@@ -84,11 +89,10 @@ def next_corner(corner: int) -> int:
 
 
 @njit(cache=True, nogil=True)
-def cage(grid_origin: np.ndarray, grid_spacing: np.ndarray, grid_counts: np.ndarray,
-         x: float, y: float, z: float, out: np.ndarray) -> None:
-    """The 8 probe indices around point (x, y, z) into ``out[0:8]`` (corner order, bits zyx).
-    The cell is ``ProbeGrid.cell_of``'s; on an axis with a single probe both corners are that
-    probe, so ``out`` may repeat an index."""
+def cage_cell(grid_origin: np.ndarray, grid_spacing: np.ndarray, grid_counts: np.ndarray,
+              x: float, y: float, z: float) -> tuple[int, int, int]:
+    """The lattice cell around point (x, y, z): ``ProbeGrid.cell_of``'s, its lowest corner's
+    lattice index per axis (the nearest border cell for points outside the grid)."""
     cell0 = 0
     cell1 = 0
     cell2 = 0
@@ -103,6 +107,16 @@ def cage(grid_origin: np.ndarray, grid_spacing: np.ndarray, grid_counts: np.ndar
             cell1 = c
         else:
             cell2 = c
+    return cell0, cell1, cell2
+
+
+@njit(cache=True, nogil=True)
+def cage(grid_origin: np.ndarray, grid_spacing: np.ndarray, grid_counts: np.ndarray,
+         x: float, y: float, z: float, out: np.ndarray) -> None:
+    """The 8 probe indices around point (x, y, z) into ``out[0:8]`` (corner order, bits zyx).
+    The cell is ``cage_cell``'s; on an axis with a single probe both corners are that
+    probe, so ``out`` may repeat an index."""
+    cell0, cell1, cell2 = cage_cell(grid_origin, grid_spacing, grid_counts, x, y, z)
     nx = grid_counts[0]
     ny = grid_counts[1]
     for corner in range(8):
@@ -110,6 +124,43 @@ def cage(grid_origin: np.ndarray, grid_spacing: np.ndarray, grid_counts: np.ndar
         j = min(cell1 + ((corner >> 1) & 1), ny - 1)
         k = min(cell2 + ((corner >> 2) & 1), grid_counts[2] - 1)
         out[corner] = i + nx * (j + ny * k)
+
+
+@njit(cache=True, nogil=True)
+def probe_ring(grid_origin: np.ndarray, grid_spacing: np.ndarray, grid_counts: np.ndarray,
+               positions: np.ndarray, enabled: np.ndarray, x: float, y: float, z: float,
+               out: np.ndarray, out_d2: np.ndarray) -> int:
+    """The enabled probes one lattice step outside the cage around (x, y, z) (the 4x4x4
+    block around its cell, less the cage; fewer at the grid's border) into ``out``, nearest
+    to the point first (ties by index); returns how many. ``out`` and ``out_d2`` hold
+    ``RING_SIZE``."""
+    cell0, cell1, cell2 = cage_cell(grid_origin, grid_spacing, grid_counts, x, y, z)
+    nx = grid_counts[0]
+    ny = grid_counts[1]
+    nz = grid_counts[2]
+    count = 0
+    for k in range(max(cell2 - 1, 0), min(cell2 + 3, nz)):
+        for j in range(max(cell1 - 1, 0), min(cell1 + 3, ny)):
+            for i in range(max(cell0 - 1, 0), min(cell0 + 3, nx)):
+                if (cell0 <= i <= cell0 + 1 and cell1 <= j <= cell1 + 1
+                        and cell2 <= k <= cell2 + 1):
+                    continue  # the cage's own corner
+                p = i + nx * (j + ny * k)
+                if not enabled[p]:
+                    continue
+                vx = x - positions[p, 0]
+                vy = y - positions[p, 1]
+                vz = z - positions[p, 2]
+                d2 = vx * vx + vy * vy + vz * vz
+                at = count
+                while at > 0 and out_d2[at - 1] > d2:  # insertion: a stable nearest-first
+                    out[at] = out[at - 1]
+                    out_d2[at] = out_d2[at - 1]
+                    at -= 1
+                out[at] = p
+                out_d2[at] = d2
+                count += 1
+    return count
 
 
 @njit(cache=True, nogil=True)
@@ -180,7 +231,7 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
                           ox: float, oy: float, oz: float, dx: float, dy: float, dz: float,
                           tmin: float, tmax: float, corners: np.ndarray,
                           tried_probe: np.ndarray, tried_t: np.ndarray,
-                          corners2: np.ndarray):
+                          corners2: np.ndarray, ring: np.ndarray, ring_d2: np.ndarray):
     """One ray through its probe cages. Returns ``(kind, t, probe, row, col, tried, fetches,
     steps)``; ``kind`` is ``HIT``, ``MISS``, ``FALLBACK`` (probe = the environment map used,
     t = its stored distance in direction ω) or ``UNKNOWN`` (every probe lost the ray and
@@ -188,12 +239,14 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
 
     The cage is formed around the point the ray has reached: at first its origin, then,
     each time a probe loses the ray further on, the point where it was lost, so the probes
-    around that point (not those around the camera) continue it. A probe is never traced
-    twice from the same point. With ``params[P_CONSENSUS]`` a hit that other probes of the
-    cage around it see through (``seen_through``) is not taken: the ray marches on past it,
-    and comes back to it only if every probe loses the ray behind it.
-    ``corners`` and ``corners2`` are 8-int scratch; ``tried_probe`` / ``tried_t``
-    (``MAX_PROBE_TRACES`` each) log the traces made."""
+    around that point (not those around the camera) continue it; with ``params[P_RING]``,
+    when all of them lose it there, the ring around the cage tries next (``probe_ring``,
+    nearest first). A probe is never traced twice from the same point. With
+    ``params[P_CONSENSUS]`` a hit that other probes of the cage around it see through
+    (``seen_through``) is not taken: the ray marches on past it, and comes back to it only
+    if every probe loses the ray behind it.
+    ``corners`` and ``corners2`` are 8-int scratch, ``ring`` / ``ring_d2`` ``RING_SIZE``;
+    ``tried_probe`` / ``tried_t`` (``MAX_PROBE_TRACES`` each) log the traces made."""
     t = tmin
     tried = 0
     fetches = 0
@@ -211,10 +264,23 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
         cage(grid_origin, grid_spacing, grid_counts, qx, qy, qz, corners)
         start = first_corner(ordering, corners, positions, enabled, qx, qy, qz, dx, dy, dz)
         if start < 0:
-            break
+            if params[P_RING] == 0.0:
+                break
+            start = 0  # no probe of the cage is enabled: the ring alone
         advanced = False
-        for m in range(8):
-            p = corners[(start + CORNER_STRIDE * m) % 8]
+        ring_count = 0
+        for m in range(8 + RING_SIZE):
+            if m < 8:
+                p = corners[(start + CORNER_STRIDE * m) % 8]
+            else:
+                if m == 8:
+                    if params[P_RING] == 0.0:
+                        break
+                    ring_count = probe_ring(grid_origin, grid_spacing, grid_counts,
+                                            positions, enabled, qx, qy, qz, ring, ring_d2)
+                if m - 8 >= ring_count:
+                    break
+                p = ring[m - 8]
             if not enabled[p] or tried >= MAX_PROBE_TRACES:
                 continue
             again = False
@@ -532,10 +598,12 @@ def hit_tolerance(params: np.ndarray) -> float:
 
 @njit(cache=True, nogil=True)
 def new_ray_scratch():
-    """One thread's scratch for ``answer_ray``: two cage buffers and the log of the probe
-    traces of one ray. (The CUDA kernel builds the same tuple from local arrays.)"""
+    """One thread's scratch for ``answer_ray``: two cage buffers, the log of the probe
+    traces of one ray and the ring's two buffers. (The CUDA kernel builds the same tuple
+    from local arrays.)"""
     return (np.empty(8, np.int64), np.empty(8, np.int64),
-            np.empty(MAX_PROBE_TRACES, np.int64), np.empty(MAX_PROBE_TRACES, np.float64))
+            np.empty(MAX_PROBE_TRACES, np.int64), np.empty(MAX_PROBE_TRACES, np.float64),
+            np.empty(RING_SIZE, np.int64), np.empty(RING_SIZE, np.float64))
 
 
 @njit(cache=True, nogil=True)
@@ -640,7 +708,7 @@ def answer_ray(i: int, modes: TraceModes, field: ProbeField, rays: RayBatch,
     origins, dirs, tmin, tmax = rays
     (out_kind, out_t, out_radiance, out_normal, out_distance, out_probe, out_tried,
      out_fetches, out_steps) = out
-    corners, corners2, tried_probe, tried_t = scratch
+    corners, corners2, tried_probe, tried_t, ring, ring_d2 = scratch
     ox = origins[i, 0]
     oy = origins[i, 1]
     oz = origins[i, 2]
@@ -651,7 +719,7 @@ def answer_ray(i: int, modes: TraceModes, field: ProbeField, rays: RayBatch,
         marcher, eps_mode, ordering, fallback, params, positions, enabled, mips,
         mip_offsets, mip_sizes, normals, resolution, grid_origin, grid_spacing,
         grid_counts, ox, oy, oz, dx, dy, dz, tmin[i], tmax[i], corners, tried_probe,
-        tried_t, corners2)
+        tried_t, corners2, ring, ring_d2)
     if kind == HIT and row >= 0 and params[P_REFINE] > 0.0:
         t, p, row, col, f, s = hit_in_front(
             marcher, eps_mode, params, positions, enabled, mips, mip_offsets, mip_sizes,

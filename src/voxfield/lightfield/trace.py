@@ -1,9 +1,10 @@
 """Ray queries answered from light probes with depth (probe thesis ch. 4-7).
 
 ``trace_single`` marches rays against one probe; ``trace_light_field`` answers each ray from
-the 8-probe cage around its origin with the thesis's ordering and hand-off, falling back to the
-nearest probe as an environment map. Both run the Numba kernels of ``kernels.probe_march`` and
-``kernels.probe_multi`` in parallel over rays; results are the same for any thread count.
+the 8-probe cage around its origin with the thesis's ordering and hand-off (and the ring of
+probes outside a cage that lost it), falling back to the nearest probe as an environment map.
+Both run the Numba kernels of ``kernels.probe_march`` and ``kernels.probe_multi`` in parallel
+over rays; results are the same for any thread count.
 """
 
 from __future__ import annotations
@@ -84,8 +85,11 @@ class LightFieldOptions:
     ``ordering``: first probe of each cage — ``"nearest"`` (the default, McGuire et al. 2017),
     ``"signed-dot"`` (max ``ω · S²(X - P)``, the thesis) or ``"fixed"`` (corner 0); the rest
     follow ``i + 3 mod 8``, and a probe that loses the ray further on re-forms the cage
-    there. ``fallback``: when every probe loses the ray, answer with the nearest
-    probe's radiance in direction ω (kind ``FALLBACK``) rather than ``UNKNOWN``.
+    there. ``ring`` (on by default): when every probe of a cage loses the ray at the point
+    it has reached, the probes one lattice step outside the cage try it from there, nearest
+    first (``kernels.probe_multi.probe_ring``; off is the thesis, which stops at the cage).
+    ``fallback``: when every probe loses the ray, answer with the nearest probe's radiance
+    in direction ω (kind ``FALLBACK``) rather than ``UNKNOWN``.
     ``consensus`` (on by default): before a hit is taken, the other probes of the cage
     around the hit point are asked whether they see empty space there; if two do
     (``kernels.probe_multi.WITNESSES``), the ray marches on, and comes back to that hit only
@@ -118,6 +122,7 @@ class LightFieldOptions:
     colour_filter: str = "bilinear"
     colour_probe: str = "footprint"
     refine_window: float = 3.0
+    ring: bool = True
 
     def __post_init__(self) -> None:
         for name, table in (("marcher", MARCHERS), ("epsilon", EPSILON_MODES),
@@ -162,6 +167,7 @@ class LightFieldOptions:
         out[pm.P_COLOUR_PROBE] = COLOUR_PROBES[self.colour_probe]
         out[pm.P_FRONT] = self.epsilon_front
         out[pm.P_REFINE] = self.refine_window
+        out[pm.P_RING] = 1.0 if self.ring else 0.0
         return out
 
 
@@ -197,7 +203,7 @@ class ProbeHits:
 @dataclass
 class LightFieldHits:
     """The light field's answer per ray. ``kind`` int8: ``HIT``, ``MISS`` (a probe proved
-    the segment empty), ``FALLBACK`` (every cage probe lost the ray; radiance is the nearest
+    the segment empty), ``FALLBACK`` (every probe tried lost the ray; radiance is the nearest
     probe's in direction ω, ``t`` its stored distance there) or ``UNKNOWN`` (same, with
     fallback off). ``t`` float64 hit distance along the unit direction (``tmax`` for a
     miss); ``radiance`` / ``normal`` (N, 3) float32 and ``distance`` float32 (the answering

@@ -538,14 +538,14 @@ def results_markdown(report: dict) -> str:
         f"options: epsilon {o['epsilon']} (value {o['epsilon_value']}, k {o['epsilon_k']}, "
         f"front {o.get('epsilon_front', 'inf')} texels), hits refined within "
         f"{o.get('refine_window', 0)} texels, consensus "
-        f"{'on' if o.get('consensus') else 'off'}, "
+        f"{'on' if o.get('consensus') else 'off'}, ring {'on' if o.get('ring') else 'off'}, "
         f"backface {'on' if o['backface'] else 'off'}, fallback "
         f"{'on' if o['fallback'] else 'off'}; marcher {o['marcher']} and ordering "
         f"{o['ordering']} unless a table varies them. Reference: {report['reference']['renderer']}"
         " — the same rays the probe render answers. Metrics on linear RGB in [0, 1]. Kinds are "
         "percentages of pixels: hit, miss (a probe proved the ray empty), unknown / fallback "
-        "(every probe of the cage lost the ray; fallback reads the nearest probe as an "
-        "environment map).",
+        "(every probe tried lost the ray; fallback reads the nearest probe as an environment "
+        "map).",
         "",
         f"Where this differs from `voxfield bake`: the study bakes with the exact LOD-0 "
         f"renderer (bake's default is {BakeOptions().renderer}) and relocates with a clearance "
