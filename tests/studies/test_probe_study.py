@@ -50,6 +50,34 @@ def test_writes_every_file(study):
         assert heading in text
 
 
+def test_a_view_no_probe_sees_is_said_to_measure_the_fallback(tmp_path):
+    """A camera in a closed room the only probe cannot see into: every ray is lost, and the
+    study says its light-field figures measure the fallback (in the report, the markdown
+    and as a warning the command line prints as a note)."""
+    n = 32
+    x, y, z = np.meshgrid(np.arange(n), np.arange(n), np.arange(n), indexing="ij")
+    solid = ((x == 0) | (x == n - 1) | (y == 0) | (y == n - 1) | (z == 0) | (z == n - 1)
+             | (x == 22))  # the probe, at the box's centre, stands in the larger room
+    coords = np.argwhere(solid)
+    octree = build_octree(VoxelScene(coords, np.full((len(coords), 3), 0.6, np.float32)))
+    camera = Camera.look_at((27.5, 16.0, 16.0), (22.0, 15.0, 17.0), fov_deg=70.0, width=16)
+    with pytest.warns(UserWarning, match="100% of the light field's pixels were answered by "
+                                         "no probe of the 1x1x1 grid"):
+        report = run_probe_study(octree, tmp_path / "closed", camera=camera,
+                                 resolutions=(8, 16), probe_counts=((1, 1, 1),),
+                                 marchers=("hierarchical",), orderings=("nearest",),
+                                 timing_repeats=1, relocate_probes=False)
+    assert len(report["notes"]) == 1
+    assert "**Note:** 100% of the light field" in (tmp_path / "closed" / "results.md").read_text()
+
+
+def test_a_view_the_probes_see_has_no_such_note(study):
+    out, report = study
+    lost = next(q["failures"] for q in report["quality"] if q["method"] == "light-field")
+    assert lost < 0.25 and report["notes"] == []
+    assert "**Note:**" not in (out / "results.md").read_text()
+
+
 def test_resumes_without_recomputing(study, cornell, camera):
     out, first = study
     again = run_probe_study(cornell, out, scene_name="builtin:cornell", camera=camera, **TINY)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import re
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, replace
 from pathlib import Path
@@ -81,6 +82,10 @@ COUNT_RESOLUTION_CAP = 256
 #: Section 3 says when a grid's perfect-trace bound stays below this: its maps are too coarse
 #: for the view, so its failures and PSNR say little about the trace.
 BOUND_FLOOR_DB = 30.0
+#: Above this share of the light field's pixels answered by no probe (fallback or unknown),
+#: the study says that section 1 measures the fallback more than the trace: a camera that
+#: sees what the probes do not (inside closed space, far above a surface layer).
+LOST_NOTE_SHARE = 0.25
 #: Relocation keeps probes at least this far (voxels) from surfaces, or the grid default (a
 #: fifth of the spacing) when that is smaller: a lone probe's default would be a fifth of the
 #: scene, which no probe in a cluttered scene can reach.
@@ -158,6 +163,9 @@ def run_probe_study(
                 bar.update(1)
             count_rows.append(row)
     study.drop_bake()
+    notes = [note for note in (lost_rays_note(quality_rows, main),) if note is not None]
+    for note in notes:
+        warnings.warn(note, UserWarning, stacklevel=2)
 
     report = {
         "study": "probes", "scene": scene_name, "width": camera.width, "height": camera.height,
@@ -169,7 +177,7 @@ def run_probe_study(
         "quality": quality_rows, "resolution": resolution_rows,
         "growth": growth_fits(resolution_rows, plan["marchers"]),
         "probe_count": count_rows, "timing": timing,
-        "grids": study.grid_notes, "metrics_on": "linear RGB in [0, 1]",
+        "grids": study.grid_notes, "notes": notes, "metrics_on": "linear RGB in [0, 1]",
         "items": {"computed": len(folder.computed), "reused": len(folder.reused)},
     }
 
@@ -182,6 +190,18 @@ def run_probe_study(
         report, reference, study.kept), dpi=int(min(160, max(90, camera.width / 3))))
     write_html_report(folder.root)
     return report
+
+
+def lost_rays_note(quality_rows: list[dict], grid: str) -> str | None:
+    """What to say when no probe answered more than ``LOST_NOTE_SHARE`` of the light field's
+    pixels, or ``None``: its PSNR then measures the fallback, not the trace."""
+    lost = next(q["failures"] for q in quality_rows if q["method"] == "light-field")
+    if lost <= LOST_NOTE_SHARE:
+        return None
+    return (f"{100 * lost:.0f}% of the light field's pixels were answered by no probe of the "
+            f"{grid} grid (every probe the ray reached lost it), so section 1's light-field "
+            "figures measure the fallback more than the trace; see contact_sheet.png, and "
+            "place the camera where the probes see (--eye/--target) or use a denser --grid")
 
 
 # --------------------------------------------------------------------------- checks
@@ -576,6 +596,7 @@ def results_markdown(report: dict) -> str:
     rule = {"footprint": "whose texel is smallest there",
             "parallel": "that sees it most nearly along the ray"}[o.get("colour_probe",
                                                                        "parallel")]
+    lines += [f"**Note:** {note}.\n" for note in report.get("notes", [])]
     lines.append("The bound gives every pixel its true hit point and reads the probe "
                  f"{rule} among those that see it, as the trace reads a hit; depth columns "
                  "compare t with the octree's over the pixels it sees (voxels).\n")
