@@ -264,3 +264,11 @@ def test_depth_agreement_and_pixel_classes_add_up(cornell_probes, view):
     same = pixel_classes(np.full(reference.depth.shape, HIT), reference.depth, reference.image,
                          reference.depth, reference.image)
     assert same["correct"]["pixels"] == int(np.isfinite(reference.depth).sum())
+    # Pixels where neither sees a surface are left out, with no NumPy warning (an error
+    # here) on their inf - inf.
+    open_sky = reference.depth.copy()
+    open_sky[:, :5] = np.inf
+    both_miss = pixel_classes(np.full(open_sky.shape, MISS), np.full(open_sky.shape, np.inf),
+                              reference.image, open_sky, reference.image)
+    assert both_miss["wrong miss"]["pixels"] == int(np.isfinite(open_sky).sum())
+    assert sum(c["pixels"] for c in both_miss.values()) == int(np.isfinite(open_sky).sum())

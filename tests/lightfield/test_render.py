@@ -359,6 +359,28 @@ def test_command_compares_with_the_octree_and_writes_depth(run, cornell_folder, 
     assert (tmp_path / "box_compare.png").is_file()
 
 
+def test_command_says_when_no_probe_answers_most_pixels(run, cornell_folder, tmp_path,
+                                                       capsys):
+    """From above the box its probes, inside it, see none of the roof the camera sees: the
+    light field falls back almost everywhere, and the command says so; from inside, not."""
+    from voxfield.lightfield.probe_render import LOST_NOTE_SHARE
+
+    for camera, lost in (("top", True), ("room", False)):
+        out = tmp_path / f"{camera}.png"
+        assert run(["probe-render", str(cornell_folder), "--camera", camera, "--size", "16",
+                    "--counters", "--out", str(out)]) == 0
+        err = capsys.readouterr().err
+        kinds = json.loads((tmp_path / f"{camera}_summary.json").read_text())["pixels_by_kind"]
+        share = (kinds.get("fallback", 0) + kinds.get("unknown", 0)) / 256
+        assert (share > LOST_NOTE_SHARE) == lost
+        assert ("were answered by no probe of this probe set" in err) == lost
+        assert "voxfield: error" not in err
+    # Not for a baseline, which answers every ray from the nearest probe.
+    assert run(["probe-render", str(cornell_folder), "--camera", "top", "--method",
+                "environment", "--size", "16", "--out", str(tmp_path / "env.png")]) == 0
+    assert "answered by no probe" not in capsys.readouterr().err
+
+
 def test_command_bad_input_exits_2(run, cornell_folder, tmp_path, capsys):
     def error(argv) -> str:
         assert run(argv) == 2

@@ -37,6 +37,8 @@ from voxfield.lightfield.packed import PackedProbes
 from voxfield.lightfield.probe_render import (
     METHODS,
     check_probe_device,
+    lost_rays_note,
+    lost_share,
     probe_set_bounds,
     render_from_probes,
 )
@@ -172,6 +174,10 @@ def run(args) -> int:
                                 box=box, filter=args.filter, threads=args.threads,
                                 progress=not args.quiet, packed=packed, device=args.device)
     save_result_image(result, out)
+    lost = lost_rays_note(lost_share(result), "this probe set")
+    if lost is not None and not args.quiet:
+        print(f"voxfield: note: {lost}; place the camera where the probes see "
+              "(--eye/--target) or bake a denser grid", file=sys.stderr)
     written = [out]
     summary = {**result.summary(), **map_summary(result)}
     if args.compare:

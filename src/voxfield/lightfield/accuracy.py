@@ -95,10 +95,12 @@ def pixel_classes(kind: np.ndarray, depth: np.ndarray, image: np.ndarray,
     Pixels where both see nothing are left out."""
     kind = np.asarray(kind)
     ref = np.asarray(reference_depth, np.float64)
-    error = np.abs(np.asarray(depth, np.float64) - ref)
+    seen = np.isfinite(ref)
+    # Only where the octree sees a surface: where neither does, inf - inf has no error.
+    error = np.full(ref.shape, np.inf)
+    error[seen] = np.abs(np.asarray(depth, np.float64)[seen] - ref[seen])
     sq = np.sum((np.asarray(image, np.float64) - np.asarray(reference_image, np.float64)) ** 2,
                 axis=-1)
-    seen = np.isfinite(ref)
     hit = kind == HIT
     masks = {
         "correct": hit & seen & (error < CORRECT_DEPTH),

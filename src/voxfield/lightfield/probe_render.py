@@ -45,6 +45,10 @@ from voxfield.render.result import RenderResult
 
 METHODS = ("light-field", "environment", "box-proxy")
 MAP_NAMES = ("probes_tried", "texel_fetches", "result_kind", "probe")
+#: Above this share of a light-field render's pixels answered by no probe (fallback or
+#: unknown), the render shows the fallback more than the trace: the camera sees what the
+#: probes do not (inside closed space, outside the grid, far above a surface layer).
+LOST_NOTE_SHARE = 0.25
 
 
 def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field",
@@ -226,6 +230,26 @@ def result_kinds() -> dict[str, int]:
 def kind_names() -> dict[int, str]:
     """``result_kind`` code → name, for legends and summaries."""
     return {code: name for name, code in result_kinds().items()}
+
+
+def lost_share(result: RenderResult) -> float:
+    """The share of a light-field render's pixels no probe answered (``FALLBACK`` or
+    ``UNKNOWN``); 0 for the baselines, which answer every ray."""
+    kind = result.maps.get("result_kind")
+    if result.params.get("method") != "light-field" or kind is None or kind.size == 0:
+        return 0.0
+    codes = result_kinds()
+    return float(np.mean(np.isin(kind, [codes["fallback"], codes["unknown"]])))
+
+
+def lost_rays_note(share: float, probes: str) -> str | None:
+    """What to say when no probe answered more than ``LOST_NOTE_SHARE`` of a light-field
+    render's pixels (``share``, of ``probes``: "the 3x3x3 grid"), or ``None``."""
+    if share <= LOST_NOTE_SHARE:
+        return None
+    return (f"{100 * share:.0f}% of the light field's pixels were answered by no probe of "
+            f"{probes} (every probe the ray reached lost it): they show the fallback, not the "
+            "trace")
 
 
 def pixel_angle_of(camera: Camera) -> float:

@@ -38,7 +38,7 @@ from voxfield.checks import is_integer
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.accuracy import depth_agreement, perfect_trace_image
 from voxfield.lightfield.packed import PackedProbes
-from voxfield.lightfield.probe_render import render_from_probes, result_kinds
+from voxfield.lightfield.probe_render import lost_rays_note, render_from_probes, result_kinds
 from voxfield.lightfield.trace import MARCHERS as KNOWN_MARCHERS
 from voxfield.lightfield.trace import ORDERINGS as KNOWN_ORDERINGS
 from voxfield.lightfield.trace import checked_options
@@ -82,10 +82,6 @@ COUNT_RESOLUTION_CAP = 256
 #: Section 3 says when a grid's perfect-trace bound stays below this: its maps are too coarse
 #: for the view, so its failures and PSNR say little about the trace.
 BOUND_FLOOR_DB = 30.0
-#: Above this share of the light field's pixels answered by no probe (fallback or unknown),
-#: the study says that section 1 measures the fallback more than the trace: a camera that
-#: sees what the probes do not (inside closed space, far above a surface layer).
-LOST_NOTE_SHARE = 0.25
 #: Relocation keeps probes at least this far (voxels) from surfaces, or the grid default (a
 #: fifth of the spacing) when that is smaller: a lone probe's default would be a fifth of the
 #: scene, which no probe in a cluttered scene can reach.
@@ -163,7 +159,7 @@ def run_probe_study(
                 bar.update(1)
             count_rows.append(row)
     study.drop_bake()
-    notes = [note for note in (lost_rays_note(quality_rows, main),) if note is not None]
+    notes = [note for note in (study_lost_note(quality_rows, main),) if note is not None]
     for note in notes:
         warnings.warn(note, UserWarning, stacklevel=2)
 
@@ -192,16 +188,14 @@ def run_probe_study(
     return report
 
 
-def lost_rays_note(quality_rows: list[dict], grid: str) -> str | None:
-    """What to say when no probe answered more than ``LOST_NOTE_SHARE`` of the light field's
-    pixels, or ``None``: its PSNR then measures the fallback, not the trace."""
+def study_lost_note(quality_rows: list[dict], grid: str) -> str | None:
+    """``lost_rays_note`` for section 1's light-field render, with what to do about it."""
     lost = next(q["failures"] for q in quality_rows if q["method"] == "light-field")
-    if lost <= LOST_NOTE_SHARE:
-        return None
-    return (f"{100 * lost:.0f}% of the light field's pixels were answered by no probe of the "
-            f"{grid} grid (every probe the ray reached lost it), so section 1's light-field "
-            "figures measure the fallback more than the trace; see contact_sheet.png, and "
-            "place the camera where the probes see (--eye/--target) or use a denser --grid")
+    note = lost_rays_note(lost, f"the {grid} grid")
+    return None if note is None else (
+        f"{note}, so section 1's light-field figures measure the fallback more than the "
+        "trace; see contact_sheet.png, and place the camera where the probes see "
+        "(--eye/--target) or use a denser --grid")
 
 
 # --------------------------------------------------------------------------- checks
