@@ -193,9 +193,8 @@ def study_lost_note(quality_rows: list[dict], grid: str) -> str | None:
     lost = next(q["failures"] for q in quality_rows if q["method"] == "light-field")
     note = lost_rays_note(lost, f"the {grid} grid")
     return None if note is None else (
-        f"{note}, so section 1's light-field figures measure the fallback more than the "
-        "trace; see contact_sheet.png, and place the camera where the probes see "
-        "(--eye/--target) or use a denser --grid")
+        f"{note}, and so do section 1's light-field figures; see contact_sheet.png, and place "
+        "the camera where the probes see (--eye/--target) or use a denser --grid")
 
 
 # --------------------------------------------------------------------------- checks
