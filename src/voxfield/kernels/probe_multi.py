@@ -257,6 +257,7 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
     kept_probe = -1
     kept_row = -1
     kept_col = -1
+    ring_on = params[P_RING] != 0.0
     while tried < MAX_PROBE_TRACES and t < tmax:
         qx = ox + t * dx
         qy = oy + t * dy
@@ -264,24 +265,26 @@ def trace_light_field_ray(marcher: int, eps_mode: int, ordering: int, fallback: 
         cage(grid_origin, grid_spacing, grid_counts, qx, qy, qz, corners)
         start = first_corner(ordering, corners, positions, enabled, qx, qy, qz, dx, dy, dz)
         if start < 0:
-            if params[P_RING] == 0.0:
+            if not ring_on:
                 break
             start = 0  # no probe of the cage is enabled: the ring alone
         advanced = False
         ring_count = 0
         for m in range(8 + RING_SIZE):
+            if tried >= MAX_PROBE_TRACES:
+                break  # the budget is spent: no ring to list, no probe to try
             if m < 8:
                 p = corners[(start + CORNER_STRIDE * m) % 8]
             else:
                 if m == 8:
-                    if params[P_RING] == 0.0:
+                    if not ring_on:
                         break
                     ring_count = probe_ring(grid_origin, grid_spacing, grid_counts,
                                             positions, enabled, qx, qy, qz, ring, ring_d2)
                 if m - 8 >= ring_count:
                     break
                 p = ring[m - 8]
-            if not enabled[p] or tried >= MAX_PROBE_TRACES:
+            if not enabled[p]:
                 continue
             again = False
             for j in range(tried):

@@ -159,7 +159,8 @@ def run_probe_study(
                 bar.update(1)
             count_rows.append(row)
     study.drop_bake()
-    notes = [note for note in (study_lost_note(quality_rows, main),) if note is not None]
+    lost_note = study_lost_note(quality_rows, main)
+    notes = [] if lost_note is None else [lost_note]
     for note in notes:
         warnings.warn(note, UserWarning, stacklevel=2)
 
