@@ -20,7 +20,9 @@ $(STAMP): pyproject.toml
 # own kernels, which takes most of the time, and one compilation uses one core.
 DEMO_RENDER := $(BIN)/voxfield render builtin:pillars --camera orbit --size 384
 DEMO_JOBS   := $(shell nproc 2>/dev/null || echo 2)
-DEMO_IMAGES := demo-reference demo-lod2 demo-cone demo-error-mask
+# The longest compilations first, so that make starts them first.
+DEMO_IMAGES := demo-error-aware demo-light-field demo-reference demo-lod2 demo-cone \
+               demo-error-mask
 # Each command's lines kept together where make can (GNU make 4; macOS's 3.81 interleaves).
 DEMO_SYNC   := $(if $(filter output-sync,$(.FEATURES)),--output-sync=target)
 .PHONY: $(DEMO_IMAGES)
@@ -32,6 +34,17 @@ demo: $(STAMP)
 	$(DEMO_RENDER) --renderer reference --out out/pillars_reference.exr
 	@echo "demo images written to out/"
 
+# The EA thesis: one ray a pixel at a coarse LOD, refined 2×2 one LOD finer where the
+# precomputed error says the coarse node would show; its ray-count and LOD maps beside it.
+demo-error-aware: $(STAMP)
+	$(DEMO_RENDER) --renderer error-aware --counters --out out/pillars_error_aware.png
+# The probe thesis: a 3x3x3 grid of light probes baked from the octree, then a view among
+# them answered from the probes alone, beside the octree's render of the same view.
+demo-light-field: $(STAMP)
+	$(BIN)/voxfield bake builtin:pillars --grid 3x3x3 --resolution 256 --renderer lod \
+		--relocate --fresh --quiet --out out/pillars_probes
+	$(BIN)/voxfield probe-render out/pillars_probes --scene builtin:pillars --camera room \
+		--size 384 --compare --out out/pillars_light_field.png
 demo-reference: $(STAMP)
 	$(DEMO_RENDER) --renderer reference --counters --out out/pillars_reference.png
 demo-lod2: $(STAMP)
