@@ -1,11 +1,21 @@
-"""Counter pictures: one colour per LOD, black for misses, steps scaled by their 99th percentile."""
+"""Counter pictures: one colour per LOD, black for misses, steps scaled by their 99th
+percentile; the written maps keep every pixel and carry their colour bars."""
 
 from __future__ import annotations
 
 import numpy as np
 from matplotlib import colormaps
 
-from voxfield.render.counter_maps import lod_map, steps_heatmap
+from voxfield.render.counter_maps import (
+    LEGEND_MIN_HEIGHT,
+    LEGEND_WIDTH,
+    lod_colours,
+    lod_figure,
+    lod_map,
+    steps_figure,
+    steps_heatmap,
+    steps_scale,
+)
 from voxfield.render.result import RenderResult
 
 
@@ -33,3 +43,32 @@ def test_steps_heatmap_is_monotone_in_steps():
     brightness = rgb.sum(axis=-1).ravel()
     assert np.all(np.diff(brightness[:99]) >= -1e-9)
     assert np.allclose(rgb[0, 0], colormaps["magma"](0.0)[:3])
+
+
+def _has_colour(pixels: np.ndarray, colour) -> bool:
+    return bool(np.any(np.all(np.abs(pixels - np.asarray(colour)) <= 2.5 / 255, axis=-1)))
+
+
+def test_the_written_lod_map_keeps_every_pixel_and_shows_each_lod_in_its_bar():
+    rng = np.random.default_rng(3)
+    lod = rng.integers(-1, 3, (40, 50))  # LODs 0..2 of a depth-5 octree, and misses
+    result = _result(lod, np.ones((40, 50)))
+    figure = lod_figure(result, depth=5)
+    assert figure.shape == (LEGEND_MIN_HEIGHT, 50 + LEGEND_WIDTH, 3)
+    assert np.abs(figure[:40, :50] - lod_map(result, 5)).max() <= 1 / 255 + 1e-9
+    assert np.all(figure[40:, :50] == 1.0)  # white below the map
+    bar = figure[:, 50:]
+    for colour in lod_colours(5):  # every LOD the octree has, not only those drawn
+        assert _has_colour(bar, colour)
+
+
+def test_the_written_steps_map_keeps_every_pixel_and_spans_its_scale():
+    steps = np.arange(200 * 300).reshape(200, 300) % 97
+    result = _result(np.zeros((200, 300), int), steps)
+    figure = steps_figure(result)
+    assert figure.shape == (200, 300 + LEGEND_WIDTH, 3)
+    assert np.abs(figure[:, :300] - steps_heatmap(result)).max() <= 1 / 255 + 1e-9
+    bar = figure[:, 300:]
+    assert _has_colour(bar, colormaps["magma"](0.0)[:3])
+    assert _has_colour(bar, colormaps["magma"](0.95)[:3])  # (its top pixel rounds down)
+    assert steps_scale(result) == np.percentile(steps[steps > 0], 99)

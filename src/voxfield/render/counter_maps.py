@@ -11,21 +11,81 @@ from matplotlib import colormaps
 from voxfield.render.image_io import save_png
 from voxfield.render.result import RenderResult
 
+#: The colour bar's width beside a map, and the least height it needs, in pixels.
+LEGEND_WIDTH = 120
+LEGEND_MIN_HEIGHT = 160
+
+
+def steps_scale(result: RenderResult) -> float:
+    """The step count the heat map's brightest colour stands for: the 99th percentile of the
+    pixels that took any (so a few very long rays do not leave the rest dark)."""
+    steps = result.steps
+    return max(float(np.percentile(steps[steps > 0], 99)) if steps.any() else 1.0, 1.0)
+
 
 def steps_heatmap(result: RenderResult) -> np.ndarray:
-    """Traversal steps per pixel on the magma scale, normalised at the 99th percentile."""
+    """Traversal steps per pixel on the magma scale, normalised at ``steps_scale``."""
     steps = result.steps.astype(np.float64)
-    top = float(np.percentile(steps[steps > 0], 99)) if steps.any() else 1.0
-    return colormaps["magma"](np.clip(steps / max(top, 1.0), 0.0, 1.0))[..., :3]
+    return colormaps["magma"](np.clip(steps / steps_scale(result), 0.0, 1.0))[..., :3]
+
+
+def lod_colours(depth: int) -> np.ndarray:
+    """The LOD map's colour of each LOD 0..``depth`` (viridis, LOD 0 brightest), (depth+1)×3."""
+    return colormaps["viridis"](1.0 - np.arange(depth + 1) / max(depth, 1))[:, :3]
 
 
 def lod_map(result: RenderResult, depth: int) -> np.ndarray:
-    """Finest LOD sampled per pixel, one viridis colour per LOD (LOD 0 brightest); black where
+    """Finest LOD sampled per pixel, one colour per LOD (``lod_colours``); black where
     nothing was hit."""
-    lod = result.finest_lod.astype(np.float64)
-    rgb = colormaps["viridis"](1.0 - np.clip(lod, 0, depth) / max(depth, 1))[..., :3]
+    lod = result.finest_lod.astype(np.int64)
+    rgb = lod_colours(depth)[np.clip(lod, 0, depth)]
     rgb[lod < 0] = 0.0
     return rgb
+
+
+def with_colour_bar(rgb: np.ndarray, cmap, norm, label: str, ticks=None) -> np.ndarray:
+    """``rgb`` pixel for pixel at the top left, its colour bar to the right: a map is read
+    by its numbers, and a bare heat map gives none."""
+    # heavy: matplotlib's figure machinery loads only when a map is drawn
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.figure import Figure
+
+    h, w = rgb.shape[:2]
+    dpi = 100.0
+    fig_w, fig_h = w + LEGEND_WIDTH, max(h, LEGEND_MIN_HEIGHT)
+    fig = Figure(figsize=(fig_w / dpi, fig_h / dpi), dpi=dpi, facecolor="white")
+    canvas = FigureCanvasAgg(fig)
+    fig.figimage(np.clip(rgb, 0.0, 1.0), xo=0, yo=fig_h - h, origin="upper")
+    bar_h = min(fig_h - 24, 360)
+    cax = fig.add_axes(((w + 14) / fig_w, (fig_h - 12 - bar_h) / fig_h, 14 / fig_w,
+                        bar_h / fig_h))
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), cax=cax, ticks=ticks)
+    bar.ax.tick_params(labelsize=7)
+    bar.set_label(label, fontsize=7)
+    canvas.draw()
+    return np.asarray(canvas.buffer_rgba())[..., :3].astype(np.float64) / 255.0
+
+
+def steps_figure(result: RenderResult) -> np.ndarray:
+    """``steps_heatmap`` with its colour bar in steps."""
+    from matplotlib.colors import Normalize
+
+    top = steps_scale(result)
+    return with_colour_bar(steps_heatmap(result), colormaps["magma"], Normalize(0.0, top),
+                           f"traversal steps per pixel\n(brightest: {top:g} or more)")
+
+
+def lod_figure(result: RenderResult, depth: int) -> np.ndarray:
+    """``lod_map`` with a colour bar of its LODs."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
+    cmap = ListedColormap(lod_colours(depth))
+    norm = BoundaryNorm(np.arange(-0.5, depth + 1.0), cmap.N)
+    step = max(1, (depth + 1 + 11) // 12)
+    return with_colour_bar(lod_map(result, depth), cmap, norm,
+                           "finest LOD per pixel (0: voxels)\nblack: nothing hit",
+                           ticks=np.arange(0, depth + 1, step))
 
 
 def counter_map_paths(image_path: str | Path) -> list[Path]:
@@ -40,6 +100,6 @@ def write_counter_files(result: RenderResult, paths: list[Path], depth: int) -> 
     order) as given: to write them atomically, pass the staged paths of
     ``atomic.atomic_paths``, with the image's if they belong to one."""
     steps_path, lod_path, summary_path = paths
-    save_png(steps_heatmap(result), steps_path, encode_srgb=False)
-    save_png(lod_map(result, depth), lod_path, encode_srgb=False)
+    save_png(steps_figure(result), steps_path, encode_srgb=False)
+    save_png(lod_figure(result, depth), lod_path, encode_srgb=False)
     Path(summary_path).write_text(json.dumps(result.summary(), indent=2))
