@@ -24,7 +24,8 @@ def test_render_png_exr_and_counters(tmp_path, capsys):
     assert image.shape == (32, 32, 3) and image.max() > 0
     summary = json.loads((tmp_path / "a_summary.json").read_text())
     assert summary["rays"] == 32 * 32 * 16
-    assert (tmp_path / "a_steps.png").exists() and (tmp_path / "a_lod.png").exists()
+    for name in ("a_steps.png", "a_lod.png", "a_rays.png"):
+        assert (tmp_path / name).exists()
     exr = tmp_path / "b.exr"
     assert main(["render", "builtin:sphere", "--size", "16", "--renderer", "lod", "--lod", "1",
                  "--out", str(exr)]) == 0

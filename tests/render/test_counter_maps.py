@@ -12,6 +12,8 @@ from voxfield.render.counter_maps import (
     lod_colours,
     lod_figure,
     lod_map,
+    rays_figure,
+    rays_map,
     steps_figure,
     steps_heatmap,
     steps_scale,
@@ -72,3 +74,18 @@ def test_the_written_steps_map_keeps_every_pixel_and_spans_its_scale():
     assert _has_colour(bar, colormaps["magma"](0.0)[:3])
     assert _has_colour(bar, colormaps["magma"](0.95)[:3])  # (its top pixel rounds down)
     assert steps_scale(result) == np.percentile(steps[steps > 0], 99)
+
+
+def test_the_written_rays_map_gives_each_count_its_band():
+    rays = np.array([[1, 4, 16, 21], [1, 1, 4, 5]])  # an error-aware render's counts
+    result = _result(np.zeros((2, 4), int), np.ones((2, 4)))
+    result.ray_count = rays.astype(np.int32)
+    rgb, top = rays_map(result)
+    assert top == 21
+    assert np.allclose(rgb[0, 0], colormaps["viridis"](1 / 21)[:3])
+    assert np.allclose(rgb[0, 3], colormaps["viridis"](1.0)[:3])
+    figure = rays_figure(result)
+    assert np.abs(figure[:2, :4] - rgb).max() <= 1 / 255 + 1e-9
+    bar = figure[:, 4:]
+    for count in (0, 1, 4, 5, 16, 21):  # a band per count, those not drawn included
+        assert _has_colour(bar, colormaps["viridis"](count / 21)[:3])

@@ -45,7 +45,8 @@ def register(subparsers) -> argparse.ArgumentParser:
                       help="write the flat colour channel the metrics compare, PNG too (EXR "
                       "default)")
     p.add_argument("--counters", action="store_true",
-                   help="also write traversal-step and LOD maps and a JSON summary")
+                   help="also write maps of traversal steps, finest LOD and rays per pixel, "
+                        "and a JSON summary")
     p.add_argument("--out", required=True, help="output .png (sRGB) or .exr (linear RGB + Z)")
     p.set_defaults(func=run)
     return p

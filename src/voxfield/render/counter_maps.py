@@ -1,4 +1,5 @@
-"""Pictures of the cost counters: traversal steps and finest LOD per pixel (EA figs 5.1–5.3)."""
+"""Pictures of the cost counters: traversal steps, finest LOD and rays cast per pixel (EA figs
+5.1–5.3), each with its colour bar."""
 
 from __future__ import annotations
 
@@ -41,6 +42,14 @@ def lod_map(result: RenderResult, depth: int) -> np.ndarray:
     rgb = lod_colours(depth)[np.clip(lod, 0, depth)]
     rgb[lod < 0] = 0.0
     return rgb
+
+
+def rays_map(result: RenderResult) -> tuple[np.ndarray, int]:
+    """Rays cast per pixel (discarded ones included: the EA thesis's cost), viridis from 0
+    to the most any pixel cast, one colour per count; returns the picture and that most."""
+    rays = np.asarray(result.ray_count, np.int64)
+    top = max(int(rays.max(initial=0)), 1)
+    return colormaps["viridis"](np.clip(rays, 0, top) / top)[..., :3], top
 
 
 def with_colour_bar(rgb: np.ndarray, cmap, norm, label: str, ticks=None) -> np.ndarray:
@@ -88,18 +97,35 @@ def lod_figure(result: RenderResult, depth: int) -> np.ndarray:
                            ticks=np.arange(0, depth + 1, step))
 
 
+def rays_figure(result: RenderResult) -> np.ndarray:
+    """``rays_map`` with a colour bar of its counts (where the error-aware and adaptive
+    renderers refined): a band per count up to 24, a continuous scale beyond."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap, Normalize
+
+    rgb, top = rays_map(result)
+    label = "rays cast per pixel"
+    if top > 24:
+        return with_colour_bar(rgb, colormaps["viridis"], Normalize(0.0, top), label)
+    cmap = ListedColormap(colormaps["viridis"](np.arange(top + 1) / top)[:, :3])
+    norm = BoundaryNorm(np.arange(-0.5, top + 1.0), cmap.N)
+    return with_colour_bar(rgb, cmap, norm, label,
+                           ticks=np.arange(0, top + 1, max(1, (top + 11) // 12)))
+
+
 def counter_map_paths(image_path: str | Path) -> list[Path]:
-    """Where an image's counter maps go: ``<stem>_steps.png``, ``<stem>_lod.png`` and
-    ``<stem>_summary.json`` beside it."""
+    """Where an image's counter maps go: ``<stem>_steps.png``, ``<stem>_lod.png``,
+    ``<stem>_rays.png`` and ``<stem>_summary.json`` beside it."""
     stem = Path(image_path).with_suffix("")
-    return [Path(f"{stem}_steps.png"), Path(f"{stem}_lod.png"), Path(f"{stem}_summary.json")]
+    return [Path(f"{stem}_{name}") for name in
+            ("steps.png", "lod.png", "rays.png", "summary.json")]
 
 
 def write_counter_files(result: RenderResult, paths: list[Path], depth: int) -> None:
-    """The steps heat map, the LOD map and the summary into ``paths`` (``counter_map_paths``'
-    order) as given: to write them atomically, pass the staged paths of
-    ``atomic.atomic_paths``, with the image's if they belong to one."""
-    steps_path, lod_path, summary_path = paths
+    """The steps, LOD and ray-count maps and the summary into ``paths``
+    (``counter_map_paths``' order) as given: to write them atomically, pass the staged paths
+    of ``atomic.atomic_paths``, with the image's if they belong to one."""
+    steps_path, lod_path, rays_path, summary_path = paths
     save_png(steps_figure(result), steps_path, encode_srgb=False)
     save_png(lod_figure(result, depth), lod_path, encode_srgb=False)
+    save_png(rays_figure(result), rays_path, encode_srgb=False)
     Path(summary_path).write_text(json.dumps(result.summary(), indent=2))
