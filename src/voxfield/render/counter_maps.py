@@ -73,7 +73,7 @@ def with_colour_bar(rgb: np.ndarray, cmap, norm, label: str, ticks=None) -> np.n
     bar.ax.tick_params(labelsize=7)
     bar.set_label(label, fontsize=7)
     canvas.draw()
-    return np.asarray(canvas.buffer_rgba())[..., :3].astype(np.float64) / 255.0
+    return np.asarray(canvas.buffer_rgba())[..., :3] / np.float32(255.0)
 
 
 def steps_figure(result: RenderResult) -> np.ndarray:
