@@ -44,7 +44,7 @@ demo-light-field: $(STAMP)
 	$(BIN)/voxfield bake builtin:pillars --grid 3x3x3 --resolution 256 --renderer lod \
 		--relocate --fresh --quiet --out out/pillars_probes
 	$(BIN)/voxfield probe-render out/pillars_probes --scene builtin:pillars --camera room \
-		--size 384 --compare --out out/pillars_light_field.png
+		--size 384 --compare --counters --out out/pillars_light_field.png
 demo-reference: $(STAMP)
 	$(DEMO_RENDER) --renderer reference --counters --out out/pillars_reference.png
 demo-lod2: $(STAMP)
