@@ -73,10 +73,14 @@ def check_writable(path: str | os.PathLike) -> Path:
 
 
 def _ready_folder(path: str | os.PathLike) -> Path:
-    """``path``, refused if it names a folder, its folder created if missing."""
+    """``path``, refused if it names a folder or anything but a plain file (a device, a
+    pipe, a socket: the rename would put a file in its place, ``/dev/null`` included), its
+    folder created if missing."""
     path = Path(path)
     if path.is_dir():
         raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", str(path))
+    if path.exists() and not path.is_file():
+        raise OSError(errno.EINVAL, "it is a device, pipe or socket, not a file", str(path))
     path.parent.mkdir(parents=True, exist_ok=True)
     return path
 

@@ -85,6 +85,25 @@ def test_output_naming_a_folder_is_one_line(tmp_path, capsys):
     assert "folder" in one_error_line(capsys)
 
 
+@pytest.mark.parametrize("command, name", [
+    (["render", "builtin:sphere", "--size", "8"], "picture.png"),
+    (["build", "builtin:sphere"], "octree.npz"),
+    (["errors", "show", "51"], "mask.png"),
+    (["calibrate", "builtin:sphere", "--target-rays", "100"], "trail.json"),
+])
+def test_an_output_that_is_a_pipe_or_device_is_refused_and_kept(command, name, tmp_path,
+                                                                capsys):
+    """``--out /dev/null`` as root renamed a file over the device: /dev/null became a plain
+    file. A pipe stands in for it (any user can make one)."""
+    pipe = tmp_path / name
+    os.mkfifo(pipe)
+    assert main([*command, "--quiet", "--out", str(pipe)]) == 2
+    line = one_error_line(capsys)
+    assert str(pipe) in line and "not a file" in line
+    assert stat.S_ISFIFO(pipe.stat().st_mode)
+    assert [p.name for p in tmp_path.iterdir()] == [name]
+
+
 def test_output_name_too_long_is_one_line(tmp_path, capsys):
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
                  "--out", str(tmp_path / ("x" * 300 + ".png"))]) == 2
