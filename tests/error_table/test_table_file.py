@@ -3,7 +3,9 @@
 Pins: save → load round trip (``raw`` to float16 precision, everything else exact, and a
 second round trip bit-exact); a missing file names the rebuild command; truncated or
 bit-flipped files raise ErrorTableError and nothing else, and a flip that loads changed
-nothing; arrays altered under a kept header fail the checksum; the packaged table records its
+nothing; arrays altered under a kept header fail the checksum, and a table edited and summed
+again must still hold finite numbers of the right shapes under a well-formed header; a file
+that is no table is told how to make one, not to be written over; the packaged table records its
 build parameters and is reproducible from them (checked on a slice of its directions and
 texels, since the full 2048 directions × 512² rebuild takes ~15 s), and two small builds with
 the same parameters are identical.
@@ -26,6 +28,7 @@ from voxfield.error_table import (
     save_error_table,
 )
 from voxfield.error_table.directions import fibonacci_directions
+from voxfield.error_table.table import _checksum
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.octahedral import texel_directions
 
@@ -185,6 +188,59 @@ def test_wrong_format_or_version_is_rejected(small_file, tmp_path):
     np.savez(not_a_table, x=np.arange(3))
     with pytest.raises(ErrorTableError):
         load_error_table(not_a_table)
+
+
+def _resummed(path, out, header_changes=None, **arrays):
+    """``path`` with ``arrays`` replaced and its checksum made to match them again: what a
+    hand-edited table looks like, which the checksum alone cannot refuse."""
+    with np.load(path) as data:
+        stored = {k: data[k] for k in data.files}
+    header = json.loads(bytes(stored.pop("header")).decode())
+    stored.update(arrays)
+    header.update(header_changes or {})
+    header["sha256"] = _checksum({k: stored[k] for k in ("directions", "raw", "sh", "oct_map")})
+    np.savez_compressed(out, header=np.frombuffer(json.dumps(header).encode(), np.uint8),
+                        **stored)
+    return out
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"oct_map": "nan"}, "not finite"),
+    ({"sh": "inf"}, "not finite"),
+    ({"oct_map": np.zeros((256, 0, 0), np.float32)}, "octahedral map"),
+    ({"directions": np.zeros((64, 2))}, "inconsistent array shapes"),
+    ({"header": {"params": [1, 2]}}, "malformed header"),
+    ({"header": {"params": {"resolution": "x"}}}, "malformed header"),
+    ({"header": {"params": {"seed": -1}}}, "malformed header"),
+    ({"header": {"default_encoding": "zip"}}, "unknown default encoding"),
+])
+def test_a_table_edited_and_summed_again_is_refused(change, words, small_file, tmp_path):
+    """Each of these loaded before and ended later in a traceback (an int() of the header's
+    resolution, a list where a dict was read) or drew blank error spheres (NaN maps)."""
+    arrays = {}
+    with np.load(small_file) as data:
+        for key, value in change.items():
+            if isinstance(value, str):
+                arrays[key] = np.full_like(data[key], np.float32(value))
+            elif key != "header":
+                arrays[key] = value
+    out = _resummed(small_file, tmp_path / "edited.npz", change.get("header"), **arrays)
+    with pytest.raises(ErrorTableError, match=words) as info:
+        load_error_table(out)
+    assert "voxfield errors build --out" in str(info.value)
+
+
+def test_a_file_that_is_no_table_is_told_how_to_make_one_not_to_be_overwritten(tmp_path):
+    for name, content in (("scene.vox", b"VOX \x96\x00\x00\x00"), ("octree.npz", None)):
+        path = tmp_path / name
+        if content is None:
+            np.savez(path, header=np.frombuffer(b'{"format": "voxfield-octree"}', np.uint8))
+        else:
+            path.write_bytes(content)
+        with pytest.raises(ErrorTableError, match="is not an error table") as info:
+            load_error_table(path)
+        assert "make one with `voxfield errors build`" in str(info.value)
+        assert "--out" not in str(info.value)
 
 
 def test_same_parameters_build_identical_tables(small):

@@ -191,7 +191,7 @@ def _read_lighting_table(path: Path) -> LightingErrorTable:
         raise ErrorTableError(f"lighting error table {path} is missing; {hint}")
     header, arrays = read_table_file(
         path, ("oct_map", "class_of", "symmetry_of", "symmetries"), FORMAT, FORMAT_VERSION,
-        "lighting error table", hint)
+        "lighting error table", hint, "voxfield errors build-lighting")
     classes = arrays["oct_map"].shape[0] if arrays["oct_map"].ndim == 3 else -1
     if (arrays["class_of"].shape != (N_INDICES,) or arrays["symmetries"].shape != (48, 3, 3)
             or arrays["symmetry_of"].shape != (N_INDICES,) or classes < 1

@@ -194,20 +194,44 @@ def save_error_table(table: ErrorTable, path: str | Path) -> Path:
 
 
 def read_table_file(path: Path, keys: tuple[str, ...], fmt: str, version: int, what: str,
-                    hint: str) -> tuple[dict, dict[str, np.ndarray]]:
+                    hint: str, maker: str) -> tuple[dict, dict[str, np.ndarray]]:
     """The JSON header and ``keys`` arrays of a table file whose format, version and SHA-256
-    match; ErrorTableError naming ``what`` and the rebuild ``hint`` otherwise."""
+    match; ErrorTableError naming ``what`` and the rebuild ``hint`` otherwise, or, for a
+    file that is no such table at all (a scene, an octree), the command that makes one
+    (``maker``) rather than advice to write over it."""
+    header = None
     try:
         with np.load(path, allow_pickle=False) as data:
             header = json.loads(bytes(data["header"]).decode())
             arrays = {k: data[k] for k in keys}
     except Exception as exc:  # noqa: BLE001 - zip/zlib/json can fail many ways on a bad file
-        raise ErrorTableError(f"{what} {path} is unreadable ({exc!r}); {hint}") from exc
-    if header.get("format") != fmt or header.get("version") != version:
+        if isinstance(header, dict) and header.get("format") == fmt:  # a damaged table
+            raise ErrorTableError(f"{what} {path} is unreadable ({exc!r}); {hint}") from exc
+        raise ErrorTableError(_not_a_table(path, what, maker)) from exc
+    if not isinstance(header, dict) or header.get("format") != fmt:
+        raise ErrorTableError(_not_a_table(path, what, maker))
+    if header.get("version") != version:
         raise ErrorTableError(f"{path} is not a version-{version} {what}; {hint}")
     if _checksum(arrays) != header.get("sha256"):
         raise ErrorTableError(f"{what} {path} fails its checksum (corrupt?); {hint}")
+    # The checksum covers the arrays, not the header, and proves only that they are what
+    # was written: a table edited and re-summed must still hold numbers a lookup can use.
+    for key, array in arrays.items():
+        if array.dtype.kind not in "fiu" or (array.dtype.kind == "f"
+                                             and not np.isfinite(array).all()):
+            raise ErrorTableError(f"{what} {path} holds values that are not finite numbers in "
+                                  f"{key!r}; {hint}")
+    params = header.get("params", {})
+    if not isinstance(params, dict) or not all(
+            type(params.get(key, 0)) is int and params.get(key, 0) >= 0
+            for key in ("n_directions", "resolution", "oct_resolution", "seed")):
+        raise ErrorTableError(f"{what} {path} has a malformed header (its parameters); {hint}")
     return header, arrays
+
+
+def _not_a_table(path: Path, what: str, maker: str) -> str:
+    article = "an" if what[0] in "aeiou" else "a"
+    return f"{path} is not {article} {what}; make one with `{maker}`"
 
 
 def load_error_table(path: str | Path | None = None) -> ErrorTable:
@@ -230,12 +254,18 @@ def _read_error_table(path: Path) -> ErrorTable:
     if not path.is_file():
         raise ErrorTableError(f"error table {path} is missing; {hint}")
     header, arrays = read_table_file(path, ("directions", "raw", "sh", "oct_map"), FORMAT,
-                                     FORMAT_VERSION, "error table", hint)
+                                     FORMAT_VERSION, "error table", hint,
+                                     "voxfield errors build")
     n = len(arrays["directions"])
-    if arrays["raw"].shape != (256, n) or arrays["sh"].shape != (256, 9):
+    if (arrays["directions"].shape != (n, 3) or n < 1 or arrays["raw"].shape != (256, n)
+            or arrays["sh"].shape != (256, 9)):
         raise ErrorTableError(f"error table {path} has inconsistent array shapes; {hint}")
-    if arrays["oct_map"].ndim != 3 or arrays["oct_map"].shape[0] != 256:
+    oct_map = arrays["oct_map"]
+    if (oct_map.ndim != 3 or oct_map.shape[0] != 256 or oct_map.shape[1] != oct_map.shape[2]
+            or oct_map.shape[1] < 1):
         raise ErrorTableError(f"error table {path} has a malformed octahedral map; {hint}")
+    if header.get("default_encoding", "oct") not in ENCODINGS:
+        raise ErrorTableError(f"error table {path} names an unknown default encoding; {hint}")
     return ErrorTable(
         directions=arrays["directions"], raw=arrays["raw"].astype(np.float32), sh=arrays["sh"],
         oct_map=arrays["oct_map"], params=header.get("params", {}),
