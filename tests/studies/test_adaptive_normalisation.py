@@ -33,7 +33,7 @@ def test_the_constant_is_the_largest_window_variance_of_all_scenes():
     low, high = two_halves(0.2, 0.3), two_halves(0.1, 0.5)
     assert normalisation_across([low]) == pytest.approx(2 * 0.1**2, rel=1e-5)
     assert normalisation_across([low, high]) == pytest.approx(2 * 0.4**2, rel=1e-5)
-    assert normalisation_across([low, high], quantile=0.5) < normalisation_across([low, high])
+    assert 0 < normalisation_across([low, high], quantile=0.9) < normalisation_across([low, high])
 
 
 def test_flat_or_empty_first_passes_are_refused():
@@ -41,6 +41,14 @@ def test_flat_or_empty_first_passes_are_refused():
         normalisation_across([two_halves(0.3, 0.3)])
     with pytest.raises(VoxfieldError, match="quantile"):
         normalisation_across([two_halves(0.1, 0.5)], quantile=0.0)
+
+
+def test_a_quantile_that_lands_on_flat_windows_is_refused_with_the_least_that_works():
+    # Six of the eight columns of 3×3 windows see no step: 75 % of the SSDs are 0, and a
+    # constant of 0 would divide every variance by zero.
+    with pytest.raises(VoxfieldError, match=r"75\.0 % .* flat; use a quantile above 0\.750"):
+        normalisation_across([two_halves(0.1, 0.5)], quantile=0.5)
+    assert normalisation_across([two_halves(0.1, 0.5)], quantile=0.8) > 0
 
 
 def test_the_command_finds_one_constant_for_several_scenes(tmp_path, capsys):

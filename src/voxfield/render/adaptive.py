@@ -97,7 +97,15 @@ def normalisation_of(variances, quantile: float = 1.0) -> float:
     if not len(values) or not np.max(values) > 0.0:
         raise VoxfieldError("the first passes show no variance to normalise (empty or flat "
                             "images)")
-    return float(np.quantile(values, quantile))
+    constant = float(np.quantile(values, quantile))
+    if not constant > 0.0:
+        # Flat windows (sky, uniform walls) are most of the image: a constant of 0 would
+        # divide every variance by zero and refine every pixel.
+        flat = float(np.mean(values <= 0.0))
+        raise VoxfieldError(f"the {quantile:g} quantile of the first passes' variance is 0: "
+                            f"{100 * flat:.1f} % of the 3×3 windows are flat; use a quantile "
+                            f"above {flat:.3f}")
+    return constant
 
 
 def refine_by_variance(octree: Octree, camera: Camera, result: RenderResult,
