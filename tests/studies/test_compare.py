@@ -187,7 +187,7 @@ def test_report_helpers():
     assert params_key({"a": 1, "b": [1.0, 2]}) == params_key({"b": [1.0, 2], "a": 1})
     assert params_key({"a": 1}) != params_key({"a": 2})
     assert markdown_table(["x", "y"], [["a", 1]]) == "| x | y |\n| --- | ---: |\n| a | 1 |\n"
-    folder = StudyFolder("unused")
+    folder = StudyFolder("unused", study="sweep")
     assert folder.path("results.md").name == "results.md"
 
 

@@ -29,13 +29,14 @@ def test_a_value_item_of_another_shape_is_recomputed(tmp_path, text):
         calls.append(1)
         return {"psnr": 30.0}
 
-    assert StudyFolder(tmp_path).value_item("quality", {"k": 1}, compute) == {"psnr": 30.0}
-    _one_item(StudyFolder(tmp_path)).write_text(text + "\n")
-    again = StudyFolder(tmp_path)
+    first = StudyFolder(tmp_path, study="sweep").value_item("quality", {"k": 1}, compute)
+    assert first == {"psnr": 30.0}
+    _one_item(StudyFolder(tmp_path, study="sweep")).write_text(text + "\n")
+    again = StudyFolder(tmp_path, study="sweep")
     assert again.value_item("quality", {"k": 1}, compute) == {"psnr": 30.0}
     assert len(calls) == 2 and again.computed == ["quality"] and again.reused == []
     # ... and the rewritten item is trusted next time.
-    third = StudyFolder(tmp_path)
+    third = StudyFolder(tmp_path, study="sweep")
     assert third.value_item("quality", {"k": 1}, compute) == {"psnr": 30.0}
     assert len(calls) == 2 and third.reused == ["quality"]
 
@@ -59,13 +60,13 @@ def test_a_record_this_folder_did_not_write_is_recomputed(tmp_path, changes):
         calls.append(1)
         return {"psnr": 30.0, "per_channel": [1.5, 2.25e-7], "nested": {"1": None}}
 
-    first = StudyFolder(tmp_path).value_item("quality", {"k": 1}, compute)
-    path = _one_item(StudyFolder(tmp_path))
-    untouched = StudyFolder(tmp_path)
+    first = StudyFolder(tmp_path, study="sweep").value_item("quality", {"k": 1}, compute)
+    path = _one_item(StudyFolder(tmp_path, study="sweep"))
+    untouched = StudyFolder(tmp_path, study="sweep")
     assert untouched.value_item("quality", {"k": 1}, compute) == first
     assert untouched.reused == ["quality"] and len(calls) == 1
     _edit_record(path, **changes)
-    again = StudyFolder(tmp_path)
+    again = StudyFolder(tmp_path, study="sweep")
     assert again.value_item("quality", {"k": 1}, compute) == first
     assert again.computed == ["quality"] and len(calls) == 2
 
@@ -95,9 +96,9 @@ def test_a_render_item_of_another_shape_is_recomputed(tmp_path, text):
 
     for method in ("render_item", "render_batch"):
         out = tmp_path / method
-        StudyFolder(out).render_item("reference", {"k": 1}, render)
-        _one_item(StudyFolder(out)).write_text(text)
-        folder = StudyFolder(out)
+        StudyFolder(out, study="sweep").render_item("reference", {"k": 1}, render)
+        _one_item(StudyFolder(out, study="sweep")).write_text(text)
+        folder = StudyFolder(out, study="sweep")
         if method == "render_item":
             result = folder.render_item("reference", {"k": 1}, render)
         else:

@@ -75,17 +75,17 @@ def test_a_stopped_batch_keeps_what_landed_and_resumes(tmp_path):
 
     specs = [(f"item{k}", {"k": k}, value(k)) for k in range(3)]
     with pytest.raises(KeyboardInterrupt):
-        StudyFolder(tmp_path).batch([*specs[:2], ("stop", {}, Failing()), specs[2]],
+        StudyFolder(tmp_path, study="sweep").batch([*specs[:2], ("stop", {}, Failing()), specs[2]],
                                     shared=7)
     assert calls == [0, 1]
-    folder = StudyFolder(tmp_path)
+    folder = StudyFolder(tmp_path, study="sweep")
     results = folder.batch(specs, shared=7)
     assert calls == [0, 1, 2]  # only the item that never landed is computed again
     assert folder.reused == ["item0", "item1"] and folder.computed == ["item2"]
     assert [data["k"] for data, _ in results] == [0, 1, 2]
     np.testing.assert_array_equal(results[2][1]["a"], [0, 1, 2])
     # --fresh recomputes everything once, then trusts what this run wrote.
-    fresh = StudyFolder(tmp_path, fresh=True)
+    fresh = StudyFolder(tmp_path, study="sweep", fresh=True)
     fresh.batch(specs, shared=7)
     assert fresh.computed == ["item0", "item1", "item2"]
 

@@ -318,13 +318,14 @@ def run_lighting(args) -> int:
 
 
 def run_probe_resolution(args) -> int:
+    folder = StudyFolder(args.out or default_output("probe_resolution", args.scene),
+                         study="study probe-resolution")
     octree = open_octree(args)
     grid = parse_grid(args.grid, octree.voxel_bounds, octree=octree)
     report = probe_resolution_study(
         octree, grid.positions[grid.enabled], args.resolutions, threshold=args.threshold,
         decay=args.decay, seed=args.seed, channel=args.channel, scene_name=args.scene,
         progress=not args.quiet)
-    folder = StudyFolder(args.out or default_output("probe_resolution", args.scene))
     folder.write_json("results.json", report)
     path = folder.write_text("results.md", probe_resolution_markdown(report))
     write_html_report(folder.root)

@@ -45,6 +45,7 @@ def run_normalisation_study(
     """First passes of every scene, their variance statistics and the shared constant;
     results.json and results.md in ``out_dir``. Each scene's first pass is an independent
     task on ``scheduler`` (``voxfield.scaleout``; None: one after another here)."""
+    folder = StudyFolder(out_dir, study="study normalisation", scheduler=scheduler)
     variances: dict = {}
     names = list(scenes)
 
@@ -65,7 +66,6 @@ def run_normalisation_study(
                      if len(ssd) else 0.0})
     report = {"normalisation": constant, "quantile": quantile, "base_lod": base_lod,
               "default": VARIANCE_NORMALISATION, "scenes": rows}
-    folder = StudyFolder(out_dir, scheduler=scheduler)
     folder.write_json("results.json", report)
     folder.write_text("results.md", _markdown(report))
     write_html_report(folder.root)

@@ -60,7 +60,7 @@ def run_compare(
     """
     if base_lod is not None and not 0 <= base_lod <= octree.depth:
         raise VoxfieldError(f"base LOD must be between 0 and {octree.depth}, got {base_lod}")
-    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
+    folder = StudyFolder(out_dir, study="compare", fresh=fresh, scheduler=scheduler)
     scene = {"name": octree.name, "depth": octree.depth, "voxels": octree.voxel_count,
              "fingerprint": octree.fingerprint(channel)}
     common = {"scene": scene["fingerprint"], "camera": array_fingerprint(camera.params),

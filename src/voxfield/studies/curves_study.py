@@ -106,7 +106,7 @@ def run_curves_study(
     lods = [lod for lod in lods if 0 <= lod <= octree.depth]
     if min(len(thresholds), len(normalisations), len(lods)) < 2 or not decays:
         raise VoxfieldError("each curve needs at least two knob values (and one decay)")
-    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
+    folder = StudyFolder(out_dir, study="study curves", fresh=fresh, scheduler=scheduler)
     points = len(cameras) * (1 + (len(decays) + len(EA_VARIANTS)) * len(thresholds)
                              + len(normalisations) + len(lods)
                              + len(ORACLE_FRACTIONS) * len(ORACLE_SIDES))

@@ -60,7 +60,7 @@ def run_lighting_study(
     if len(channels) < 2:
         raise VoxfieldError("the octree has no baked lighting channels; bake some with "
                             "`voxfield light SCENE` and study the octree file it writes")
-    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
+    folder = StudyFolder(out_dir, study="study lighting", fresh=fresh, scheduler=scheduler)
     settings = {"threshold": threshold, "decay": decay, "base_lod": base_lod}
     # Row → (registered renderer, its options); the thesis's 4×4 reference is the default.
     rows_drawn = {

@@ -117,7 +117,7 @@ def run_probe_study(
     options = checked_options(options)
     plan = _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, marchers,
                          count_resolution, timing_repeats)
-    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
+    folder = StudyFolder(out_dir, study="study probes", fresh=fresh, scheduler=scheduler)
     study = _Study(octree, camera, folder, options, channel=channel, seed=seed,
                    relocate_probes=relocate_probes, scene_name=scene_name)
     main = plan["grid"]

@@ -125,13 +125,26 @@ class _as_value:
         return self.compute(shared), {}
 
 
-class StudyFolder:
-    """The folder a study writes; ``computed`` and ``reused`` name the items of this run."""
+#: The file that names the study a folder holds (``StudyFolder``'s ``study``).
+STUDY_MARK = "study.json"
 
-    def __init__(self, root: str | Path, *, fresh: bool = False, scheduler=None):
+
+class StudyFolder:
+    """The folder a study writes; ``computed`` and ``reused`` name the items of this run.
+
+    ``study`` names the command that writes it (``"study thresholds"``, ``"sweep"``): a
+    folder holds one study, and another is refused before its work, since its report would
+    show the first one's figures beside its own tables."""
+
+    def __init__(self, root: str | Path, *, study: str, fresh: bool = False, scheduler=None):
         self.root = Path(root)
         if self.root.exists() and not self.root.is_dir():
             raise VoxfieldError(f"study output {self.root} exists and is not a folder")
+        self.study = study
+        held = self._held_study()
+        if held is not None and held != study:
+            raise VoxfieldError(f"{self.root} holds the results of `voxfield {held}`; give "
+                                f"`voxfield {study}` another --out (one study per folder)")
         check_scheduler(scheduler)
         self.items_dir = self.root / "items"
         self.fresh = fresh
@@ -144,6 +157,20 @@ class StudyFolder:
 
     def path(self, name: str) -> Path:
         return self.root / name
+
+    def _held_study(self) -> str | None:
+        """The study named in the folder's mark; None where there is none (a new folder, or
+        one an older voxfield wrote) or it cannot be read (it is then claimed anew)."""
+        try:
+            held = json.loads((self.root / STUDY_MARK).read_text()).get("study")
+        except (OSError, ValueError, AttributeError):
+            return None
+        return held if isinstance(held, str) else None
+
+    def _claim(self) -> None:
+        """The mark written before the folder's first output of this run."""
+        if self._held_study() != self.study:
+            self._write_json_file(self.root / STUDY_MARK, {"study": self.study})
 
     # --- cached items -------------------------------------------------------------------------
 
@@ -175,6 +202,7 @@ class StudyFolder:
         return None
 
     def _store(self, name: str, params: dict, data, arrays) -> tuple[dict, dict]:
+        self._claim()
         json_path, npz_path = self._paths(name, params)
         if arrays:
             with atomic_path(npz_path) as tmp:
@@ -267,11 +295,13 @@ class StudyFolder:
     # --- outputs ------------------------------------------------------------------------------
 
     def write_json(self, name: str, data) -> Path:
+        self._claim()
         path = self.path(name)
         self._write_json_file(path, data)
         return path
 
     def write_text(self, name: str, text: str) -> Path:
+        self._claim()
         path = self.path(name)
         with atomic_path(path) as tmp:
             tmp.write_text(text, encoding="utf-8")
@@ -280,10 +310,12 @@ class StudyFolder:
     def write_png(self, name: str, image: np.ndarray, *, encode_srgb: bool = True) -> Path:
         """A linear image as sRGB PNG (``encode_srgb=False`` for maps that are already grey
         levels or colours)."""
+        self._claim()
         return save_png(image, self.path(name), encode_srgb=encode_srgb)
 
     def write_figure(self, name: str, figure, *, dpi: int = 100) -> Path:
         """A matplotlib Figure as PNG; the figure is closed (pyplot keeps every open one)."""
+        self._claim()
         path = self.path(name)
         try:
             with atomic_path(path) as tmp:

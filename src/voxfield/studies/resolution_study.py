@@ -60,7 +60,7 @@ def run_resolution_study(
     results.md and resolution.png into ``out_dir``. The references, then the cheap renders,
     are independent items: with a ``scheduler`` (``voxfield.scaleout``) they run as tasks,
     with the same results."""
-    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
+    folder = StudyFolder(out_dir, study="study resolution", fresh=fresh, scheduler=scheduler)
     lo, hi = octree.voxel_bounds
     footprint = map_footprint(octree)
     fingerprint = octree.fingerprint(channel)

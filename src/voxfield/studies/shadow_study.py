@@ -55,7 +55,7 @@ def run_shadow_study(
     content plus ``folder``, ``written``, ``computed`` and ``reused``. The five renders are
     independent items: with a ``scheduler`` (``voxfield.scaleout``) they run as tasks."""
     table = load_error_table()
-    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
+    folder = StudyFolder(out_dir, study="shadows", fresh=fresh, scheduler=scheduler)
     scheduled = scheduler not in (None, "serial")
     shadow = {"lod_distance": float(lod_distance), "threshold": float(threshold),
               "decay": float(decay), "max_refinements": max_refinements,

@@ -35,7 +35,7 @@ def run_sweep(
     """Render the grid (resumable: finished cells are reused) and write results.json,
     results.md and sweep.png into ``out_dir``. The cells are independent items: with a
     ``scheduler`` (``voxfield.scaleout``) they run as tasks, with the same results."""
-    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
+    folder = StudyFolder(out_dir, study="sweep", fresh=fresh, scheduler=scheduler)
     view = {"scene": scene_name, "fingerprint": octree.fingerprint(channel),
             "camera": camera.params.tolist(), "size": camera.width, "seed": seed,
             "channel": channel,

@@ -39,7 +39,7 @@ def run_threshold_study(
     """Render the error-aware renderer per threshold (resumable) and write results.json,
     results.md and thresholds.png into ``out_dir``. The thresholds are independent items:
     with a ``scheduler`` (``voxfield.scaleout``) they run as tasks, with the same results."""
-    folder = StudyFolder(out_dir, fresh=fresh, scheduler=scheduler)
+    folder = StudyFolder(out_dir, study="study thresholds", fresh=fresh, scheduler=scheduler)
     view = {"scene": scene_name, "fingerprint": octree.fingerprint(channel),
             "camera": camera.params.tolist(), "size": camera.width, "height": camera.height,
             "seed": seed, "channel": channel, "base_lod": base_lod}
