@@ -38,13 +38,13 @@ def test_output_under_a_file_is_one_line(a_file, capsys):
     assert str(a_file) in one_error_line(capsys)
 
 
-@pytest.mark.parametrize("command, out", [
-    (["render", "builtin:sphere", "--size", "8"], "cmd_render"),
-    (["build", "builtin:sphere"], "cmd_scenes"),
-    (LIGHT, "cmd_light"),
-    (["calibrate", "builtin:sphere", "--target-rays", "100"], "cmd_calibrate"),
+@pytest.mark.parametrize("command, out, name", [
+    (["render", "builtin:sphere", "--size", "8"], "cmd_render", "x.png"),
+    (["build", "builtin:sphere"], "cmd_scenes", "x.npz"),
+    (LIGHT, "cmd_light", "x.npz"),
+    (["calibrate", "builtin:sphere", "--target-rays", "100"], "cmd_calibrate", "x.json"),
 ])
-def test_an_unusable_output_fails_before_the_scene_loads(command, out, a_file, capsys,
+def test_an_unusable_output_fails_before_the_scene_loads(command, out, name, a_file, capsys,
                                                          monkeypatch):
     # A render or bake may take minutes: an output it could never write must end the
     # command before that work, not after it.
@@ -52,8 +52,29 @@ def test_an_unusable_output_fails_before_the_scene_loads(command, out, a_file, c
         raise AssertionError("the scene was opened for an output that cannot be written")
 
     monkeypatch.setattr(f"voxfield.cli.{out}.open_octree", never)
-    assert main([*command, "--quiet", "--out", str(a_file / "x.png")]) == 2
-    assert str(a_file) in one_error_line(capsys)
+    assert main([*command, "--quiet", "--out", str(a_file / name)]) == 2
+    line = one_error_line(capsys)
+    assert str(a_file) in line and "ending in" not in line
+
+
+@pytest.mark.parametrize("command, out, wrong", [
+    (["build", "builtin:sphere"], "cmd_scenes", "octree.png"),
+    (["calibrate", "builtin:sphere", "--target-rays", "100"], "cmd_calibrate", "trail.png"),
+    (LIGHT, "cmd_light", "lit.exr"),
+    (["errors", "show", "51"], "cmd_errors", "mask.exr"),
+])
+def test_an_output_named_for_another_format_is_refused_first(command, out, wrong, tmp_path,
+                                                             capsys, monkeypatch):
+    """An octree written as ``octree.png``, a PNG as ``mask.exr``: whoever opens them next
+    is misled."""
+    def never(*args, **kwargs):
+        raise AssertionError("the work began for an output that is refused")
+
+    monkeypatch.setattr(f"voxfield.cli.{out}.open_octree" if out != "cmd_errors"
+                        else "voxfield.cli.cmd_errors.load_error_table", never)
+    assert main([*command, "--quiet", "--out", str(tmp_path / wrong)]) == 2
+    assert "ending in ." in one_error_line(capsys)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_an_image_format_render_cannot_write_fails_before_the_scene_loads(

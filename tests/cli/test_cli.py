@@ -47,9 +47,23 @@ def test_calibrate_writes_its_trail(tmp_path, capsys):
     out = tmp_path / "cal.json"
     assert main(["calibrate", "builtin:pillars", "--target-rays", "2000", "--size", "24",
                  "--iterations", "4", "--out", str(out)]) == 0
-    data = json.loads(out.read_text())
+    data = json.loads(out.read_text(), parse_constant=_not_json)
     assert data["rays"] <= 2000 and len(data["trail"]) >= 4
     assert "threshold" in capsys.readouterr().out
+
+
+def _not_json(constant: str):
+    """Python reads NaN and Infinity; JSON has neither, and other readers refuse them."""
+    raise AssertionError(f"{constant} in a file that should be JSON")
+
+
+def test_sweep_prints_a_cell_equal_to_the_reference(tmp_path, capsys):
+    """Its PSNR is infinite (null in results.json); printing it ended in a traceback."""
+    assert main(["sweep", "builtin:sphere", "--size", "32", "--decays", "0.1", "--thresholds",
+                 "0.1", "--out", str(tmp_path / "sweep")]) == 0
+    report = json.loads((tmp_path / "sweep" / "results.json").read_text())
+    assert report["closest_to_adaptive"][0]["psnr"] is None
+    assert "t=0.1 → " in (out := capsys.readouterr().out) and "equal to the reference" in out
 
 
 def test_info_and_build_round_trip(tmp_path, capsys):

@@ -15,11 +15,13 @@ from voxfield.cli.options import (
     add_view_options,
     int_between,
     open_octree,
+    output_named,
     positive_float,
     positive_int,
     scene_camera,
 )
 from voxfield.studies.calibrate import calibrate_threshold
+from voxfield.studies.report import to_json
 
 
 def register(subparsers) -> None:
@@ -44,7 +46,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     if args.out:
-        check_writable(args.out)  # before the renders, not after them
+        check_writable(output_named(args.out, ".json", "the calibration trail"))  # first
     octree = open_octree(args)
     view = scene_camera(args, octree)
     cal = calibrate_threshold(
@@ -54,7 +56,9 @@ def run(args) -> int:
     )
     if args.out:
         with atomic_path(args.out) as tmp:
-            tmp.write_text(json.dumps(cal.as_dict(), indent=2))
+            # Strict JSON: a PSNR that is NaN (no render yet) or infinite (equal images)
+            # is written as null, as the studies write it.
+            tmp.write_text(json.dumps(to_json(cal.as_dict()), indent=2, allow_nan=False))
     if not args.quiet:
         quality = f", PSNR {cal.psnr:.2f} dB" if np.isfinite(cal.psnr) else ""
         print(f"threshold {cal.threshold:.4f} (decay {args.decay}): {cal.rays:,} rays, "

@@ -5,8 +5,9 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from voxfield.atomic import check_writable
 from voxfield.cli.commands import add_command, add_quiet
-from voxfield.cli.options import finite_float, int_between, seed_arg
+from voxfield.cli.options import finite_float, int_between, output_named, seed_arg
 from voxfield.error_table import build_error_table, fit_report, load_error_table, save_error_table
 from voxfield.error_table.lighting_table import (
     DEFAULT_LIGHTING_TABLE,
@@ -22,7 +23,6 @@ from voxfield.error_table.table import (
     MIN_RESOLUTION,
     THESIS_THRESHOLD,
 )
-from voxfield.errors import VoxfieldError
 
 
 def mask_arg(text: str) -> int:
@@ -105,11 +105,7 @@ def register(subparsers) -> None:
 def _table_output(out: str | None, default: Path) -> Path:
     """Where a built table goes: an ``.npz`` archive, whatever ``--out`` names (checked
     before the ray casts, which take minutes)."""
-    path = Path(out) if out else default
-    if path.suffix.lower() != ".npz":
-        raise VoxfieldError(f"{path}: an error table is written as an .npz archive; give "
-                            "--out a name ending in .npz")
-    return path
+    return output_named(out if out else default, ".npz", "an error table")
 
 
 def run_build(args) -> int:
@@ -163,8 +159,9 @@ def run_info(args) -> int:
 
 
 def run_show(args) -> int:
+    out = check_writable(output_named(args.out or f"out/error_mask_{args.mask}.png", ".png",
+                                      "the mask's picture"))
     table = load_error_table(args.table)
-    out = args.out or f"out/error_mask_{args.mask}.png"
     path = plot_mask_error(table, args.mask, out, threshold=args.threshold,
                            encoding=args.encoding)
     if not args.quiet:

@@ -15,6 +15,7 @@ from voxfield.cli.options import (
     default_output,
     int_between,
     open_octree,
+    output_named,
     positive_int,
     scheduler_name,
 )
@@ -68,7 +69,8 @@ def register(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     suns = parse_suns(args.times)  # before the (slow) scene load: bad input fails fast
     check_scheduler(args.scheduler)
-    out = check_writable(args.out or default_output("lit", args.scene, ".npz"))
+    out = check_writable(output_named(args.out or default_output("lit", args.scene, ".npz"),
+                                      ".npz", "a lit octree"))
     args.quiet = quiet = getattr(args, "quiet", False)  # as ``voxfield.cli.main`` sets it
     octree = open_octree(args)
     lit, report = bake_sun_lighting(

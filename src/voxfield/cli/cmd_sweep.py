@@ -48,7 +48,10 @@ def run(args) -> int:
         print(f"adaptive: {report['adaptive']['rays']:,} rays; per decay, the threshold "
               "closest to it:")
         for pick in report["closest_to_adaptive"]:
+            # (JSON has no infinity: the PSNR of an image equal to the reference is None.)
+            quality = ("equal to the reference" if pick["psnr"] is None
+                       else f"PSNR {pick['psnr']:.2f} dB")
             print(f"  d={pick['decay']}: t={pick['threshold']} → {pick['rays']:,} rays, "
-                  f"PSNR {pick['psnr']:.2f} dB")
+                  f"{quality}")
         print(f"wrote {out}/report.html, results.md, results.json, sweep.png")
     return 0

@@ -412,3 +412,13 @@ def hit_options(args) -> dict:
             "ring": args.ring,
             "backface": args.backface, "fallback": not args.no_fallback,
             "colour_probe": args.colour_probe}
+
+
+def output_named(out: str | Path, suffix: str, what: str) -> Path:
+    """``--out`` as a path, refused unless it ends in ``suffix``: a file whose name says
+    another format (an octree called ``.png``) misleads whoever opens it next."""
+    path = Path(out)
+    if path.suffix.lower() != suffix:
+        raise VoxfieldError(f"{path}: {what} is written as {suffix}; give --out a name ending "
+                            f"in {suffix}")
+    return path
