@@ -109,3 +109,24 @@ def test_errors_build_writes_only_npz_and_says_so_first(action, builder, tmp_pat
     assert list(tmp_path.iterdir()) == []
     assert main(["errors", action, "--quiet", "--out", str(tmp_path / "t.NPZ")]) == 2
     assert "cast" in one_error_line(capsys) and len(calls) == 1
+
+
+@pytest.mark.parametrize("argv, words", [
+    (["sweep", "builtin:pillars", "--decays", "0.1,0.1"], "0.1 is given twice"),
+    (["study", "thresholds", "builtin:pillars", "--thresholds", "0.2,0.3,0.2"],
+     "0.2 is given twice"),
+    (["study", "resolution", "builtin:pillars", "--sizes", "32,32"], "32 is given twice"),
+    (["study", "curves", "builtin:pillars", "--lods", "2,2"], "2 is given twice"),
+    (["study", "curves", "builtin:pillars", "--cameras", "top,top"], "top is given twice"),
+    (["study", "probes", "builtin:cornell", "--probe-counts", "2x2x2,2x2x2"],
+     "is given twice"),
+    (["study", "lighting", "builtin:pillars", "--channels", "albedo,albedo"],
+     "albedo is given twice"),
+    (["study", "lighting", "builtin:pillars", "--channels", ""], "expected names"),
+    (["study", "probes", "builtin:cornell", "--marchers", ","], "expected names"),
+])
+def test_a_list_option_with_a_repeat_or_nothing_in_it_is_refused(argv, words, capsys):
+    """A repeated knob rendered the same row twice and, in a curve, passed the "two values"
+    check as two points that are one; an empty list quietly meant the defaults."""
+    err = _refused_by_the_parser([*argv, "--out", "unused"], capsys)
+    assert words in err, err

@@ -49,6 +49,16 @@ def test_without_baked_channels_it_says_how_to_bake(tmp_path):
         run_lighting_study(octree, camera, tmp_path, channels=["albedo", "dusk"])
 
 
+def test_chosen_channels_must_be_two_different_ones(lit, tmp_path):
+    """``--channels albedo`` on a lit scene was told the scene had no baked channels."""
+    octree, camera = lit
+    with pytest.raises(VoxfieldError, match="compares channels: name at least two"):
+        run_lighting_study(octree, camera, tmp_path, channels=["albedo"])
+    with pytest.raises(VoxfieldError, match="named twice"):
+        run_lighting_study(octree, camera, tmp_path, channels=["noon", "noon"])
+    assert not any(tmp_path.iterdir())
+
+
 def test_image_luminance_is_rec709():
     image = np.zeros((2, 2, 3))
     image[..., 1] = 1.0

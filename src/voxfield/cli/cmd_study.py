@@ -16,6 +16,7 @@ from voxfield.cli.options import (
     add_threshold_options,
     add_view_options,
     default_output,
+    distinct,
     finite_float,
     float_list,
     hit_options,
@@ -109,7 +110,7 @@ def register(subparsers) -> argparse.ArgumentParser:
         "baked channels is baked first (as `voxfield light`). Resumable.",
     )
     add_scene_options(g)
-    g.add_argument("--channels", default=None,
+    g.add_argument("--channels", type=name_list, default=None,
                    help="comma-separated channels (default albedo and every baked one)")
     g.add_argument("--times", default=None, metavar="SUNS",
                    help="times of day to bake when the scene has none (default all four)")
@@ -146,11 +147,11 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def _lod_list(text: str) -> tuple[int, ...]:
-    """Comma-separated LOD numbers (0 = voxels)."""
+    """Comma-separated LOD numbers (0 = voxels), each once."""
     values = tuple(lod_arg(v.strip()) for v in text.split(",") if v.strip())
     if not values or any(v is None for v in values):
         raise argparse.ArgumentTypeError(f"expected LOD numbers like 4,2,0, got {text!r}")
-    return values
+    return distinct(values, text)
 
 
 def _register_curves(actions) -> None:
@@ -296,11 +297,11 @@ def run_resolution(args) -> int:
 def run_lighting(args) -> int:
     octree = open_octree(args)
     if len(lighting_channels(octree)) < 2:
-        suns = parse_suns(args.times or "all")
+        suns = parse_suns("all" if args.times is None else args.times)
         octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet,
                                       scheduler=args.scheduler)
     view = scene_camera(args, octree)
-    channels = args.channels.split(",") if args.channels else None
+    channels = list(args.channels) if args.channels is not None else None
     out = args.out or default_output("lighting", args.scene)
     report = run_lighting_study(
         octree, view, out, channels=channels, threshold=args.threshold, decay=args.decay,
@@ -385,7 +386,7 @@ def _register_probes(actions) -> argparse.ArgumentParser:
 
 def grid_list(text: str) -> tuple[str, ...]:
     try:
-        return tuple(grid_spec(part) for part in text.split(","))
+        return distinct(tuple(grid_spec(part) for part in text.split(",")), text)
     except VoxfieldError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 

@@ -128,32 +128,46 @@ seed_arg = int_between(0, MAX_SEED, "seeds are 32-bit")
 MAX_MESH_RESOLUTION = 8192
 
 
+def distinct(values: tuple, text: str) -> tuple:
+    """``values`` (parsed from ``text``) when none repeats: a study's knob given twice
+    renders the same row twice and, in a curve, passes for two points that are one."""
+    seen = set()
+    for value in values:
+        if value in seen:
+            raise argparse.ArgumentTypeError(f"{value} is given twice in {text!r}")
+        seen.add(value)
+    return values
+
+
 def float_list(text: str) -> tuple[float, ...]:
-    """Comma-separated numbers, at least one; infinity is a number here (a threshold nothing
-    passes), NaN is not."""
+    """Comma-separated numbers, at least one, each once; infinity is a number here (a
+    threshold nothing passes), NaN is not."""
     try:
         values = tuple(float(v) for v in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected numbers like 0.1,0.2, got {text!r}") from None
     if any(math.isnan(v) for v in values):
         raise argparse.ArgumentTypeError(f"expected numbers, got NaN in {text!r}")
-    return values
+    return distinct(values, text)
 
 
 def positive_int_list(text: str) -> tuple[int, ...]:
-    """Comma-separated positive whole numbers (sizes, resolutions)."""
+    """Comma-separated positive whole numbers (sizes, resolutions), each once."""
     try:
         values = tuple(int(v) for v in text.split(","))
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected sizes like 128,256, got {text!r}") from None
     if any(v < 1 for v in values):
         raise argparse.ArgumentTypeError(f"sizes must be positive, got {text!r}")
-    return values
+    return distinct(values, text)
 
 
 def name_list(text: str) -> tuple[str, ...]:
-    """Comma-separated names; blanks dropped."""
-    return tuple(v.strip() for v in text.split(",") if v.strip())
+    """Comma-separated names, at least one, each once; blanks between commas dropped."""
+    values = tuple(v.strip() for v in text.split(",") if v.strip())
+    if not values:
+        raise argparse.ArgumentTypeError(f"expected names like a,b, got {text!r}")
+    return distinct(values, text)
 
 
 #: argparse types named by a renderer option's ``metadata["type"]``.

@@ -54,12 +54,17 @@ def run_lighting_study(
     """Render and measure every channel (resumable); write results.json, results.md,
     lighting.png (the tables as bars) and contact_sheet.png into ``out_dir``. The renders are
     independent items: with a ``scheduler`` (``voxfield.scaleout``) they run as tasks."""
-    channels = list(channels or lighting_channels(octree))
+    chosen = channels is not None
+    channels = list(channels if chosen else lighting_channels(octree))
     for name in channels:
         octree.channel(name)  # unknown channels fail before any work
+    if len(set(channels)) != len(channels):
+        raise VoxfieldError(f"a channel is named twice in {','.join(channels)}")
     if len(channels) < 2:
-        raise VoxfieldError("the octree has no baked lighting channels; bake some with "
-                            "`voxfield light SCENE` and study the octree file it writes")
+        raise VoxfieldError(
+            "the lighting study compares channels: name at least two (albedo and a baked "
+            "one)" if chosen else "the octree has no baked lighting channels; bake some with "
+            "`voxfield light SCENE` and study the octree file it writes")
     folder = StudyFolder(out_dir, study="study lighting", fresh=fresh, scheduler=scheduler)
     settings = {"threshold": threshold, "decay": decay, "base_lod": base_lod}
     # Row → (registered renderer, its options); the thesis's 4×4 reference is the default.
