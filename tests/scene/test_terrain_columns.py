@@ -27,6 +27,17 @@ def test_plane_gives_flat_slab_of_fill_depth_plus_one():
     assert set(map(tuple, scene.coords.tolist())) == expected
 
 
+@pytest.mark.parametrize("height", [1e20, -3e250, 1e300])
+@pytest.mark.parametrize("spacing", [(1, 1), None])
+def test_a_plane_at_any_height_is_flat_after_resampling(height, spacing):
+    """Resampled 16 → 64, a constant map at 1e20 m took its cubic weights' round-off
+    (1e4 m) for relief and built hills of it."""
+    scene = terrain_scene(Heightmap(np.full((16, 16), height), spacing=spacing), 64,
+                          fill_depth=4)
+    assert len(scene) == 64 * 64 * 5
+    assert set(np.unique(scene.coords[:, 1]).tolist()) == set(range(5))
+
+
 def test_ramp_gives_exact_columns():
     # Height = x // 2 metres at 1 m spacing and true scale: column x's top is x // 2 voxels
     # above column 0's; with fill_depth 4 each column is filled 4 below its top (its lower

@@ -151,6 +151,11 @@ def terrain_columns(
         surface = np.maximum(elev, sea_level)
     lo = float(surface.min())
     relief = float(surface.max()) - lo
+    if relief <= 64 * np.finfo(np.float64).eps * max(abs(lo), abs(lo + relief)):
+        # The resampling's round-off, not relief: a constant map is flat at any magnitude
+        # (at 1e20 m its cubic weights' round-off alone spanned 1e4 m, scaled up to hills).
+        surface = np.full_like(surface, lo)
+        relief = 0.0
     if not math.isfinite(relief):  # a NaN or infinity anywhere reaches the min or max
         low, high = np.nanmin(hm.elevation), np.nanmax(hm.elevation)
         raise SceneFormatError(f"{hm.name}: heights from {low:g} to {high:g} m span more than "
