@@ -21,9 +21,12 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     0666 less the umask (``mkstemp`` alone would leave every output 0600).
     """
     path = _ready_folder(path)
-    fd, tmp = tempfile.mkstemp(
-        prefix=f".{path.stem[:64]}.", suffix=f".tmp{path.suffix[:16]}", dir=path.parent
-    )
+    try:
+        fd, tmp = tempfile.mkstemp(
+            prefix=f".{path.stem[:64]}.", suffix=f".tmp{path.suffix[:16]}", dir=path.parent
+        )
+    except OSError as exc:  # name the target, not the temporary file that was refused
+        raise type(exc)(exc.errno, exc.strerror or str(exc), str(path)) from None
     os.close(fd)
     tmp_path = Path(tmp)
     try:

@@ -125,6 +125,30 @@ def test_an_output_that_is_a_pipe_or_device_is_refused_and_kept(command, name, t
     assert [p.name for p in tmp_path.iterdir()] == [name]
 
 
+@pytest.mark.parametrize("argv, words", [
+    (["render", "builtin:sphere", "--sise", "8", "--out", "x.png"],
+     "unrecognized arguments: --sise 8"),
+    (["rendr"], "invalid choice: 'rendr'"),
+    (["render", "builtin:sphere", "--size", "0"], "argument --size"),
+    (["study"], "required: STUDY"),
+    (["study", "curves", "builtin:sphere", "--lods", "2,2"], "see `voxfield study curves"),
+])
+def test_the_parser_speaks_in_one_line_naming_the_help(argv, words, capsys):
+    """argparse printed its usage block above the error: several lines where any other bad
+    input gets one."""
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    line = one_error_line(capsys)
+    assert words in line and line.endswith("--help`)")
+
+
+def test_voxfield_alone_lists_its_commands(capsys):
+    assert main([]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("usage: voxfield") and "probe-render" in out
+
+
 def test_output_name_too_long_is_one_line(tmp_path, capsys):
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
                  "--out", str(tmp_path / ("x" * 300 + ".png"))]) == 2

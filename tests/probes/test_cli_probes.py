@@ -81,3 +81,37 @@ def test_export_cubes_traces_faces_from_the_baked_scene(run, tmp_path):
         # The four pixels around the +x face's centre see nearly the +x axis distance.
         expected = trace(octree, probes.positions[i][None], [[1.0, 0.0, 0.0]]).t[0]
         assert np.min(np.abs(face["Z"][2:4, 2:4] - expected)) < 1.0
+
+
+def test_export_cubes_refuses_another_scene_or_no_probe_in_one_line(run, tmp_path, capsys,
+                                                                   monkeypatch):
+    """Another scene printed a note that it was "drawing it anyway" before the error, and a
+    set with every probe disabled "wrote 0 faces of 0 probes"."""
+    from cli_output import one_error_line
+    from voxfield.cli import cmd_probes
+
+    out = tmp_path / "probes"
+    assert run(["bake", "builtin:cornell", "--grid", "2x1x1", "--resolution", "8",
+                "--renderer", "lod", "--lod", "0", "--scheduler", "serial", "--out", str(out),
+                "--quiet"]) == 0
+    assert run(["probes", "export-cubes", str(out), "--scene", "builtin:sphere"]) == 2
+    assert "not the scene these probes were baked from" in one_error_line(capsys)
+    assert run(["probes", "export-cubes", str(out), "--scene", "builtin:nope"]) == 2
+    assert "cannot open the baked scene" in one_error_line(capsys)
+
+    def all_disabled(folder):
+        probe_set = open_probe_set(folder)
+        probe_set.enabled[:] = False
+        return probe_set
+
+    monkeypatch.setattr(cmd_probes, "open_probe_set", all_disabled)
+    assert run(["probes", "export-cubes", str(out), "--quiet"]) == 2
+    assert "every probe is disabled" in one_error_line(capsys)
+    assert not (out / "cubes").exists()
+
+
+def test_probes_show_takes_a_scene_or_none_not_both(run, capsys):
+    with pytest.raises(SystemExit) as exc:
+        run(["probes", "show", "folder", "--no-scene", "--scene", "builtin:sphere"])
+    assert exc.value.code == 2
+    assert "not allowed with argument" in capsys.readouterr().err

@@ -105,7 +105,7 @@ def register(subparsers) -> None:
 def _table_output(out: str | None, default: Path) -> Path:
     """Where a built table goes: an ``.npz`` archive, whatever ``--out`` names (checked
     before the ray casts, which take minutes)."""
-    return output_named(out if out else default, ".npz", "an error table")
+    return check_writable(output_named(out if out else default, ".npz", "an error table"))
 
 
 def run_build(args) -> int:

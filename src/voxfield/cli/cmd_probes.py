@@ -101,10 +101,12 @@ def register(subparsers) -> None:
     s.add_argument("folder", help="probe-set folder written by voxfield bake")
     s.add_argument("--out", default=None,
                    help="output PNG (default FOLDER/show.png); report.html goes beside it")
-    s.add_argument("--scene", default=None,
-                   help="scene for the overview render (default: the one the bake recorded)")
-    s.add_argument("--no-scene", action="store_true",
-                   help="draw the probe positions without rendering the scene")
+    which_scene = s.add_mutually_exclusive_group()
+    which_scene.add_argument(
+        "--scene", default=None,
+        help="scene for the overview render (default: the one the bake recorded)")
+    which_scene.add_argument("--no-scene", action="store_true",
+                             help="draw the probe positions without rendering the scene")
     s.add_argument("--size", type=positive_int, default=512,
                    help="overview render size in pixels (default 512)")
     add_quiet(s)
@@ -254,12 +256,13 @@ def probe_set_markdown(probe_set, header: dict) -> str:
 def run_export_cubes(args) -> int:
     folder = Path(args.folder)
     probe_set = open_probe_set(folder)
-    octree = _reopen_scene(read_header(folder), args.scene, args.quiet)
-    if octree is None:
-        raise VoxfieldError("cube faces are traced from the baked scene; name it with --scene")
+    probes = [i for i in range(probe_set.count) if probe_set.enabled[i]]
+    if not probes:
+        raise VoxfieldError(f"{folder}: every probe is disabled (no free space found for "
+                            "it); there is nothing to export")
+    octree = _reopen_scene(read_header(folder), args.scene, args.quiet, exact=True)
     out = Path(args.out) if args.out else folder / "cubes"
     out.mkdir(parents=True, exist_ok=True)
-    probes = [i for i in range(probe_set.count) if probe_set.enabled[i]]
     with progress_bar(total=len(probes), desc="cube faces", unit="probe",
                       enabled=not args.quiet) as bar:
         for i in probes:
@@ -274,12 +277,16 @@ def run_export_cubes(args) -> int:
     return 0
 
 
-def _reopen_scene(header: dict, scene: str | None, quiet: bool):
+def _reopen_scene(header: dict, scene: str | None, quiet: bool, *, exact: bool = False):
     """The baked scene for the overview: ``scene`` if given, else the recorded source; None
-    (probes drawn without the render) when it cannot be opened or is not the baked one."""
+    (probes drawn without the render) when it cannot be opened or is not the baked one.
+    ``exact`` (cube faces, traced from the scene itself): either is an error instead."""
     source = dict(header["scene"].get("source") or {})
     spec = scene or source.get("scene")
     if not spec:
+        if exact:
+            raise VoxfieldError("no scene recorded with these probes; cube faces are traced "
+                                "from the baked scene: name it with --scene")
         _note("no scene recorded; pass --scene to draw probes over a render", quiet)
         return None
     options = SceneOptions(
@@ -291,6 +298,9 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool):
         octree = open_octree_from_spec(spec, options, progress=not quiet,
                              lod_colour=source.get("lod_colour", "mean"))
     except VoxfieldError as exc:
+        if exact:
+            raise VoxfieldError(f"cannot open the baked scene {spec!r} ({exc}); cube faces "
+                                "are traced from it: name it with --scene") from None
         _note(f"cannot open the scene {spec!r} ({exc}); drawing probes without it", quiet)
         return None
     channel = header["scene"].get("channel", "albedo")
@@ -299,6 +309,9 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool):
     except VoxfieldError:
         same = False
     if not same:
+        if exact:
+            raise VoxfieldError(f"{spec!r} is not the scene these probes were baked from; "
+                                "cube faces are traced from that one: name it with --scene")
         _note(f"{spec!r} is not the scene these probes were baked from; drawing it anyway",
               quiet)
     return octree

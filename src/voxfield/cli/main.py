@@ -19,12 +19,21 @@ from voxfield.progress import compile_notice
 __all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "build_parser", "main"]
 
 
+class CommandLineParser(argparse.ArgumentParser):
+    """argparse with the command line's one-line errors: a mistyped option gets the same
+    single ``voxfield: error: …`` line (and status 2) as any other bad input, naming the
+    command's ``--help`` instead of printing its usage block. Sub-commands inherit it."""
+
+    def error(self, message: str):
+        self.exit(2, f"voxfield: error: {message} (see `{self.prog} --help`)\n")
+
+
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
     """The whole parser (``command`` None), or the one a command line needs: ``command``'s
     module registers its arguments, and every other command is listed by name and summary
     only, its module (and all that imports) unloaded. An empty or unknown ``command`` loads
     none: the listing, and argparse's "invalid choice", read the same as the whole parser's."""
-    parser = argparse.ArgumentParser(
+    parser = CommandLineParser(
         prog="voxfield",
         description="Sparse voxel octrees with error-aware LOD, light probes and ray queries.",
     )
@@ -73,6 +82,9 @@ def main(argv: list[str] | None = None) -> int:
     warnings.showwarning = _note_warning
     argv = join_negative_values(sys.argv[1:] if argv is None else list(argv))
     parser = build_parser(chosen_command(argv))
+    if not argv:  # `voxfield` alone: what it can do, not an error about a missing command
+        parser.print_help()
+        return 0
     for token in argv:
         # argparse drops a value of "--" (its end-of-options marker) and hands the option an
         # empty list, which no option's type check sees.
