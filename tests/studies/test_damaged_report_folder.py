@@ -78,3 +78,21 @@ def test_null_comparisons_and_odd_scene_values_still_make_a_page(tmp_path):
                                 "camera": {"width": 4}})
     html = write_html_report(folder).read_text(encoding="utf-8")
     assert "many voxels" in html and "<table>" in html
+
+
+def test_a_figure_that_is_no_png_is_left_out_with_a_note(tmp_path, capsys):
+    """It was embedded as it was: a broken image on the page."""
+    import numpy as np
+    from PIL import Image
+
+    folder = _folder(tmp_path, {"study": "thresholds"})
+    (folder / "thresholds.png").write_text("x")
+    Image.fromarray(np.zeros((4, 4, 3), np.uint8)).save(folder / "cut.png")
+    (folder / "cut.png").write_bytes((folder / "cut.png").read_bytes()[:40])
+    Image.fromarray(np.full((4, 4, 3), 200, np.uint8)).save(folder / "good.png")
+    Image.fromarray(np.zeros((4, 4, 3), np.uint8)).save(folder / "jpeg.png", format="JPEG")
+    assert main(["report", str(folder), "--quiet"]) == 0
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 3 and all("left out of the report" in line for line in err), err
+    html = (folder / "report.html").read_text(encoding="utf-8")
+    assert html.count("data:image/png;base64,") == 1 and ">good<" in html.replace(" ", "")

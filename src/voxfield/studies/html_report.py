@@ -13,6 +13,7 @@ from __future__ import annotations
 import base64
 import io
 import json
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -152,9 +153,24 @@ def _subtitle(results: dict) -> str:
 
 
 def _figures(folder: Path) -> list[Path]:
-    """The folder's PNGs, the contact sheet first (it summarises the rest)."""
-    pngs = sorted(folder.glob("*.png"))
+    """The folder's readable PNGs, the contact sheet first (it summarises the rest); one
+    that is not (truncated, or not a PNG at all) is left out with a warning, not embedded
+    as a broken image."""
+    pngs = [p for p in sorted(folder.glob("*.png")) if _readable_png(p)]
     return sorted(pngs, key=lambda p: (p.stem != "contact_sheet", p.name))
+
+
+def _readable_png(path: Path) -> bool:
+    try:
+        with Image.open(path) as image:
+            if image.format != "PNG":
+                raise ValueError(f"a {image.format} image")
+            image.load()
+    except (OSError, ValueError, SyntaxError) as exc:
+        warnings.warn(f"{path}: not a readable PNG ({exc}); left out of the report",
+                      stacklevel=2)
+        return False
+    return True
 
 
 def _label(stem: str) -> str:
