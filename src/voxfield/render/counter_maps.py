@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
+from matplotlib.colors import BoundaryNorm, ListedColormap, Normalize
 
 from voxfield.render.image_io import save_png
 from voxfield.render.result import RenderResult
@@ -78,8 +79,6 @@ def with_colour_bar(rgb: np.ndarray, cmap, norm, label: str, ticks=None) -> np.n
 
 def steps_figure(result: RenderResult) -> np.ndarray:
     """``steps_heatmap`` with its colour bar in steps."""
-    from matplotlib.colors import Normalize
-
     top = steps_scale(result)
     return with_colour_bar(steps_heatmap(result), colormaps["magma"], Normalize(0.0, top),
                            f"traversal steps per pixel\n(brightest: {top:g} or more)")
@@ -87,8 +86,6 @@ def steps_figure(result: RenderResult) -> np.ndarray:
 
 def lod_figure(result: RenderResult, depth: int) -> np.ndarray:
     """``lod_map`` with a colour bar of its LODs."""
-    from matplotlib.colors import BoundaryNorm, ListedColormap
-
     cmap = ListedColormap(lod_colours(depth))
     norm = BoundaryNorm(np.arange(-0.5, depth + 1.0), cmap.N)
     step = max(1, (depth + 1 + 11) // 12)
@@ -100,8 +97,6 @@ def lod_figure(result: RenderResult, depth: int) -> np.ndarray:
 def rays_figure(result: RenderResult) -> np.ndarray:
     """``rays_map`` with a colour bar of its counts (where the error-aware and adaptive
     renderers refined): a band per count up to 24, a continuous scale beyond."""
-    from matplotlib.colors import BoundaryNorm, ListedColormap, Normalize
-
     rgb, top = rays_map(result)
     label = "rays cast per pixel"
     if top > 24:

@@ -151,7 +151,8 @@ def terrain_columns(
         surface = np.maximum(elev, sea_level)
     lo = float(surface.min())
     relief = float(surface.max()) - lo
-    if relief <= 64 * np.finfo(np.float64).eps * max(abs(lo), abs(lo + relief)):
+    if math.isfinite(relief) and relief <= 64 * np.finfo(np.float64).eps * max(
+            abs(lo), abs(lo + relief)):
         # The resampling's round-off, not relief: a constant map is flat at any magnitude
         # (at 1e20 m its cubic weights' round-off alone spanned 1e4 m, scaled up to hills).
         surface = np.full_like(surface, lo)
