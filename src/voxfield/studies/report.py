@@ -154,6 +154,7 @@ class StudyFolder:
         self.computed: list[str] = []
         self.reused: list[str] = []
         self._written: set[Path] = set()  # items this run wrote (trusted even when fresh)
+        self._claimed = False  # whether this run has checked or written the folder's mark
 
     def path(self, name: str) -> Path:
         return self.root / name
@@ -169,8 +170,9 @@ class StudyFolder:
 
     def _claim(self) -> None:
         """The mark written before the folder's first output of this run."""
-        if self._held_study() != self.study:
+        if not self._claimed and self._held_study() != self.study:
             self._write_json_file(self.root / STUDY_MARK, {"study": self.study})
+        self._claimed = True
 
     # --- cached items -------------------------------------------------------------------------
 
