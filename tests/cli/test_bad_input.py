@@ -438,3 +438,20 @@ def test_a_staged_file_that_fails_is_reported_for_its_target_and_none_appear(tmp
         a.write_text("1")
         b.write_text("2")
     assert first.read_text() + second.read_text() == "12"
+
+
+def test_a_view_of_nothing_is_refused_by_a_study_before_its_renders(capsys, monkeypatch,
+                                                                   tmp_path):
+    """calibrate "calibrated" a view of empty sky: every render equals the reference, so
+    any threshold met any PSNR target."""
+    def never(*args, **kwargs):
+        raise AssertionError("the calibration rendered a view of nothing")
+
+    monkeypatch.setattr("voxfield.cli.cmd_calibrate.calibrate_threshold", never)
+    away = ["--eye", "32,1000,32", "--target", "32,2000,32", "--size", "16"]
+    assert main(["calibrate", "builtin:pillars", "--target-psnr", "20", *away, "--quiet"]) == 2
+    assert "meets nothing of the scene" in one_error_line(capsys)
+    assert main(["render", "builtin:pillars", *away, "--renderer", "lod", "--out",
+                 str(tmp_path / "sky.png")]) == 0
+    assert "voxfield: note: the view from (32.0, 1000.0, 32.0) meets nothing" in \
+        capsys.readouterr().err

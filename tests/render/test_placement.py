@@ -9,7 +9,11 @@ import pytest
 from voxfield.errors import VoxfieldError
 from voxfield.probes.grid import parse_grid
 from voxfield.render.camera import Camera, room_camera
-from voxfield.render.placement import camera_placement_problem, check_camera_placement
+from voxfield.render.placement import (
+    camera_placement_problem,
+    check_camera_placement,
+    empty_view_problem,
+)
 from voxfield.render.ray_query import trace
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
@@ -64,3 +68,44 @@ def test_a_surface_layer_floats_at_its_height_over_the_ground(hollow_terrain):
                  lod=0)
     assert down.hit.all()
     np.testing.assert_allclose(down.t, 6.0, atol=1e-9)  # H above the ground below each
+
+
+def _random_view(rng, kind):
+    eye = rng.uniform(-80.0, 150.0, 3)
+    # Half of them aimed near the scene (64 × 32 × 64), half anywhere.
+    aim = np.array([32.0, 16.0, 32.0]) + rng.normal(scale=20.0, size=3)
+    target = aim if rng.random() < 0.5 else eye + rng.normal(size=3)
+    if kind == "orthographic":
+        return Camera.orthographic(eye, target - eye, view_height=rng.uniform(2.0, 40.0),
+                                   width=24, height=16)
+    return Camera.look_at(eye, target, fov_deg=rng.uniform(10.0, 100.0), width=24, height=16)
+
+
+@pytest.mark.parametrize("kind", ["pinhole", "orthographic"])
+def test_a_view_called_empty_hits_nothing_and_both_kinds_occur(kind):
+    """Against the octree's own ray cast of every pixel: a view the test calls empty has no
+    hit (it never refuses a view that shows something), over random eyes and directions
+    around and inside ``builtin:pillars``; and it does call many of them empty."""
+    pillars = open_octree("builtin:pillars")
+    rng = np.random.default_rng(11)
+    empty = seeing = 0
+    for _ in range(120):
+        view = _random_view(rng, kind)
+        origins, dirs = view.rays()
+        hits = trace(pillars, origins, dirs, lod=0).hit.any()
+        if empty_view_problem(pillars, view) is not None:
+            assert not hits
+            empty += 1
+        seeing += hits
+    assert empty >= 20 and seeing >= 20, (empty, seeing)
+
+
+def test_a_view_looking_away_is_refused_and_a_probe_sees_every_way():
+    pillars = open_octree("builtin:pillars")
+    away = Camera.look_at((32.0, 16.0, -50.0), (32.0, 16.0, -100.0), width=32)
+    assert "meets nothing of the scene" in camera_placement_problem(pillars, away)
+    with pytest.raises(VoxfieldError, match="meets nothing"):
+        check_camera_placement(pillars, away)
+    assert empty_view_problem(pillars, Camera.octahedral((32.0, 500.0, 32.0), 8)) is None
+    big = Camera.look_at((32.0, 16.0, -50.0), (32.0, 16.0, 0.0), fov_deg=1.0, width=2048)
+    assert empty_view_problem(pillars, big) is None  # sampled on 256², still sees the box

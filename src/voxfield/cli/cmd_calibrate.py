@@ -18,7 +18,7 @@ from voxfield.cli.options import (
     output_named,
     positive_float,
     positive_int,
-    scene_camera,
+    study_camera,
 )
 from voxfield.studies.calibrate import calibrate_threshold
 from voxfield.studies.report import to_json
@@ -48,7 +48,7 @@ def run(args) -> int:
     if args.out:
         check_writable(output_named(args.out, ".json", "the calibration trail"))  # first
     octree = open_octree(args)
-    view = scene_camera(args, octree)
+    view = study_camera(args, octree)
     cal = calibrate_threshold(
         octree, view, target_rays=args.target_rays, target_psnr=args.target_psnr,
         decay=args.decay, base_lod=args.base_lod, iterations=args.iterations, seed=args.seed,

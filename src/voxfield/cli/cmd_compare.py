@@ -13,7 +13,7 @@ from voxfield.cli.options import (
     default_output,
     open_octree,
     positive_int,
-    scene_camera,
+    study_camera,
 )
 from voxfield.studies.compare import run_compare
 from voxfield.studies.report import fmt
@@ -45,7 +45,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     octree = open_octree(args)
-    view = scene_camera(args, octree)
+    view = study_camera(args, octree)
     label = "custom" if args.eye is not None else args.camera
     report = run_compare(
         octree, view, args.out or default_output("compare", args.scene),

@@ -14,8 +14,8 @@ from voxfield.cli.options import (
     default_output,
     open_octree,
     positive_int,
-    scene_camera,
     set_option_help,
+    study_camera,
 )
 from voxfield.studies.shadow_study import run_shadow_study, summary_text
 
@@ -61,7 +61,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     octree = open_octree(args)
-    view = scene_camera(args, octree)
+    view = study_camera(args, octree)
     report = run_shadow_study(
         octree, view, args.out or default_output("shadows", args.scene),
         light_samples=args.light_samples, reference_samples=args.reference_samples,

@@ -25,8 +25,8 @@ from voxfield.cli.options import (
     name_list,
     open_octree,
     positive_int_list,
-    scene_camera,
     scheduler_name,
+    study_camera,
 )
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import LightFieldOptions
@@ -219,7 +219,7 @@ def run_normalisation(args) -> int:
     scenes = {}
     for spec in (args.scene, *args.more_scenes):
         octree = open_octree(argparse.Namespace(**{**vars(args), "scene": spec}))
-        scenes[spec] = (octree, scene_camera(args, octree))
+        scenes[spec] = (octree, study_camera(args, octree))
     out = args.out or default_output("normalisation", next(iter(scenes)))
     report = run_normalisation_study(scenes, out, base_lod=args.base_lod,
                                      quantile=args.quantile, seed=args.seed,
@@ -258,7 +258,7 @@ def run_curves(args) -> int:
 
 def run_thresholds(args) -> int:
     octree = open_octree(args)
-    view = scene_camera(args, octree)
+    view = study_camera(args, octree)
     out = args.out or default_output("thresholds", args.scene)
     report = run_threshold_study(
         octree, view, out, thresholds=args.thresholds, decay=args.decay,
@@ -300,7 +300,7 @@ def run_lighting(args) -> int:
         suns = parse_suns("all" if args.times is None else args.times)
         octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet,
                                       scheduler=args.scheduler)
-    view = scene_camera(args, octree)
+    view = study_camera(args, octree)
     channels = list(args.channels) if args.channels is not None else None
     out = args.out or default_output("lighting", args.scene)
     report = run_lighting_study(
@@ -396,8 +396,7 @@ def grid_list(text: str) -> tuple[str, ...]:
 def run_probes(args) -> int:
     quiet = getattr(args, "quiet", False)
     octree = open_octree(args)
-    view = scene_camera(args, octree)
-    check_camera_placement(octree, view)
+    view = study_camera(args, octree)
     options = LightFieldOptions(**hit_options(args))
     out = args.out or default_output("probe_study", args.scene)
     report = run_probe_study(

@@ -13,7 +13,7 @@ from voxfield.cli.options import (
     add_view_options,
     float_list,
     open_octree,
-    scene_camera,
+    study_camera,
 )
 from voxfield.studies.sweep import THESIS_DECAYS, THESIS_THRESHOLDS, run_sweep
 
@@ -38,7 +38,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     octree = open_octree(args)
-    view = scene_camera(args, octree)
+    view = study_camera(args, octree)
     out = args.out or f"out/sweep_{Path(args.scene).stem.replace(':', '_')}"
     report = run_sweep(octree, view, out, decays=args.decays, thresholds=args.thresholds,
                        base_lod=args.base_lod, seed=args.seed, channel=args.channel,

@@ -27,6 +27,7 @@ from voxfield.render.camera import (
     preset_camera,
 )
 from voxfield.render.framing import content_box
+from voxfield.render.placement import check_camera_placement
 from voxfield.render.registry import RENDERERS
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
 from voxfield.scene.loaders import SceneOptions
@@ -362,6 +363,15 @@ def scene_camera(args, octree) -> Camera:
     if args.camera == "orbit" and args.eye is None and args.target is None:
         return camera(args, content_box(octree))
     return camera(args, octree.voxel_bounds)
+
+
+def study_camera(args, octree) -> Camera:
+    """``scene_camera`` for a command that measures from the view (studies, ``compare``,
+    ``sweep``, ``calibrate``): refused, before the renders, where it stands inside or under
+    the scene or sees nothing of it, as its figures would describe no view."""
+    view = scene_camera(args, octree)
+    check_camera_placement(octree, view)
+    return view
 
 
 def default_output(prefix: str, scene: str, suffix: str = "") -> Path:

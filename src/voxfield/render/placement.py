@@ -1,14 +1,17 @@
-"""Is a camera somewhere a viewer could stand? A view from inside a voxel, or from under a
-terrain's surface (a hollow terrain leaves empty space below its shell, so the eye is not
-inside any voxel there), makes every number measured from it meaningless."""
+"""Is a camera somewhere a viewer could stand, looking at something? A view from inside a
+voxel, or from under a terrain's surface (a hollow terrain leaves empty space below its
+shell, so the eye is not inside any voxel there), or one that looks away from the scene
+altogether, makes every number measured from it meaningless."""
 
 from __future__ import annotations
+
+import dataclasses
 
 import numpy as np
 
 from voxfield.error_table.directions import fibonacci_directions
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.camera_rays import PINHOLE
+from voxfield.kernels.camera_rays import ORTHOGRAPHIC, PINHOLE
 from voxfield.render.camera import Camera
 from voxfield.render.ray_query import trace
 from voxfield.svo.octree import Octree
@@ -21,9 +24,41 @@ COVERED_SKY = 0.75
 OPEN_GROUND = 0.5
 
 
+#: The empty-view test's rays: a grid of at most this many a side over the image.
+VIEW_SAMPLES = 256
+
+
+def empty_view_problem(octree: Octree, camera: Camera) -> str | None:
+    """That ``camera`` sees nothing of the scene (one sentence), or None: no ray of the view
+    (a grid of at most ``VIEW_SAMPLES``² over the image, its border included) meets the
+    scene's voxel box. NumPy only, no kernel to compile. Probe cameras see every way."""
+    if camera.kind not in (PINHOLE, ORTHOGRAPHIC):
+        return None
+    sampled = dataclasses.replace(camera, width=min(camera.width, VIEW_SAMPLES),
+                                  height=min(camera.height, VIEW_SAMPLES))
+    origins, dirs = sampled.rays()
+    lo, hi = (np.asarray(b, np.float64) for b in octree.voxel_bounds)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        near = (lo - origins) / dirs
+        far = (hi - origins) / dirs
+    # fmin/fmax pass over the NaN of a ray in a slab's plane (0/0): that slab does not bound it.
+    enter = np.fmax.reduce(np.fmin(near, far), axis=1)
+    leave = np.fmin.reduce(np.fmax(near, far), axis=1)
+    if np.any(leave >= np.maximum(enter, 0.0)):
+        return None
+    where = ", ".join(f"{v:.1f}" for v in camera.position)
+    return (f"the view from ({where}) meets nothing of the scene (its box "
+            f"{tuple(int(v) for v in lo)}..{tuple(int(v) for v in hi)}): every image of it "
+            "is empty")
+
+
 def camera_placement_problem(octree: Octree, camera: Camera) -> str | None:
-    """Why ``camera`` stands where no viewer could (one sentence), or None. Only pinhole
-    cameras are checked: orthographic and probe cameras have no single eye."""
+    """Why ``camera`` stands where no viewer could, or sees nothing (one sentence), or
+    None. Only pinhole cameras are checked for their eye: orthographic and probe cameras
+    have no single one."""
+    empty = empty_view_problem(octree, camera)
+    if empty is not None:
+        return empty
     if camera.kind != PINHOLE:
         return None
     eye = np.asarray(camera.position, np.float64)
