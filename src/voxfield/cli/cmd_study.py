@@ -296,11 +296,11 @@ def run_resolution(args) -> int:
 
 def run_lighting(args) -> int:
     octree = open_octree(args)
+    view = study_camera(args, octree)  # before a bake: the geometry is the same after it
     if len(lighting_channels(octree)) < 2:
         suns = parse_suns("all" if args.times is None else args.times)
         octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet,
                                       scheduler=args.scheduler)
-    view = study_camera(args, octree)
     channels = list(args.channels) if args.channels is not None else None
     out = args.out or default_output("lighting", args.scene)
     report = run_lighting_study(
