@@ -375,6 +375,11 @@ def test_command_says_when_no_probe_answers_most_pixels(run, cornell_folder, tmp
         assert (share > LOST_NOTE_SHARE) == lost
         assert ("were answered by no probe of this probe set" in err) == lost
         assert "voxfield: error" not in err
+    # --quiet silences bars and summaries, not word that the picture is the fallback.
+    assert run(["probe-render", str(cornell_folder), "--camera", "top", "--size", "16",
+                "--quiet", "--out", str(tmp_path / "quiet.png")]) == 0
+    quiet = capsys.readouterr()
+    assert quiet.out == "" and "were answered by no probe" in quiet.err
     # Not for a baseline, which answers every ray from the nearest probe.
     assert run(["probe-render", str(cornell_folder), "--camera", "top", "--method",
                 "environment", "--size", "16", "--out", str(tmp_path / "env.png")]) == 0

@@ -163,7 +163,7 @@ def run(args) -> int:
     bounds = octree.voxel_bounds if octree is not None else probe_set_bounds(probe_set)
     view = camera(args, bounds)
     problem = None if octree is None else camera_placement_problem(octree, view)
-    if problem is not None and not args.quiet:
+    if problem is not None:
         print(f"voxfield: note: {problem}; its figures describe no real view",
               file=sys.stderr)
     box = None
@@ -175,7 +175,7 @@ def run(args) -> int:
                                 progress=not args.quiet, packed=packed, device=args.device)
     save_result_image(result, out)
     lost = lost_rays_note(lost_share(result), "this probe set")
-    if lost is not None and not args.quiet:
+    if lost is not None:
         print(f"voxfield: note: {lost}; place the camera where the probes see "
               "(--eye/--target) or bake a denser grid", file=sys.stderr)
     written = [out]
@@ -224,7 +224,7 @@ def _open_scene(args, probe_set):
         same = octree.fingerprint(probe_set.options.channel) == probe_set.fingerprint
     except VoxfieldError:
         same = False
-    if not same and not args.quiet:
+    if not same:
         print(f"voxfield: note: {args.scene!r} (or its channel {probe_set.options.channel!r}) "
               "is not the scene these probes were baked from", file=sys.stderr)
     return octree

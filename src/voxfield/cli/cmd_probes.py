@@ -287,7 +287,7 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool, *, exact: bool =
         if exact:
             raise VoxfieldError("no scene recorded with these probes; cube faces are traced "
                                 "from the baked scene: name it with --scene")
-        _note("no scene recorded; pass --scene to draw probes over a render", quiet)
+        _note("no scene recorded; pass --scene to draw probes over a render")
         return None
     options = SceneOptions(
         mesh_resolution=source.get("mesh_resolution", 256),
@@ -301,7 +301,7 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool, *, exact: bool =
         if exact:
             raise VoxfieldError(f"cannot open the baked scene {spec!r} ({exc}); cube faces "
                                 "are traced from it: name it with --scene") from None
-        _note(f"cannot open the scene {spec!r} ({exc}); drawing probes without it", quiet)
+        _note(f"cannot open the scene {spec!r} ({exc}); drawing probes without it")
         return None
     channel = header["scene"].get("channel", "albedo")
     try:
@@ -312,11 +312,11 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool, *, exact: bool =
         if exact:
             raise VoxfieldError(f"{spec!r} is not the scene these probes were baked from; "
                                 "cube faces are traced from that one: name it with --scene")
-        _note(f"{spec!r} is not the scene these probes were baked from; drawing it anyway",
-              quiet)
+        _note(f"{spec!r} is not the scene these probes were baked from; drawing it anyway")
     return octree
 
 
-def _note(text: str, quiet: bool) -> None:
-    if not quiet:
-        print(f"voxfield: note: {text}", file=sys.stderr)
+def _note(text: str) -> None:
+    """A note on what was drawn: printed with --quiet too (it silences bars and summaries,
+    not word that the picture is not what was asked for)."""
+    print(f"voxfield: note: {text}", file=sys.stderr)

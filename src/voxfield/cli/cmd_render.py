@@ -60,7 +60,7 @@ def run(args) -> int:
     octree = open_octree(args)
     view = scene_camera(args, octree)
     empty = empty_view_problem(octree, view)
-    if empty is not None and not args.quiet:
+    if empty is not None:
         print(f"voxfield: note: {empty}", file=sys.stderr)
     on_gpu = {"device": "cuda"} if args.device == "cuda" else {}
     result = render(octree, view, args.renderer, renderer_options_from(args, args.renderer),

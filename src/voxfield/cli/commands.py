@@ -42,7 +42,7 @@ COMMANDS: dict[str, Command] = {
     "report": Command("cmd_report", "rebuild a study folder's report.html"),
 }
 
-QUIET_HELP = "no progress bars or summaries"
+QUIET_HELP = "no progress bars or summaries (notes still print)"
 
 
 def add_quiet(p: argparse.ArgumentParser) -> None:
