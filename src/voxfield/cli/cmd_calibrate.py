@@ -6,7 +6,7 @@ import json
 
 import numpy as np
 
-from voxfield.atomic import atomic_path, check_writable
+from voxfield.atomic import atomic_path
 from voxfield.cli.commands import add_command
 from voxfield.cli.options import (
     add_channel_option,
@@ -46,7 +46,7 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     if args.out:
-        check_writable(output_named(args.out, ".json", "the calibration trail"))  # first
+        output_named(args.out, ".json", "the calibration trail")  # before the renders
     octree = open_octree(args)
     view = study_camera(args, octree)
     cal = calibrate_threshold(

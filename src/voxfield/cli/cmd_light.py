@@ -8,7 +8,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from voxfield.atomic import atomic_path, check_writable
+from voxfield.atomic import atomic_path
 from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_scene_options,
@@ -69,8 +69,8 @@ def register(subparsers) -> argparse.ArgumentParser:
 def run(args) -> int:
     suns = parse_suns(args.times)  # before the (slow) scene load: bad input fails fast
     check_scheduler(args.scheduler)
-    out = check_writable(output_named(args.out or default_output("lit", args.scene, ".npz"),
-                                      ".npz", "a lit octree"))
+    out = output_named(args.out or default_output("lit", args.scene, ".npz"), ".npz",
+                       "a lit octree")
     args.quiet = quiet = getattr(args, "quiet", False)  # as ``voxfield.cli.main`` sets it
     octree = open_octree(args)
     lit, report = bake_sun_lighting(

@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.atomic import check_writable
 from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_channel_option,
@@ -18,6 +17,7 @@ from voxfield.cli.options import (
     int_between,
     lod_arg,
     open_octree,
+    output_named,
     positive_int,
 )
 from voxfield.errors import VoxfieldError
@@ -205,10 +205,7 @@ def run_show(args) -> int:
     folder = Path(args.folder)
     probe_set = open_probe_set(folder)
     header = read_header(folder)
-    out = Path(args.out) if args.out else folder / "show.png"
-    if out.suffix.lower() != ".png":
-        raise VoxfieldError(f"probes show writes PNG; name the output .png, not {out.name!r}")
-    check_writable(out)
+    out = output_named(args.out or folder / "show.png", ".png", "the probe set's picture")
     octree = None if args.no_scene else _reopen_scene(header, args.scene, args.quiet)
     s = probe_set.cost_summary()
     title = (f"{header['scene'].get('name', 'scene')}: {s['baked']} of {s['probes']} probes, "

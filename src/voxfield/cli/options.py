@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.atomic import check_writable
 from voxfield.checks import MAX_SEED
 from voxfield.cli.commands import add_quiet
 from voxfield.errors import VoxfieldError
@@ -439,10 +440,11 @@ def hit_options(args) -> dict:
 
 
 def output_named(out: str | Path, suffix: str, what: str) -> Path:
-    """``--out`` as a path, refused unless it ends in ``suffix``: a file whose name says
-    another format (an octree called ``.png``) misleads whoever opens it next."""
+    """``--out`` as a path, refused unless it ends in ``suffix`` (a file whose name says
+    another format, an octree called ``.png``, misleads whoever opens it next) and unless
+    it can be written (``atomic.check_writable``): both before the command's work."""
     path = Path(out)
     if path.suffix.lower() != suffix:
         raise VoxfieldError(f"{path}: {what} is written as {suffix}; give --out a name ending "
                             f"in {suffix}")
-    return path
+    return check_writable(path)

@@ -84,14 +84,19 @@ def steps_figure(result: RenderResult) -> np.ndarray:
                            f"traversal steps per pixel\n(brightest: {top:g} or more)")
 
 
+def with_banded_bar(rgb: np.ndarray, colours: np.ndarray, label: str) -> np.ndarray:
+    """``with_colour_bar`` for a map of whole values 0..n-1 drawn in ``colours`` (n×3): a
+    band per value, at most about 12 of them labelled."""
+    top = len(colours) - 1
+    return with_colour_bar(rgb, ListedColormap(colours),
+                           BoundaryNorm(np.arange(-0.5, top + 1.0), len(colours)), label,
+                           ticks=np.arange(0, top + 1, max(1, (top + 12) // 12)))
+
+
 def lod_figure(result: RenderResult, depth: int) -> np.ndarray:
     """``lod_map`` with a colour bar of its LODs."""
-    cmap = ListedColormap(lod_colours(depth))
-    norm = BoundaryNorm(np.arange(-0.5, depth + 1.0), cmap.N)
-    step = max(1, (depth + 1 + 11) // 12)
-    return with_colour_bar(lod_map(result, depth), cmap, norm,
-                           "finest LOD per pixel (0: voxels)\nblack: nothing hit",
-                           ticks=np.arange(0, depth + 1, step))
+    return with_banded_bar(lod_map(result, depth), lod_colours(depth),
+                           "finest LOD per pixel (0: voxels)\nblack: nothing hit")
 
 
 def rays_figure(result: RenderResult) -> np.ndarray:
@@ -101,10 +106,7 @@ def rays_figure(result: RenderResult) -> np.ndarray:
     label = "rays cast per pixel"
     if top > 24:
         return with_colour_bar(rgb, colormaps["viridis"], Normalize(0.0, top), label)
-    cmap = ListedColormap(colormaps["viridis"](np.arange(top + 1) / top)[:, :3])
-    norm = BoundaryNorm(np.arange(-0.5, top + 1.0), cmap.N)
-    return with_colour_bar(rgb, cmap, norm, label,
-                           ticks=np.arange(0, top + 1, max(1, (top + 11) // 12)))
+    return with_banded_bar(rgb, colormaps["viridis"](np.arange(top + 1) / top)[:, :3], label)
 
 
 def counter_map_paths(image_path: str | Path) -> list[Path]:

@@ -141,10 +141,11 @@ class StudyFolder:
         if self.root.exists() and not self.root.is_dir():
             raise VoxfieldError(f"study output {self.root} exists and is not a folder")
         self.study = study
-        held = self._held_study()
-        if held is not None and held != study:
-            raise VoxfieldError(f"{self.root} holds the results of `voxfield {held}`; give "
-                                f"`voxfield {study}` another --out (one study per folder)")
+        #: The study the folder's mark names (None: none yet); claimed at the first output.
+        self._held = self._held_study()
+        if self._held is not None and self._held != study:
+            raise VoxfieldError(f"{self.root} holds the results of `voxfield {self._held}`; "
+                                f"give `voxfield {study}` another --out (one study per folder)")
         check_scheduler(scheduler)
         self.items_dir = self.root / "items"
         self.fresh = fresh
@@ -154,7 +155,6 @@ class StudyFolder:
         self.computed: list[str] = []
         self.reused: list[str] = []
         self._written: set[Path] = set()  # items this run wrote (trusted even when fresh)
-        self._claimed = False  # whether this run has checked or written the folder's mark
 
     def path(self, name: str) -> Path:
         return self.root / name
@@ -170,9 +170,9 @@ class StudyFolder:
 
     def _claim(self) -> None:
         """The mark written before the folder's first output of this run."""
-        if not self._claimed and self._held_study() != self.study:
+        if self._held != self.study:
             self._write_json_file(self.root / STUDY_MARK, {"study": self.study})
-        self._claimed = True
+            self._held = self.study
 
     # --- cached items -------------------------------------------------------------------------
 
