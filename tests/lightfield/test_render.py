@@ -13,7 +13,12 @@ from voxfield import cli
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.octahedral import texel_directions
 from voxfield.lightfield import LightFieldOptions
-from voxfield.lightfield.baselines import box_proxy_lookup, environment_lookup, nearest_probe
+from voxfield.lightfield.baselines import (
+    box_proxy_lookup,
+    environment_lookup,
+    lookup_maps,
+    nearest_probe,
+)
 from voxfield.lightfield.probe_render import (
     composite_by_depth,
     probe_set_bounds,
@@ -154,6 +159,40 @@ def test_baselines_refuse_bad_input():
         environment_lookup(probes, 0, np.ones((1, 3)), filter="cubic")
 
 
+@pytest.mark.parametrize("filter", ["bilinear", "nearest"])
+def test_lookups_read_the_same_from_maps_made_once(filter):
+    """A render converts its probes' maps once and reads them band after band: the answers
+    must be those of converting them at every call."""
+    probes = random_probes(16, count=5)
+    rng = np.random.default_rng(4)
+    which = rng.choice([1, 3, 4], 300)  # not 0 and 2: a map's place is not its index
+    dirs = rng.normal(size=(300, 3))
+    origins = rng.uniform(0.0, 12.0, (300, 3))
+    maps = lookup_maps(probes, [4, 1, 3, 3], filter)  # any order, repeats
+    assert maps.probes.tolist() == [1, 3, 4]
+    np.testing.assert_array_equal(
+        environment_lookup(probes, which, dirs, filter=filter, maps=maps)[0],
+        environment_lookup(probes, which, dirs, filter=filter)[0])
+    for a, b in zip(box_proxy_lookup(probes, which, origins, dirs, (0, 0, 0), (12, 12, 12),
+                                     filter=filter, return_normal=True, maps=maps),
+                    box_proxy_lookup(probes, which, origins, dirs, (0, 0, 0), (12, 12, 12),
+                                     filter=filter, return_normal=True), strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_lookup_maps_refuse_a_probe_they_lack_or_another_filter():
+    probes = random_probes(8, count=4)
+    maps = lookup_maps(probes, [1, 3])
+    with pytest.raises(VoxfieldError, match="probe 2 is not among"):
+        environment_lookup(probes, [1, 2, 3], np.ones((3, 3)), maps=maps)
+    with pytest.raises(VoxfieldError, match="probe 0 is not among"):
+        environment_lookup(probes, 0, np.ones((1, 3)), maps=maps)
+    with pytest.raises(VoxfieldError, match="nearest filter"):
+        environment_lookup(probes, 1, np.ones((1, 3)), filter="nearest", maps=maps)
+    with pytest.raises(VoxfieldError, match="filter"):
+        lookup_maps(probes, [1], "cubic")
+
+
 # --------------------------------------------------------------------------- renders
 
 
@@ -184,6 +223,27 @@ def test_render_is_deterministic_and_thread_independent(room, small_jobs_in_para
     b = render_from_probes(probes, camera, method="box-proxy")
     np.testing.assert_array_equal(a.image, b.image)
     np.testing.assert_array_equal(a.depth, b.depth)
+
+
+def test_a_render_reads_each_pixel_from_its_nearest_probe(room):
+    """An orthographic view's rays start apart, so its pixels read several probes (their
+    maps converted once for the whole render): each pixel is the lookup of its own."""
+    _, probes = room
+    grid = ProbeGrid((ROOM / 2,) * 3, (6.0, 6.0, 6.0), (2, 2, 2))
+    several = bake_probes(build_octree(room_scene()), grid,
+                          BakeOptions(resolution=16, renderer="lod", lod=0))
+    camera = Camera.orthographic((8.0, 8.0, 8.0), (0.3, -0.2, -1.0), view_height=12.0, width=20)
+    origins, dirs = camera.rays(side=1, seed=0)
+    nearest = nearest_probe(several, origins)
+    assert len(np.unique(nearest)) >= 4
+    for method in ("environment", "box-proxy"):
+        image = render_from_probes(several, camera, method=method).image.reshape(-1, 3)
+        if method == "environment":
+            expected, _ = environment_lookup(several, nearest, dirs)
+        else:
+            lo, hi = probe_set_bounds(several)
+            expected, _ = box_proxy_lookup(several, nearest, origins, dirs, lo, hi)
+        np.testing.assert_array_equal(image, expected)
 
 
 def test_render_refuses_bad_input(room):

@@ -21,6 +21,8 @@ point-sampled fetch returns, and bit-exact with the baked texels). Inputs need o
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from numba import njit, prange
 
@@ -54,22 +56,22 @@ def nearest_probe(probe_set, points) -> np.ndarray:
     return best
 
 
-def environment_lookup(probe_set, probe, dirs, *, filter: str = "bilinear"):
+def environment_lookup(probe_set, probe, dirs, *, filter: str = "bilinear", maps=None):
     """Radiance of ``probe`` in each direction ω (φ = ω): ``(radiance (M, 3) float32,
     distance (M,) float32 all inf)``.
 
     ``probe`` is one index or (M,) indices (e.g. ``nearest_probe`` of the ray origins);
     ``dirs`` (M, 3) need not be unit length. The ray origin plays no part: that is the point
-    of this baseline.
+    of this baseline. ``maps``: the probes' ``LookupMaps``, when a caller reads them again.
     """
     d = _points(dirs, "directions")
     indices = _probe_indices(probe_set, probe, len(d))
-    radiance = _lookup(probe_set, indices, d, filter)
+    radiance = _lookup(probe_set, indices, d, filter, maps)
     return radiance, np.full(len(d), np.inf, np.float32)
 
 
 def box_proxy_lookup(probe_set, probe, origins, dirs, box_lo, box_hi, *,
-                     filter: str = "bilinear", return_normal: bool = False):
+                     filter: str = "bilinear", return_normal: bool = False, maps=None):
     """Parallax-corrected lookup against the proxy box ``[box_lo, box_hi]`` (Bjorke 2004):
     ``(radiance (M, 3) float32, distance (M,) float32)`` and, with ``return_normal``, the
     proxy face's normal facing the ray (M, 3) float32 (zero where the box was missed).
@@ -80,7 +82,8 @@ def box_proxy_lookup(probe_set, probe, origins, dirs, box_lo, box_hi, *,
     H = X + tω at that exit; the probe is read towards ``H - P``; the distance is t along
     the unit ray. A ray that misses the box, or whose exit lies behind it, gets the
     environment lookup (φ = ω) and distance ``inf``; so does a ray whose exit point is the
-    probe centre itself, where ``H - P`` has no direction.
+    probe centre itself, where ``H - P`` has no direction. ``maps`` as for
+    ``environment_lookup``.
     """
     o = _points(origins, "origins")
     d = _points(dirs, "directions")
@@ -101,7 +104,7 @@ def box_proxy_lookup(probe_set, probe, origins, dirs, box_lo, box_hi, *,
     lookup[rows] = towards[usable] / length[usable, None]
     hit[np.flatnonzero(hit)[~usable]] = False
 
-    radiance = _lookup(probe_set, indices, lookup, filter)
+    radiance = _lookup(probe_set, indices, lookup, filter, maps)
     distance = np.where(hit, t, np.inf).astype(np.float32)
     if not return_normal:
         return radiance, distance
@@ -131,27 +134,62 @@ def _box_exit(o: np.ndarray, d: np.ndarray, lo: np.ndarray, hi: np.ndarray):
     return np.where(hit, t_exit, np.inf), axis
 
 
-def _lookup(probe_set, indices: np.ndarray, directions: np.ndarray, filter: str) -> np.ndarray:
-    """Radiance of probe ``indices[i]`` in ``directions[i]``, (M, 3) float32."""
+@dataclass(frozen=True)
+class LookupMaps:
+    """Some probes' radiance maps as the lookups read them: float32 and, for the bilinear
+    filter, channels first with a one-texel border. Converting a map touches every texel,
+    more than a whole image reads (a 1024² map holds 16 times a 256² view's pixels), so a
+    render converts the probes it reads once, not once per band of rows."""
+
+    probes: np.ndarray  #: (K,) sorted indices of the probes held
+    maps: np.ndarray  #: (K, R, R, 3), or (K, 3, R + 2, R + 2) bordered
+    filter: str
+
+    def local(self, indices: np.ndarray) -> np.ndarray:
+        """Positions in ``maps`` of the probes ``indices``, or a VoxfieldError for one not
+        held."""
+        where = np.searchsorted(self.probes, indices)
+        held = where < len(self.probes)
+        held[held] = self.probes[where[held]] == indices[held]
+        if not held.all():
+            raise VoxfieldError(f"probe {int(indices[~held][0])} is not among the lookup "
+                                "maps' probes; make them with every probe the rays read")
+        return np.ascontiguousarray(where, np.int64)
+
+
+def lookup_maps(probe_set, probes, filter: str = "bilinear") -> LookupMaps:
+    """``LookupMaps`` of ``probes`` (indices into the set) for ``filter``."""
     if filter not in FILTERS:
         raise VoxfieldError(f"unknown lookup filter {filter!r}; choose one of "
                             f"{', '.join(FILTERS)}")
     radiance = np.asarray(probe_set.radiance)
     if radiance.ndim != 4 or radiance.shape[1] != radiance.shape[2] or radiance.shape[3] != 3:
         raise VoxfieldError(f"probe radiance must be (N, R, R, 3), got {radiance.shape}")
+    used = np.unique(np.asarray(probes, np.int64).reshape(-1))
+    # Only the probes in use are converted and bordered: a grid may hold thousands.
+    maps = radiance[used].astype(np.float32)
+    if filter == "bilinear":
+        maps = add_border(np.moveaxis(maps, 3, 1))
+    return LookupMaps(used, np.ascontiguousarray(maps), filter)
+
+
+def _lookup(probe_set, indices: np.ndarray, directions: np.ndarray, filter: str,
+            maps: LookupMaps | None = None) -> np.ndarray:
+    """Radiance of probe ``indices[i]`` in ``directions[i]``, (M, 3) float32."""
+    if maps is None:
+        maps = lookup_maps(probe_set, indices, filter)
+    elif not isinstance(maps, LookupMaps) or maps.filter != filter:
+        raise VoxfieldError(f"the lookup maps must be LookupMaps made for the {filter} "
+                            "filter (lookup_maps)")
     out = np.empty((len(directions), 3), np.float32)
     if not len(directions):
         return out
-    # Only the probes in use are converted and bordered: a grid may hold thousands.
-    used, local = np.unique(indices, return_inverse=True)
-    maps = radiance[used].astype(np.float32)
     d = np.ascontiguousarray(directions, np.float64)
-    local = np.ascontiguousarray(local.reshape(-1), np.int64)
+    local = maps.local(np.asarray(indices, np.int64).reshape(-1))
     if filter == "nearest":
-        _nearest_rows(np.ascontiguousarray(maps), local, d, out)
+        _nearest_rows(maps.maps, local, d, out)
     else:
-        bordered = np.ascontiguousarray(add_border(np.moveaxis(maps, 3, 1)))
-        _bilinear_rows(bordered, local, d, out)
+        _bilinear_rows(maps.maps, local, d, out)
     return out
 
 

@@ -34,6 +34,7 @@ from voxfield.lightfield.baselines import (
     box_proxy_lookup,
     check_box,
     environment_lookup,
+    lookup_maps,
     nearest_probe,
 )
 from voxfield.lightfield.packed import PackedProbes
@@ -90,7 +91,7 @@ def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field"
         params.update(trace_params)
     else:
         lo, hi = probe_set_bounds(probe_set) if box is None else _checked_box(box)
-        query = _baseline_query(probe_set, method, filter, (lo, hi))
+        query = _baseline_query(probe_set, method, filter, (lo, hi), origins)
         params["filter"] = filter
         if method == "box-proxy":
             params["box"] = [np.asarray(lo, float).tolist(), np.asarray(hi, float).tolist()]
@@ -123,26 +124,28 @@ def check_probe_device(device: str, method: str) -> None:
 # --------------------------------------------------------------------------- methods
 
 
-def _baseline_query(probe_set, method: str, filter: str, box):
-    """A band function for the environment or box-proxy lookup of the nearest probe."""
+def _baseline_query(probe_set, method: str, filter: str, box, origins):
+    """A band function for the environment or box-proxy lookup of the nearest probe; the
+    maps of the probes nearest to ``origins`` (every ray's) are converted once, here."""
     kinds = result_kinds()
+    maps = lookup_maps(probe_set, nearest_probe(probe_set, origins), filter)
 
     def query(origins, dirs, result, rows):
         n = len(dirs)
         if n == 0:  # load (or compile) the lookup kernels outside the timed region
-            first = int(np.flatnonzero(np.asarray(probe_set.enabled, bool))[0])
             one = np.array([[0.0, 0.0, 1.0]])
-            environment_lookup(probe_set, first, one, filter=filter)
+            environment_lookup(probe_set, maps.probes[0], one, filter=filter, maps=maps)
             return
         probe = nearest_probe(probe_set, origins)
         if method == "environment":
-            radiance, distance = environment_lookup(probe_set, probe, dirs, filter=filter)
+            radiance, distance = environment_lookup(probe_set, probe, dirs, filter=filter,
+                                                    maps=maps)
             normal = np.zeros((n, 3), np.float32)
             kind = np.full(n, kinds["environment"], np.int8)
         else:
             radiance, distance, normal = box_proxy_lookup(
                 probe_set, probe, origins, dirs, box[0], box[1], filter=filter,
-                return_normal=True)
+                return_normal=True, maps=maps)
             kind = np.where(np.isfinite(distance), kinds["hit"],
                             kinds["environment"]).astype(np.int8)
         _store(result, rows, radiance=radiance, depth=distance, normal=normal, kind=kind,
