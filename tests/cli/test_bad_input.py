@@ -455,3 +455,17 @@ def test_a_view_of_nothing_is_refused_by_a_study_before_its_renders(capsys, monk
                  str(tmp_path / "sky.png")]) == 0
     assert "voxfield: note: the view from (32.0, 1000.0, 32.0) meets nothing" in \
         capsys.readouterr().err
+
+
+@pytest.mark.parametrize(("eye", "target", "words"), [
+    ("32,-3,32", "40,-3,40", "is under the scene's surface"),  # below the pillars' floor
+    ("0.5,0.5,0.5", "10,10,10", "is inside a voxel"),  # in the floor's corner voxel
+])
+def test_render_draws_a_buried_camera_with_a_note(eye, target, words, capsys, tmp_path):
+    """The studies refuse these views; render draws them and says why they look odd."""
+    out = tmp_path / "buried.png"
+    assert main(["render", "builtin:pillars", "--eye", eye, "--target", target, "--renderer",
+                 "lod", "--size", "16", "--out", str(out), "--quiet"]) == 0
+    assert out.exists()
+    err = capsys.readouterr().err
+    assert err.startswith("voxfield: note: the camera at (") and words in err

@@ -12,7 +12,9 @@ from voxfield.render.camera import Camera, room_camera
 from voxfield.render.placement import (
     camera_placement_problem,
     check_camera_placement,
+    could_be_buried,
     empty_view_problem,
+    view_note,
 )
 from voxfield.render.ray_query import trace
 from voxfield.scene.voxel_scene import VoxelScene
@@ -109,3 +111,21 @@ def test_a_view_looking_away_is_refused_and_a_probe_sees_every_way():
     assert empty_view_problem(pillars, Camera.octahedral((32.0, 500.0, 32.0), 8)) is None
     big = Camera.look_at((32.0, 16.0, -50.0), (32.0, 16.0, 0.0), fov_deg=1.0, width=2048)
     assert empty_view_problem(pillars, big) is None  # sampled on 256², still sees the box
+
+
+def test_a_render_notes_every_problem_the_full_test_finds(hollow_terrain):
+    """``view_note`` casts the eye's rays only where ``could_be_buried``: over random eyes
+    around, above, inside and under the hollow terrain, it says what the full test says,
+    and skips the rays for most eyes outside the terrain's column of space."""
+    rng = np.random.default_rng(5)
+    found = skipped = 0
+    for i in range(150):
+        # Every other eye over the terrain's footprint, between below it and its crest.
+        eye = (rng.uniform((0.0, -10.0, 0.0), (64.0, 27.0, 64.0)) if i % 2 else
+               rng.uniform((-40.0, -20.0, -40.0), (104.0, 60.0, 104.0)))
+        view = _look(hollow_terrain, eye, eye + rng.normal(size=3) * 20.0)
+        full = camera_placement_problem(hollow_terrain, view)
+        assert view_note(hollow_terrain, view) == full
+        found += full is not None and "meets nothing" not in full
+        skipped += not could_be_buried(hollow_terrain, view)
+    assert found >= 10 and skipped >= 50, (found, skipped)

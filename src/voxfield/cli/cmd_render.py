@@ -19,7 +19,7 @@ from voxfield.cli.options import (
 from voxfield.render.counter_maps import counter_map_paths, write_counter_files
 from voxfield.render.device import CUDA_RENDERERS, DEVICES, check_device
 from voxfield.render.image_io import check_image_output, save_result_image, shade_for_display
-from voxfield.render.placement import empty_view_problem
+from voxfield.render.placement import view_note
 from voxfield.render.registry import RENDERERS, render
 
 
@@ -59,9 +59,9 @@ def run(args) -> int:
     out = check_image_output(args.out)
     octree = open_octree(args)
     view = scene_camera(args, octree)
-    empty = empty_view_problem(octree, view)
-    if empty is not None:
-        print(f"voxfield: note: {empty}", file=sys.stderr)
+    note = view_note(octree, view)
+    if note is not None:
+        print(f"voxfield: note: {note}", file=sys.stderr)
     on_gpu = {"device": "cuda"} if args.device == "cuda" else {}
     result = render(octree, view, args.renderer, renderer_options_from(args, args.renderer),
                     seed=args.seed, channel=args.channel, threads=args.threads,

@@ -78,6 +78,26 @@ def camera_placement_problem(octree: Octree, camera: Camera) -> str | None:
     return None
 
 
+def could_be_buried(octree: Octree, camera: Camera) -> bool:
+    """Whether a pinhole eye stands over the scene's footprint and below its top, the only
+    places it can be inside a voxel or under a surface (an eye outside that column of space
+    is neither)."""
+    if camera.kind != PINHOLE:
+        return False
+    lo, hi = (np.asarray(b, np.float64) for b in octree.voxel_bounds)
+    x, y, z = np.asarray(camera.position, np.float64)
+    return bool(lo[0] <= x <= hi[0] and lo[2] <= z <= hi[2] and y <= hi[1])
+
+
+def view_note(octree: Octree, camera: Camera) -> str | None:
+    """What a render should say about where its camera stands (``camera_placement_problem``),
+    with the eye's rays cast only where ``could_be_buried``: a render from outside the
+    scene, the usual case, compiles no ray query for it."""
+    if could_be_buried(octree, camera):
+        return camera_placement_problem(octree, camera)
+    return empty_view_problem(octree, camera)
+
+
 def check_camera_placement(octree: Octree, camera: Camera) -> None:
     """Refuse a camera that stands inside or under geometry, with the reason."""
     problem = camera_placement_problem(octree, camera)
