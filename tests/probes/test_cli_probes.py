@@ -54,11 +54,15 @@ def test_bake_and_show_end_to_end(run, tmp_path, capsys):
     assert "this run baked 0 and reused 2" in capsys.readouterr().out
 
     png = tmp_path / "show.png"
+    study_page = tmp_path / "report.html"  # a study's page in the same folder stays its own
+    study_page.write_text("a study's report")
     assert run(["probes", "show", str(out), "--out", str(png), "--size", "64"]) == 0
     with Image.open(png) as image:
         assert image.format == "PNG" and image.size[0] > 500
+    assert "2 of 2 probes" in (tmp_path / "show.html").read_text(encoding="utf-8")
+    assert study_page.read_text() == "a study's report"
     assert run(["probes", "show", str(out), "--no-scene", "--quiet"]) == 0
-    assert (out / "show.png").is_file()
+    assert (out / "show.png").is_file() and (out / "show.html").is_file()
 
 
 def test_export_cubes_traces_faces_from_the_baked_scene(run, tmp_path):

@@ -26,8 +26,8 @@ def register(subparsers) -> argparse.ArgumentParser:
         description="Render the reference (4×4 rays at LOD 0), the variance-adaptive and the "
         "error-aware renderer, measure PSNR/RMSE/SSIM/FLIP against the reference and count "
         "rays and traversal steps (EA thesis Tables 5.2–5.5, figs 5.1–5.3). Writes "
-        "results.json, results.md, images, cost maps and contact_sheet.png; finished renders "
-        "are cached, so a re-run resumes.",
+        "results.json, results.md, images, cost maps, contact_sheet.png and report.html; "
+        "finished renders are cached, so a re-run resumes.",
     )
     add_scene_options(p)
     add_view_options(p)
@@ -72,5 +72,5 @@ def summary_text(report: dict) -> str:
             f"{fmt(q.get('flip'), '.3f'):>7}"
         )
     reused = f", reused {', '.join(report['reused'])}" if report["reused"] else ""
-    lines.append(f"wrote {report['folder']}/ (results.md, contact_sheet.png{reused})")
+    lines.append(f"wrote {report['folder']}/ (report.html, results.md, contact_sheet.png{reused})")
     return "\n".join(lines)

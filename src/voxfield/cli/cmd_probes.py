@@ -31,7 +31,7 @@ from voxfield.progress import progress_bar
 from voxfield.render.camera import CUBE_FACES
 from voxfield.render.image_io import save_exr
 from voxfield.scene.loaders import SceneOptions
-from voxfield.studies.html_report import REPORT_NAME, write_page
+from voxfield.studies.html_report import write_page
 from voxfield.studies.report import markdown_table
 from voxfield.svo.open import open_octree as open_octree_from_spec
 
@@ -100,7 +100,8 @@ def register(subparsers) -> None:
     )
     s.add_argument("folder", help="probe-set folder written by voxfield bake")
     s.add_argument("--out", default=None,
-                   help="output PNG (default FOLDER/show.png); report.html goes beside it")
+                   help="output PNG (default FOLDER/show.png); its report page goes beside "
+                        "it, named after it (show.html)")
     which_scene = s.add_mutually_exclusive_group()
     which_scene.add_argument(
         "--scene", default=None,
@@ -211,7 +212,9 @@ def run_show(args) -> int:
     title = (f"{header['scene'].get('name', 'scene')}: {s['baked']} of {s['probes']} probes, "
              f"{s['resolution']}² texels, {s['renderer']}, {s['rays_per_texel']:.2f} rays/texel")
     write_show(probe_set, out, octree=octree, title=title, size=args.size)
-    page = write_page(out.with_name(REPORT_NAME), title=title,
+    # Named after the picture: a shared folder (out/) may hold a study's report.html, or
+    # another probe set's page.
+    page = write_page(out.with_suffix(".html"), title=title,
                       subtitle=f"probe set {folder}", figures=[out],
                       markdown_text=probe_set_markdown(probe_set, header))
     if not args.quiet:

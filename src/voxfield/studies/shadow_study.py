@@ -360,5 +360,5 @@ def summary_text(report: dict) -> str:
             f"{row['shadow_steps']:>15,}{fmt(row.get('floor_light'), '.4f'):>13}"
             f"{fmt(row.get('far_floor_light'), '.4f'):>9}{row['seconds']:>9.2f}"
         )
-    lines.append(f"wrote {report['folder']}/ (results.md, contact_sheet.png)")
+    lines.append(f"wrote {report['folder']}/ (report.html, results.md, contact_sheet.png)")
     return "\n".join(lines)
