@@ -28,9 +28,9 @@ def _leaves(parser: argparse.ArgumentParser, prefix=()) -> list[tuple[str, ...]]
 LEAVES = _leaves(build_parser())
 
 
-def _report(folder) -> bool:
+def _report(folder, page_name: str = "report.html") -> bool:
     """The folder's HTML report, with the tables of its results and any figures embedded."""
-    page = folder / "report.html"
+    page = folder / page_name
     if not page.is_file():
         return False
     html = page.read_text(encoding="utf-8")
@@ -94,7 +94,8 @@ RUNS = {
     ("bake",): (["builtin:cornell", "--grid", "1x1x1", "--resolution", "8", "--renderer", "lod",
                  "--out", "{out}"], lambda out: (out / "probes.json").is_file()),
     ("probes", "show"): (["{probes}", "--size", "32", "--out", "{out}.png"],
-                         lambda out: _png(f"{out}.png")[0] > 0 and _report(out.parent)),
+                         lambda out: _png(f"{out}.png")[0] > 0
+                         and _report(out.parent, f"{out.name}.html")),
     ("probes", "export-cubes"): (["{probes}", "--size", "4", "--out", "{out}"],
                                  lambda out: len(list(out.glob("*.exr"))) == 6 * 4),
     ("probe-render",): (["{probes}", "--size", "16", "--camera", "room", "--out", "{out}.png"],

@@ -41,8 +41,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     add_scene_options(p)
     p.add_argument(
         "--times", default="all", metavar="SUNS",
-        help="times of day: morning, noon, afternoon, evening (or the thesis's time0..time3), "
-        "comma-separated; or suns as AZ,EL / NAME=AZ,EL in degrees (azimuth clockwise from "
+        help="times of day: morning, noon, afternoon, evening, comma-separated (the thesis's "
+        "time0, time1, time2, time3 are morning, evening, noon, afternoon, and bake the "
+        "channel of that name); or suns as AZ,EL / NAME=AZ,EL in degrees (azimuth clockwise from "
         "north = -z, east = +x), ';'-separated (default all four times)",
     )
     p.add_argument("--sky-rays", type=int_between(0, MAX_RAYS, "rays per voxel"), default=16,

@@ -12,6 +12,7 @@ from voxfield.cli.options import add_scene_options, open_octree, output_named
 from voxfield.scene.builtin import BUILTIN_SCENES
 from voxfield.scene.loaders import npz_kind
 from voxfield.scene.terrain import RECIPES
+from voxfield.scene.terrain.dem import SAMPLE_DEMS
 from voxfield.svo.io import load_octree, save_octree
 
 
@@ -87,11 +88,16 @@ def run_build(args) -> int:
 
 
 def run_scenes(args) -> int:
-    print("built-in scenes (no files needed):")
-    for name, make in sorted(BUILTIN_SCENES.items()):
-        doc = (make.__doc__ or "").strip().splitlines()[0]
-        print(f"  builtin:{name:<10} {doc}")
-    print("terrain recipes over the shared DEMs (see README):")
-    for name, recipe in RECIPES.items():
-        print(f"  terrain:{name:<10} {recipe.description}")
+    builtin = {f"builtin:{name}": (make.__doc__ or "").strip().splitlines()[0]
+               for name, make in sorted(BUILTIN_SCENES.items())}
+    terrain = {f"terrain:{name}": recipe.description for name, recipe in RECIPES.items()}
+    dems = {f"dem:{name}": f"matplotlib's sample DEM {file}, as a terrain"
+            for name, file in SAMPLE_DEMS.items()}
+    width = max(map(len, [*builtin, *terrain, *dems]))
+    for title, names in (("built-in scenes (no files needed)", builtin),
+                         ("terrain recipes over the shared DEMs (see README)", terrain),
+                         ("sample DEMs (no files needed)", dems)):
+        print(f"{title}:")
+        for name, text in names.items():
+            print(f"  {name:<{width}} {text}")
     return 0

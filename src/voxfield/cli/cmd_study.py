@@ -68,7 +68,8 @@ def register(subparsers) -> argparse.ArgumentParser:
     """Register ``study`` with one action per study."""
     p = add_command(
         subparsers, "study",
-        description="Resumable studies writing results.json, results.md and a plot.",
+        description="Resumable studies writing results.json, results.md, report.html and "
+        "their figures.",
     )
     actions = p.add_subparsers(dest="study", required=True, metavar="STUDY")
 

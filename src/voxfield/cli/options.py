@@ -183,8 +183,8 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     """The scene argument and how to read and build it."""
     p.add_argument(
         "scene",
-        help="scene: a .vox/.obj/.glb/.ply/.hgt/.tif/.npy/.npz file, builtin:NAME, terrain:RECIPE "
-        "or dem:jacksboro (see `voxfield scenes`)",
+        help="scene: a .vox/.obj/.gltf/.glb/.ply/.hgt/.tif/.npy/.npz file, builtin:NAME, "
+        "terrain:RECIPE or dem:jacksboro/dem:topobathy (see `voxfield scenes`)",
     )
     p.add_argument("--mesh-resolution", default=256, metavar="N",
                    type=int_between(1, MAX_MESH_RESOLUTION, "about 6·N² surface voxels"),

@@ -198,7 +198,9 @@ def _thesis_regime(name: str, vertical_scale: float, fill_depth: int, tree_colou
         for a in base.assets
     )
     return replace(
-        base, description=f"{name} in the EA thesis's smooth-colour regime: " + base.description,
+        base, description=f"The {name} recipe in the EA thesis's smooth-colour regime (its Table "
+        "4.1): colour smooth over about four columns with no per-column noise, buried voxels "
+        "in the surface colour, trees painted close to the ground they stand on.",
         vertical_scale=vertical_scale, fill_depth=fill_depth, ramp=ramp, assets=assets,
     )
 
