@@ -419,6 +419,27 @@ def test_command_compares_with_the_octree_and_writes_depth(run, cornell_folder, 
     assert (tmp_path / "box_compare.png").is_file()
 
 
+def test_command_lights_its_pngs_for_display_not_its_figures(run, cornell_folder, tmp_path,
+                                                            capsys):
+    """An albedo probe render's PNG is lit by the display key light as render's is (the
+    Cornell box's white walls read as one flat grey otherwise); --albedo keeps it flat, and
+    the measured figures do not change."""
+    from PIL import Image
+
+    view = ["--scene", "builtin:cornell", "--camera", "room", "--size", "16", "--compare"]
+    printed = {}
+    for name, extra in (("lit", []), ("flat", ["--albedo"])):
+        assert run(["probe-render", str(cornell_folder), *view, *extra, "--out",
+                    str(tmp_path / f"{name}.png")]) == 0
+        printed[name] = [line for line in capsys.readouterr().out.splitlines()
+                         if "PSNR" in line or "bound" in line]
+    assert printed["lit"] == printed["flat"] and printed["lit"]
+    lit, flat = (np.asarray(Image.open(tmp_path / f"{n}.png"), np.int64)
+                 for n in ("lit", "flat"))
+    assert np.all(lit <= flat + 1)  # the key light scales a colour by at most 1
+    assert np.mean(lit.sum(-1) < flat.sum(-1) - 6) > 0.5
+
+
 def test_command_says_when_no_probe_answers_most_pixels(run, cornell_folder, tmp_path,
                                                        capsys):
     """From above the box its probes, inside it, see none of the roof the camera sees: the

@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 from PIL import Image
 
 from voxfield.errors import VoxfieldError
-from voxfield.render.image_io import load_exr, save_exr, save_png
+from voxfield.render.image_io import load_exr, save_exr, save_png, shade_for_display
 
 
 def test_exr_round_trip_is_bit_exact(tmp_path):
@@ -30,3 +32,23 @@ def test_png_is_srgb_encoded(tmp_path):
 def test_png_rejects_bad_shapes(tmp_path):
     with pytest.raises(VoxfieldError):
         save_png(np.zeros((2, 2, 5)), tmp_path / "x.png")
+
+
+def test_display_shading_darkens_faces_by_their_normal_and_keeps_the_rest():
+    """The key light scales each face's colour by at most 1, by a factor that depends on its
+    normal; a pixel without a normal (a miss, a probe's environment answer) keeps its own."""
+    rng = np.random.default_rng(3)
+    image = rng.random((6, 4, 3)).astype(np.float32)
+    axes = np.eye(3)[rng.integers(0, 3, (6, 4))] * rng.choice([-1.0, 1.0], (6, 4, 1))
+    axes[0] = 0.0  # the first row has no normal
+    shaded = shade_for_display(SimpleNamespace(image=image, normal=axes.astype(np.float32)))
+    np.testing.assert_array_equal(shaded[0], image[0])
+    factor = shaded[1:] / image[1:]
+    assert np.all(factor <= 1.0 + 1e-6) and np.all(factor >= 0.35 - 1e-6)
+    np.testing.assert_allclose(factor, factor[..., :1].repeat(3, axis=-1), rtol=1e-5)
+    normals, which = np.unique(axes[1:].reshape(-1, 3), axis=0, return_inverse=True)
+    per_pixel = factor[..., 0].reshape(-1)
+    for k in range(len(normals)):  # one factor per normal, whatever the colour
+        np.testing.assert_allclose(per_pixel[which.reshape(-1) == k],
+                                   per_pixel[which.reshape(-1) == k][0], rtol=1e-5)
+    assert len(np.unique(per_pixel.round(5))) > 1

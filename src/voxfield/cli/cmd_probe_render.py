@@ -12,6 +12,7 @@ octree is opened too: its bounds frame the camera presets and the box proxy, and
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import sys
 from pathlib import Path
@@ -21,10 +22,12 @@ import numpy as np
 from voxfield.atomic import atomic_path
 from voxfield.cli.commands import add_command
 from voxfield.cli.options import (
+    add_display_options,
     add_hit_options,
     add_view_options,
     camera,
     default_output,
+    display_shaded,
     hit_options,
     int_between,
     positive_int,
@@ -58,7 +61,7 @@ from voxfield.lightfield.trace import (
 from voxfield.metrics import compare_images
 from voxfield.probes.probe_folder import open_probe_set
 from voxfield.render.device import DEVICES
-from voxfield.render.image_io import check_image_output, save_result_image
+from voxfield.render.image_io import check_image_output, save_result_image, shade_for_display
 from voxfield.render.placement import camera_placement_problem
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.scene.loaders import SceneOptions
@@ -140,6 +143,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="also write probes-tried, texel-fetch and result maps and a JSON summary")
     p.add_argument("--out", default=None,
                    help="output .png or .exr (default out/probe_render_NAME_METHOD.png)")
+    add_display_options(p)
     add_view_options(p, size=256)
     p.set_defaults(func=run)
     return p
@@ -173,7 +177,8 @@ def run(args) -> int:
     result = render_from_probes(probe_set, view, method=args.method, options=options,
                                 box=box, filter=args.filter, threads=args.threads,
                                 progress=not args.quiet, packed=packed, device=args.device)
-    save_result_image(result, out)
+    shaded = display_shaded(args, out, probe_set.options.channel)
+    save_result_image(_displayed(result, shaded), out)
     lost = lost_rays_note(lost_share(result), "this probe set")
     if lost is not None:
         print(f"voxfield: note: {lost}; place the camera where the probes see "
@@ -183,8 +188,10 @@ def run(args) -> int:
     if args.compare:
         metrics, reference = _compare(args, octree, view, probe_set, packed, result)
         summary["compare"] = metrics
-        written.append(write_side_by_side(result, reference, metrics,
-                                          f"{out.with_suffix('')}_compare.png"))
+        written.append(write_side_by_side(_displayed(result, shaded),
+                                          _displayed(reference, shaded), metrics,
+                                          f"{out.with_suffix('')}_compare.png",
+                                          difference=(result.image, reference.image)))
     if args.counters:
         written += write_probe_maps(result, out)
         written.append(_write_summary(summary, f"{out.with_suffix('')}_summary.json"))
@@ -204,6 +211,14 @@ def run(args) -> int:
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+def _displayed(result, shaded: bool):
+    """``result`` with its image lit for display when ``shaded`` (the metrics keep the
+    unlit one)."""
+    if not shaded:
+        return result
+    return dataclasses.replace(result, image=shade_for_display(result))
 
 
 def _trace_options(args):

@@ -8,9 +8,11 @@ import sys
 from voxfield.atomic import atomic_paths
 from voxfield.cli.commands import add_command
 from voxfield.cli.options import (
+    add_display_options,
     add_renderer_options,
     add_scene_options,
     add_view_options,
+    display_shaded,
     open_octree,
     positive_int,
     renderer_options_from,
@@ -39,13 +41,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="where the rays are traced: cpu (default) or cuda (an NVIDIA GPU, "
                    f"`pip install voxfield[cuda]`; renderers {', '.join(CUDA_RENDERERS)}); "
                    "the same image either way")
-    look = p.add_mutually_exclusive_group()
-    look.add_argument("--shade", action="store_true",
-                      help="light the colours with a fixed key light, EXR too (default for "
-                      "albedo PNGs; display only, never used by metrics)")
-    look.add_argument("--albedo", action="store_true",
-                      help="write the flat colour channel the metrics compare, PNG too (EXR "
-                      "default)")
+    add_display_options(p)
     p.add_argument("--counters", action="store_true",
                    help="also write maps of traversal steps, finest LOD and rays per pixel, "
                         "and a JSON summary")
@@ -66,9 +62,7 @@ def run(args) -> int:
     result = render(octree, view, args.renderer, renderer_options_from(args, args.renderer),
                     seed=args.seed, channel=args.channel, threads=args.threads,
                     progress=not args.quiet, **on_gpu)
-    # Baked light channels are lit already: only the albedo gets the display light unasked.
-    if args.shade or (out.suffix.lower() == ".png" and not args.albedo
-                      and args.channel == "albedo"):
+    if display_shaded(args, out, args.channel):
         result.image = shade_for_display(result)
     # The image and its counter maps appear together or not at all (a full disk part way).
     written = [out] + (counter_map_paths(out) if args.counters else [])

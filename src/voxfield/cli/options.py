@@ -224,6 +224,25 @@ class _ChosenView(argparse.Action):
         namespace.camera_given = True
 
 
+def add_display_options(p: argparse.ArgumentParser) -> None:
+    """``--shade`` / ``--albedo``: whether the written picture is lit for display."""
+    look = p.add_mutually_exclusive_group()
+    look.add_argument("--shade", action="store_true",
+                      help="light the colours with a fixed key light, EXR too (default for "
+                      "albedo PNGs; display only, never used by metrics)")
+    look.add_argument("--albedo", action="store_true",
+                      help="write the flat colour channel the metrics compare, PNG too (EXR "
+                      "default)")
+
+
+def display_shaded(args, out: Path, channel: str) -> bool:
+    """Whether a picture written to ``out`` is lit for display (``add_display_options``):
+    asked for, or an albedo PNG not asked to stay flat. Baked light channels are lit
+    already: only the albedo gets the display light unasked."""
+    return args.shade or (out.suffix.lower() == ".png" and not args.albedo
+                          and channel == "albedo")
+
+
 def add_view_options(p: argparse.ArgumentParser, size: int = 512) -> None:
     """Camera and image options shared by every command that renders, plus --quiet."""
     p.add_argument("--camera", default="top", action=_ChosenView,

@@ -95,13 +95,18 @@ def _kind_figure(kind: np.ndarray, names: dict[int, str]):
     return fig
 
 
-def write_side_by_side(result, reference, metrics: dict, path) -> Path:
-    """Probe render, octree render and their absolute difference (×4) side by side, sRGB."""
+def write_side_by_side(result, reference, metrics: dict, path, *, difference=None) -> Path:
+    """Probe render, octree render and their absolute difference (×4) side by side, sRGB.
+    ``difference``: the (probe, octree) images to difference, when the two shown are lit for
+    display (the metrics compare the unlit ones)."""
     from matplotlib.figure import Figure  # heavy: loads only when a figure is drawn
 
     probe = np.clip(result.image, 0.0, 1.0)
     direct = np.clip(reference.image, 0.0, 1.0)
-    difference = np.clip(4.0 * np.abs(probe - direct), 0.0, 1.0)
+    lit = difference is not None
+    measured = tuple(np.clip(image, 0.0, 1.0) for image in difference) if lit else \
+        (probe, direct)
+    difference = np.clip(4.0 * np.abs(measured[0] - measured[1]), 0.0, 1.0)
     fig = Figure(figsize=(13.5, 4.8), facecolor="white", layout="constrained")
     panels = [(linear_to_srgb(probe), f"{result.renderer}"),
               (linear_to_srgb(direct), f"octree: {metrics['reference']}"),
@@ -112,6 +117,9 @@ def write_side_by_side(result, reference, metrics: dict, path) -> Path:
         ax.imshow(image, interpolation="nearest")
         ax.set_title(title, fontsize=9)
         ax.set_axis_off()
+    if lit:
+        fig.suptitle("both renders lit for display by the normals each returns; the "
+                     "difference and the metrics compare their unlit colours", fontsize=8)
     return _write_figure(fig, path)
 
 

@@ -109,8 +109,10 @@ _SIDE_LIGHT = np.array([0.8, 0.0, -0.6])
 
 
 def shade_for_display(result) -> np.ndarray:
-    """Albedo times a fixed key light on the face normals: easier on the eye, not for metrics."""
+    """Albedo times a fixed key light on the face normals: easier on the eye, not for metrics.
+    A pixel without a normal (a miss, a probe's environment answer) keeps its colour."""
     lambert = np.clip(result.normal @ _KEY_LIGHT, 0.0, 1.0)
     side = np.abs(result.normal @ _SIDE_LIGHT)
     factor = 0.35 + 0.55 * lambert + 0.1 * side
+    factor = np.where(np.any(result.normal != 0.0, axis=-1), factor, 1.0)
     return (result.image * factor[..., None]).astype(np.float32)

@@ -72,7 +72,8 @@ class RenderResult:
     def _repr_png_(self) -> bytes:
         """Jupyter shows a result as ``voxfield render`` writes its PNG: lit by the display
         key light where it has face normals and shows albedo (``image`` itself stays the flat
-        linear colour the metrics read; baked light and probe renders show as they are)."""
+        linear colour the metrics read; baked light, and renders without normals such as a
+        probe set's environment lookups, show as they are)."""
         lit = bool(np.any(self.normal)) and self.params.get("channel", "albedo") == "albedo"
         return png_bytes(shade_for_display(self) if lit else self.image)
 
