@@ -12,7 +12,15 @@ from lf_helpers import CORNELL_PROBE, one_probe
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.octahedral import oct_decode, texel_directions
 from voxfield.kernels.probe_march import EPS_ADAPTIVE, epsilon_at, piece_setup, piece_t
-from voxfield.lightfield import HIT, MISS, UNKNOWN, LightFieldOptions, trace_single
+from voxfield.lightfield import (
+    HIT,
+    MISS,
+    UNKNOWN,
+    LightFieldOptions,
+    PackedProbes,
+    trace_light_field,
+    trace_single,
+)
 from voxfield.lightfield.trace import _rays
 from voxfield.render.ray_query import trace
 
@@ -253,6 +261,83 @@ def test_hierarchical_and_dda_agree_whatever_the_front_epsilon(cornell, cornell_
 def test_bad_rays_are_refused(cornell_probe64, origins, dirs, bounds, message):
     with pytest.raises(VoxfieldError, match=message):
         trace_single(cornell_probe64, 0, origins, dirs, **bounds)
+
+
+def test_an_empty_segment_is_a_miss_and_leaves_the_other_rays_alone(cornell_probe64):
+    """tmax <= tmin holds no point: a miss (as the octree's trace answers), at tmax, with no
+    probe asked; the batch's other rays are answered as they are alone."""
+    rng = np.random.default_rng(8)
+    origins = rng.uniform(6.0, 26.0, (40, 3))
+    dirs = rng.normal(size=(40, 3))
+    tmin = np.zeros(40)
+    tmax = np.full(40, np.inf)
+    tmin[::4], tmax[::4] = 10.0, 5.0  # tmin above tmax
+    tmax[1::4] = 0.0
+    tmin[2::4] = tmax[2::4] = 3.0
+    empty = np.zeros(40, bool)
+    empty[0::4] = empty[1::4] = empty[2::4] = True
+    alone = ~empty
+    single = trace_single(cornell_probe64, 0, origins, dirs, tmin=tmin, tmax=tmax)
+    whole = trace_light_field(cornell_probe64, origins, dirs, tmin=tmin, tmax=tmax)
+    for hits in (single, whole):
+        assert np.all(hits.kind[empty] == MISS)
+        np.testing.assert_array_equal(hits.t[empty], tmax[empty])
+        assert np.all(hits.fetches[empty] == 0) and np.all(hits.steps[empty] == 0)
+    assert np.all(whole.probe[empty] == -1) and np.all(whole.probes_tried[empty] == 0)
+    by_itself = trace_light_field(cornell_probe64, origins[alone], dirs[alone])
+    np.testing.assert_array_equal(whole.kind[alone], by_itself.kind)
+    np.testing.assert_array_equal(whole.t[alone], by_itself.t)
+    assert cornell_probe64.count == 1 and np.any(whole.kind[alone] == HIT)
+
+
+def _probe_arrays(n=8, r=8):
+    positions = np.array([[x, y, z] for z in (8.0, 24.0) for y in (8.0, 24.0)
+                          for x in (8.0, 24.0)])
+    normals = np.zeros((n, r, r, 3), np.float32)
+    normals[..., 1] = 1.0
+    return dict(positions=positions, enabled=np.ones(n, bool),
+                radiance=np.full((n, r, r, 3), 0.5, np.float32),
+                distance=np.full((n, r, r), 5.0, np.float32), normals=normals,
+                grid_origin=(8, 8, 8), grid_spacing=(16, 16, 16), grid_counts=(2, 2, 2))
+
+
+@pytest.mark.parametrize(("change", "message"), [
+    ({"grid_spacing": (0, 0, 0)}, "spacing"),
+    ({"grid_spacing": (16, -16, 16)}, "spacing"),
+    ({"grid_origin": (8, math.nan, 8)}, "origin"),
+    ({"positions": "nan"}, "position"),
+    ({"distance": -1.0}, "lengths >= 0"),
+    ({"distance": math.nan}, "lengths >= 0"),
+])
+def test_packed_probes_refuse_a_grid_or_maps_the_trace_cannot_use(change, message):
+    """Zero spacing crashed the trace (a SystemError from its kernel); a NaN position gave
+    NaN distances back as hits."""
+    arrays = _probe_arrays()
+    for key, value in change.items():
+        if key == "positions":
+            arrays[key][3] = np.nan
+        elif key == "distance":
+            arrays[key][2, 1, 1] = value
+        else:
+            arrays[key] = value
+    with pytest.raises(VoxfieldError, match=message):
+        PackedProbes.from_arrays(**arrays)
+
+
+def test_a_disabled_probe_needs_no_place_or_lengths():
+    arrays = _probe_arrays()
+    arrays["enabled"][3] = False
+    arrays["positions"][3] = np.nan
+    arrays["distance"][3] = -1.0
+    packed = PackedProbes.from_arrays(**arrays)
+    hits = trace_light_field(packed, [[16.0, 16.0, 16.0]], [[0.0, -1.0, 0.0]])
+    assert np.isfinite(hits.t).all()
+
+
+def test_the_march_refuses_a_point_budget_that_would_run_for_hours():
+    LightFieldOptions(marcher="march3d", step=1 / 65536, max_steps=65536)
+    with pytest.raises(VoxfieldError, match="max_steps must be an integer in 1..65536"):
+        LightFieldOptions(marcher="march3d", step=1e-9, max_steps=10**9)
 
 
 @pytest.mark.parametrize("direction", [[1e-200, 0.0, 0.0], [1e200, 1e200, 0.0],

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from random_scenes import overhanging_terrain
-from voxfield.errors import CameraError
+from voxfield.errors import CameraError, VoxfieldError
 from voxfield.render import render_lod
 from voxfield.render.beam import pixel_start_bounds
 from voxfield.render.camera import (
@@ -195,3 +195,15 @@ def test_a_camera_built_or_replaced_field_by_field_is_checked(change, words):
 def test_a_preset_view_of_an_impossible_box_or_field_is_refused(lo, hi, fov, words):
     with pytest.raises(CameraError, match=words):
         preset_camera("top", lo, hi, size=8, fov_deg=fov)
+
+
+@pytest.mark.parametrize("side", [-1, 0, 17, 2**31, 1.9, "2"])
+def test_rays_refuse_a_side_the_renderers_do_not_take(side):
+    """-1 looped for ever and 2^31 overflowed the ray count and wrote past the arrays."""
+    camera = Camera.look_at((0, 0, 10), (0, 0, 0), width=2)
+    with pytest.raises(VoxfieldError, match="samples per pixel side"):
+        camera.rays(side=side)
+    with pytest.raises(VoxfieldError, match="seed"):
+        camera.rays(side=1, seed=-1)
+    origins, dirs = camera.rays(side=16)
+    assert origins.shape == dirs.shape == (2 * 2 * 256, 3)

@@ -11,6 +11,7 @@ from voxfield.scene.loaders import load_scene
 from voxfield.scene.npz_io import load_scene_npz, save_scene
 from voxfield.scene.shadow_box import shadow_box
 from voxfield.scene.voxel_scene import VoxelScene, compose, linear_to_srgb, srgb_to_linear
+from voxfield.svo import build_octree
 
 
 def cube(offset=(0, 0, 0), n=2, color=(1.0, 0.0, 0.0)):
@@ -106,3 +107,19 @@ def test_dedupe_works_across_the_full_coordinate_range():
     scene = VoxelScene(np.array([[0, 0, 0], [far, far, far], [0, 0, 0]]), np.eye(3))
     d = scene.dedupe()
     assert len(d) == 2 and d.color[(d.coords == 0).all(axis=1)].tolist() == [[0, 0, 1]]
+
+
+def test_coordinates_too_far_to_subtract_are_refused():
+    """±2^62 wrapped round when subtracted (a misleading "duplicate voxels" at build, a
+    ValueError from dedupe), and uint64 coordinates past 2^63 became negative ones."""
+    from voxfield.scene.voxel_scene import MAX_COORDINATE
+
+    for coords in (np.array([[-(2**62), 0, 0], [2**62, 0, 0]]),
+                   np.array([[2**63 + 5, 0, 0]], np.uint64)):
+        with pytest.raises(VoxfieldError, match="within ±2"):
+            VoxelScene(coords, np.full((len(coords), 3), 0.5))
+    edge = VoxelScene(np.array([[-MAX_COORDINATE, 0, 0], [MAX_COORDINATE, 0, 0],
+                                [MAX_COORDINATE, 0, 0]]), np.eye(3))
+    assert len(edge.dedupe()) == 2
+    with pytest.raises(VoxfieldError, match="at most"):
+        build_octree(edge.dedupe())

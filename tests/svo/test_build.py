@@ -96,6 +96,29 @@ def test_bad_scenes_are_rejected():
     dup = VoxelScene(np.array([[1, 1, 1], [1, 1, 1]]), np.ones((2, 3)))
     with pytest.raises(VoxfieldError, match="duplicate"):
         build_octree(dup)
+    # A channel named for the albedo or the emission replaced it without a word.
+    for name, words in (("color", "is the albedo"), ("emission", "is the emission")):
+        scene = VoxelScene(np.array([[0, 0, 0]]), np.full((1, 3), 0.5),
+                           emission=np.zeros((1, 3)), channels={name: np.ones((1, 3))})
+        with pytest.raises(VoxfieldError, match=words):
+            build_octree(scene)
+
+
+def test_recolouring_checks_a_colour_for_every_node():
+    """A short colour array rendered memory past its end (values of 1e33, NaN pixels)."""
+    octree = build_octree(random_scene(3, 200))
+    n, inner = octree.node_count, octree.inner_count
+    for attributes in ({"color": np.zeros((1, 3), np.float32)},
+                       {"color": np.zeros((n, 3), np.float64)},
+                       {"color": np.zeros((n,), np.uint8)},
+                       {"lit": [[0.0, 0.0, 0.0]] * n}):
+        with pytest.raises(VoxfieldError, match="attribute"):
+            octree.recoloured(attributes=attributes)
+    with pytest.raises(VoxfieldError, match="directional colours"):
+        octree.recoloured(facing=np.zeros((inner, 6, 3), np.uint8))
+    same = octree.recoloured(attributes={"color": np.zeros((n, 3), np.float32),
+                                         "lit": np.zeros(n, np.uint32)})
+    assert same.node_count == n
 
 
 def test_save_load_round_trip(tmp_path):
@@ -262,3 +285,17 @@ def test_srgb8_albedo_keeps_8_bit_inputs_exactly_and_rounds_the_rest_to_a_code()
     assert stored.nbytes < exact.nbytes
     with pytest.raises(VoxfieldError, match="colour storage"):
         build_octree(eight_bit, colour_storage="float16")
+
+
+def test_open_octree_takes_a_path_as_well_as_a_string(tmp_path):
+    from pathlib import Path
+
+    from voxfield.svo.open import open_octree
+
+    octree = build_octree(random_scene(4, 100))
+    path = save_octree(octree, tmp_path / "saved.npz")
+    assert isinstance(path, Path)
+    for spec in (path, str(path)):
+        assert open_octree(spec).fingerprint() == octree.fingerprint()
+    with pytest.raises(VoxfieldError, match="a path or a name"):
+        open_octree(42)

@@ -106,14 +106,25 @@ class PackedProbes:
         counts = np.asarray(grid_counts, np.int64).reshape(3)
         if int(np.prod(counts)) != n or np.any(counts < 1):
             raise VoxfieldError(f"grid counts {counts.tolist()} do not hold {n} probes")
+        # The trace finds a point's cage by dividing by the spacing, and marches from the
+        # positions along the stored distances: each must be a real place and length.
+        origin = np.asarray(grid_origin, np.float64).reshape(3)
+        spacing = np.asarray(grid_spacing, np.float64).reshape(3)
+        if not np.isfinite(origin).all() or not np.isfinite(spacing).all() or np.any(
+                spacing <= 0):
+            raise VoxfieldError(f"the grid's origin {origin.tolist()} must be finite and its "
+                                f"spacing {spacing.tolist()} finite and positive on every axis")
+        if not np.isfinite(positions[enabled]).all():
+            raise VoxfieldError("an enabled probe's position holds NaN or infinity")
+        if np.isnan(distance[enabled]).any() or np.any(distance[enabled] < 0):
+            raise VoxfieldError("distance maps must hold lengths >= 0 (inf: no surface)")
         chain = min_distance_mips(distance)
         sizes = np.array([level.shape[-1] for level in chain], np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes * sizes)[:-1]]).astype(np.int64)
         mips = np.concatenate([level.reshape(n, -1) for level in chain], axis=1)
         packed = cls(positions, enabled, radiance, distance, normals,
                      np.ascontiguousarray(mips, np.float32), offsets, sizes,
-                     np.asarray(grid_origin, np.float64).reshape(3).copy(),
-                     np.asarray(grid_spacing, np.float64).reshape(3).copy(), counts.copy(),
+                     origin.copy(), spacing.copy(), counts.copy(),
                      np.ascontiguousarray(np.moveaxis(add_border(np.moveaxis(radiance, -1, 1)),
                                                       1, -1)),
                      np.ascontiguousarray(add_border(distance)))

@@ -46,6 +46,9 @@ ORDERINGS = {"signed-dot": mk.ORDER_SIGNED_DOT, "nearest": mk.ORDER_NEAREST,
 #: voxel thick, and a longer step can carry the march through it with no point inside,
 #: the texels before and after it showing what lies beyond.
 MAX_STEP = 1.0
+#: The 3D march's most points per probe: a step of a sixteenth of a voxel across 4,096
+#: voxels. More only makes a trace run for hours (a probe's march is one ray's inner loop).
+MAX_MARCH_POINTS = 1 << 16
 
 
 def march_step_problem(step, max_steps: int) -> str | None:
@@ -136,8 +139,9 @@ class LightFieldOptions:
         if self.colour_filter not in COLOUR_FILTERS:
             raise VoxfieldError(f"unknown colour filter {self.colour_filter!r}; choose one of "
                                 f"{', '.join(COLOUR_FILTERS)}")
-        if not is_integer(self.max_steps) or self.max_steps < 1:
-            raise VoxfieldError(f"max_steps must be an integer >= 1, got {self.max_steps!r}")
+        if not is_integer(self.max_steps) or not 1 <= self.max_steps <= MAX_MARCH_POINTS:
+            raise VoxfieldError(f"max_steps must be an integer in 1..{MAX_MARCH_POINTS}, got "
+                                f"{self.max_steps!r}")
         problem = march_step_problem(self.step, self.max_steps)
         if problem is not None:
             raise VoxfieldError(problem)
@@ -296,6 +300,9 @@ def trace_single(packed: PackedProbes, probe: int, origins, dirs,
                              packed.mips, packed.mip_offsets, packed.mip_sizes, packed.normals,
                              packed.resolution, probe, o, d, lo, hi, kind, t, row, col,
                              fetches, steps)
+    empty = _empty_segments(lo, hi)
+    kind[empty], t[empty], row[empty], col[empty] = MISS, hi[empty], -1, -1
+    fetches[empty] = steps[empty] = 0
     hit = kind == HIT
     radiance = np.zeros((n, 3), np.float32)
     normal = np.zeros((n, 3), np.float32)
@@ -330,10 +337,22 @@ def trace_light_field(packed: PackedProbes, origins, dirs,
              options.params(_pixel_angle(pixel_angle)))
     if device == "cuda":
         trace_light_field_cuda(packed, modes, o, d, lo, hi, out)
-        return out
-    with thread_count(threads_for(len(o), threads)):
-        mk.trace_light_field_rays(
-            mk.TraceModes(*modes), probe_field(packed), mk.RayBatch(o, d, lo, hi),
-            mk.LightFieldOutputs(*(getattr(out, name) for name in mk.LightFieldOutputs._fields)),
-            numba.get_num_threads())
+    else:
+        with thread_count(threads_for(len(o), threads)):
+            mk.trace_light_field_rays(
+                mk.TraceModes(*modes), probe_field(packed), mk.RayBatch(o, d, lo, hi),
+                mk.LightFieldOutputs(*(getattr(out, name)
+                                       for name in mk.LightFieldOutputs._fields)),
+                numba.get_num_threads())
+    empty = _empty_segments(lo, hi)
+    if empty.any():  # nothing to find on [tmin, tmax): a miss no probe needed to prove
+        out.kind[empty], out.t[empty], out.distance[empty] = MISS, hi[empty], np.inf
+        out.radiance[empty] = out.normal[empty] = 0.0
+        out.probe[empty] = -1
+        out.probes_tried[empty] = out.fetches[empty] = out.steps[empty] = 0
     return out
+
+
+def _empty_segments(lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
+    """Rays whose segment ``tmin <= t < tmax`` holds no point (``tmax <= tmin``)."""
+    return hi <= lo

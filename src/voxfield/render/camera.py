@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from voxfield.checks import integer_in
+from voxfield.checks import integer_in, seed_value
 from voxfield.errors import CameraError, VoxfieldError
 from voxfield.kernels.camera_rays import OCTAHEDRAL, ORTHOGRAPHIC, PINHOLE, camera_ray_arrays
 
@@ -191,8 +191,10 @@ class Camera:
         ).astype(np.float64)
 
     def rays(self, side: int = 1, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
-        """Origins and directions of every ray the renderers cast (pixel-major)."""
-        return camera_ray_arrays(self.params, self.width, self.height, int(side), int(seed))
+        """Origins and directions of every ray the renderers cast (pixel-major): ``side``²
+        a pixel, 1..16 as the renderers take."""
+        side = integer_in(side, "samples per pixel side", 1, 16)
+        return camera_ray_arrays(self.params, self.width, self.height, side, seed_value(seed))
 
 
 def cube_cameras(position, size: int = 128) -> list[Camera]:

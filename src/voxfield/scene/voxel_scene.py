@@ -12,6 +12,9 @@ from voxfield.fingerprint import array_fingerprint
 
 #: Largest coordinate extent a scene may span (21 bits per axis fit a 63-bit Morton code).
 MAX_EXTENT = 1 << 21
+#: Largest voxel coordinate either way: differences and extents of coordinates this far
+#: from the origin still fit int64 (beyond it they wrapped round and built a wrong octree).
+MAX_COORDINATE = 1 << 61
 
 
 @dataclass(frozen=True)
@@ -36,6 +39,10 @@ class VoxelScene:
             raise VoxfieldError(f"voxel coords must be N×3, got shape {coords.shape}")
         if coords.size and not np.issubdtype(coords.dtype, np.integer):
             raise VoxfieldError(f"voxel coords must be integers, got {coords.dtype}")
+        # Compared in the array's own type, before int64 could wrap a uint64 round.
+        if coords.size and (coords.max() > MAX_COORDINATE or coords.min() < -MAX_COORDINATE):
+            raise VoxfieldError(f"voxel coords must lie within ±2^61 of the origin, got "
+                                f"{coords.min()}..{coords.max()}")
         object.__setattr__(self, "coords", coords.astype(np.int64, copy=False))
         n = len(coords)
         object.__setattr__(self, "color", _checked_rgb(self.color, n, "color"))

@@ -19,6 +19,7 @@ from voxfield.kernels.octree_build import (
 )
 from voxfield.progress import progress_bar
 from voxfield.scene.voxel_scene import MAX_EXTENT, VoxelScene
+from voxfield.svo.channels import check_channel_name
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, apply_lod_colour, check_lod_colour
 from voxfield.svo.octree import Octree
 
@@ -88,7 +89,7 @@ def build_octree(
     if scene.emission is not None:
         attributes["emission"] = scene.emission[order]
     for name, values in scene.channels.items():
-        attributes[name] = values[order]
+        attributes[check_channel_name(name)] = values[order]
 
     del order
     # Levels are gathered leaf-first, then reversed into root-first order.

@@ -29,7 +29,8 @@ __all__ = [
 
 #: Channel names become ``attr_NAME`` keys in octree files and file-name parts of previews.
 _NAME = re.compile(r"[A-Za-z0-9_-]{1,64}")
-_RESERVED = ("color", "albedo")
+#: Names the octree gives its own colours: a channel so named would replace them.
+_RESERVED = {"color": "the albedo", "albedo": "the albedo", "emission": "the emission"}
 
 
 def check_channel_name(name: str) -> str:
@@ -39,7 +40,7 @@ def check_channel_name(name: str) -> str:
             f"channel name {name!r} must be 1-64 letters, digits, '_' or '-'"
         )
     if name in _RESERVED:
-        raise VoxfieldError(f"channel {name!r} is the albedo; choose another name")
+        raise VoxfieldError(f"channel {name!r} is {_RESERVED[name]}; choose another name")
     return name
 
 

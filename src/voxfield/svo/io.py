@@ -11,7 +11,13 @@ import numpy as np
 from voxfield.atomic import atomic_path
 from voxfield.errors import OctreeFormatError
 from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT, pack_descriptors
-from voxfield.svo.octree import CHILD_COUNT, Octree, solid_flags
+from voxfield.svo.octree import (
+    CHILD_COUNT,
+    Octree,
+    colour_array_problem,
+    facing_array_problem,
+    solid_flags,
+)
 
 FORMAT = "voxfield-octree"
 #: 2: packed descriptors and the voxel box; node positions and per-node masks are derived.
@@ -132,16 +138,15 @@ def validate_octree(octree: Octree, where: str = "octree") -> None:
             box[1] > octree.size):
         raise OctreeFormatError(f"{where}: voxel box outside the root cube")
     for name, values in octree.attributes.items():
-        if values.dtype not in (np.uint8, np.float32, np.uint32):
-            raise OctreeFormatError(f"{where}: attribute {name!r} is {values.dtype}, not 8-bit "
-                                    "sRGB, float32 or RGB9E5")
-        if values.shape != ((n,) if values.dtype == np.uint32 else (n, 3)):
-            raise OctreeFormatError(f"{where}: attribute {name!r} has the wrong shape")
+        problem = colour_array_problem(values, n)
+        if problem is not None:
+            raise OctreeFormatError(f"{where}: attribute {name!r} {problem}")
         if values.dtype == np.float32 and not np.all(np.isfinite(values)):
             raise OctreeFormatError(f"{where}: attribute {name!r} holds NaN or infinity")
-    facing = octree.facing
-    if facing is not None and (facing.dtype != np.uint8 or facing.shape != (int(off[-2]), 6, 4)):
-        raise OctreeFormatError(f"{where}: directional colours have the wrong type or shape")
+    problem = None if octree.facing is None else facing_array_problem(octree.facing,
+                                                                      int(off[-2]))
+    if problem is not None:
+        raise OctreeFormatError(f"{where}: directional colours {problem}")
     masks = octree.descriptors & 0xFF
     if np.any(masks == 0):
         raise OctreeFormatError(f"{where}: inner node without children")

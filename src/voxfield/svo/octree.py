@@ -108,6 +108,15 @@ class Octree:
         and the stages of one command (LOD colours, a bake) work each out once."""
         if not changes.keys() <= _COLOUR_FIELDS:
             raise ValueError(f"recoloured changes colours only, not {sorted(changes)}")
+        # Kernels index colours by node: a short or mistyped array reads past its end.
+        for name, values in changes.get("attributes", {}).items():
+            problem = colour_array_problem(values, self.node_count)
+            if problem is not None:
+                raise VoxfieldError(f"attribute {name!r} {problem}")
+        facing = changes.get("facing")
+        problem = None if facing is None else facing_array_problem(facing, self.inner_count)
+        if problem is not None:
+            raise VoxfieldError(f"directional colours {problem}")
         copy = replace(self, **changes)
         kept = {key: table for key, table in self.__dict__.get("_derived", {}).items()
                 if key[0] in STRUCTURAL_TABLES}
@@ -242,6 +251,27 @@ class Octree:
             known = ", ".join(sorted("albedo" if k == "color" else k for k in self.attributes))
             raise VoxfieldError(f"the octree has no channel {name!r}; it has: {known}")
         return self.attributes[name]
+
+
+def colour_array_problem(values, nodes: int) -> str | None:
+    """What is wrong with ``values`` as a colour attribute of ``nodes`` nodes (the words
+    after its name), or None: 8-bit sRGB or float32 ``(nodes, 3)``, or RGB9E5 ``(nodes,)``."""
+    if not isinstance(values, np.ndarray) or values.dtype not in (np.uint8, np.float32,
+                                                                  np.uint32):
+        kind = values.dtype if isinstance(values, np.ndarray) else type(values).__name__
+        return f"is {kind}, not 8-bit sRGB, float32 or RGB9E5 (a NumPy array)"
+    if values.shape != ((nodes,) if values.dtype == np.uint32 else (nodes, 3)):
+        return f"has shape {values.shape}, not one colour for each of the {nodes:,} nodes"
+    return None
+
+
+def facing_array_problem(values, inner_nodes: int) -> str | None:
+    """What is wrong with ``values`` as the directional colours of ``inner_nodes`` inner
+    nodes, or None: uint8 ``(inner_nodes, 6, 4)``."""
+    if (not isinstance(values, np.ndarray) or values.dtype != np.uint8
+            or values.shape != (inner_nodes, 6, 4)):
+        return f"must be uint8 of shape ({inner_nodes:,}, 6, 4)"
+    return None
 
 
 #: Set bits of every byte: the number of children a child mask names.

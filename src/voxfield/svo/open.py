@@ -3,8 +3,10 @@ and built (terrains streamed in column blocks, so their build stays in bounded m
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
+from voxfield.errors import VoxfieldError
 from voxfield.scene.loaders import SceneOptions, block_source, load_scene, npz_kind
 from voxfield.svo.build import build_octree
 from voxfield.svo.io import load_octree
@@ -13,11 +15,16 @@ from voxfield.svo.octree import Octree
 from voxfield.svo.streamed_build import build_octree_streamed
 
 
-def open_octree(spec: str, options: SceneOptions | None = None, *, progress: bool = False,
-                lod_colour: str = DEFAULT_LOD_COLOUR, colour_storage: str = "srgb8") -> Octree:
-    """An octree from a saved octree file, or built from any scene description (inner-node
-    colours by ``lod_colour``, see ``svo.lod_colours``, albedo kept as ``colour_storage``;
-    a saved octree keeps its own)."""
+def open_octree(spec: str | os.PathLike, options: SceneOptions | None = None, *,
+                progress: bool = False, lod_colour: str = DEFAULT_LOD_COLOUR,
+                colour_storage: str = "srgb8") -> Octree:
+    """An octree from a saved octree file, or built from any scene description (a path, or
+    ``builtin:NAME`` and the like; inner-node colours by ``lod_colour``, see
+    ``svo.lod_colours``, albedo kept as ``colour_storage``; a saved octree keeps its own)."""
+    if not isinstance(spec, (str, os.PathLike)):
+        raise VoxfieldError(f"a scene is a path or a name such as builtin:sphere, got "
+                            f"{type(spec).__name__}")
+    spec = os.fspath(spec)
     path = Path(spec)
     if path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree":
         return load_octree(path)
