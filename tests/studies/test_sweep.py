@@ -35,3 +35,18 @@ def test_sweep_grid_is_monotone_and_resumable(scene, tmp_path):
     assert json.loads((tmp_path / "results.json").read_text())["cells"] == json.loads(
         json.dumps(again["cells"]))
     assert len(items) == 2 * 3 + 2  # cells + reference + adaptive
+
+
+def test_a_pick_at_the_grid_s_edge_says_so(scene, tmp_path):
+    """The thesis's thresholds stop at 0.175: on a scene whose adaptive renderer casts fewer
+    rays than any of them, the "closest" threshold was the grid's end, reported as a match.
+    One threshold cannot bracket the adaptive count; a huge and a tiny one (one ray a pixel,
+    every pixel refined) always do."""
+    octree, camera = scene
+    one = run_sweep(octree, camera, tmp_path / "one", decays=(0.2,), thresholds=(0.15,))
+    assert not one["closest_to_adaptive"][0]["within_grid"]
+    text = (tmp_path / "one" / "results.md").read_text()
+    assert "0.150 (edge)" in text and "calibrate --target-rays" in text
+    both = run_sweep(octree, camera, tmp_path / "both", decays=(0.2,), thresholds=(1e6, 1e-6))
+    assert both["closest_to_adaptive"][0]["within_grid"]
+    assert "(edge)" not in (tmp_path / "both" / "results.md").read_text()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from voxfield.cli.commands import add_command
@@ -15,7 +16,7 @@ from voxfield.cli.options import (
     open_octree,
     study_camera,
 )
-from voxfield.studies.sweep import THESIS_DECAYS, THESIS_THRESHOLDS, run_sweep
+from voxfield.studies.sweep import THESIS_DECAYS, THESIS_THRESHOLDS, edge_advice, run_sweep
 
 
 def register(subparsers) -> None:
@@ -51,7 +52,11 @@ def run(args) -> int:
             # (JSON has no infinity: the PSNR of an image equal to the reference is None.)
             quality = ("equal to the reference" if pick["psnr"] is None
                        else f"PSNR {pick['psnr']:.2f} dB")
+            edge = "" if pick["within_grid"] else " (the grid's edge, not a match)"
             print(f"  d={pick['decay']}: t={pick['threshold']} → {pick['rays']:,} rays, "
-                  f"{quality}")
+                  f"{quality}{edge}")
+        if not all(pick["within_grid"] for pick in report["closest_to_adaptive"]):
+            print(f"voxfield: note: the adaptive ray count lies outside the grid's in some "
+                  f"rows; {edge_advice(report['adaptive']['rays'])}", file=sys.stderr)
         print(f"wrote {out}/report.html, results.md, results.json, sweep.png")
     return 0

@@ -72,12 +72,22 @@ def run_sweep(
 
 
 def _closest_to_adaptive(cells, adaptive_rays, decays) -> list[dict]:
-    """Per decay, the cell whose ray count is closest to the adaptive renderer's (§5.1.4)."""
+    """Per decay, the cell whose ray count is closest to the adaptive renderer's (§5.1.4);
+    ``within_grid`` is false where every threshold of the row casts more rays than the
+    adaptive renderer, or every one fewer: the pick is then the grid's edge, not a match."""
     picks = []
     for decay in decays:
         row = [c for c in cells if c["decay"] == decay]
-        picks.append(min(row, key=lambda c: abs(c["rays"] - adaptive_rays)))
+        rays = [c["rays"] for c in row]
+        best = min(row, key=lambda c: abs(c["rays"] - adaptive_rays))
+        picks.append({**best, "within_grid": min(rays) <= adaptive_rays <= max(rays)})
     return picks
+
+
+def edge_advice(adaptive_rays: int) -> str:
+    """What to do when the adaptive ray count lies outside the grid's."""
+    return (f"widen --thresholds, or bisect with `voxfield calibrate --target-rays "
+            f"{adaptive_rays}`")
 
 
 def _markdown(report, decays, thresholds) -> str:
@@ -86,9 +96,15 @@ def _markdown(report, decays, thresholds) -> str:
     psnr = [[f"d = {d}"] + [fmt(cells[d, t]["psnr"], ".2f") for t in thresholds] for d in decays]
     headers = ["decay \\ threshold", *[str(t) for t in thresholds]]
     adaptive = report["adaptive"]
-    picks = [[fmt(p["decay"], ".2f"), fmt(p["threshold"], ".3f"), fmt(p["rays"]),
-              fmt(p["steps"]), fmt(p["psnr"], ".2f"), fmt(p["ssim"], ".4f")]
+    picks = [[fmt(p["decay"], ".2f"),
+              fmt(p["threshold"], ".3f") + ("" if p.get("within_grid", True) else " (edge)"),
+              fmt(p["rays"]), fmt(p["steps"]), fmt(p["psnr"], ".2f"), fmt(p["ssim"], ".4f")]
              for p in report["closest_to_adaptive"]]
+    edges = [p for p in report["closest_to_adaptive"] if not p.get("within_grid", True)]
+    edge_note = [] if not edges else [
+        f"\n\"(edge)\": the adaptive renderer's {fmt(adaptive['rays'])} rays lie outside every "
+        f"threshold's count in {len(edges)} of the {len(picks)} rows, so the threshold shown "
+        f"is the grid's end, not a match; {edge_advice(adaptive['rays'])}.", ""]
     return "\n".join([
         f"# Decay × threshold sweep — {report['scene']}, {report['width']}×{report['height']}",
         "",
@@ -104,6 +120,7 @@ def _markdown(report, decays, thresholds) -> str:
         "## Per decay, the threshold closest to the adaptive ray count",
         "",
         markdown_table(["decay", "threshold", "rays", "steps", "PSNR", "SSIM"], picks),
+        *edge_note,
     ])
 
 
