@@ -55,8 +55,10 @@ def run(args) -> int:
             edge = "" if pick["within_grid"] else " (the grid's edge, not a match)"
             print(f"  d={pick['decay']}: t={pick['threshold']} → {pick['rays']:,} rays, "
                   f"{quality}{edge}")
-        if not all(pick["within_grid"] for pick in report["closest_to_adaptive"]):
-            print(f"voxfield: note: the adaptive ray count lies outside the grid's in some "
-                  f"rows; {edge_advice(report['adaptive']['rays'])}", file=sys.stderr)
+        edges = sum(not pick["within_grid"] for pick in report["closest_to_adaptive"])
+        if edges:
+            print(f"voxfield: note: the adaptive ray count lies outside the grid's in {edges} "
+                  f"of its {len(report['closest_to_adaptive'])} rows; "
+                  f"{edge_advice(report['adaptive']['rays'])}", file=sys.stderr)
         print(f"wrote {out}/report.html, results.md, results.json, sweep.png")
     return 0
