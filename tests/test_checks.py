@@ -96,3 +96,26 @@ def test_the_predicates_tell_bools_from_numbers():
     assert not any(is_integer(v) for v in (True, np.bool_(True), 1.0, "1", None))
     assert all(is_real(v) for v in (0, 1.5, math.nan, -math.inf, np.float16(2), np.int32(1)))
     assert not any(is_real(v) for v in (False, np.bool_(False), "1.5", None, 1j))
+
+
+def test_read_only_rays_reach_the_kernels_as_the_same_type():
+    """A read-only array is another type to Numba: the ray query compiled its kernel again
+    for one (seconds on a first call). The checked rays are writable copies of such arrays,
+    and writable float64 rays pass through uncopied."""
+    from voxfield.kernels.ray_batch import trace_rays
+    from voxfield.render.ray_query import trace
+    from voxfield.svo.open import open_octree
+
+    rng = np.random.default_rng(2)
+    origins, dirs = rng.uniform(-5.0, 40.0, (50, 3)), rng.normal(size=(50, 3))
+    o, d = ray_arrays(origins, dirs)
+    assert o is origins and d is dirs
+    octree = open_octree("builtin:sphere")
+    first = trace(octree, origins, dirs)
+    compiled = len(trace_rays.signatures)
+    origins.flags.writeable = dirs.flags.writeable = False
+    o, d = ray_arrays(origins, dirs)
+    assert o.flags.writeable and d.flags.writeable
+    again = trace(octree, origins, dirs)
+    assert len(trace_rays.signatures) == compiled
+    np.testing.assert_array_equal(again.node, first.node)

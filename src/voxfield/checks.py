@@ -55,10 +55,12 @@ def real_number(value, what: str, *, finite: bool = True) -> float:
 
 
 def ray_arrays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
-    """Rays as two contiguous float64 N×3 arrays, every component finite and no direction
-    the zero vector (it has no crossing times)."""
-    o = np.ascontiguousarray(origins, dtype=np.float64)
-    d = np.ascontiguousarray(directions, dtype=np.float64)
+    """Rays as two contiguous, writable float64 N×3 arrays, every component finite and no
+    direction the zero vector (it has no crossing times). A read-only array is copied: to
+    Numba it is another type, and the kernels compiled again for it (a first call on
+    read-only rays took seconds more)."""
+    o = _writable(np.ascontiguousarray(origins, dtype=np.float64))
+    d = _writable(np.ascontiguousarray(directions, dtype=np.float64))
     if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
         raise VoxfieldError(f"origins and directions must both be N×3, got {o.shape}, {d.shape}")
     if not (np.isfinite(o).all() and np.isfinite(d).all()):
@@ -66,6 +68,10 @@ def ray_arrays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
     if np.any(~d.any(axis=1)):
         raise VoxfieldError("a ray direction is the zero vector")
     return o, d
+
+
+def _writable(array: np.ndarray) -> np.ndarray:
+    return array if array.flags.writeable else array.copy()
 
 
 def seed_value(value) -> int:
