@@ -27,7 +27,7 @@ def register(subparsers) -> argparse.ArgumentParser:
         description="The EA thesis's shadow-ray test (§3.2.2): direct light with "
         "importance-sampled shadow rays at full resolution, at a LOD growing with distance "
         "(the baseline) and error-aware. Writes images, LOD-used maps, the light reaching "
-        "the floor behind the grid, results.json, results.md, contact_sheet.png and "
+        "the floor in front of the grid, results.json, results.md, contact_sheet.png and "
         "report.html.",
     )
     add_scene_options(p)

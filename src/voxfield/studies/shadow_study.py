@@ -239,7 +239,7 @@ def _draw_profile(ax, beam: dict, lod_distance: float) -> None:
     ax.axvline(2 * lod_distance, color="0.6", lw=0.8, ls=":", label="far part from here")
     ax.set_xlabel("distance in front of the grid (voxels)")
     ax.set_ylabel("floor light (white floor, linear)")
-    ax.set_title("light on the floor behind the grid", fontsize=10)
+    ax.set_title("light on the floor in front of the grid", fontsize=10)
     ax.legend(fontsize=8)
 
 
