@@ -99,7 +99,9 @@ def figure(probe_set, *, octree=None, title: str = "", size: int = 512):
 
 
     atlases = display_atlases(probe_set)
-    fig = Figure(figsize=(14, 12), facecolor="white")
+    # Constrained layout keeps the distance bar's label inside the figure whatever its ticks'
+    # width (fixed margins cut it off at three digits).
+    fig = Figure(figsize=(14, 12), facecolor="white", layout="constrained")
     if title:
         fig.suptitle(title, fontsize=12)
     axes = fig.subplots(2, 2).ravel()
@@ -123,7 +125,7 @@ def figure(probe_set, *, octree=None, title: str = "", size: int = 512):
     cmap = matplotlib.colormaps["viridis"].with_extremes(bad=(ESCAPED_GREY,) * 3, under="white")
     shown = axes[1].imshow(np.ma.masked_invalid(distance), cmap=cmap, vmin=0.0, vmax=vmax,
                            interpolation="nearest")
-    bar = fig.colorbar(shown, ax=axes[1], fraction=0.046, pad=0.02)
+    bar = fig.colorbar(shown, ax=axes[1], shrink=0.8, pad=0.02)
     bar.set_label("radial distance (voxels); grey: no surface", fontsize=9)
     axes[1].set_title("distance", fontsize=10)
 
@@ -148,7 +150,6 @@ def figure(probe_set, *, octree=None, title: str = "", size: int = 512):
         Line2D([], [], marker="x", ls="", color="red", label="disabled"),
     ]
     axes[3].legend(handles=legend, loc="lower left", fontsize=8, framealpha=0.8)
-    fig.subplots_adjust(left=0.02, right=0.97, bottom=0.02, top=0.93, wspace=0.12, hspace=0.1)
     return fig
 
 
