@@ -276,7 +276,9 @@ def results_markdown(report: dict) -> str:
         _histogram_table(rows, "ray_distribution", {}, skip_empty=True),
         "## Images\n",
         *[f"- `{file}`" for file in report["images"].values()],
-        "- `contact_sheet.png`: all of the above side by side\n",
+        "- `contact_sheet.png`: the renders with their cost and quality, the adaptive "
+        "renderer's variance and rays, the error-aware renderer's rays and finest LOD, and a "
+        "summary (the step maps are the files above)\n",
     ]
     return "\n".join(out)
 

@@ -6,6 +6,7 @@ every map, as in the thesis.
 
 from __future__ import annotations
 
+import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -94,7 +95,8 @@ def contact_sheet(cells: Sequence[Panel | str], *, columns: int, title: str = ""
         else:
             ax.imshow(np.clip(image, 0.0, 1.0), cmap="gray", vmin=0.0, vmax=1.0,
                       interpolation="nearest")
-        ax.set_title(cell.title, fontsize=9)
+        # Wrapped to the panel: a long title ran past the sheet's edge.
+        ax.set_title(textwrap.fill(cell.title, width=int(panel_inches * 12)), fontsize=9)
     fig.subplots_adjust(left=0.01, right=0.99, bottom=0.01, top=0.90 if title else 0.96,
-                        wspace=0.04, hspace=0.18)
+                        wspace=0.04, hspace=0.25)
     return fig

@@ -157,8 +157,8 @@ def results_markdown(report: dict) -> str:
         "## Files",
         "",
         "- `lighting.png`: steps and PSNR per channel for the three contenders",
-        "- `contact_sheet.png`: per channel the reference, the error-aware image, the adaptive "
-        "rays per pixel and the error-aware finest LOD (EA figs 5.7–5.10)",
+        "- `contact_sheet.png`: per channel the reference, the EA and EA-L images, the "
+        "adaptive rays per pixel and the EA finest LOD (EA figs 5.7–5.10)",
         "",
     ])
 
@@ -189,15 +189,17 @@ def _figure(report: dict):
 
 
 def _sheet(sheet: list, base_lod: int | None, scene_name: str):
+    """Per channel: the reference, both error-aware renders (EA and the lighting-aware EA-L,
+    the study's subject), where the adaptive renderer refined and the finest LOD EA used."""
     cells: list = []
     for channel, results in sheet:
         cells += [
             Panel(f"{channel}: reference", results["reference"].image),
-            Panel(f"{channel}: error-aware", results["error_aware"].image),
-            Panel(f"{channel}: adaptive rays/px", refinement_map(results["adaptive"]),
-                  linear_rgb=False),
-            Panel(f"{channel}: EA finest LOD", finest_lod_map(results["error_aware"],
-                                                              base_lod or 0),
-                  linear_rgb=False),
+            Panel(f"{channel}: error-aware (EA)", results["error_aware"].image),
+            Panel(f"{channel}: lighting-aware (EA-L)", results["lighting_aware"].image),
+            Panel(f"{channel}: adaptive rays/px (black bg, 1, 4, 16)",
+                  refinement_map(results["adaptive"]), linear_rgb=False),
+            Panel(f"{channel}: EA finest LOD (white = LOD 0)",
+                  finest_lod_map(results["error_aware"], base_lod or 0), linear_rgb=False),
         ]
-    return contact_sheet(cells, columns=4, title=f"{scene_name}: lighting")
+    return contact_sheet(cells, columns=5, title=f"{Path(scene_name).name}: lighting")

@@ -126,11 +126,15 @@ def kind_image(result) -> np.ndarray:
     return out
 
 
+def fetch_scale(result) -> float:
+    """The fetch count ``fetch_image`` shows as white: the 99th percentile, at least 1."""
+    return max(float(np.percentile(result.maps["texel_fetches"], 99)), 1.0)
+
+
 def fetch_image(result) -> np.ndarray:
-    """Fetches per pixel as grey levels, white at the 99th percentile."""
+    """Fetches per pixel as grey levels, white at ``fetch_scale``."""
     fetches = np.asarray(result.maps["texel_fetches"], np.float32)
-    top = max(float(np.percentile(fetches, 99)), 1.0)
-    return np.clip(fetches / top, 0.0, 1.0)
+    return np.clip(fetches / fetch_scale(result), 0.0, 1.0)
 
 
 def contact_sheet_figure(report: dict, reference, renders: dict):
@@ -145,10 +149,10 @@ def contact_sheet_figure(report: dict, reference, renders: dict):
         cells.append(Panel(title, result.image))
     lf = renders.get("light-field")
     if lf is not None:
-        legend = ", ".join(k for k in ("hit", "miss", "unknown", "fallback"))
-        cells.append(Panel(f"result kind ({legend}: green, blue, red, yellow)",
+        cells.append(Panel("result kind (green hit, blue miss, red unknown, yellow fallback)",
                            kind_image(lf), linear_rgb=False))
-        cells.append(Panel("light-field fetches per pixel", fetch_image(lf), linear_rgb=False))
+        cells.append(Panel(f"light-field texel fetches per pixel (black 0, white "
+                           f"{fetch_scale(lf):.0f} or more)", fetch_image(lf), linear_rgb=False))
     lines = [f"{'method':<12} {'PSNR':>7} {'SSIM':>7} {'fail%':>6}"]
     for q in report["quality"]:
         lines.append(f"{q['method']:<12} {_value(q['psnr']):7.2f} {_value(q['ssim']):7.4f} "
