@@ -4,6 +4,7 @@ percentile; the written maps keep every pixel and carry their colour bars."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from matplotlib import colormaps
 
 from voxfield.render.counter_maps import (
@@ -16,6 +17,7 @@ from voxfield.render.counter_maps import (
     rays_map,
     steps_figure,
     steps_heatmap,
+    steps_norm,
     steps_scale,
 )
 from voxfield.render.result import RenderResult
@@ -45,6 +47,22 @@ def test_steps_heatmap_is_monotone_in_steps():
     brightness = rgb.sum(axis=-1).ravel()
     assert np.all(np.diff(brightness[:99]) >= -1e-9)
     assert np.allclose(rgb[0, 0], colormaps["magma"](0.0)[:3])
+
+
+def test_a_cheap_pixel_stands_apart_from_an_empty_one():
+    """On a linear scale a coarse LOD's few steps beside refined pixels' hundreds drew as
+    black as the background: the log scale puts a hundredth of the top a third of the way
+    up, and every tenfold step the same distance further."""
+    steps = np.zeros((10, 100), int)
+    steps[0, :] = 600
+    steps[1, 0], steps[1, 1], steps[1, 2] = 6, 60, 1
+    result = _result(np.zeros((10, 100), int), steps)
+    top = steps_scale(result)
+    scale = steps_norm(result)
+    assert scale(top / 100) > 0.3 and scale(0) == 0.0 and scale(top) == 1.0
+    assert scale(60) - scale(6) == pytest.approx(scale(600) - scale(60), abs=0.02)
+    rgb = steps_heatmap(result)
+    assert rgb[1, 0].sum() > rgb[2, 0].sum() + 0.15  # 6 steps against none
 
 
 def _has_colour(pixels: np.ndarray, colour) -> bool:

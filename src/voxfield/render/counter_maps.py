@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
-from matplotlib.colors import BoundaryNorm, ListedColormap, Normalize
+from matplotlib.colors import BoundaryNorm, ListedColormap, Normalize, SymLogNorm
 
 from voxfield.render.image_io import save_png
 from voxfield.render.result import RenderResult
@@ -25,10 +25,18 @@ def steps_scale(result: RenderResult) -> float:
     return max(float(np.percentile(steps[steps > 0], 99)) if steps.any() else 1.0, 1.0)
 
 
+def steps_norm(result: RenderResult) -> SymLogNorm:
+    """Steps to the magma scale: logarithmic from 1 up to ``steps_scale`` (linear below 1).
+    On a linear scale a cheap pixel (a coarse LOD's few steps against a refined pixel's
+    hundreds) was as black as the empty background."""
+    return SymLogNorm(linthresh=1.0, linscale=0.25, vmin=0.0, vmax=steps_scale(result),
+                      base=10, clip=True)
+
+
 def steps_heatmap(result: RenderResult) -> np.ndarray:
-    """Traversal steps per pixel on the magma scale, normalised at ``steps_scale``."""
+    """Traversal steps per pixel on the magma scale (``steps_norm``)."""
     steps = result.steps.astype(np.float64)
-    return colormaps["magma"](np.clip(steps / steps_scale(result), 0.0, 1.0))[..., :3]
+    return colormaps["magma"](steps_norm(result)(steps).filled(1.0))[..., :3]
 
 
 def lod_colours(depth: int) -> np.ndarray:
@@ -80,8 +88,9 @@ def with_colour_bar(rgb: np.ndarray, cmap, norm, label: str, ticks=None) -> np.n
 def steps_figure(result: RenderResult) -> np.ndarray:
     """``steps_heatmap`` with its colour bar in steps."""
     top = steps_scale(result)
-    return with_colour_bar(steps_heatmap(result), colormaps["magma"], Normalize(0.0, top),
-                           f"traversal steps per pixel\n(brightest: {top:g} or more)")
+    return with_colour_bar(steps_heatmap(result), colormaps["magma"], steps_norm(result),
+                           f"traversal steps per pixel, log scale\n(brightest: {top:g} or "
+                           "more)")
 
 
 def with_banded_bar(rgb: np.ndarray, colours: np.ndarray, label: str) -> np.ndarray:
