@@ -71,31 +71,37 @@ def plot_mask_error(
     if not 0 <= int(mask) <= 255:
         raise VoxfieldError(f"child mask must be between 0 and 255, got {mask}")
     encoding = encoding or table.default_encoding
-    fig = plt.figure(figsize=(13, 3.6), dpi=110)
-    ax = fig.add_subplot(1, 4, 1, projection="3d")
-    _child_boxes(ax, int(mask))
-    image = None
-    for i, (name, viewer) in enumerate(VIEWS):
-        ax = fig.add_subplot(1, 4, i + 2)
-        errors, inside = sphere_view(table, int(mask), viewer, encoding=encoding)
-        shown = np.ma.masked_where(~inside, errors)
-        image = ax.imshow(shown, cmap="viridis", vmin=0.0, vmax=1.0)
-        above = inside & (errors > threshold)
-        overlay = np.zeros(errors.shape + (4,))
-        overlay[above] = (1.0, 0.1, 0.1, 0.3)
-        ax.imshow(overlay)
-        if above.any() and not above[inside].all():
-            ax.contour(np.where(inside, errors, 0.0), levels=[threshold], colors="red",
-                       linewidths=1.2)
-        share = above.sum() / max(1, inside.sum())
-        ax.set_title(f"viewer at {name}: {share:.0%} > {threshold:g}", fontsize=9)
-        ax.axis("off")
-    fig.colorbar(image, ax=fig.axes[1:], fraction=0.02, pad=0.02, label="error")
-    fig.suptitle(f"sampling error of a node instead of its children ({encoding} encoding); "
-                 "red: above threshold", fontsize=10)
+    # The hatches above the threshold take their colour from these settings.
+    with matplotlib.rc_context({"hatch.color": "red", "hatch.linewidth": 0.7}):
+        fig = plt.figure(figsize=(13, 3.6), dpi=110)
+        ax = fig.add_subplot(1, 4, 1, projection="3d")
+        _child_boxes(ax, int(mask))
+        image = None
+        for i, (name, viewer) in enumerate(VIEWS):
+            ax = fig.add_subplot(1, 4, i + 2)
+            errors, inside = sphere_view(table, int(mask), viewer, encoding=encoding)
+            shown = np.ma.masked_where(~inside, errors)
+            image = ax.imshow(shown, cmap="viridis", vmin=0.0, vmax=1.0)
+            above = inside & (errors > threshold)
+            # Hatched rather than tinted: a tint changed every colour above the threshold, and
+            # the error could no longer be read off the colour bar there.
+            if above.any():
+                ax.contourf(np.where(above, 1.0, 0.0), levels=[0.5, 1.5], colors="none",
+                            hatches=["//"])
+            if above.any() and not above[inside].all():
+                ax.contour(np.where(inside, errors, 0.0), levels=[threshold], colors="red",
+                           linewidths=1.2)
+            share = above.sum() / max(1, inside.sum())
+            ax.set_title(f"viewer at {name}: {share:.0%} > {threshold:g}", fontsize=9)
+            ax.axis("off")
+        bar = fig.colorbar(image, ax=fig.axes[1:], fraction=0.02, pad=0.02, label="error")
+        bar.ax.axhline(threshold, color="red", linewidth=1.5)
+        fig.suptitle(f"sampling error of a node instead of its children ({encoding} encoding); "
+                     f"hatched red: above the threshold {threshold:g} (the red line on the bar)",
+                     fontsize=10)
 
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
+        path = Path(path)
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, format="png")
+        plt.close(fig)
     return path
