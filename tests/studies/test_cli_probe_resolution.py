@@ -29,3 +29,19 @@ def test_bad_grid_is_a_clear_error(tmp_path, capsys):
                  "--out", str(tmp_path), "--quiet"])
     assert code == 2
     assert "voxfield: error:" in capsys.readouterr().err
+
+
+def test_a_baker_that_refined_nothing_is_named(tmp_path, capsys):
+    """builtin:cornell's probes at the thesis's threshold from 64² on: the error-aware baker
+    cast one ray a texel and its row read like the algorithm's cost; the study says so, in
+    results.md and on stderr, and only where it happened."""
+    for threshold, refines in (("1000", False), ("0.0001", True)):
+        out = tmp_path / threshold
+        assert main(["study", "probe-resolution", "builtin:cornell", "--resolutions", "8",
+                     "--threshold", threshold, "--out", str(out), "--quiet"]) == 0
+        report = json.loads((out / "results.json").read_text())
+        (row,) = [r for r in report["rows"] if r["baker"] == "error-aware"]
+        assert (row["rays_per_texel"] > 1.0) == refines
+        err = capsys.readouterr().err
+        assert ("refined no texel" in err) == (not refines)
+        assert ("refined no texel" in (out / "results.md").read_text()) == (not refines)

@@ -75,7 +75,17 @@ def probe_resolution_study(
         "threshold": threshold, "decay": decay, "reference_samples": samples * samples,
         "seed": seed, "channel": channel, "lod_rule": "texel-footprint cone, scale 1",
         "metrics_on": "float16 radiance as linear RGB clipped to [0, 1]", "rows": rows,
+        "notes": unrefined_notes(rows, threshold),
     }
+
+
+def unrefined_notes(rows: list[dict], threshold: float) -> list[str]:
+    """A sentence for each resolution where the error-aware baker refined no texel: its
+    row then measures its first rays alone, which a reader would take for the algorithm."""
+    return [f"at {r['resolution']}² the error-aware baker refined no texel (one ray a "
+            f"texel): no node its rays met passed the threshold {threshold:g}; a lower "
+            "--threshold makes it refine"
+            for r in rows if r["baker"] == "error-aware" and r["rays_per_texel"] == 1.0]
 
 
 def _row(resolution: int, baker: str, maps, reference) -> dict:
@@ -135,4 +145,5 @@ def probe_resolution_markdown(report: dict) -> str:
         "## Radiance similarity to the reference bake (like EA Table 5.30)",
         "",
         markdown_table(["map", "baker", "PSNR", "RMSE", "SSIM"], quality, align="llrrr"),
+        *[f"Note: {note}." for note in report.get("notes", [])],
     ])
