@@ -324,6 +324,16 @@ def test_packed_probes_refuse_a_grid_or_maps_the_trace_cannot_use(change, messag
         PackedProbes.from_arrays(**arrays)
 
 
+def test_per_ray_bounds_and_probe_indices_are_checked(cornell_probe64):
+    """A two-value tmin for one ray raised NumPy's broadcasting error; a probe index "1"
+    a TypeError."""
+    with pytest.raises(VoxfieldError, match="one number a ray"):
+        trace_light_field(cornell_probe64, [CORNELL_PROBE], [[1.0, 0.0, 0.0]],
+                          tmin=np.array([0.5, 1.0]))
+    with pytest.raises(VoxfieldError, match="not an integer"):
+        trace_single(cornell_probe64, "1", [CORNELL_PROBE], [[1.0, 0.0, 0.0]])
+
+
 def test_a_disabled_probe_needs_no_place_or_lengths():
     arrays = _probe_arrays()
     arrays["enabled"][3] = False

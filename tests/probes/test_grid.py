@@ -393,6 +393,7 @@ def test_relocation_seed_turns_the_rays_but_keeps_flat_walls_exact(block):
     ({"clearance": float("nan")}, "clearance"),
     ({"rays": 3}, "rays"),
     ({"iterations": 0}, "iteration"),
+    ({"seed": -1}, "seed"),
 ])
 def test_relocate_refuses_bad_settings(block, kwargs, match):
     with pytest.raises(VoxfieldError, match=match):

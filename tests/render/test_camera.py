@@ -13,9 +13,14 @@ from voxfield.render import render_lod
 from voxfield.render.beam import pixel_start_bounds
 from voxfield.render.camera import (
     Camera,
+    beam_camera,
     cube_cameras,
+    framing_camera,
+    oblique_camera,
+    orbit_camera,
     ortho_top_camera,
     preset_camera,
+    room_camera,
     top_down_camera,
 )
 from voxfield.svo import build_octree
@@ -207,3 +212,21 @@ def test_rays_refuse_a_side_the_renderers_do_not_take(side):
         camera.rays(side=1, seed=-1)
     origins, dirs = camera.rays(side=16)
     assert origins.shape == dirs.shape == (2 * 2 * 256, 3)
+
+
+@pytest.mark.parametrize("make", [top_down_camera, oblique_camera, orbit_camera, beam_camera,
+                                  room_camera, ortho_top_camera])
+def test_a_view_helper_refuses_a_box_that_is_not_one(make):
+    """Two-number corners raised IndexError or a broadcasting ValueError from inside."""
+    with pytest.raises(CameraError, match="three numbers"):
+        make((0, 0), (10, 10))
+    with pytest.raises(CameraError, match="exceeds"):
+        make((0, 0, 0), (10, -1, 10))
+    assert make((0, 0, 0), (10, 10, 10), size=8).width == 8
+
+
+def test_a_field_of_view_must_be_a_number_and_framing_needs_points():
+    with pytest.raises(CameraError, match="field of view"):
+        Camera.look_at((0, 0, 10), (0, 0, 0), fov_deg="60")
+    with pytest.raises(CameraError, match="at least one point"):
+        framing_camera(np.zeros((0, 3)))

@@ -52,3 +52,14 @@ def test_display_shading_darkens_faces_by_their_normal_and_keeps_the_rest():
         np.testing.assert_allclose(per_pixel[which.reshape(-1) == k],
                                    per_pixel[which.reshape(-1) == k][0], rtol=1e-5)
     assert len(np.unique(per_pixel.round(5))) > 1
+
+
+def test_an_empty_or_inconsistent_image_is_refused_in_one_line(tmp_path):
+    """PIL's "cannot write empty image", and an EXR error naming the temporary file."""
+    with pytest.raises(VoxfieldError, match="shape"):
+        save_png(np.zeros((0, 0, 3)), tmp_path / "empty.png")
+    with pytest.raises(VoxfieldError, match="no channels"):
+        save_exr({}, tmp_path / "none.exr")
+    with pytest.raises(VoxfieldError, match=r"RGB \(2, 2, 3\), Z \(3, 2\)"):
+        save_exr({"RGB": np.zeros((2, 2, 3)), "Z": np.zeros((3, 2))}, tmp_path / "odd.exr")
+    assert list(tmp_path.iterdir()) == []

@@ -299,3 +299,20 @@ def test_open_octree_takes_a_path_as_well_as_a_string(tmp_path):
         assert open_octree(spec).fingerprint() == octree.fingerprint()
     with pytest.raises(VoxfieldError, match="a path or a name"):
         open_octree(42)
+
+
+def test_the_builders_refuse_what_is_not_a_scene_or_an_octree(tmp_path):
+    """An array, None or a name passed for the scene or octree raised AttributeError or
+    TypeError from inside."""
+    for scene in (np.zeros((3, 3), int), None):
+        with pytest.raises(VoxfieldError, match="needs a VoxelScene"):
+            build_octree(scene)
+    with pytest.raises(VoxfieldError, match="needs a voxfield Octree"):
+        save_octree("builtin:sphere", tmp_path / "x.npz")
+    with pytest.raises(VoxfieldError, match="channels must map names"):
+        VoxelScene(np.zeros((1, 3), int), np.ones((1, 3)), channels=[1, 2])
+    from voxfield.render.ray_query import occluded, trace
+
+    for query in (trace, occluded):
+        with pytest.raises(VoxfieldError, match="needs a voxfield Octree"):
+            query(None, [[0.0, 0.0, 0.0]], [[1.0, 0.0, 0.0]])

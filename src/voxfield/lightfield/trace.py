@@ -264,11 +264,19 @@ def _rays(origins, dirs, tmin, tmax):
     n = len(o)
     # Copies: for 0 or 1 rays the broadcast view is already contiguous and stays read-only,
     # another type to Numba, so a probe render compiled its kernel again inside the timing.
-    lo = np.array(np.broadcast_to(np.asarray(tmin, np.float64), (n,)))
-    hi = np.array(np.broadcast_to(np.asarray(tmax, np.float64), (n,)))
+    lo, hi = (_per_ray(value, n, name) for value, name in ((tmin, "tmin"), (tmax, "tmax")))
     if np.isnan(lo).any() or np.isnan(hi).any() or np.any(lo < 0) or np.isinf(lo).any():
         raise VoxfieldError("tmin must be finite and >= 0 and tmax not NaN")
     return o, d, lo, hi
+
+
+def _per_ray(value, n: int, name: str) -> np.ndarray:
+    """``value`` (a number, or one for each of the ``n`` rays) as a writable float64 array."""
+    try:
+        return np.array(np.broadcast_to(np.asarray(value, np.float64), (n,)))
+    except (TypeError, ValueError):
+        raise VoxfieldError(f"{name} must be a number or one number a ray ({n}), got "
+                            f"{np.shape(value)} of {type(value).__name__}") from None
 
 
 def _pixel_angle(value) -> float:
@@ -282,8 +290,8 @@ def trace_single(packed: PackedProbes, probe: int, origins, dirs,
                  *, pixel_angle: float = 0.0, threads: int | None = None) -> ProbeHits:
     """March rays ``o + t·d`` (``d`` normalised here; ``t`` in world units) with
     ``tmin <= t < tmax`` (scalars or per-ray arrays) against probe ``probe`` alone."""
-    if not -packed.count <= probe < packed.count:
-        raise VoxfieldError(f"probe index {probe} is outside 0..{packed.count - 1}")
+    if not is_integer(probe) or not -packed.count <= probe < packed.count:
+        raise VoxfieldError(f"probe index {probe!r} is not an integer in 0..{packed.count - 1}")
     probe = int(probe) % packed.count
     options = checked_options(options)
     o, d, lo, hi = _rays(origins, dirs, tmin, tmax)

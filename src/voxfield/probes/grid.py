@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from voxfield.checks import seed_value
 from voxfield.errors import VoxfieldError
 from voxfield.render.ray_query import trace
 from voxfield.svo.octree import Octree
@@ -588,7 +589,7 @@ def relocate(
     if int(iterations) != iterations or iterations < 1:
         raise VoxfieldError(f"relocation needs at least one iteration, got {iterations}")
     occupancy = _VoxelOccupancy(octree)
-    directions = fibonacci_directions(int(rays), seed)
+    directions = fibonacci_directions(int(rays), seed_value(seed))
     escape_directions = np.concatenate([directions, _AXIS_DIRECTIONS])
     limit = max_shift * grid.spacing
     base = grid.base_positions

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from voxfield.checks import integer_in, seed_value
+from voxfield.checks import integer_in, is_real, seed_value
 from voxfield.errors import CameraError, VoxfieldError
 from voxfield.kernels.camera_rays import OCTAHEDRAL, ORTHOGRAPHIC, PINHOLE, camera_ray_arrays
 
@@ -37,8 +37,17 @@ def _vector(value, what: str) -> np.ndarray:
 MIN_FOV_DEG = 0.01
 
 
+def _box(bounds_min, bounds_max) -> tuple[np.ndarray, np.ndarray]:
+    """A scene box's corners, three finite numbers each, the minimum below the maximum."""
+    lo = _vector(bounds_min, "box minimum")
+    hi = _vector(bounds_max, "box maximum")
+    if np.any(lo > hi):
+        raise CameraError(f"the box's minimum {lo.tolist()} exceeds its maximum {hi.tolist()}")
+    return lo, hi
+
+
 def _check_fov(fov_deg) -> None:
-    if not (MIN_FOV_DEG <= float(fov_deg) < 180.0):
+    if not is_real(fov_deg) or not (MIN_FOV_DEG <= float(fov_deg) < 180.0):
         raise CameraError(f"field of view must be at least {MIN_FOV_DEG} and below 180 "
                           f"degrees, got {fov_deg}")
 
@@ -206,8 +215,7 @@ def top_down_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float =
     """The EA thesis's setup (§5.1.1): centred above the map, looking straight down, placed so
     the 90° frustum just spans the map's horizontal extent at the ground. A scene taller than
     that (an object, not a map) is framed at its top instead, so the eye is never inside it."""
-    lo = np.asarray(bounds_min, np.float64)
-    hi = np.asarray(bounds_max, np.float64)
+    lo, hi = _box(bounds_min, bounds_max)
     c = (lo + hi) / 2.0
     half_extent = max(hi[0] - lo[0], hi[2] - lo[2]) / 2.0
     distance = half_extent / np.tan(np.radians(fov_deg) / 2.0)
@@ -219,8 +227,7 @@ def top_down_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float =
 def oblique_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 90.0,
                    elevation_deg: float = 45.0) -> Camera:
     """Looking at the map centre from the south at the given elevation (45° by default)."""
-    lo = np.asarray(bounds_min, np.float64)
-    hi = np.asarray(bounds_max, np.float64)
+    lo, hi = _box(bounds_min, bounds_max)
     c = (lo + hi) / 2.0
     half_extent = max(hi[0] - lo[0], hi[2] - lo[2]) / 2.0
     distance = 1.6 * half_extent / np.tan(np.radians(fov_deg) / 2.0)
@@ -232,8 +239,7 @@ def oblique_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 
 def orbit_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 45.0,
                  azimuth_deg: float = 35.0, elevation_deg: float = 30.0) -> Camera:
     """A three-quarter view framing a box, for demos and quick looks."""
-    lo = np.asarray(bounds_min, np.float64)
-    hi = np.asarray(bounds_max, np.float64)
+    lo, hi = _box(bounds_min, bounds_max)
     center = (lo + hi) / 2.0
     radius = float(np.linalg.norm(hi - lo)) / 2.0
     dist = radius / np.sin(np.radians(fov_deg) / 2.0) * 1.05
@@ -245,8 +251,7 @@ def orbit_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 45
 def beam_camera(bounds_min, bounds_max, *, size: int = 256, fov_deg: float = 58.0) -> Camera:
     """In front of the box (+z), above its floor, looking down at the floor in front of its
     middle: for the EA thesis's shadow box, the grid and the whole beam of light."""
-    lo = np.asarray(bounds_min, np.float64)
-    hi = np.asarray(bounds_max, np.float64)
+    lo, hi = _box(bounds_min, bounds_max)
     extent = float(max(hi[0] - lo[0], hi[2] - lo[2]))
     centre = (lo + hi) / 2.0
     eye = (centre[0] + 0.125 * extent, lo[1] + 0.4 * extent, hi[2] + 0.12 * extent)
@@ -260,8 +265,7 @@ def room_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 70.
     person standing in it sees it, floor and blocks included. The eye sits a little off the
     box's centre lines, so it is inside any probe grid of 2, 3 or 4 probes an axis fitted
     to the box and off its lattice planes, where the probe cage would be ambiguous."""
-    lo = np.asarray(bounds_min, np.float64)
-    hi = np.asarray(bounds_max, np.float64)
+    lo, hi = _box(bounds_min, bounds_max)
     c = (lo + hi) / 2.0
     extent = hi - lo
     eye = (c[0] + 0.07 * extent[0], lo[1] + 0.72 * extent[1], lo[2] + 0.74 * extent[2])
@@ -278,8 +282,7 @@ def ortho_top_camera(bounds_min, bounds_max, *, size: int = 512) -> Camera:
     their rays began at the eye, inside coarse nodes (whose hits then had no entry face),
     and took 4.2 steps a ray at LOD 0 and 3.5 at LOD 2 against 3.2 from above (6.0 and 5.3
     while rays from the camera walked the pyramid down from its top)."""
-    lo = np.asarray(bounds_min, np.float64)
-    hi = np.asarray(bounds_max, np.float64)
+    lo, hi = _box(bounds_min, bounds_max)
     c = (lo + hi) / 2.0
     extent = float(max(hi[0] - lo[0], hi[2] - lo[2]))
     return Camera.orthographic((c[0], hi[1] + max(extent, 1.0), c[2]), (0.0, -1.0, 0.0),
@@ -289,6 +292,8 @@ def ortho_top_camera(bounds_min, bounds_max, *, size: int = 512) -> Camera:
 def framing_camera(points, *, size: int = 512) -> Camera:
     """An orbit view framing every point (for example a scene's corners and its probes)."""
     points = np.asarray(points, np.float64).reshape(-1, 3)
+    if not len(points) or not np.isfinite(points).all():
+        raise CameraError("a framing camera needs at least one point, every one finite")
     lo, hi = points.min(axis=0), points.max(axis=0)
     pad = np.maximum((hi - lo) * 0.02, 0.5)
     return orbit_camera(lo - pad, hi + pad, size=size)
@@ -319,10 +324,7 @@ def preset_camera(name: str, bounds_min, bounds_max, *, size: int = 512,
     fov = CAMERA_PRESETS[name][0] if fov_deg is None else fov_deg
     if fov is not None:
         _check_fov(fov)
-    lo = _vector(bounds_min, "box minimum")
-    hi = _vector(bounds_max, "box maximum")
-    if np.any(lo > hi):
-        raise CameraError(f"the box's minimum {lo.tolist()} exceeds its maximum {hi.tolist()}")
+    lo, hi = _box(bounds_min, bounds_max)
     if name.startswith("cube"):
         return Camera.cube_face((lo + hi) / 2.0, name[4:], size=size)
     if name == "ortho-top":

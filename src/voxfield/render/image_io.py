@@ -27,7 +27,8 @@ def save_png(image: np.ndarray, path: str | os.PathLike, *, encode_srgb: bool = 
 def png_pixels(image: np.ndarray, *, encode_srgb: bool = True) -> np.ndarray:
     """The 8-bit pixels ``save_png`` writes for a linear [0, 1] image."""
     data = np.asarray(image, dtype=np.float32)
-    if data.ndim not in (2, 3) or (data.ndim == 3 and data.shape[2] not in (3, 4)):
+    if (data.ndim not in (2, 3) or (data.ndim == 3 and data.shape[2] not in (3, 4))
+            or 0 in data.shape[:2]):
         raise VoxfieldError(f"cannot write an image of shape {data.shape} as PNG")
     data = np.nan_to_num(data, nan=0.0, posinf=1.0, neginf=0.0)
     data = linear_to_srgb(data) if encode_srgb else np.clip(data, 0.0, 1.0)
@@ -48,6 +49,10 @@ def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike) -> Path:
 
     path = Path(path)
     data = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
+    sizes = [v.shape[:2] if v.ndim in (2, 3) else None for v in data.values()]
+    if not sizes or None in sizes or len(set(sizes)) != 1 or 0 in sizes[0]:
+        raise VoxfieldError("an EXR needs at least one channel, every one an H×W or H×W×C "
+                            f"array of one shared, non-empty size; got {_shapes(data)}")
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
     try:
         with atomic_path(path) as tmp, OpenEXR.File(header, data) as f:
@@ -55,6 +60,10 @@ def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike) -> Path:
     except RuntimeError as exc:  # OpenEXR's only failure type, a full disk included
         raise _write_failure(exc, path) from exc
     return path
+
+
+def _shapes(data: dict[str, np.ndarray]) -> str:
+    return ", ".join(f"{k} {v.shape}" for k, v in data.items()) or "no channels"
 
 
 def _write_failure(exc: RuntimeError, path: Path) -> OSError:

@@ -48,6 +48,9 @@ class VoxelScene:
         object.__setattr__(self, "color", _checked_rgb(self.color, n, "color"))
         if self.emission is not None:
             object.__setattr__(self, "emission", _checked_rgb(self.emission, n, "emission"))
+        if not isinstance(self.channels, Mapping):
+            raise VoxfieldError(f"channels must map names to N×3 colours, got "
+                                f"{type(self.channels).__name__}")
         checked = {k: _checked_rgb(v, n, f"channel {k!r}") for k, v in self.channels.items()}
         object.__setattr__(self, "channels", checked)
 

@@ -60,6 +60,9 @@ def build_octree(
     ``colour_storage`` is how the albedo is kept: 8-bit sRGB (``srgb8``, 3 bytes a node; an
     8-bit input survives exactly) or ``float32`` (12 bytes). Other channels stay float32.
     """
+    if not isinstance(scene, VoxelScene):
+        raise VoxfieldError("build_octree needs a VoxelScene (voxfield.scene.loaders."
+                            f"load_scene), got {type(scene).__name__}")
     check_lod_colour(lod_colour)
     if colour_storage not in STORAGES:
         raise VoxfieldError(f"unknown colour storage {colour_storage!r}; choose one of "
