@@ -25,7 +25,7 @@ def test_rows_tables_and_resumption(lit, tmp_path):
     octree, camera = lit
     report = run_lighting_study(octree, camera, tmp_path, threshold=0.2)
     rows = {r["channel"]: r for r in report["rows"]}
-    assert list(rows) == ["albedo", "evening", "noon"]
+    assert list(rows) == ["albedo", "noon", "evening"]  # the day's order
     # The geometric error ignores colour: EA casts the same rays whatever the lighting
     # (thesis §4: "ray counts ... are therefore identical"); colour-aware ones may differ.
     assert len({r["error_aware"]["rays"] for r in rows.values()}) == 1
@@ -63,3 +63,15 @@ def test_image_luminance_is_rec709():
     image = np.zeros((2, 2, 3))
     image[..., 1] = 1.0
     assert image_luminance(image) == pytest.approx(0.7152)
+
+
+def test_baked_channels_are_studied_in_the_day_s_order():
+    """Sorted by name they read afternoon, evening, morning, noon; a sun of another name
+    comes after the times of day."""
+    from voxfield.studies.lighting_study import lighting_channels
+
+    octree = build_octree(pillars(16))
+    lit, _ = bake_sun_lighting(octree, parse_suns("evening,noon;dawn=90,5;morning,afternoon"),
+                               sky_rays=0)
+    assert lighting_channels(lit) == ["albedo", "morning", "noon", "afternoon", "evening",
+                                      "dawn"]

@@ -16,6 +16,7 @@ import numpy as np
 
 from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
 from voxfield.errors import VoxfieldError
+from voxfield.lighting.sun import TIMES_OF_DAY
 from voxfield.progress import progress_bar
 from voxfield.render.camera import Camera
 from voxfield.render.error_aware import DEFAULT_BRIGHT_RATIO
@@ -40,8 +41,12 @@ def image_luminance(image: np.ndarray) -> float:
 
 
 def lighting_channels(octree: Octree) -> list[str]:
-    """The colour channels worth studying: albedo first, then every baked channel."""
-    baked = sorted(k for k in octree.attributes if k not in ("color", "emission"))
+    """The colour channels worth studying: albedo first, then every baked channel, the named
+    times of day in the day's order (tables and sheets read morning to evening), any other
+    sun after them by name."""
+    day = list(TIMES_OF_DAY)
+    baked = sorted((k for k in octree.attributes if k not in ("color", "emission")),
+                   key=lambda k: (day.index(k) if k in day else len(day), k))
     return ["albedo", *baked]
 
 
