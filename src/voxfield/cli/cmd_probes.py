@@ -281,13 +281,19 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool, *, exact: bool =
     """The baked scene for the overview: ``scene`` if given, else the recorded source; None
     (probes drawn without the render) when it cannot be opened or is not the baked one.
     ``exact`` (cube faces, traced from the scene itself): either is an error instead."""
+
+    def unusable(problem: str, instead: str) -> None:
+        """``problem`` as the error (``exact``), or as a note saying what is drawn instead."""
+        if exact:
+            raise VoxfieldError(f"{problem}; cube faces are traced from the baked scene: name "
+                                "it with --scene")
+        _note(f"{problem}; {instead}")
+
     source = dict(header["scene"].get("source") or {})
     spec = scene or source.get("scene")
     if not spec:
-        if exact:
-            raise VoxfieldError("no scene recorded with these probes; cube faces are traced "
-                                "from the baked scene: name it with --scene")
-        _note("no scene recorded; pass --scene to draw probes over a render")
+        unusable("no scene recorded with these probes", "pass --scene to draw probes over a "
+                 "render")
         return None
     options = SceneOptions(
         mesh_resolution=source.get("mesh_resolution", 256),
@@ -296,12 +302,9 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool, *, exact: bool =
     )
     try:
         octree = open_octree_from_spec(spec, options, progress=not quiet,
-                             lod_colour=source.get("lod_colour", "mean"))
+                                       lod_colour=source.get("lod_colour", "mean"))
     except VoxfieldError as exc:
-        if exact:
-            raise VoxfieldError(f"cannot open the baked scene {spec!r} ({exc}); cube faces "
-                                "are traced from it: name it with --scene") from None
-        _note(f"cannot open the scene {spec!r} ({exc}); drawing probes without it")
+        unusable(f"cannot open the baked scene {spec!r} ({exc})", "drawing probes without it")
         return None
     channel = header["scene"].get("channel", "albedo")
     try:
@@ -309,10 +312,7 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool, *, exact: bool =
     except VoxfieldError:
         same = False
     if not same:
-        if exact:
-            raise VoxfieldError(f"{spec!r} is not the scene these probes were baked from; "
-                                "cube faces are traced from that one: name it with --scene")
-        _note(f"{spec!r} is not the scene these probes were baked from; drawing it anyway")
+        unusable(f"{spec!r} is not the scene these probes were baked from", "drawing it anyway")
     return octree
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 
 from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
@@ -335,8 +334,6 @@ def run_probe_resolution(args) -> int:
     if not args.quiet:
         print(probe_resolution_markdown(report))
         print(f"wrote {path}, results.json and report.html")
-    for note in report["notes"]:
-        print(f"voxfield: note: {note}", file=sys.stderr)
     return 0
 
 

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 from voxfield.cli.commands import add_command
@@ -16,7 +15,7 @@ from voxfield.cli.options import (
     open_octree,
     study_camera,
 )
-from voxfield.studies.sweep import THESIS_DECAYS, THESIS_THRESHOLDS, edge_advice, run_sweep
+from voxfield.studies.sweep import THESIS_DECAYS, THESIS_THRESHOLDS, run_sweep
 
 
 def register(subparsers) -> None:
@@ -55,10 +54,5 @@ def run(args) -> int:
             edge = "" if pick["within_grid"] else " (the grid's edge, not a match)"
             print(f"  d={pick['decay']}: t={pick['threshold']} → {pick['rays']:,} rays, "
                   f"{quality}{edge}")
-        edges = sum(not pick["within_grid"] for pick in report["closest_to_adaptive"])
-        if edges:
-            print(f"voxfield: note: the adaptive ray count lies outside the grid's in {edges} "
-                  f"of its {len(report['closest_to_adaptive'])} rows; "
-                  f"{edge_advice(report['adaptive']['rays'])}", file=sys.stderr)
         print(f"wrote {out}/report.html, results.md, results.json, sweep.png")
     return 0

@@ -116,7 +116,8 @@ class PackedProbes:
                                 f"spacing {spacing.tolist()} finite and positive on every axis")
         if not np.isfinite(positions[enabled]).all():
             raise VoxfieldError("an enabled probe's position holds NaN or infinity")
-        if np.isnan(distance[enabled]).any() or np.any(distance[enabled] < 0):
+        lengths = distance[enabled]
+        if np.isnan(lengths).any() or np.any(lengths < 0):
             raise VoxfieldError("distance maps must hold lengths >= 0 (inf: no surface)")
         chain = min_distance_mips(distance)
         sizes = np.array([level.shape[-1] for level in chain], np.int64)

@@ -9,11 +9,10 @@ import numba
 import numpy as np
 
 from voxfield.checks import integer_in, ray_arrays, real_number
-from voxfield.errors import VoxfieldError
 from voxfield.kernels.ray_batch import occlude_rays, trace_rays
 from voxfield.parallel import thread_count, threads_for
 from voxfield.svo.column_tops import no_column_tops, octree_column_tops
-from voxfield.svo.octree import Octree
+from voxfield.svo.octree import Octree, check_octree
 
 
 @dataclass
@@ -46,7 +45,7 @@ def trace(
     (``kernels.surface_approach``): the same hits, faster for rays that leave a surface;
     the steps then count the pyramid's cells.
     """
-    _check_octree(octree, "trace")
+    check_octree(octree, "trace")
     o, d = ray_arrays(origins, directions)
     lod = integer_in(lod, "LOD", 0, octree.depth)
     tmin, tmax = _checked_interval(tmin, tmax)
@@ -85,7 +84,7 @@ def occluded(
     pyramid first (``svo.column_tops``, worked out once per octree), as the sun bake's do:
     the same verdicts, usually far fewer steps, and the steps then count pyramid cells too.
     """
-    _check_octree(octree, "occluded")
+    check_octree(octree, "occluded")
     o, d = ray_arrays(origins, directions)
     tmin, tmax = _checked_interval(tmin, tmax)
     n = len(o)
@@ -95,12 +94,6 @@ def occluded(
         occlude_rays(o, d, tmin, tmax, octree.inner_nodes, octree.depth,
                      pyramid, result.blocked, result.steps, numba.get_num_threads())
     return result
-
-
-def _check_octree(octree, query: str) -> None:
-    if not isinstance(octree, Octree):
-        raise VoxfieldError(f"{query} needs a voxfield Octree (voxfield.svo.open_octree), got "
-                            f"{type(octree).__name__}")
 
 
 def _checked_interval(tmin, tmax) -> tuple[float, float]:

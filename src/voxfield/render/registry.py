@@ -20,7 +20,7 @@ from voxfield.render.camera import Camera
 from voxfield.render.error_aware import ErrorAwareOptions, render_error_aware
 from voxfield.render.primary import LodOptions, ReferenceOptions, render_lod, render_reference
 from voxfield.render.result import RenderResult
-from voxfield.svo.octree import Octree
+from voxfield.svo.octree import Octree, check_octree
 
 #: Keywords every renderer takes besides its options.
 COMMON_KEYWORDS = ("seed", "channel", "threads", "progress")
@@ -51,8 +51,7 @@ class RendererEntry:
         if not isinstance(options, self.options_type):
             raise VoxfieldError(f"the {self.name} renderer takes {self.options_type.__name__}, "
                                 f"got {type(options).__name__}")
-        if not isinstance(octree, Octree):
-            raise VoxfieldError(f"render needs a voxfield Octree, got {type(octree).__name__}")
+        check_octree(octree, "render")
         if not isinstance(camera, Camera):
             raise VoxfieldError(f"render needs a voxfield Camera, got {type(camera).__name__}")
         unknown = sorted(set(keywords) - _keywords_of(self.function))

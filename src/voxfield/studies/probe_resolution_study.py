@@ -16,6 +16,7 @@ probes RMSE is pooled (root of the mean squared error), PSNR derived from it, SS
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -69,13 +70,16 @@ def probe_resolution_study(
                     maps.append(bake_probe(octree, p, options, threads=threads))
                     bar.update(1)
                 rows.append(_row(resolution, baker, maps, reference))
+    notes = unrefined_notes(rows, threshold)
+    for note in notes:  # the command line prints a warning as a note, --quiet or not
+        warnings.warn(note, UserWarning, stacklevel=2)
     return {
         "scene": scene_name, "fingerprint": octree.fingerprint(channel),
         "depth": octree.depth, "probes": positions.tolist(), "resolutions": list(resolutions),
         "threshold": threshold, "decay": decay, "reference_samples": samples * samples,
         "seed": seed, "channel": channel, "lod_rule": "texel-footprint cone, scale 1",
         "metrics_on": "float16 radiance as linear RGB clipped to [0, 1]", "rows": rows,
-        "notes": unrefined_notes(rows, threshold),
+        "notes": notes,
     }
 
 

@@ -3,6 +3,7 @@ renderer over a grid, against the adaptive renderer's ray count as the thesis ca
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -61,6 +62,11 @@ def run_sweep(
     cells = [{"decay": d, "threshold": t, **cell} for (d, t), cell in zip(grid, values,
                                                                           strict=True)]
     picks = _closest_to_adaptive(cells, adaptive["rays"], decays)
+    edges = sum(not pick["within_grid"] for pick in picks)
+    if edges:  # the command line prints a warning as a note, --quiet or not
+        warnings.warn(f"the adaptive ray count lies outside the grid's in {edges} of its "
+                      f"{len(picks)} rows; {edge_advice(adaptive['rays'])}", UserWarning,
+                      stacklevel=2)
     report = {"scene": scene_name, "width": camera.width, "height": camera.height,
               "base_lod": base_lod, "adaptive": adaptive, "cells": cells,
               "closest_to_adaptive": picks, "metrics_on": "linear RGB in [0, 1]"}

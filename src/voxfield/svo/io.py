@@ -9,11 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.atomic import atomic_path
-from voxfield.errors import OctreeFormatError, VoxfieldError
+from voxfield.errors import OctreeFormatError
 from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT, pack_descriptors
 from voxfield.svo.octree import (
     CHILD_COUNT,
     Octree,
+    check_octree,
     colour_array_problem,
     facing_array_problem,
     solid_flags,
@@ -27,8 +28,7 @@ FORMAT_VERSION = 2
 
 def save_octree(octree: Octree, path: str | os.PathLike) -> Path:
     """Write the octree to ``path`` (temporary file, then rename)."""
-    if not isinstance(octree, Octree):
-        raise VoxfieldError(f"save_octree needs a voxfield Octree, got {type(octree).__name__}")
+    check_octree(octree, "save_octree")
     path = Path(path)
     with atomic_path(path) as tmp:
         write_octree_file(octree, tmp)

@@ -253,6 +253,14 @@ class Octree:
         return self.attributes[name]
 
 
+def check_octree(value, user: str) -> None:
+    """A clear error where ``user`` (a function's name) was given something other than an
+    octree: it would fail deep inside, on the first attribute it reads."""
+    if not isinstance(value, Octree):
+        raise VoxfieldError(f"{user} needs a voxfield Octree (voxfield.svo.open_octree), got "
+                            f"{type(value).__name__}")
+
+
 def colour_array_problem(values, nodes: int) -> str | None:
     """What is wrong with ``values`` as a colour attribute of ``nodes`` nodes (the words
     after its name), or None: 8-bit sRGB or float32 ``(nodes, 3)``, or RGB9E5 ``(nodes,)``."""
