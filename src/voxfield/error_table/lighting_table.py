@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import functools
 import json
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -134,7 +133,6 @@ def build_lighting_error_table(
 
     if not 2 <= oct_resolution <= 256:
         raise VoxfieldError(f"octahedral map resolution must be in 2..256, got {oct_resolution}")
-    start = time.perf_counter()
     class_of, symmetry_of, reps = configuration_classes()
     texels = texel_directions(oct_resolution)
     chunk = 64
@@ -149,7 +147,6 @@ def build_lighting_error_table(
     params = {
         "resolution": int(resolution), "oct_resolution": int(oct_resolution), "seed": int(seed),
         "classes": int(len(reps)), "configurations": int(np.count_nonzero(class_of >= 0)),
-        "build_seconds": round(time.perf_counter() - start, 2),
     }
     return LightingErrorTable(
         oct_map=add_border(interior).astype(np.float32), class_of=class_of,

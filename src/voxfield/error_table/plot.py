@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.atomic import atomic_path
+from voxfield.atomic import save_figure
 from voxfield.error_table.table import THESIS_THRESHOLD, ErrorTable
 from voxfield.errors import VoxfieldError
 
@@ -100,8 +100,7 @@ def plot_mask_error(
                      f"hatched red: above the threshold {threshold:g} (the red line on the bar)",
                      fontsize=10)
 
-        path = Path(path)
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format="png")
-        plt.close(fig)
-    return path
+        try:
+            return save_figure(fig, path)
+        finally:
+            plt.close(fig)

@@ -8,7 +8,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import json
-import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -55,7 +54,8 @@ class ErrorTable:
     raw: np.ndarray  # (256, n) float32
     sh: np.ndarray  # (256, 9) float32
     oct_map: np.ndarray  # (256, R + 2, R + 2) float32
-    params: dict = field(default_factory=dict)
+    params: dict = field(default_factory=dict)  # what determines the table, nothing more:
+    # no build time, so rebuilding the packaged table rewrites its file byte for byte
     default_encoding: str = "oct"
 
     @property
@@ -131,7 +131,6 @@ def build_error_table(
         raise VoxfieldError("need at least 9 directions to fit 9 SH coefficients")
     if not 2 <= oct_resolution <= 256:
         raise VoxfieldError(f"octahedral map resolution must be in 2..256, got {oct_resolution}")
-    start = time.perf_counter()
     directions = fibonacci_directions(n_directions)
     texels = texel_directions(oct_resolution)
     all_dirs = np.concatenate([directions, texels])
@@ -150,7 +149,6 @@ def build_error_table(
         "oct_resolution": int(oct_resolution),
         "seed": int(seed),
         "direction_set": "fibonacci",
-        "build_seconds": round(time.perf_counter() - start, 2),
     }
     return ErrorTable(
         directions=directions,
