@@ -163,6 +163,13 @@ def test_parent_reuse_row(scene, tmp_path):
     assert rows[compare.REUSE_ROW]["quality"]["psnr"] > 10
     assert compare.REUSE_ROW in (tmp_path / "results.md").read_text()
     assert (tmp_path / "error_aware_reuse.png").is_file()
+    # the console table's columns line up under the longest name
+    from voxfield.cli.cmd_compare import summary_text
+
+    table = summary_text(report).splitlines()[:-1]
+    assert len({len(line) for line in table}) == 1
+    assert all(line.index(" ", len(compare.REUSE_ROW)) == len(compare.REUSE_ROW)
+               for line in table[1:])
 
 
 def test_command_line_entry(scene, stub_renderers, tmp_path, capsys):

@@ -61,12 +61,14 @@ def run(args) -> int:
 
 def summary_text(report: dict) -> str:
     """The console summary: one line per renderer, then where the files went."""
-    lines = [f"{'renderer':<12}{'rays':>12}{'rays/px':>9}{'steps':>14}{'PSNR':>8}"
+    # as wide as the longest name: ``error-aware+reuse`` pushed its row past the columns
+    width = max(len("renderer"), *(len(row["renderer"]) for row in report["rows"])) + 2
+    lines = [f"{'renderer':<{width}}{'rays':>12}{'rays/px':>9}{'steps':>14}{'PSNR':>8}"
              f"{'RMSE':>9}{'SSIM':>7}{'FLIP':>7}"]
     for row in report["rows"]:
         c, q = row["cost"], row["quality"] or {}
         lines.append(
-            f"{row['renderer']:<12}{c['rays_hit']:>12,}{c['rays_per_pixel']:>9.3f}"
+            f"{row['renderer']:<{width}}{c['rays_hit']:>12,}{c['rays_per_pixel']:>9.3f}"
             f"{c['traversal_steps']:>14,}{fmt(q.get('psnr'), '.2f'):>8}"
             f"{fmt(q.get('rmse'), '.5f'):>9}{fmt(q.get('ssim'), '.3f'):>7}"
             f"{fmt(q.get('flip'), '.3f'):>7}"
