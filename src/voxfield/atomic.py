@@ -41,6 +41,16 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         tmp_path.unlink(missing_ok=True)
 
 
+def save_figure(figure, path: str | os.PathLike, *, dpi: float | None = None) -> Path:
+    """A matplotlib Figure as PNG, atomically, on its own background colour, at ``dpi``
+    (the figure's own by default)."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        figure.savefig(tmp, format="png", dpi=dpi or figure.dpi,
+                       facecolor=figure.get_facecolor())
+    return path
+
+
 @contextlib.contextmanager
 def atomic_paths(paths) -> Iterator[list[Path]]:
     """``atomic_path`` for several files that belong together (an image and its maps): all
@@ -84,7 +94,13 @@ def _ready_folder(path: str | os.PathLike) -> Path:
         raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", str(path))
     if path.exists() and not path.is_file():
         raise OSError(errno.EINVAL, "it is a device, pipe or socket, not a file", str(path))
-    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except (FileExistsError, NotADirectoryError):  # "File exists" named no culprit
+        blocking = next((p for p in reversed(path.parents) if p.exists() and not p.is_dir()),
+                        path.parent)
+        raise NotADirectoryError(errno.ENOTDIR, "is a file, not a folder",
+                                 str(blocking)) from None
     return path
 
 

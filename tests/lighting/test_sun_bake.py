@@ -12,6 +12,7 @@ from numba import njit
 
 from random_scenes import overhanging_terrain, pillar_field, random_scene
 from ray_oracle import first_hits
+from voxfield.cli.cmd_light import preview_sheet
 from voxfield.cli.cmd_light import register as add_light_parser
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.sampling import cmj_sample
@@ -403,7 +404,14 @@ def test_the_light_command_writes_the_octree_report_and_previews(tmp_path, capsy
     report = json.loads(out.with_suffix(".json").read_text())
     assert report["cost"]["rays"] > 0 and [s["name"] for s in report["suns"]] == ["noon", "dawn"]
     assert (tmp_path / "lit_noon.png").is_file() and (tmp_path / "lit_dawn.png").is_file()
+    assert (tmp_path / "lit_suns.png").is_file()
     assert "sun bake" in capsys.readouterr().out
+    # the sheet names each preview's sun and where it stands; the files name only the channel
+    suns = parse_suns("noon;dawn=90,5")
+    previews = [(sun.name, np.zeros((4, 4, 3), np.float32)) for sun in suns]
+    titles = [ax.get_title() for ax in preview_sheet(previews, suns, "builtin:sphere").axes]
+    assert titles[:2] == [f"noon: azimuth {suns[0].azimuth_deg:g}°, elevation "
+                          f"{suns[0].elevation_deg:g}°", "dawn: azimuth 90°, elevation 5°"]
     with pytest.raises(VoxfieldError, match="unknown time of day"):
         run_light_command(["builtin:sphere", "--times", "dusk", "--out", str(out)])
 

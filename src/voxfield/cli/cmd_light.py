@@ -8,7 +8,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from voxfield.atomic import atomic_path
+from voxfield.atomic import atomic_path, save_figure
 from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_scene_options,
@@ -25,6 +25,7 @@ from voxfield.render.camera import top_down_camera
 from voxfield.render.image_io import save_png
 from voxfield.render.primary import render_reference
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
+from voxfield.studies.figures import Panel, contact_sheet
 from voxfield.svo.io import write_octree_file
 
 
@@ -36,7 +37,8 @@ def register(subparsers) -> argparse.ArgumentParser:
         "visibility + sky × cosine-weighted sky visibility), traced through the octree at "
         "LOD 0 and stored as one channel per sun next to the albedo (render it with "
         "--channel NAME). Coarse levels average the voxels that see the sky. Writes the "
-        "octree file, a top-down preview per sun and a JSON cost report.",
+        "octree file, a top-down preview per sun, a labelled sheet of them all "
+        "(NAME_suns.png) and a JSON cost report.",
     )
     add_scene_options(p)
     p.add_argument(
@@ -106,11 +108,24 @@ def run(args) -> int:
     written = [out, report_path]
     written += [save_png(image, out.with_name(f"{out.stem}_{name}.png"))
                 for name, image in previews]
+    if previews:
+        written.append(save_figure(preview_sheet(previews, suns, args.scene),
+                                   out.with_name(f"{out.stem}_suns.png"), dpi=100))
     if not quiet:
         print(report.summary())
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+def preview_sheet(previews: list[tuple[str, np.ndarray]], suns, scene: str):
+    """The previews side by side, each titled with its sun's name and position: the files
+    alone say only the channel's name."""
+    by_name = {sun.name: sun for sun in suns}
+    panels = [Panel(f"{name}: azimuth {by_name[name].azimuth_deg:g}°, elevation "
+                    f"{by_name[name].elevation_deg:g}°", image) for name, image in previews]
+    return contact_sheet(panels, columns=min(len(panels), 4),
+                         title=f"{scene}: baked sun and sky light from above, north (-z) up")
 
 
 def render_previews(octree, channels: list[str], *, size: int,

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.atomic import atomic_path
+from voxfield.atomic import save_figure
 from voxfield.lightfield.probe_render import kind_names
 from voxfield.scene.voxel_scene import linear_to_srgb
 
@@ -35,11 +35,11 @@ def write_probe_maps(result, image_path) -> list[Path]:
     maps = result.maps
     tried = maps["probes_tried"]
     return [
-        _write_figure(_count_figure(tried, "probes tried per pixel", discrete=True),
+        save_figure(_count_figure(tried, "probes tried per pixel", discrete=True),
                       f"{stem}_probes_tried.png"),
-        _write_figure(_count_figure(maps["texel_fetches"], "texel fetches per pixel",
+        save_figure(_count_figure(maps["texel_fetches"], "texel fetches per pixel",
                                     discrete=False), f"{stem}_texel_fetches.png"),
-        _write_figure(_kind_figure(maps["result_kind"], kind_names()), f"{stem}_kind.png"),
+        save_figure(_kind_figure(maps["result_kind"], kind_names()), f"{stem}_kind.png"),
     ]
 
 
@@ -120,11 +120,5 @@ def write_side_by_side(result, reference, metrics: dict, path, *, difference=Non
     if lit:
         fig.suptitle("both renders lit for display by the normals each returns; the "
                      "difference and the metrics compare their unlit colours", fontsize=8)
-    return _write_figure(fig, path)
+    return save_figure(fig, path)
 
-
-def _write_figure(fig, path) -> Path:
-    path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=100, facecolor="white")
-    return path

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.atomic import atomic_path
+from voxfield.atomic import save_figure
 from voxfield.probes.probe_set import decode_normals
 from voxfield.render.camera import framing_camera
 from voxfield.render.image_io import shade_for_display
@@ -197,8 +197,4 @@ def _draw_overview(ax, probe_set, octree, size: int) -> None:
 def write_show(probe_set, out: str | os.PathLike, *, octree=None, title: str = "",
                size: int = 512, dpi: int = 100) -> Path:
     """Write the figure as PNG (atomically)."""
-    out = Path(out)
-    fig = figure(probe_set, octree=octree, title=title, size=size)
-    with atomic_path(out) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi, facecolor="white")
-    return out
+    return save_figure(figure(probe_set, octree=octree, title=title, size=size), out, dpi=dpi)

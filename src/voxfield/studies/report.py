@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 import voxfield
-from voxfield.atomic import atomic_path
+from voxfield.atomic import atomic_path, save_figure
 from voxfield.errors import VoxfieldError
 from voxfield.metrics import compare_images
 from voxfield.parallel import thread_count
@@ -318,15 +318,12 @@ class StudyFolder:
     def write_figure(self, name: str, figure, *, dpi: int = 100) -> Path:
         """A matplotlib Figure as PNG; the figure is closed (pyplot keeps every open one)."""
         self._claim()
-        path = self.path(name)
         try:
-            with atomic_path(path) as tmp:
-                figure.savefig(tmp, format="png", dpi=dpi, facecolor=figure.get_facecolor())
+            return save_figure(figure, self.path(name), dpi=dpi)
         finally:
             import matplotlib.pyplot as plt  # heavy: loaded already by whoever drew the figure
 
             plt.close(figure)
-        return path
 
     @staticmethod
     def _write_json_file(path: Path, data) -> None:
