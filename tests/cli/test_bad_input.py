@@ -38,6 +38,16 @@ def test_output_under_a_file_is_one_line(a_file, capsys):
     assert str(a_file) in one_error_line(capsys)
 
 
+def test_a_file_on_the_way_to_an_output_is_named_as_the_culprit(a_file):
+    # mkdir's own "File exists" named the folder it could not make, not the file in the way
+    for deep in (a_file / "x.png", a_file / "sub" / "deeper" / "x.png"):
+        with pytest.raises(NotADirectoryError) as caught, atomic_path(deep):
+            pass
+        assert caught.value.filename == str(a_file)
+        assert "is a file, not a folder" in str(caught.value)
+    assert a_file.read_bytes() == b"not a folder"
+
+
 @pytest.mark.parametrize("command, out, name", [
     (["render", "builtin:sphere", "--size", "8"], "cmd_render", "x.png"),
     (["build", "builtin:sphere"], "cmd_scenes", "x.npz"),

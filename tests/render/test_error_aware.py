@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from tests.random_scenes import random_scene
 
-from voxfield.error_table import build_error_table
+from voxfield.error_table import build_error_table, save_error_table
 from voxfield.errors import VoxfieldError
 from voxfield.render import Camera, render_lod, render_reference
 from voxfield.render.error_aware import (
@@ -111,6 +111,21 @@ def test_bad_options_raise(table, terrain):
         render_error_aware(terrain, cam, table, encoding="wavelet")
     with pytest.raises(VoxfieldError):
         render_error_aware(terrain, cam, table, decay=-1)
+    with pytest.raises(VoxfieldError, match="ErrorTable or a path"):
+        render_error_aware(terrain, cam, 0.05)  # a threshold where the table goes
+    with pytest.raises(VoxfieldError, match="bright ratio"):
+        render_error_aware(terrain, cam, table, bright_ratio=None)
+    with pytest.raises(VoxfieldError, match="LightingErrorTable or a path"):
+        render_error_aware(terrain, cam, table, lighting_aware=True, lighting_table=table)
+
+
+def test_a_table_can_be_named_by_its_path(table, terrain, tmp_path):
+    path = save_error_table(table, tmp_path / "table.npz")
+    cam = _top(terrain, 8)
+    by_path = render_error_aware(terrain, cam, str(path), threshold=0.1, threads=1)
+    given = render_error_aware(terrain, cam, table, threshold=0.1, threads=1)
+    assert np.array_equal(by_path.image, given.image) and np.array_equal(by_path.steps,
+                                                                         given.steps)
 
 
 def test_parent_reuse_reproduces_the_reference_with_16_rays(table, terrain):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import hashlib
+import os
 import time
 from dataclasses import dataclass, field
 
@@ -131,7 +132,7 @@ def render_error_aware(
     pixels then start at their bound from the pyramid drawn into the image
     (``render.beam.raster_beam``), else at the block beam's.
     """
-    table = load_error_table() if table is None else table
+    table = _error_table(table)
     encoding = encoding or table.default_encoding
     if encoding not in ENCODINGS:
         raise VoxfieldError(f"unknown encoding {encoding!r}; choose one of {ENCODINGS}")
@@ -143,7 +144,7 @@ def render_error_aware(
     decay = real_number(decay, "decay")
     if decay < 0:
         raise VoxfieldError(f"decay must be >= 0, got {decay}")
-    if lighting_aware and not real_number(bright_ratio, "bright ratio") >= 0:
+    if not real_number(bright_ratio, "bright ratio") >= 0:
         raise VoxfieldError(f"bright ratio must be a number >= 0, got {bright_ratio}")
     if not real_number(colour_term, "colour term weight") >= 0:
         raise VoxfieldError(f"colour term weight must be a number >= 0, got {colour_term}")
@@ -232,12 +233,26 @@ def render_error_aware(
     return result
 
 
-def _lighting_arrays(table: LightingErrorTable | None, needed: bool) -> tuple:
+def _error_table(table) -> ErrorTable:
+    """The table asked for: given, read from a path, or the packaged one (None)."""
+    if table is None or isinstance(table, (str, os.PathLike)):
+        return load_error_table(table)
+    if not isinstance(table, ErrorTable):
+        raise VoxfieldError(f"the error table must be an ErrorTable or a path to one, not "
+                            f"{type(table).__name__}")
+    return table
+
+
+def _lighting_arrays(table, needed: bool) -> tuple:
     """The lighting table's kernel arrays; tiny stand-ins when the option is off."""
     if not needed:
         return (np.zeros((1, 3, 3), np.float32), np.full(1 << 16, -1, np.int16),
                 np.zeros(1 << 16, np.int8), np.zeros((48, 3, 3)))
-    table = load_lighting_error_table() if table is None else table
+    if table is None or isinstance(table, (str, os.PathLike)):
+        table = load_lighting_error_table(table)
+    elif not isinstance(table, LightingErrorTable):
+        raise VoxfieldError(f"the lighting table must be a LightingErrorTable or a path to "
+                            f"one, not {type(table).__name__}")
     return (np.ascontiguousarray(table.oct_map, np.float32), table.class_of,
             table.symmetry_of, np.ascontiguousarray(table.symmetries, np.float64))
 
