@@ -317,14 +317,23 @@ def _by_colour(scene: VoxelScene, data: bytes) -> dict[int, tuple[int, int, int]
 
 
 def test_scene_graph_translation_and_rotation():
-    # Bar rotated 90° about z (byte 17: x -> y) and moved to (10, 20, 30). Its centre voxel
-    # floor(3/2) = 1 lands on the translation, so in MagicaVoxel space x=0 goes to (10, 19, 30)
-    # and x=2 to (10, 21, 30); the anchor voxel is at (0, 0, 0).
-    # Ours (x, z, -y): anchor (0,0,0), colour 10 (10,30,-19), colour 11 (10,30,-21);
-    # normalised by min (0,0,-21): anchor (0,0,21), 10 -> (10,30,2), 11 -> (10,30,0).
+    # Bar (3×1×1) rotated 90° about z (byte 17: R = [[0,-1,0],[1,0,0],[0,0,1]]) and moved to
+    # (10, 20, 30): floor(R (v + 0.5 - (1, 0, 0))) + t takes x=0 to floor(-0.5, -0.5, 0.5)
+    # + t = (9, 19, 30) and x=2 to floor(-0.5, 1.5, 0.5) + t = (9, 21, 30) (the flipped y
+    # axis has odd size 1, so it lands one lower); the anchor voxel is at (0, 0, 0).
+    # Ours (x, z, -y): anchor (0,0,0), colour 10 (9,30,-19), colour 11 (9,30,-21);
+    # normalised by min (0,0,-21): anchor (0,0,21), 10 -> (9,30,2), 11 -> (9,30,0).
     data = _two_shape_scene(ntrn(2, 3, t=(10, 20, 30), r=17))
     scene = load_vox(data)
-    assert _by_colour(scene, data) == {12: (0, 0, 21), 10: (10, 30, 2), 11: (10, 30, 0)}
+    assert _by_colour(scene, data) == {12: (0, 0, 21), 10: (9, 30, 2), 11: (9, 30, 0)}
+
+
+def test_mirror_of_odd_model_pivots_between_voxels():
+    # The 3-wide bar mirrored in x (byte 20) at (10, 0, 0): floor(-(v + 0.5 - 1)) + 10 puts
+    # x=0 (colour 10) at 10 and x=2 (colour 11) at 8, so the bar spans 8..10, not the 9..11 a
+    # centre-voxel pivot would keep; the anchor stays at 0.
+    data = _two_shape_scene(ntrn(2, 3, t=(10, 0, 0), r=20))
+    assert _by_colour(load_vox(data), data) == {11: (8, 0, 0), 10: (10, 0, 0), 12: (0, 0, 0)}
 
 
 def test_mirror_of_even_model_stays_in_its_box():
@@ -346,8 +355,10 @@ def test_mirror_of_even_model_stays_in_its_box():
 
 
 def test_parent_rotation_turns_child_translation():
-    # Parent: 90° about z; child: translation (5, 0, 0) -> world (0, 5, 0) in MagicaVoxel,
-    # ours (0, 0, -5); with the anchor at the origin, normalised: anchor (0,0,5), voxel (0,0,0).
+    # Parent: 90° about z; child: translation (5, 0, 0) -> (0, 5, 0) in MagicaVoxel, and the
+    # one voxel floor(R (0.5, 0.5, 0.5)) = (-1, 0, 0) from it (x flipped, odd size 1): world
+    # (-1, 5, 0), ours (-1, 0, -5); with the anchor at the origin, normalised by min
+    # (-1, 0, -5): anchor (1,0,5), voxel (0,0,0).
     data = vox(
         size(1, 1, 1),
         xyzi([(0, 0, 0, 10)]),
@@ -362,7 +373,7 @@ def test_parent_rotation_turns_child_translation():
         ntrn(6, 7),
         nshp(7, 1),
     )
-    assert _by_colour(load_vox(data), data) == {12: (0, 0, 5), 10: (0, 0, 0)}
+    assert _by_colour(load_vox(data), data) == {12: (1, 0, 5), 10: (0, 0, 0)}
 
 
 def test_shared_node_is_instanced_and_later_instance_wins():
@@ -623,6 +634,17 @@ def test_test_transform_floor_tiles_exactly():
     # 20 instances of 3 models: at most the sum of their voxels, overlaps removed.
     models = raw_models((VOX_DIR / "test-transform.vox").read_bytes())
     assert len(scene) <= 4 * (len(models[0]) + 2 * len(models[1]) + 2 * len(models[2]))
+
+
+@needs_data
+def test_test_transform_is_mirror_symmetric_in_x():
+    # The file places each model beside its mirror image, a 39-voxel-wide one among them: the
+    # whole scene is its own mirror in x only if odd flipped axes pivot between voxels (a
+    # centre-voxel pivot shifts the mirrored 39-wide instances by one: 2,992 voxels differ).
+    coords = load_vox(VOX_DIR / "test-transform.vox").coords.astype(np.int64)
+    mirrored = coords.copy()
+    mirrored[:, 0] = coords[:, 0].min() + coords[:, 0].max() - coords[:, 0]
+    assert {tuple(c) for c in coords.tolist()} == {tuple(c) for c in mirrored.tolist()}
 
 
 @needs_data

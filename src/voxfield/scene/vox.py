@@ -10,10 +10,12 @@ Conventions chosen here (the format leaves them open):
 * **Axes.** MagicaVoxel is z-up, voxfield is y-up: ``(x, y, z)_mv -> (x, z, -y)``, a proper
   rotation, so handedness and mirroring survive. ``load_vox`` then moves the minimum corner to
   the origin.
-* **Placement.** A shape's accumulated rotation is applied to the model inside its own box
-  (flipped axes run backwards through the box), and the rotated box is placed so that its voxel
-  ``floor(size / 2)`` lands on the accumulated translation. This keeps the centre voxel of an
-  odd-sized model fixed under rotation, as MagicaVoxel does.
+* **Placement.** A voxel ``v`` of a model of ``size`` lands at
+  ``floor(R · (v + 0.5 - floor(size / 2))) + t`` under the accumulated rotation ``R`` and
+  translation ``t``: the pivot lies on the grid between voxels, so an axis the rotation flips
+  lands one voxel lower when its size is odd (a centre-voxel pivot would keep it in place).
+  This is the rule voxel-io and vengi apply; on ``test-transform.vox``, built mirror-symmetric
+  in x with a mirrored 39-voxel-wide model, only it gives a symmetric scene.
 * **Emission.** A ``MATL`` of type ``_emit`` or ``_blend`` emits ``linear colour * _emit *
   (1 + _flux)``: ``_emit`` is the 0..1 emission slider, ``_flux`` the integer power step.
   MagicaVoxel's own radiance scale is undocumented, so this is a monotone stand-in. Legacy
@@ -523,10 +525,9 @@ def _place(model: VoxModel, rot: np.ndarray, trans: np.ndarray) -> np.ndarray:
     cols = np.argmax(rot != 0, axis=1)
     signs = rot[np.arange(3), cols]
     rotated = local[:, cols] * signs
-    new_size = size[cols]
-    # Flipped axes run backwards through the box: shift them back to start at 0.
-    box_shift = np.where(signs < 0, new_size - 1, 0)
-    return rotated + (box_shift - new_size // 2 + trans)
+    half = size[cols] // 2
+    # floor(±(v + 0.5 - half)) is v - half, or -v + half - 1 on a flipped axis
+    return rotated + (np.where(signs < 0, half - 1, -half) + trans)
 
 
 def _to_y_up(coords_mv: np.ndarray) -> np.ndarray:
