@@ -269,6 +269,14 @@ def test_single_voxel_colour_uses_shifted_palette():
     assert scene.emission is None
 
 
+def test_colour_index_zero_is_no_voxel():
+    # Index 0 is the format's "empty"; readers (ogt_vox, vengi) skip such entries.
+    data = vox(size(3, 1, 1), xyzi([(0, 0, 0, 0), (1, 0, 0, 5), (2, 0, 0, 0)]))
+    scene = load_vox(data)
+    np.testing.assert_array_equal(scene.coords, [[0, 0, 0]])
+    np.testing.assert_allclose(scene.color[0], srgb_to_linear(DEFAULT_PALETTE[5, :3] / 255.0))
+
+
 def test_default_palette_when_rgba_absent():
     scene = load_vox(vox(size(1, 1, 1), xyzi([(0, 0, 0, 2)]), version=150))
     want = srgb_to_linear(np.array([255, 255, 204]) / 255.0)

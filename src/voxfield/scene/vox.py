@@ -358,6 +358,9 @@ def _parse(data: bytes, label: str, name: str) -> VoxFile:
                 raise cur.fail("XYZI chunk without a SIZE chunk before it")
             n = cur.count("voxel", 4)
             voxels = np.frombuffer(data, dtype=np.uint8, count=4 * n, offset=cur.pos).reshape(n, 4)
+            if n and voxels[:, 3].min() == 0:  # colour index 0 is no voxel (as ogt_vox reads it)
+                voxels = voxels[voxels[:, 3] != 0]
+                n = len(voxels)
             if n:
                 # Per-column reductions: an axis-0 reduction over N×3 is several times slower.
                 top = [int(voxels[:, k].max()) for k in range(3)]
