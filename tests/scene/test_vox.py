@@ -362,6 +362,23 @@ def test_mirror_of_even_model_stays_in_its_box():
     assert _by_colour(load_vox(data), data) == {12: (0, 0, 0), 11: (4, 0, 0), 10: (5, 0, 0)}
 
 
+def test_animation_keys_are_read_by_frame_number_not_by_order():
+    # Keys listed out of order (other tools than MagicaVoxel may write them so): the
+    # transform's frame 0 moves the bar to x=20, and the shape's frame 0 is model 1 (the
+    # single voxel of colour 12), though frame 5 and frame 3 come first.
+    frames = [{"_f": "5", "_t": "-30 0 0"}, {"_f": "0", "_t": "20 0 0"}]
+    trn = chunk(b"nTRN", struct.pack("<i", 2) + vdict() + struct.pack("<iiii", 3, -1, 0, 2)
+                + b"".join(vdict(f) for f in frames))
+    shp = chunk(b"nSHP", struct.pack("<i", 3) + vdict() + struct.pack("<i", 2)
+                + struct.pack("<i", 0) + vdict({"_f": "3"})
+                + struct.pack("<i", 1) + vdict({"_f": "0"}))
+    data = vox(size(3, 1, 1), xyzi([(0, 0, 0, 10), (2, 0, 0, 11)]), size(1, 1, 1),
+               xyzi([(0, 0, 0, 12)]), ntrn(0, 1), ngrp(1, [2, 4]), trn, shp,
+               ntrn(4, 5), nshp(5, 0))
+    # the shape shows model 1 at x=20; model 0's instance (node 4) sits at the origin, x -1..1
+    assert _by_colour(load_vox(data), data) == {10: (0, 0, 0), 11: (2, 0, 0), 12: (21, 0, 0)}
+
+
 def test_parent_rotation_turns_child_translation():
     # Parent: 90° about z; child: translation (5, 0, 0) -> (0, 5, 0) in MagicaVoxel, and the
     # one voxel floor(R (0.5, 0.5, 0.5)) = (-1, 0, 0) from it (x flipped, odd size 1): world

@@ -427,7 +427,7 @@ def _parse_node(chunk_id: bytes, cur: _Cursor) -> VoxNode:
         child, _reserved, layer = cur.i32(), cur.i32(), cur.i32()
         n_frames = cur.count("frame", 4)
         frames = [cur.dict() for _ in range(n_frames)]
-        frame = frames[0] if frames else {}
+        frame = frames[_first_key(frames, cur)] if frames else {}
         rotation = _IDENTITY_ROTATION
         if "_r" in frame:
             (rotation,) = _parse_int_list(frame["_r"], 1, "rotation _r", cur)
@@ -446,12 +446,21 @@ def _parse_node(chunk_id: bytes, cur: _Cursor) -> VoxNode:
         children = tuple(cur.i32() for _ in range(n))
         return VoxNode(node_id, "group", attrs, children)
     n = cur.count("shape model", 8)
-    model_ids = []
+    model_ids, keys = [], []
     for _ in range(n):
         model_ids.append(cur.i32())
-        cur.dict()  # model attributes (animation frame keys): not used
-    # Animated shapes list one model per keyframe; frame 0's model is the first entry.
-    return VoxNode(node_id, "shape", attrs, tuple(model_ids[:1]))
+        keys.append(cur.dict())
+    # Animated shapes list one model per keyframe: the scene shows frame 0's.
+    first = model_ids[_first_key(keys, cur)] if model_ids else None
+    return VoxNode(node_id, "shape", attrs, () if first is None else (first,))
+
+
+def _first_key(keys: list[dict], cur: _Cursor) -> int:
+    """Which of a node's animation keys holds frame 0: the lowest ``_f`` (absent: 0), the
+    first listed among equals. MagicaVoxel writes them in order; other tools need not."""
+    frames = [_parse_int_list(key["_f"], 1, "frame _f", cur)[0] if "_f" in key else 0
+              for key in keys]
+    return frames.index(min(frames))
 
 
 # --------------------------------------------------------------------------------------------
