@@ -96,6 +96,59 @@ def test_geotiff_reader_nodata_and_position(tmp_path):
     assert (hm.geo.x0, hm.geo.y0) == pytest.approx((10.25, 49.875))
 
 
+def test_nodata_is_compared_in_the_band_s_type(tmp_path):
+    # GDAL writes float32 no-data with printf's six digits: "-3.40282e+38" is not the float64
+    # of float32's lowest value, but it is that value once rounded to float32, as GDAL
+    # compares it.
+    data = np.linspace(0.0, 630.0, 20, dtype=np.float32).reshape(4, 5)
+    data[0, 0] = data[3, 4] = np.finfo(np.float32).min
+    path = tmp_path / "dem.tif"
+    tifffile.imwrite(path, data, extratags=[(42113, 2, 0, "-3.40282e+38")])
+    hm = load_heightmap(path)
+    assert hm.voids == 2 and np.isnan(hm.elevation[0, 0]) and np.isnan(hm.elevation[3, 4])
+    assert np.nanmax(hm.elevation) == pytest.approx(data[3, 3])
+
+
+@pytest.mark.parametrize("dtype, compression, predictor", [
+    (np.int16, "lzw", "horizontal"), (np.float32, "lzw", "floatingpoint"),
+    (np.float32, "deflate", "floatingpoint"), (np.float64, "zstd", None),
+])
+def test_compressed_geotiffs_as_gdal_writes_them(tmp_path, dtype, compression, predictor):
+    # LZW and DEFLATE with floating-point prediction are GDAL's usual DEM compression
+    data = (np.add.outer(np.arange(32.0), np.arange(24.0)) * 7.5).astype(dtype)
+    path = tmp_path / "dem.tif"
+    tifffile.imwrite(path, data, compression=compression, predictor=predictor)
+    np.testing.assert_array_equal(load_heightmap(path).elevation, data.astype(np.float64))
+
+
+def test_minus_9999_is_a_depth_where_the_tag_names_another_void(tmp_path):
+    data = np.full((4, 4), -9999, np.int16)
+    data[0, :] = -4000
+    data[3, 3] = -1
+    tagged, untagged = tmp_path / "bathymetry.tif", tmp_path / "plain.tif"
+    tifffile.imwrite(tagged, data, extratags=[(42113, 2, 0, "-1")])
+    tifffile.imwrite(untagged, data)
+    hm = load_heightmap(tagged)
+    assert hm.voids == 1 and np.nanmin(hm.elevation) == -9999
+    assert load_heightmap(untagged).voids == 11  # no tag: GDAL's habit, -9999, is void
+
+
+def test_a_model_transformation_gives_the_spacing(tmp_path):
+    # ModelTransformationTag instead of scale and tie point: 30 m pixels, north up
+    matrix = (30.0, 0, 0, 500000.0, 0, -30.0, 0, 4100000.0, 0, 0, 0, 0, 0, 0, 0, 1.0)
+    path = tmp_path / "dem.tif"
+    tifffile.imwrite(path, np.arange(64, dtype=np.int16).reshape(8, 8), extratags=[
+        (34264, 12, 16, matrix), (34735, 3, 8, (1, 1, 0, 1, 1024, 0, 1, 1))])
+    hm = load_heightmap(path)
+    assert (hm.geo.dx, hm.geo.dy, hm.geo.geographic) == (30.0, 30.0, False)
+    assert (hm.geo.x0, hm.geo.y0) == pytest.approx((500015.0, 4099985.0))
+    rotated = tmp_path / "rotated.tif"
+    tifffile.imwrite(rotated, np.arange(64, dtype=np.int16).reshape(8, 8), extratags=[
+        (34264, 12, 16, (21.2, 21.2, 0, 0, -21.2, 21.2, 0, 0, 0, 0, 0, 0, 0, 0, 0, 1.0))])
+    with pytest.warns(UserWarning, match="rotates its grid"):
+        assert load_heightmap(rotated).geo is None
+
+
 def test_a_damaged_pixel_scale_is_ignored_with_a_note(tmp_path):
     """A zeroed byte can turn the pixel scale into 1e-309: the terrain's metres per voxel
     then divided by zero. The georeference is dropped with a note instead."""

@@ -25,8 +25,10 @@ from voxfield.errors import DataNotFoundError, SceneFormatError, VoxfieldError
 METRES_PER_DEGREE = 2 * math.pi * 6_371_008.8 / 360
 #: matplotlib's sample DEMs, by the short names ``load_heightmap`` accepts.
 SAMPLE_DEMS = {"jacksboro": "jacksboro_fault_dem.npz", "topobathy": "topobathy.npz"}
-#: Values that mean "no data" in DEMs whatever their tags say (SRTM's void and GDAL's habit).
-_VOID_SENTINELS = (-32768.0, -9999.0)
+#: SRTM's void, below any sea floor: no data in a GeoTIFF whatever its tags say.
+_ALWAYS_VOID = -32768.0
+#: GDAL's habitual no-data value: a void only in a GeoTIFF whose tags name no other.
+_UNTAGGED_VOID = -9999.0
 #: SRTM tile edge lengths (samples) by file size in bytes.
 _HGT_SIZES = {2 * 1201 * 1201: 1201, 2 * 3601 * 3601: 3601}
 
@@ -185,14 +187,24 @@ MIN_PIXEL_SCALE = 1e-9
 
 
 def geotiff_grid(page) -> GeoGrid | None:
-    """The GeoGrid of a GeoTIFF page from its pixel-scale, tie-point and geo-key tags."""
+    """The GeoGrid of a GeoTIFF page from its pixel-scale and tie-point tags, or from its
+    model transformation where it has no rotation, and its geo-key tags."""
     tags = page.tags
     scale = tags.get(33550)
     tie = tags.get(33922)
-    if scale is None or tie is None:
+    matrix = tags.get(34264)  # ModelTransformationTag: 4×4, row-major, raster → model
+    if scale is not None and tie is not None:
+        sx, sy = float(scale.value[0]), float(scale.value[1])
+        i, j, _, x, y, _ = (float(v) for v in tie.value[:6])
+    elif matrix is not None and len(matrix.value) >= 8:
+        m = [float(v) for v in matrix.value[:8]]
+        if m[1] != 0.0 or m[4] != 0.0:  # a rotated or sheared grid: no north-up spacing
+            warnings.warn("the GeoTIFF's model transformation rotates its grid; its ground "
+                          "spacing is ignored and the DEM's own is used", stacklevel=2)
+            return None
+        sx, sy, i, j, x, y = m[0], -m[5], 0.0, 0.0, m[3], m[7]
+    else:
         return None
-    sx, sy = float(scale.value[0]), float(scale.value[1])
-    i, j, _, x, y, _ = (float(v) for v in tie.value[:6])
     keys = tags.get(34735)
     model_type, raster_type = 2, 1  # geographic, pixel-is-area: GeoTIFF's usual defaults
     if keys is not None:
@@ -218,6 +230,24 @@ def geotiff_grid(page) -> GeoGrid | None:
     return GeoGrid(x0=x0, y0=y0, dx=sx, dy=sy, geographic=model_type != 1)
 
 
+def _nodata_mask(arr: np.ndarray, nodata: float | None) -> np.ndarray:
+    """Where the band holds its no-data value, compared in the band's own type, as GDAL does;
+    a value within 1e-5 of a float band's extreme is that extreme (GDAL's
+    ``GDALAdjustNoDataCloseToFloatMax``: it writes "-3.40282e+38", six digits of -FLT_MAX)."""
+    if nodata is None or not math.isfinite(nodata):
+        return np.zeros(arr.shape, bool)
+    if np.issubdtype(arr.dtype, np.integer):
+        info = np.iinfo(arr.dtype)
+        if nodata != int(nodata) or not info.min <= nodata <= info.max:
+            return np.zeros(arr.shape, bool)
+        return arr == arr.dtype.type(int(nodata))
+    extreme = float(np.finfo(arr.dtype).max)
+    if abs(abs(nodata) - extreme) <= 1e-5 * extreme:
+        nodata = math.copysign(extreme, nodata)
+    with np.errstate(over="ignore"):
+        return arr == arr.dtype.type(nodata)
+
+
 def _gdal_nodata(page) -> float | None:
     tag = page.tags.get(42113)
     if tag is None:
@@ -229,7 +259,9 @@ def _gdal_nodata(page) -> float | None:
 
 
 def read_geotiff(path) -> Heightmap:
-    """A single-band GeoTIFF DEM (int or float). Voids: the GDAL_NODATA tag, −32768, −9999, NaN."""
+    """A single-band GeoTIFF DEM (int or float). Voids: NaN, −32768 (deeper than any sea),
+    and the GDAL_NODATA tag's value where it has one, else −9999 (a tag naming another value
+    keeps −9999 a height: a bathymetry grid can be 9,999 m deep)."""
     import tifffile  # lazy: a heavy import that only .tif inputs need
 
     path = existing_file(path)
@@ -264,9 +296,8 @@ def read_geotiff(path) -> Heightmap:
     if not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
         raise SceneFormatError(f"{path}: unsupported sample type {arr.dtype}")
     elev = arr.astype(np.float64)
-    void = ~np.isfinite(elev) | np.isin(elev, _VOID_SENTINELS)
-    if nodata is not None and math.isfinite(nodata):
-        void |= elev == nodata
+    void = ~np.isfinite(elev) | (elev == _ALWAYS_VOID) | (
+        _nodata_mask(arr, nodata) if nodata is not None else elev == _UNTAGGED_VOID)
     elev[void] = np.nan
     return Heightmap(elev, geo=geo, name=path.stem)
 
