@@ -122,7 +122,7 @@ def test_missing_binary_and_unknown_files(tmp_path):
     with pytest.raises(SceneFormatError, match="unsupported"):
         load_mesh(_write(tmp_path, "x.stlx", "solid"))
     (tmp_path / "broken.glb").write_bytes(b"glTF\x02\x00\x00\x00" + b"\xff" * 40)
-    with pytest.raises(SceneFormatError, match="cannot be read"):
+    with pytest.raises(SceneFormatError, match="not a GLB file"):
         load_mesh(tmp_path / "broken.glb")
     with pytest.raises(SceneFormatError):
         load_mesh(_write(tmp_path, "empty.ply", ""))
@@ -272,3 +272,83 @@ def test_stanford_meshes_load(name, n_verts, n_tris):
     np.testing.assert_allclose(mesh.bounds[0], lo, atol=1e-12)
     np.testing.assert_allclose(mesh.bounds[1], hi, atol=1e-12)
     np.testing.assert_allclose(mesh.face_color, np.full((n_tris, 3), np.float32(0.8)))
+
+
+def _one_triangle_gltf(materials=None, material=None, **top) -> dict:
+    """A glTF document of one triangle, its buffer inline."""
+    import base64
+
+    positions = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0]], np.float32).tobytes()
+    primitive = {"attributes": {"POSITION": 0}}
+    if material is not None:
+        primitive["material"] = material
+    doc = {
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+        "nodes": [{"mesh": 0}], "meshes": [{"primitives": [primitive]}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                       "min": [0, 0, 0], "max": [1, 1, 0]}],
+        "bufferViews": [{"buffer": 0, "byteLength": len(positions)}],
+        "buffers": [{"byteLength": len(positions), "uri": "data:application/octet-stream;"
+                     "base64," + base64.b64encode(positions).decode()}],
+        **top,
+    }
+    if materials is not None:
+        doc["materials"] = materials
+    return doc
+
+
+def _as_glb(doc: dict) -> bytes:
+    import json
+    import struct
+
+    text = json.dumps(doc).encode()
+    text += b" " * (-len(text) % 4)
+    return struct.pack("<4sIIII", b"glTF", 2, 20 + len(text), len(text), 0x4E4F534A) + text
+
+
+def test_gltf_emissive_strength_scales_the_emission(tmp_path):
+    # Blender writes KHR_materials_emissive_strength for every emission stronger than 1
+    import json
+
+    glowing = {"emissiveFactor": [1.0, 0.5, 0.0],
+               "extensions": {"KHR_materials_emissive_strength": {"emissiveStrength": 5.0}}}
+    doc = _one_triangle_gltf([glowing], material=0,
+                             extensionsUsed=["KHR_materials_emissive_strength"])
+    (tmp_path / "glow.gltf").write_text(json.dumps(doc))
+    (tmp_path / "glow.glb").write_bytes(_as_glb(doc))
+    for name in ("glow.gltf", "glow.glb"):
+        mesh = load_mesh(tmp_path / name)
+        np.testing.assert_allclose(mesh.face_emission, [[5.0, 2.5, 0.0]])
+
+
+def test_gltf_without_a_material_is_white(tmp_path):
+    # the glTF specification's default material: base colour factor 1 (OBJ's default is grey)
+    import json
+
+    (tmp_path / "plain.gltf").write_text(json.dumps(_one_triangle_gltf()))
+    np.testing.assert_array_equal(load_mesh(tmp_path / "plain.gltf").face_color, [[1, 1, 1]])
+
+
+def test_gltf_requiring_mesh_compression_is_refused(tmp_path):
+    # trimesh reads Draco-compressed positions as zeros: a degenerate or misplaced mesh
+    import json
+
+    doc = _one_triangle_gltf(extensionsUsed=["KHR_draco_mesh_compression"],
+                             extensionsRequired=["KHR_draco_mesh_compression"])
+    doc["meshes"][0]["primitives"][0]["extensions"] = {
+        "KHR_draco_mesh_compression": {"bufferView": 0, "attributes": {"POSITION": 0}}}
+    (tmp_path / "draco.gltf").write_text(json.dumps(doc))
+    with pytest.raises(SceneFormatError, match="compressed with KHR_draco_mesh_compression"):
+        load_mesh(tmp_path / "draco.gltf")
+
+
+def test_a_textured_material_on_a_file_without_texture_coordinates(tmp_path):
+    # no 'vt' line at all: the texture cannot be placed, the material's colour is used
+    Image.fromarray(np.full((2, 2, 3), 200, np.uint8)).save(tmp_path / "t.png")
+    _write(tmp_path, "t.mtl", "newmtl T\nKd 0.5 0.25 1\nmap_Kd t.png\n")
+    path = _write(tmp_path, "t.obj", "mtllib t.mtl\nusemtl T\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                  "f 1 2 3\n")
+    with pytest.warns(UserWarning, match="no texture coordinates"):
+        mesh = load_mesh(path)
+    np.testing.assert_allclose(mesh.face_color, [[0.5, 0.25, 1.0]])
+    assert mesh.face_texture is None or np.all(mesh.face_texture < 0)

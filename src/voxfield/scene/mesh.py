@@ -16,7 +16,7 @@ Colour conventions (all colours end up linear RGB, see DESIGN.md §4):
 
 from __future__ import annotations
 
-import json
+import io
 import warnings
 from dataclasses import dataclass
 from itertools import chain
@@ -26,9 +26,12 @@ import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from voxfield.errors import DataNotFoundError, SceneFormatError
+from voxfield.scene.gltf_source import prepared_gltf
+from voxfield.scene.polygons import triangulate
 from voxfield.scene.voxel_scene import srgb_to_linear
 
-#: Linear colour of surfaces that name no material (or a material we could not find).
+#: Linear colour of surfaces that name no material (or a material we could not find); glTF's
+#: default material is white instead, as its specification says.
 DEFAULT_COLOR = (0.8, 0.8, 0.8)
 
 #: File suffixes ``load_mesh`` understands.
@@ -239,13 +242,9 @@ def _load_obj(path: Path) -> TriangleMesh:
         n_vt = 0 if uv_table is None else len(uv_table)
         vti[has_vt] = _resolve(corners_vt[has_vt], face_nvt[has_vt], n_vt, "texture", path)
 
-    # Fan-triangulate every polygon: corners (0, k+1, k+2).
-    n_tri = counts - 2
-    face_of_tri = np.repeat(np.arange(len(counts)), n_tri)
-    first = np.cumsum(counts) - counts
-    k = np.arange(int(n_tri.sum())) - np.repeat(np.cumsum(n_tri) - n_tri, n_tri)
-    a = first[face_of_tri]
-    corner = np.stack([a, a + k + 1, a + k + 2], axis=1)
+    # Convex polygons fanned from their first corner, concave ones ear-clipped.
+    corner = triangulate(counts, vi, vertices)
+    face_of_tri = np.repeat(np.arange(len(counts)), counts - 2)
     triangles = vi[corner]
 
     materials = _load_materials(path, libs, mat_names)
@@ -289,7 +288,8 @@ def _load_obj(path: Path) -> TriangleMesh:
             face_texture[lacking] = -1
         uv = np.zeros((len(triangles), 3, 2), dtype=np.float32)
         ok = face_texture >= 0
-        uv[ok] = uv_table[tri_vt[ok]]
+        if ok.any():  # none are where the file has no 'vt' at all
+            uv[ok] = uv_table[tri_vt[ok]]
     return TriangleMesh(
         vertices=vertices,
         triangles=triangles,
@@ -310,9 +310,10 @@ def _read_text(path: Path) -> str:
         raise SceneFormatError(f"{path}: cannot read the file ({exc})") from exc
     if b"\0" in data[:4096]:
         raise SceneFormatError(f"{path}: looks binary, not a text OBJ/MTL file")
-    # Keywords and numbers are ASCII; names may be UTF-8 (undecodable bytes are replaced).
+    # Keywords and numbers are ASCII; names may be UTF-8 (undecodable bytes are replaced), and
+    # a UTF-8 byte-order mark (as .NET writers put first) is no part of the first statement.
     # A backslash at the end of a line continues it.
-    return data.decode("utf-8", errors="replace").replace("\\\r\n", " ").replace("\\\n", " ")
+    return data.decode("utf-8-sig", errors="replace").replace("\\\r\n", " ").replace("\\\n", " ")
 
 
 def _numbers(rows: list[str], what: str, path: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -482,15 +483,17 @@ def _load_with_trimesh(path: Path) -> TriangleMesh:
     # heavy: trimesh loads only when a mesh file is read
     import trimesh
 
-    if path.suffix.lower() == ".gltf":
-        # trimesh reports broken glTF JSON as a missing file; say what is wrong instead.
-        try:
-            json.loads(path.read_text(encoding="utf-8"))
-        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-            raise SceneFormatError(f"{path}: not valid glTF (its JSON does not parse: "
-                                   f"{exc})") from exc
+    gltf = path.suffix.lower() in (".gltf", ".glb")
+    # trimesh reports broken glTF JSON as a missing file and reads what it cannot decode as
+    # zeros: the file is checked (and its emission strengths folded in) first.
+    source = prepared_gltf(path) if gltf else None
     try:
-        scene = trimesh.load_scene(str(path), process=False)
+        if source is None:
+            scene = trimesh.load_scene(str(path), process=False)
+        else:
+            scene = trimesh.load_scene(
+                file_obj=io.BytesIO(source), file_type=path.suffix.lower()[1:], process=False,
+                resolver=trimesh.resolvers.FilePathResolver(str(path)))
         parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
     except Exception as exc:  # trimesh raises many kinds for broken files
         raise SceneFormatError(
@@ -498,13 +501,13 @@ def _load_with_trimesh(path: Path) -> TriangleMesh:
         ) from exc
     if not parts:
         raise SceneFormatError(f"{path}: holds no triangles")
-    linear_vertex_colors = path.suffix.lower() in (".gltf", ".glb")
-    pieces = [_from_trimesh(g, linear_vertex_colors) for g in parts]
+    pieces = [_from_trimesh(g, gltf) for g in parts]
     return _concatenate(pieces, path.stem)
 
 
-def _from_trimesh(geom, linear_vertex_colors: bool) -> dict:
-    """One trimesh geometry → TriangleMesh fields (textures as a list)."""
+def _from_trimesh(geom, gltf: bool) -> dict:
+    """One trimesh geometry → TriangleMesh fields (textures as a list). glTF's vertex colours
+    are linear and its primitives without a material white (the spec's default material)."""
     # heavy: trimesh loads only when a mesh file is read
     from trimesh.visual.color import ColorVisuals
     from trimesh.visual.texture import TextureVisuals
@@ -515,7 +518,8 @@ def _from_trimesh(geom, linear_vertex_colors: bool) -> dict:
     part = {
         "vertices": v,
         "triangles": f,
-        "face_color": np.tile(np.float32(DEFAULT_COLOR), (n_t, 1)),
+        "face_color": np.tile(np.float32((1.0, 1.0, 1.0) if gltf else DEFAULT_COLOR),
+                              (n_t, 1)),
         "vertex_color": None,
         "uv": None,
         "textures": [],
@@ -523,7 +527,7 @@ def _from_trimesh(geom, linear_vertex_colors: bool) -> dict:
     }
     visual = geom.visual
     if isinstance(visual, ColorVisuals):
-        decode = _unit_linear if linear_vertex_colors else _unit_srgb
+        decode = _unit_linear if gltf else _unit_srgb
         if visual.kind == "vertex":
             part["vertex_color"] = decode(visual.vertex_colors)
             part["face_color"] = np.ones((n_t, 3), np.float32)
