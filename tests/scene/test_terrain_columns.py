@@ -107,6 +107,32 @@ def test_a_vertical_scale_asked_for_but_cut_to_fit_is_a_note(tmp_path, scale, ca
     assert scene.bounds[1][1] <= 32
 
 
+def test_a_dem_stretched_out_of_shape_says_so_and_crop_keeps_its_proportions(tmp_path):
+    # 24 rows by 48 columns of unknown spacing: square columns stretch it 2× north to south
+    path = tmp_path / "wide.npy"
+    np.save(path, np.add.outer(np.arange(24.0), np.arange(48.0)))
+    with pytest.warns(UserWarning, match=r"48 × 24 samples .* stretched 2.00× north to south"):
+        stretched = load_scene(str(path), SceneOptions(terrain_footprint=32))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # asked for either way: no note
+        cropped = load_scene(str(path), SceneOptions(terrain_footprint=32, dem_fit="crop"))
+        again = load_scene(str(path), SceneOptions(terrain_footprint=32, dem_fit="stretch"))
+    assert np.array_equal(again.coords, stretched.coords)
+    # heights rise one a sample both ways: stretched, they climb twice as fast east as
+    # south; the centred 24 × 24 crop climbs alike both ways
+    def climb(scene):
+        top = np.full((32, 32), -1)
+        np.maximum.at(top, (scene.coords[:, 0], scene.coords[:, 2]), scene.coords[:, 1])
+        return top[-1, 0] - top[0, 0], top[0, -1] - top[0, 0]  # east, south
+
+    east, south = climb(stretched)
+    assert east == pytest.approx(2 * south, abs=1)
+    east, south = climb(cropped)
+    assert east == pytest.approx(south, abs=1)
+    with pytest.raises(VoxfieldError, match="--dem-fit applies to DEM files"):
+        load_scene("terrain:mountain", SceneOptions(terrain_footprint=64, dem_fit="crop"))
+
+
 def test_unknown_spacing_spans_a_quarter_of_the_footprint():
     elev = np.tile(np.linspace(0, 5000, 64), (64, 1))
     cols = terrain_columns(Heightmap(elev), 64, fill_depth=0)

@@ -126,6 +126,9 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="--scene terrain: footprint in voxels per side (default 512)")
     p.add_argument("--vertical-scale", type=float, default=None, metavar="S",
                    help="--scene terrain: height multiplier (default: true scale)")
+    p.add_argument("--dem-fit", choices=("stretch", "crop"), default=None,
+                   help="--scene DEM not square on the ground: stretch it (default) or crop "
+                   "its centred square")
     p.add_argument("--lod-colour", choices=LOD_COLOURS, default=DEFAULT_LOD_COLOUR,
                    help=f"--scene: inner-node colour rule (default {DEFAULT_LOD_COLOUR})")
     p.add_argument("--seed", type=int, default=0, help="scene seed (rays use pixel centres)")
@@ -232,7 +235,8 @@ def _open_scene(args, probe_set):
     """The octree of ``--scene``; a note on stderr when it is not the one the probes saw."""
     options = SceneOptions(mesh_resolution=args.mesh_resolution,
                            terrain_footprint=args.footprint,
-                           vertical_scale=args.vertical_scale, seed=args.seed)
+                           vertical_scale=args.vertical_scale, seed=args.seed,
+                           dem_fit=args.dem_fit)
     octree = open_octree(args.scene, options, progress=not args.quiet,
                          lod_colour=args.lod_colour)
     try:

@@ -145,7 +145,7 @@ def _source(args) -> dict:
         spec = str(path.resolve())
     return {"scene": spec, "mesh_resolution": args.mesh_resolution,
             "footprint": args.footprint, "vertical_scale": args.vertical_scale,
-            "seed": args.seed, "lod_colour": args.lod_colour}
+            "dem_fit": args.dem_fit, "seed": args.seed, "lod_colour": args.lod_colour}
 
 
 def run_bake(args) -> int:
@@ -299,6 +299,7 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool, *, exact: bool =
         mesh_resolution=source.get("mesh_resolution", 256),
         terrain_footprint=source.get("footprint", 512),
         vertical_scale=source.get("vertical_scale"), seed=source.get("seed", 0),
+        dem_fit=source.get("dem_fit"),
     )
     try:
         octree = open_octree_from_spec(spec, options, progress=not quiet,

@@ -197,6 +197,10 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vertical-scale", type=positive_float, default=None, metavar="S",
                    help="DEM height multiplier, > 0 (default: true scale; terrain:RECIPE "
                    "scenes set their own)")
+    p.add_argument("--dem-fit", choices=("stretch", "crop"), default=None,
+                   help="a DEM not square on the ground: stretch it into the square of "
+                   "columns, or crop its centred square (default: stretch, with a note where "
+                   "that distorts it by more than 10%%)")
     p.add_argument("--seed", type=seed_arg, default=0,
                    help=f"seed for sampling and scattering, 0..{MAX_SEED} (default 0)")
     p.add_argument("--colour-storage", choices=("srgb8", "float32"), default="srgb8",
@@ -349,6 +353,7 @@ def scene_options(args) -> SceneOptions:
     return SceneOptions(
         mesh_resolution=args.mesh_resolution, terrain_footprint=args.footprint,
         vertical_scale=args.vertical_scale, seed=args.seed,
+        dem_fit=getattr(args, "dem_fit", None),
     )
 
 

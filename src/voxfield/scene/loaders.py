@@ -36,6 +36,9 @@ class SceneOptions:
     terrain_footprint: int = 512
     vertical_scale: float | None = None
     seed: int = 0
+    #: How a DEM that is not square on the ground fills the square of columns: "stretch" or
+    #: "crop" (its centred square); None stretches it with a note where that distorts it.
+    dem_fit: str | None = None
 
 
 def npz_kind(path: Path) -> str:
@@ -95,6 +98,9 @@ def _no_vertical_scale(spec: str, options: SceneOptions) -> None:
     if options.vertical_scale is not None:
         raise VoxfieldError(f"{spec} sets its own height scale; --vertical-scale applies to "
                             "DEM files and dem:NAME")
+    if options.dem_fit is not None:
+        raise VoxfieldError(f"{spec} sets its own extent; --dem-fit applies to DEM files and "
+                            "dem:NAME")
 
 
 def _terrain_from(source: str, options: SceneOptions) -> VoxelScene:
@@ -102,17 +108,41 @@ def _terrain_from(source: str, options: SceneOptions) -> VoxelScene:
 
 
 def _terrain_layout(source: str, options: SceneOptions):
-    kwargs = {"footprint": options.terrain_footprint, "seed": options.seed}
+    kwargs = {"footprint": options.terrain_footprint, "seed": options.seed,
+              "fit": options.dem_fit or "stretch"}
     if options.vertical_scale is not None:
         kwargs["vertical_scale"] = options.vertical_scale
-    layout = terrain_layout(load_heightmap(source), **kwargs)
+    heightmap = load_heightmap(source)
+    layout = terrain_layout(heightmap, **kwargs)
     cols = layout.cols
+    if options.dem_fit is None:
+        _note_stretch(heightmap)
     if options.vertical_scale is not None and cols.scale_capped:
         # Asked for by name and not given: say so, as the picture alone would not.
         warnings.warn(f"{cols.name}: a vertical scale of {options.vertical_scale:g} would "
                       f"raise the relief above the {cols.footprint}³ cube; it was scaled down "
                       f"to fit ({cols.voxels_per_metre:.3g} voxels per metre)", stacklevel=2)
     return layout
+
+
+#: How far a DEM's ground may be from square before stretching it earns a note.
+STRETCH_NOTED = 1.10
+
+
+def _note_stretch(heightmap) -> None:
+    """Say so where square columns stretch the DEM's ground (an SRTM tile away from the
+    equator is narrower east to west than north to south: 1.31× at 40°)."""
+    n_r, n_c = heightmap.shape
+    dy, dx = heightmap.spacing or (1.0, 1.0)
+    north_south, east_west = n_r * dy, n_c * dx
+    ratio = max(north_south, east_west) / min(north_south, east_west)
+    if ratio > STRETCH_NOTED:
+        unit = "m" if heightmap.spacing else "samples"
+        stretched = "east to west" if east_west < north_south else "north to south"
+        warnings.warn(f"{heightmap.name}: its ground is {east_west:,.0f} × {north_south:,.0f} "
+                      f"{unit} (east × north), stretched {ratio:.2f}× {stretched} into square "
+                      "columns; --dem-fit crop keeps its proportions (its centred square), "
+                      "--dem-fit stretch this without the note", stacklevel=3)
 
 
 def block_source(spec: str, options: SceneOptions | None = None):
