@@ -73,6 +73,11 @@ def test_hgt_reader_on_a_written_tile(tmp_path):
     # South-west corner −12°, 34°: the first row is the northern edge at −11°.
     assert hm.geo.y0 == -11 and hm.geo.x0 == 34 and hm.geo.dx == pytest.approx(1 / 1200)
     assert hm.spacing[0] == pytest.approx(92.66, abs=0.01)  # 3″ of latitude
+    # NASA's download names the tile first and its product after: same position
+    for name in ("S12E034.SRTMGL3.hgt", "s12e034_v2.hgt"):
+        path = path.rename(tmp_path / name)
+        assert load_heightmap(path).geo == hm.geo
+    assert load_heightmap(path.rename(tmp_path / "S12E0345.hgt")).geo is None
 
 
 def test_geotiff_reader_nodata_and_position(tmp_path):

@@ -212,7 +212,7 @@ def test_a_streamed_terrain_gets_the_same_facing_colours_as_a_monolithic_build(t
     np.savez(tmp_path / "dem.npz", elevation=90.0 * np.sin(x / 7.0) * np.cos(z / 5.0) + 120.0,
              spacing=30.0)
     spec = str(tmp_path / "dem.npz")
-    options = SceneOptions(terrain_footprint=32)
+    options = SceneOptions(terrain_footprint=32, dem_fit="stretch")
     streamed = open_octree(spec, options)
     whole = build_octree(load_scene(spec, options))
     assert DEFAULT_LOD_COLOUR == "facing"

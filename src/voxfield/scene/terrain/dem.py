@@ -159,7 +159,8 @@ def read_hgt(path) -> Heightmap:
     """An SRTM ``.hgt`` tile: big-endian int16 metres, square 1201² (3″) or 3601² (1″).
 
     The edge length comes from the file size; −32768 marks voids. A name like ``N40W074``
-    (the tile's south-west corner) gives its position; sample centres sit on whole degrees.
+    (the tile's south-west corner, first in the name) gives its position and so its ground
+    spacing; sample centres sit on whole degrees.
     """
     path = existing_file(path)
     size = path.stat().st_size
@@ -173,7 +174,8 @@ def read_hgt(path) -> Heightmap:
     elev = raw.astype(np.float64)
     elev[raw == -32768] = np.nan
     geo = None
-    m = re.fullmatch(r"([NS])(\d{1,2})([EW])(\d{1,3})", path.stem.upper())
+    # NASA's own names carry more after the tile's: N46E010.SRTMGL1.hgt
+    m = re.match(r"([NS])(\d{1,2})([EW])(\d{1,3})(?![0-9])", path.stem.upper())
     if m:
         lat = int(m.group(2)) * (1 if m.group(1) == "N" else -1)
         lon = int(m.group(4)) * (1 if m.group(3) == "E" else -1)
