@@ -479,3 +479,33 @@ def test_render_draws_a_buried_camera_with_a_note(eye, target, words, capsys, tm
     assert out.exists()
     err = capsys.readouterr().err
     assert err.startswith("voxfield: note: the camera at (") and words in err
+
+
+@pytest.mark.parametrize("name", ["x.vox", "x.npz", "x.npy", "x.hgt", "x.obj"])
+def test_a_pipe_or_device_named_as_a_scene_is_one_line_not_a_hang(name, tmp_path, capsys):
+    pipe = tmp_path / name
+    os.mkfifo(pipe)  # reading it would wait for a writer for ever
+    assert main(["info", str(pipe), "--quiet"]) == 2
+    assert "pipe" in one_error_line(capsys)
+    zero = tmp_path / f"zero{Path(name).suffix}"
+    zero.symlink_to("/dev/zero")  # reading it would fill the memory
+    assert main(["info", str(zero), "--quiet"]) == 2
+    one_error_line(capsys)
+
+
+def test_a_texture_that_is_a_pipe_is_skipped_with_a_note(tmp_path):
+    from voxfield.scene.mesh import load_mesh
+
+    os.mkfifo(tmp_path / "t.png")
+    (tmp_path / "t.mtl").write_text("newmtl T\nKd 1 0 0\nmap_Kd t.png\n")
+    (tmp_path / "t.obj").write_text("mtllib t.mtl\nusemtl T\nv 0 0 0\nv 1 0 0\nv 0 1 0\n"
+                                    "vt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n")
+    with pytest.warns(UserWarning, match="pipe, device or folder"):
+        mesh = load_mesh(tmp_path / "t.obj")
+    np.testing.assert_allclose(mesh.face_color, [[1, 0, 0]])
+
+
+def test_gltf_json_nested_past_python_s_recursion_limit_is_one_line(tmp_path, capsys):
+    (tmp_path / "deep.gltf").write_text("[" * 200_000)
+    assert main(["info", str(tmp_path / "deep.gltf"), "--quiet"]) == 2
+    assert "not valid glTF" in one_error_line(capsys)

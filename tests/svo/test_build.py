@@ -133,6 +133,9 @@ def test_save_load_round_trip(tmp_path):
     assert set(loaded.attributes) == {"color", "emission"}
     assert np.array_equal(loaded.attributes["emission"], octree.attributes["emission"])
     assert not list(tmp_path.glob("*.tmp"))
+    # built again, the same scene writes the same bytes (no build time in the header)
+    again = save_octree(build_octree(scene), tmp_path / "again.npz")
+    assert again.read_bytes() == path.read_bytes()
 
 
 def test_corrupt_octree_files_give_clear_errors(tmp_path):

@@ -58,15 +58,15 @@ def run_info(args) -> int:
         "nodes_per_level": octree.nodes_per_level(),
         "bytes_per_node": octree.bytes_per_node(),
         "channels": sorted("albedo" if k == "color" else k for k in octree.attributes),
-        "build_seconds": octree.build_seconds,
+        "build_seconds": None if load_note == "loaded" else octree.build_seconds,
     }
     if args.json:
         print(json.dumps(info, indent=2))
         return 0
     print(f"{info['name']}: {info['voxels']:,} voxels, extent {info['extent']}, "
           f"depth {info['depth']} (root {info['root_size']}^3), {load_note}")
-    print(f"built in {info['build_seconds']:.3f} s; {info['nodes']:,} nodes; "
-          f"channels: {', '.join(info['channels'])}")
+    built = "" if info["build_seconds"] is None else f"built in {info['build_seconds']:.3f} s; "
+    print(f"{built}{info['nodes']:,} nodes; channels: {', '.join(info['channels'])}")
     print(f"{'level':>5} {'lod':>4} {'nodes':>12} {'node size':>10}")
     for level, count in enumerate(info["nodes_per_level"]):
         lod = octree.depth - level

@@ -3,15 +3,49 @@ traceback. The ``voxfield`` command and the benchmark scripts end alike."""
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
+import signal
 import sys
-from collections.abc import Callable
+import threading
+from collections.abc import Callable, Iterator
 
 from voxfield.errors import VoxfieldError
 
 EXIT_USAGE = 2
 EXIT_INTERRUPTED = 130
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP (``kill``, ``timeout``, a closed terminal) raised where Python runs
+    next, as Ctrl-C is: every ``finally`` then removes its temporary files, where the
+    default action killed the process and left them (half a gigabyte of octree)."""
+
+    def __init__(self, signum: int):
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+
+
+@contextlib.contextmanager
+def stopping_on_termination() -> Iterator[None]:
+    """SIGTERM and SIGHUP raise ``Terminated`` inside the block (main thread only; the
+    handlers before it are put back after)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def terminate(signum, _frame):
+        raise Terminated(signum)
+
+    kinds = [s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None))
+             if s is not None]
+    before = {kind: signal.signal(kind, terminate) for kind in kinds}
+    try:
+        yield
+    finally:
+        for kind, handler in before.items():
+            signal.signal(kind, handler)
 
 
 def report_failures(prog: str, command: Callable[[], int | None]) -> int:
@@ -33,9 +67,22 @@ def report_failures(prog: str, command: Callable[[], int | None]) -> int:
     except OSError as exc:
         print(f"{prog}: error: {os_error_text(exc)}", file=sys.stderr)
         return EXIT_USAGE
-    except KeyboardInterrupt:
-        print(f"{prog}: interrupted", file=sys.stderr)
-        return EXIT_INTERRUPTED
+    except MemoryError as exc:
+        detail = f" ({exc})" if str(exc) else ""
+        print(f"{prog}: error: out of memory{detail}; ask for less (a smaller --size, "
+              "--footprint or resolution)", file=sys.stderr)
+        return EXIT_USAGE
+    except KeyboardInterrupt as exc:
+        return interrupted(prog, exc)
+
+
+def interrupted(prog: str, exc: KeyboardInterrupt) -> int:
+    """One line for Ctrl-C or a termination signal, and the shell's status for it."""
+    if isinstance(exc, Terminated):
+        print(f"{prog}: terminated ({exc})", file=sys.stderr)
+        return 128 + exc.signum
+    print(f"{prog}: interrupted", file=sys.stderr)
+    return EXIT_INTERRUPTED
 
 
 def os_error_text(exc: OSError) -> str:

@@ -13,7 +13,13 @@ import sys
 import warnings
 
 from voxfield.cli.commands import COMMANDS, QUIET_HELP, chosen_command, command_modules
-from voxfield.cli.exits import EXIT_INTERRUPTED, EXIT_USAGE, report_failures
+from voxfield.cli.exits import (
+    EXIT_INTERRUPTED,
+    EXIT_USAGE,
+    interrupted,
+    report_failures,
+    stopping_on_termination,
+)
 from voxfield.progress import compile_notice
 
 __all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "build_parser", "main"]
@@ -79,6 +85,16 @@ def join_negative_values(argv: list[str]) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The command line's status: ``report_failures`` speaks for the command; Ctrl-C while
+    the parser loads the command's modules (numpy, Numba: a second or so) is one line too."""
+    with stopping_on_termination():
+        try:
+            return _main(argv)
+        except KeyboardInterrupt as exc:
+            return interrupted("voxfield", exc)
+
+
+def _main(argv: list[str] | None) -> int:
     warnings.showwarning = _note_warning
     argv = join_negative_values(sys.argv[1:] if argv is None else list(argv))
     parser = build_parser(chosen_command(argv))

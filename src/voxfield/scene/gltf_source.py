@@ -33,7 +33,7 @@ def prepared_gltf(path: Path) -> bytes:
     text, rest = _glb_json(data, path) if binary else (data, b"")
     try:
         tree = json.loads(text.decode("utf-8-sig"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as exc:
         raise SceneFormatError(f"{path}: not valid glTF (its JSON does not parse: "
                                f"{exc})") from exc
     if not isinstance(tree, dict):

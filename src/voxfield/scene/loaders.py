@@ -68,11 +68,7 @@ def load_scene(spec: str, options: SceneOptions | None = None) -> VoxelScene:
     if not spec.strip():
         raise SceneFormatError("no scene named: give a scene file, builtin:NAME or "
                                "terrain:RECIPE")
-    path = Path(spec)
-    if not path.exists():
-        raise DataNotFoundError(f"{spec}: no such file (or use builtin:NAME, terrain:RECIPE)")
-    if path.is_dir():
-        raise SceneFormatError(f"{spec}: a folder, not a scene file")
+    path = _scene_file(spec)
     suffix = path.suffix.lower()
     if suffix == ".vox":
         return load_vox(path)
@@ -90,6 +86,19 @@ def load_scene(spec: str, options: SceneOptions | None = None) -> VoxelScene:
     raise SceneFormatError(
         f"{path}: unknown scene format {suffix!r} (expected .vox, a mesh, a DEM or .npz)"
     )
+
+
+def _scene_file(spec: str) -> Path:
+    """The file a scene names: there, and a plain file (a pipe would wait for a writer for
+    ever, ``/dev/zero`` fill the memory)."""
+    path = Path(spec)
+    if not path.exists():
+        raise DataNotFoundError(f"{spec}: no such file (or use builtin:NAME, terrain:RECIPE)")
+    if path.is_dir():
+        raise SceneFormatError(f"{spec}: a folder, not a scene file")
+    if not path.is_file():
+        raise SceneFormatError(f"{spec}: a pipe, device or socket, not a scene file")
+    return path
 
 
 def _no_vertical_scale(spec: str, options: SceneOptions) -> None:
@@ -156,6 +165,8 @@ def block_source(spec: str, options: SceneOptions | None = None):
         return _terrain_layout(spec.split(":", 1)[1], options)
     path = Path(spec)
     suffix = path.suffix.lower()
+    if path.exists():
+        path = _scene_file(spec)
     if suffix in DEM_SUFFIXES and path.exists():
         return _terrain_layout(str(path), options)
     if suffix == ".npz" and path.is_file() and npz_kind(path) == "dem":

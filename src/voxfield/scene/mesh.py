@@ -464,6 +464,8 @@ def _texture_path(mtl: Path, rest: str) -> Path | None:
 
 def _read_texture(path: Path, owner: Path) -> np.ndarray | None:
     try:
+        if path.exists() and not path.is_file():  # a pipe would wait for a writer for ever
+            raise OSError(f"{path} is a pipe, device or folder, not an image file")
         with Image.open(path) as img:
             rgb = np.asarray(img.convert("RGB"), dtype=np.float32) / 255.0
     except (OSError, UnidentifiedImageError, ValueError, Image.DecompressionBombError) as exc:

@@ -42,8 +42,7 @@ def write_octree_file(octree: Octree, path: str | os.PathLike) -> None:
         "format": FORMAT,
         "version": FORMAT_VERSION,
         "depth": octree.depth,
-        "name": octree.name,
-        "build_seconds": octree.build_seconds,
+        "name": octree.name,  # no build time: the same octree writes the same bytes
         "attributes": sorted(octree.attributes),
         "facing": octree.facing is not None,
     }
@@ -92,7 +91,6 @@ def load_octree(path: str | os.PathLike) -> Octree:
                 attributes=attributes,
                 voxel_box=box,
                 scene_origin=data["scene_origin"],
-                build_seconds=float(header.get("build_seconds", 0.0)),
                 name=str(header.get("name", path.stem)),
                 facing=data["facing"] if header.get("facing") else None,
             )

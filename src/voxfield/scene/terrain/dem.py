@@ -148,9 +148,12 @@ def quiet_tifffile():
 
 
 def existing_file(path) -> Path:
-    """``path`` as a Path, or DataNotFoundError if no such file exists."""
+    """``path`` as a Path, or DataNotFoundError if no such file exists (SceneFormatError if
+    it is a folder, pipe or device)."""
     path = Path(path)
     if not path.is_file():
+        if path.exists():
+            raise SceneFormatError(f"{path}: a folder, pipe or device, not a DEM file")
         raise DataNotFoundError(f"{path}: no such file")
     return path
 
