@@ -191,6 +191,22 @@ def test_a_failed_octree_write_leaves_no_report_previews_or_temporary_file(
     assert list(tmp_path.iterdir()) == []
 
 
+def test_light_interrupted_while_its_previews_render_keeps_the_old_outputs(
+        tmp_path, capsys, monkeypatch):
+    # all or nothing: the octree, its report and the previews of one bake belong together
+    out = tmp_path / "lit.npz"
+    assert main([*LIGHT, "--out", str(out)]) == 0
+    before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
+    assert {"lit.npz", "lit.json", "lit_noon.png", "lit_suns.png"} <= set(before)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("voxfield.cli.cmd_light.render_previews", interrupted)
+    assert main([*LIGHT, "--seed", "5", "--out", str(out)]) == 130
+    assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
+
+
 @pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders anyway")
 def test_read_only_folder_is_one_line(tmp_path, capsys):
     folder = tmp_path / "ro"

@@ -8,7 +8,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from voxfield.atomic import atomic_path, save_figure
+from voxfield.atomic import atomic_paths
 from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_scene_options,
@@ -22,7 +22,7 @@ from voxfield.cli.options import (
 from voxfield.lighting.sun import parse_suns
 from voxfield.lighting.sun_bake import MAX_RAYS, bake_sun_lighting
 from voxfield.render.camera import top_down_camera
-from voxfield.render.image_io import save_png
+from voxfield.render.image_io import png_bytes
 from voxfield.render.primary import render_reference
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
 from voxfield.studies.figures import Panel, contact_sheet
@@ -93,24 +93,23 @@ def run(args) -> int:
     }
     # The octree file (a gigabyte on a 2048² terrain) is written by a thread while the
     # previews render in memory (writing is mostly the kernel copying pages, which leaves
-    # the GIL free). It is committed only once both succeed, and the report and previews
-    # only after it: a failure or Ctrl-C leaves none of them, nor a temporary file.
-    previews = []
-    with atomic_path(out) as octree_tmp, ThreadPoolExecutor(1) as writer:
-        saving = writer.submit(write_octree_file, lit, octree_tmp)
-        if not args.no_preview:
-            previews = render_previews(lit, [s.name for s in suns], size=args.preview_size,
+    # the GIL free). Every output is staged and all are committed together once all are
+    # ready: a failure or Ctrl-C leaves none of them, nor a temporary file.
+    channels = [] if args.no_preview else [s.name for s in suns]
+    written = [out, out.with_suffix(".json"),
+               *(out.with_name(f"{out.stem}_{name}.png") for name in channels),
+               *([out.with_name(f"{out.stem}_suns.png")] if channels else [])]
+    with atomic_paths(written) as staged, ThreadPoolExecutor(1) as writer:
+        saving = writer.submit(write_octree_file, lit, staged[0])
+        staged[1].write_text(json.dumps(details, indent=2))
+        if channels:
+            previews = render_previews(lit, channels, size=args.preview_size,
                                        threads=args.threads)
+            for tmp, (_, image) in zip(staged[2:], previews, strict=False):
+                tmp.write_bytes(png_bytes(image))
+            sheet = preview_sheet(previews, suns, args.scene)
+            sheet.savefig(staged[-1], format="png", dpi=100, facecolor=sheet.get_facecolor())
         saving.result()  # raises the save's error; leaving waits for the thread either way
-    report_path = out.with_suffix(".json")
-    with atomic_path(report_path) as tmp:
-        tmp.write_text(json.dumps(details, indent=2))
-    written = [out, report_path]
-    written += [save_png(image, out.with_name(f"{out.stem}_{name}.png"))
-                for name, image in previews]
-    if previews:
-        written.append(save_figure(preview_sheet(previews, suns, args.scene),
-                                   out.with_name(f"{out.stem}_suns.png"), dpi=100))
     if not quiet:
         print(report.summary())
         for path in written:
