@@ -75,9 +75,9 @@ def check_writable(path: str | os.PathLike) -> Path:
     errors name the target, not the probe file."""
     path = Path(path)
     try:
-        _ready_folder(path)
-        fd, probe = tempfile.mkstemp(prefix=f".{path.stem[:64]}.", suffix=".probe",
-                                     dir=path.parent)
+        target = _ready_folder(path)
+        fd, probe = tempfile.mkstemp(prefix=f".{target.stem[:64]}.", suffix=".probe",
+                                     dir=target.parent)
     except OSError as exc:
         raise type(exc)(exc.errno, exc.strerror, str(path)) from None
     os.close(fd)
@@ -86,14 +86,19 @@ def check_writable(path: str | os.PathLike) -> Path:
 
 
 def _ready_folder(path: str | os.PathLike) -> Path:
-    """``path``, refused if it names a folder or anything but a plain file (a device, a
-    pipe, a socket: the rename would put a file in its place, ``/dev/null`` included), its
-    folder created if missing."""
+    """``path`` (a link's target for a link), refused if it names a folder or anything but a
+    plain file (a device, a pipe, a socket: the rename would put a file in its place,
+    ``/dev/null`` included) or a file its owner made read-only, its folder created if
+    missing."""
     path = Path(path)
+    if path.is_symlink():  # written through, as open() would: the link stays a link
+        path = Path(os.path.realpath(path))
     if path.is_dir():
         raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", str(path))
     if path.exists() and not path.is_file():
         raise OSError(errno.EINVAL, "it is a device, pipe or socket, not a file", str(path))
+    if path.exists() and not os.access(path, os.W_OK):  # the rename would replace it anyway
+        raise PermissionError(errno.EACCES, "the file is read-only", str(path))
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except (FileExistsError, NotADirectoryError):  # "File exists" named no culprit

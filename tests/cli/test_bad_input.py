@@ -525,3 +525,38 @@ def test_gltf_json_nested_past_python_s_recursion_limit_is_one_line(tmp_path, ca
     (tmp_path / "deep.gltf").write_text("[" * 200_000)
     assert main(["info", str(tmp_path / "deep.gltf"), "--quiet"]) == 2
     assert "not valid glTF" in one_error_line(capsys)
+
+
+def test_an_output_that_is_a_link_is_written_through_it(tmp_path):
+    target = tmp_path / "real.png"
+    target.write_bytes(b"old")
+    link = tmp_path / "link.png"
+    link.symlink_to(target)
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--out", str(link)]) == 0
+    assert link.is_symlink() and target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root may write read-only files anyway")
+def test_a_read_only_output_is_one_line_and_kept(tmp_path, capsys):
+    kept = tmp_path / "kept.png"
+    kept.write_bytes(b"keep me")
+    kept.chmod(0o444)
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--out", str(kept)]) == 2
+    assert "read-only" in one_error_line(capsys)
+    assert kept.read_bytes() == b"keep me"
+
+
+def test_build_onto_its_own_scene_file_is_refused(tmp_path, capsys):
+    from voxfield.scene.builtin import builtin_scene
+    from voxfield.scene.npz_io import save_scene
+
+    scene = save_scene(builtin_scene("sphere"), tmp_path / "scene.npz")
+    data = scene.read_bytes()
+    assert main(["build", str(scene), "--quiet", "--out", str(scene)]) == 2
+    assert "names the scene it reads" in one_error_line(capsys)
+    assert scene.read_bytes() == data
+    # a lit octree may be lit again in place: it is read whole before it is replaced
+    lit = tmp_path / "lit.npz"
+    assert main([*LIGHT, "--out", str(lit)]) == 0
+    assert main(["light", str(lit), "--times", "evening", "--sky-rays", "0", "--no-preview",
+                 "--quiet", "--out", str(lit)]) == 0

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import numpy as np
 
@@ -25,6 +26,7 @@ from voxfield.render.camera import top_down_camera
 from voxfield.render.image_io import png_bytes
 from voxfield.render.primary import render_reference
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
+from voxfield.scene.loaders import npz_kind
 from voxfield.studies.figures import Panel, contact_sheet
 from voxfield.svo.io import write_octree_file
 
@@ -73,7 +75,7 @@ def run(args) -> int:
     suns = parse_suns(args.times)  # before the (slow) scene load: bad input fails fast
     check_scheduler(args.scheduler)
     out = output_named(args.out or default_output("lit", args.scene, ".npz"), ".npz",
-                       "a lit octree")
+                       "a lit octree", source=_replaceable(args.scene))
     args.quiet = quiet = getattr(args, "quiet", False)  # as ``voxfield.cli.main`` sets it
     octree = open_octree(args)
     lit, report = bake_sun_lighting(
@@ -115,6 +117,15 @@ def run(args) -> int:
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+def _replaceable(scene: str) -> str | None:
+    """The scene file ``--out`` must not name: any but an octree (a lit octree may be lit
+    again in place, the file is read whole before it is replaced)."""
+    path = Path(scene)
+    if path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree":
+        return None
+    return scene
 
 
 def preview_sheet(previews: list[tuple[str, np.ndarray]], suns, scene: str):

@@ -78,7 +78,7 @@ def run_info(args) -> int:
 
 
 def run_build(args) -> int:
-    output_named(args.out, ".npz", "an octree")  # before the build
+    output_named(args.out, ".npz", "an octree", source=args.scene)  # before the build
     octree = open_octree(args)
     path = save_octree(octree, args.out)
     if not args.quiet:

@@ -463,12 +463,16 @@ def hit_options(args) -> dict:
             "colour_probe": args.colour_probe}
 
 
-def output_named(out: str | Path, suffix: str, what: str) -> Path:
+def output_named(out: str | Path, suffix: str, what: str, *, source: str | None = None) -> Path:
     """``--out`` as a path, refused unless it ends in ``suffix`` (a file whose name says
-    another format, an octree called ``.png``, misleads whoever opens it next) and unless
-    it can be written (``atomic.check_writable``): both before the command's work."""
+    another format, an octree called ``.png``, misleads whoever opens it next), unless it
+    can be written (``atomic.check_writable``) and where it is the ``source`` scene file
+    itself (the command would replace its own input): all before the command's work."""
     path = Path(out)
     if path.suffix.lower() != suffix:
         raise VoxfieldError(f"{path}: {what} is written as {suffix}; give --out a name ending "
                             f"in {suffix}")
+    if source is not None and path.exists() and Path(source).exists() and \
+            path.samefile(source):
+        raise VoxfieldError(f"{path}: --out names the scene it reads; write {what} elsewhere")
     return check_writable(path)
