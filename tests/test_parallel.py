@@ -37,6 +37,27 @@ def test_every_row_once_in_order_in_whole_tiles(height, granule, rays_per_row):
         assert (band.stop - band.start) % granule == 0
 
 
+def test_timed_bands_start_small_and_follow_the_cost_of_a_row(monkeypatch):
+    # a row costs 0.1 s until row 64, then 0.01 s: bands of about half a second follow it,
+    # whole granules, every row once, never more than the untimed band
+    clock = [0.0]
+    monkeypatch.setattr(parallel.time, "perf_counter", lambda: clock[0])
+    seen = []
+
+    def band(rows):
+        seen.append(rows)
+        clock[0] += sum(0.1 if r < 64 else 0.01 for r in range(rows.start, rows.stop))
+
+    run_in_bands(512, band, label="test", threads=1, progress=False, granule=4,
+                 seconds_per_band=0.5)
+    sizes = [b.stop - b.start for b in seen[1:]]
+    assert sizes[0] == 4 and all(s % 4 == 0 for s in sizes)
+    assert [r for b in seen[1:] for r in range(b.start, b.stop)] == list(range(512))
+    slow = [s for b, s in zip(seen[1:], sizes, strict=True) if b.stop <= 64]
+    assert slow[1:] == [4] * (len(slow) - 1)  # 0.4 s for 4 rows: the 0.5 s rounds down
+    assert max(sizes) == band_rows(512, 4)  # cheap rows: capped at the untimed band
+
+
 def test_a_small_image_is_one_call_and_a_large_one_is_cut_by_rays():
     # 512² at one ray a pixel: 2^18 rays, a quarter of a band's worth.
     assert len(_bands(512, 8, 512)) - 1 == 1

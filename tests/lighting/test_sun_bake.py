@@ -436,3 +436,14 @@ def test_scheduled_bake_is_bit_identical_to_the_local_loop(monkeypatch, dask_cli
             np.testing.assert_array_equal(getattr(vis, name), getattr(base, name), err_msg=name)
         for key in ("sky_rays", "shadow_rays", "traversal_steps"):
             assert cost[key] == base_cost[key]
+
+
+def test_chunks_shrink_with_the_rays_a_voxel_casts():
+    # Ctrl-C is heard between kernel calls: 1024 sky and 1024 shadow rays a voxel made a
+    # call of CHUNK_VOXELS last seconds
+    assert bake_module.chunk_voxels(16, 4, 4) == bake_module.CHUNK_VOXELS  # the default
+    sizes = [bake_module.chunk_voxels(sky, 4, 4) for sky in (16, 64, 256, 1024)]
+    assert sizes == sorted(sizes, reverse=True) and sizes[1] < sizes[0]
+    heavy = bake_module.chunk_voxels(1024, 1024, 4)
+    assert heavy == bake_module.MIN_CHUNK_VOXELS
+    assert heavy * (1024 + 1024 * 4) <= 8 * bake_module.CHUNK_VOXELS * 32  # bounded work

@@ -45,6 +45,8 @@ from voxfield.render.device import check_device
 from voxfield.render.result import RenderResult
 
 METHODS = ("light-field", "environment", "box-proxy")
+#: About how long a band of rows takes: Ctrl-C is heard between bands.
+BAND_SECONDS = 0.5
 MAP_NAMES = ("probes_tried", "texel_fetches", "result_kind", "probe")
 #: Above this share of a light-field render's pixels answered by no probe (fallback or
 #: unknown), the render shows the fallback more than the trace: the camera sees what the
@@ -107,8 +109,9 @@ def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field"
         band(slice(0, h))
         result.seconds = time.perf_counter() - start
     else:
+        # a light-field march costs from microseconds to milliseconds a ray
         result.seconds = run_in_bands(h, band, label=method, threads=threads,
-                                      progress=progress)
+                                      progress=progress, seconds_per_band=BAND_SECONDS)
     result.params = params
     return result
 

@@ -40,7 +40,21 @@ __all__ = ["BakeReport", "SunVisibility", "bake_sun_lighting", "sun_visibility"]
 #: 0.2 s on a 2048² desert), large enough that the calls' overhead stays small (2^15 cost
 #: the desert's kernel 4 % more, in 274 calls instead of 68).
 CHUNK_VOXELS = 1 << 17
+#: The rays a voxel casts that ``CHUNK_VOXELS`` is sized for (16 sky rays, 4 shadow rays
+#: for each of 4 suns); a bake casting more a voxel takes fewer voxels a call, down to
+#: ``MIN_CHUNK_VOXELS``, so that Ctrl-C (heard between calls) is still heard within a second.
+CHUNK_RAYS_PER_VOXEL = 32
+MIN_CHUNK_VOXELS = 1 << 10
 MAX_RAYS = 1024
+
+
+def chunk_voxels(sky_rays: int, shadow_rays: int, suns: int) -> int:
+    """Surface voxels a kernel call: ``CHUNK_VOXELS`` at the default rays, fewer in
+    proportion to more rays a voxel (whole multiples of ``MIN_CHUNK_VOXELS``)."""
+    rays = max(1, sky_rays + shadow_rays * suns)
+    chunk = CHUNK_VOXELS * CHUNK_RAYS_PER_VOXEL // rays
+    return int(min(CHUNK_VOXELS, max(MIN_CHUNK_VOXELS, chunk // MIN_CHUNK_VOXELS
+                                     * MIN_CHUNK_VOXELS)))
 
 
 @dataclass
@@ -123,7 +137,7 @@ def sun_visibility(
     sky ray that rises above its start column's horizon slope (``svo.horizons``) is clear
     without either, and so are a face's shadow rays when the face's rear corner is.
 
-    Chunks of ``CHUNK_VOXELS`` surface voxels are independent (each voxel's rays are hashed
+    Chunks of ``chunk_voxels`` surface voxels are independent (each voxel's rays are hashed
     from its index and ``seed``): without a ``scheduler`` they run one after another here,
     each on every core; with one (``voxfield.scaleout``) they run as tasks, the octree's
     descriptors shared, and merge by voxel index, so the result is bit-identical."""
@@ -155,8 +169,9 @@ def sun_visibility(
               "sun_tops": sun_tops, "horizons": horizons, "dirs": dirs,
               "sky_rays": sky_rays, "shadow_rays": shadow_rays, "seed": int(seed),
               "leaves": leaves, "faces": faces, "surface": surface}
-    ranges = [(first, min(len(surface), first + CHUNK_VOXELS))
-              for first in range(0, len(surface), CHUNK_VOXELS)]
+    chunk = chunk_voxels(sky_rays, shadow_rays, len(dirs))
+    ranges = [(first, min(len(surface), first + chunk))
+              for first in range(0, len(surface), chunk)]
     options = {"total": len(surface), "desc": "sun bake", "unit": "voxel", "enabled": progress}
     visibility_task(shared, (0, 0))  # loads (or compiles) the kernel outside the timed region
     start = time.perf_counter()
