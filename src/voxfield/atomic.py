@@ -42,13 +42,17 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
 
 
 def save_figure(figure, path: str | os.PathLike, *, dpi: float | None = None) -> Path:
-    """A matplotlib Figure as PNG, atomically, on its own background colour, at ``dpi``
-    (the figure's own by default)."""
+    """``write_figure_png`` atomically."""
     path = Path(path)
     with atomic_path(path) as tmp:
-        figure.savefig(tmp, format="png", dpi=dpi or figure.dpi,
-                       facecolor=figure.get_facecolor())
+        write_figure_png(figure, tmp, dpi=dpi)
     return path
+
+
+def write_figure_png(figure, path: str | os.PathLike, *, dpi: float | None = None) -> None:
+    """A matplotlib Figure as PNG on its own background colour, at ``dpi`` (the figure's
+    own by default), straight into ``path`` (staged by the caller)."""
+    figure.savefig(path, format="png", dpi=dpi or figure.dpi, facecolor=figure.get_facecolor())
 
 
 @contextlib.contextmanager
@@ -72,14 +76,16 @@ def check_writable(path: str | os.PathLike) -> Path:
     """Fail now, before the work, where ``atomic_path`` would fail after it: a folder in
     the way, a file where a folder should be, a folder that cannot be created or written.
     Creates the target's missing folders (as writing it would) and leaves no file behind;
-    errors name the target, not the probe file."""
+    errors name the target or the file in its way, not the probe file."""
     path = Path(path)
     try:
         target = _ready_folder(path)
         fd, probe = tempfile.mkstemp(prefix=f".{target.stem[:64]}.", suffix=".probe",
                                      dir=target.parent)
-    except OSError as exc:
-        raise type(exc)(exc.errno, exc.strerror, str(path)) from None
+    except OSError as exc:  # name the target, or the file in its way, never the probe
+        named = "" if exc.filename is None else str(exc.filename)
+        culprit = named if named and not named.endswith(".probe") else str(path)
+        raise type(exc)(exc.errno, exc.strerror, culprit) from None
     os.close(fd)
     os.unlink(probe)
     return path

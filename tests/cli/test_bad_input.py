@@ -36,6 +36,11 @@ def test_output_under_a_file_is_one_line(a_file, capsys):
     assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
                  "--out", str(a_file / "x.png")]) == 2
     assert str(a_file) in one_error_line(capsys)
+    # deeper down, the line names the file in the way, not the output
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet",
+                 "--out", str(a_file / "sub" / "x.png")]) == 2
+    assert one_error_line(capsys) == (f"voxfield: error: cannot use {a_file}: a part of the "
+                                      "path is a file, not a folder")
 
 
 def test_a_file_on_the_way_to_an_output_is_named_as_the_culprit(a_file):
@@ -197,7 +202,7 @@ def test_light_interrupted_while_its_previews_render_keeps_the_old_outputs(
     out = tmp_path / "lit.npz"
     assert main([*LIGHT, "--out", str(out)]) == 0
     before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
-    assert {"lit.npz", "lit.json", "lit_noon.png", "lit_suns.png"} <= set(before)
+    assert {"lit.npz", "lit.json", "lit_noon.png", "lit.png"} <= set(before)
 
     def interrupted(*args, **kwargs):
         raise KeyboardInterrupt

@@ -30,6 +30,17 @@ def test_a_termination_signal_cleans_up_like_ctrl_c(tmp_path):
     assert signal.getsignal(signal.SIGTERM) == before  # the handler is put back
 
 
+def test_a_signal_ignored_before_stays_ignored():
+    # under nohup SIGHUP is ignored: a logout must not stop the command
+    before = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        with stopping_on_termination():
+            assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+            assert callable(signal.getsignal(signal.SIGTERM))
+    finally:
+        signal.signal(signal.SIGHUP, before)
+
+
 @pytest.mark.parametrize("signum, status, words", [
     (signal.SIGTERM, 143, "terminated (SIGTERM)"), (signal.SIGHUP, 129, "terminated (SIGHUP)"),
     (signal.SIGINT, 130, "interrupted"),

@@ -404,7 +404,7 @@ def test_the_light_command_writes_the_octree_report_and_previews(tmp_path, capsy
     report = json.loads(out.with_suffix(".json").read_text())
     assert report["cost"]["rays"] > 0 and [s["name"] for s in report["suns"]] == ["noon", "dawn"]
     assert (tmp_path / "lit_noon.png").is_file() and (tmp_path / "lit_dawn.png").is_file()
-    assert (tmp_path / "lit_suns.png").is_file()
+    assert (tmp_path / "lit.png").is_file()
     assert "sun bake" in capsys.readouterr().out
     # the sheet names each preview's sun and where it stands; the files name only the channel
     suns = parse_suns("noon;dawn=90,5")

@@ -76,3 +76,41 @@ def test_a_byte_order_mark_is_not_part_of_the_first_statement(tmp_path):
     mesh = load_mesh(tmp_path / "bom.obj")
     np.testing.assert_array_equal(mesh.vertices[mesh.triangles[0]],
                                   [[0, 0, 0], [4, 0, 0], [0, 1, 0]])
+
+
+def test_a_hole_cut_by_an_outline_that_doubles_back_stays_open():
+    # a 4 × 4 square with a 2 × 2 hole, one polygon: out along the bridge at the bottom-left,
+    # round the hole the other way, back along the bridge (its corners appear twice)
+    outline = [(0, 0), (4, 0), (4, 4), (0, 4), (0, 0), (1, 1), (1, 3), (3, 3), (3, 1), (1, 1)]
+    flat = np.array(outline, float)
+    triangles = ear_clip(np.c_[flat, np.zeros(len(flat))])
+    areas = _triangle_areas(flat, triangles)
+    assert len(triangles) == len(flat) - 2
+    assert np.all(areas >= 0) and areas.sum() == pytest.approx(12.0)
+    centroids = flat[triangles].mean(axis=1)
+    assert not np.any(np.all((centroids > 1) & (centroids < 3), axis=1))  # none in the hole
+
+
+def test_straight_corners_do_not_make_a_convex_polygon_concave():
+    # a rectangle with its edge midpoints, tilted in 3D: rounding makes their turns ±1e-17,
+    # and a convex polygon keeps the fan (its triangles' order) all the same
+    rng = np.random.default_rng(3)
+    square = np.array([(0, 0), (1, 0), (2, 0), (2, 1), (2, 2), (1, 2), (0, 2), (0, 1)], float)
+    for _ in range(50):
+        basis = np.linalg.qr(rng.normal(size=(3, 3)))[0][:, :2]
+        points = square * rng.uniform(0.1, 10) @ basis.T + rng.normal(size=3) * 100
+        tris = triangulate(np.array([8]), np.arange(8), points)
+        np.testing.assert_array_equal(tris, [[0, k + 1, k + 2] for k in range(6)])
+
+
+def test_a_comb_of_thousands_of_corners_is_tiled():
+    # 1,000 teeth, 4,003 corners, counter-clockwise: every gap a notch the fan would fill
+    outline = [(0.0, 0.0), (1000.0, 0.0), (1000.0, 1.0)]
+    for k in range(999, -1, -1):
+        outline += [(k + 0.5, 1.0), (k + 0.5, 10.0), (k, 10.0), (k, 1.0)]
+    flat = np.array(outline)
+    triangles = ear_clip(np.c_[flat, np.zeros(len(flat))])
+    areas = _triangle_areas(flat, triangles)
+    assert len(triangles) == len(flat) - 2
+    assert np.all(areas >= -1e-12) and areas.sum() == pytest.approx(_area(flat))
+    assert _area(flat) == pytest.approx(1000 + 1000 * 0.5 * 9)

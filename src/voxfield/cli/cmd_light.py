@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.atomic import atomic_paths
+from voxfield.atomic import atomic_paths, write_figure_png
 from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_scene_options,
@@ -40,7 +40,7 @@ def register(subparsers) -> argparse.ArgumentParser:
         "LOD 0 and stored as one channel per sun next to the albedo (render it with "
         "--channel NAME). Coarse levels average the voxels that see the sky. Writes the "
         "octree file, a top-down preview per sun, a labelled sheet of them all "
-        "(NAME_suns.png) and a JSON cost report.",
+        "(NAME.png, beside NAME.npz) and a JSON cost report.",
     )
     add_scene_options(p)
     p.add_argument(
@@ -100,7 +100,7 @@ def run(args) -> int:
     channels = [] if args.no_preview else [s.name for s in suns]
     written = [out, out.with_suffix(".json"),
                *(out.with_name(f"{out.stem}_{name}.png") for name in channels),
-               *([out.with_name(f"{out.stem}_suns.png")] if channels else [])]
+               *([out.with_suffix(".png")] if channels else [])]  # no channel's name
     with atomic_paths(written) as staged, ThreadPoolExecutor(1) as writer:
         saving = writer.submit(write_octree_file, lit, staged[0])
         staged[1].write_text(json.dumps(details, indent=2))
@@ -110,7 +110,7 @@ def run(args) -> int:
             for tmp, (_, image) in zip(staged[2:], previews, strict=False):
                 tmp.write_bytes(png_bytes(image))
             sheet = preview_sheet(previews, suns, args.scene)
-            sheet.savefig(staged[-1], format="png", dpi=100, facecolor=sheet.get_facecolor())
+            write_figure_png(sheet, staged[-1], dpi=100)
         saving.result()  # raises the save's error; leaving waits for the thread either way
     if not quiet:
         print(report.summary())

@@ -29,8 +29,8 @@ class Terminated(KeyboardInterrupt):
 
 @contextlib.contextmanager
 def stopping_on_termination() -> Iterator[None]:
-    """SIGTERM and SIGHUP raise ``Terminated`` inside the block (main thread only; the
-    handlers before it are put back after)."""
+    """SIGTERM and SIGHUP raise ``Terminated`` inside the block (main thread only, and not
+    where the signal is ignored; the handlers before it are put back after)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return
@@ -38,8 +38,9 @@ def stopping_on_termination() -> Iterator[None]:
     def terminate(signum, _frame):
         raise Terminated(signum)
 
+    # a signal ignored already (SIGHUP under nohup) stays ignored
     kinds = [s for s in (getattr(signal, "SIGTERM", None), getattr(signal, "SIGHUP", None))
-             if s is not None]
+             if s is not None and signal.getsignal(s) is not signal.SIG_IGN]
     before = {kind: signal.signal(kind, terminate) for kind in kinds}
     try:
         yield

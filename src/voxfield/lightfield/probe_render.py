@@ -109,9 +109,11 @@ def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field"
         band(slice(0, h))
         result.seconds = time.perf_counter() - start
     else:
-        # a light-field march costs from microseconds to milliseconds a ray
+        # a light-field march costs from microseconds to milliseconds a ray; its rays are
+        # traced one by one, so a band may be a single row
         result.seconds = run_in_bands(h, band, label=method, threads=threads,
-                                      progress=progress, seconds_per_band=BAND_SECONDS)
+                                      progress=progress, granule=1,
+                                      seconds_per_band=BAND_SECONDS)
     result.params = params
     return result
 

@@ -36,10 +36,11 @@ def write_probe_maps(result, image_path) -> list[Path]:
     tried = maps["probes_tried"]
     return [
         save_figure(_count_figure(tried, "probes tried per pixel", discrete=True),
-                      f"{stem}_probes_tried.png"),
+                    f"{stem}_probes_tried.png", dpi=100),
         save_figure(_count_figure(maps["texel_fetches"], "texel fetches per pixel",
-                                    discrete=False), f"{stem}_texel_fetches.png"),
-        save_figure(_kind_figure(maps["result_kind"], kind_names()), f"{stem}_kind.png"),
+                                  discrete=False), f"{stem}_texel_fetches.png", dpi=100),
+        save_figure(_kind_figure(maps["result_kind"], kind_names()), f"{stem}_kind.png",
+                    dpi=100),
     ]
 
 
@@ -120,5 +121,5 @@ def write_side_by_side(result, reference, metrics: dict, path, *, difference=Non
     if lit:
         fig.suptitle("both renders lit for display by the normals each returns; the "
                      "difference and the metrics compare their unlit colours", fontsize=8)
-    return save_figure(fig, path)
+    return save_figure(fig, path, dpi=100)
 

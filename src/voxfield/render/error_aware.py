@@ -89,7 +89,7 @@ DEFAULT_BRIGHT_RATIO = ErrorAwareOptions.bright_ratio
 
 
 def render_error_aware(
-    octree: Octree, camera: Camera, table: ErrorTable | None = None, *,
+    octree: Octree, camera: Camera, table: ErrorTable | str | os.PathLike | None = None, *,
     threshold: float = ErrorAwareOptions.threshold, decay: float = ErrorAwareOptions.decay,
     base_lod: int | None = ErrorAwareOptions.base_lod,
     cone_scale: float = ErrorAwareOptions.cone_scale,
@@ -102,7 +102,7 @@ def render_error_aware(
     colour_term: float = ErrorAwareOptions.colour_term,
     colour_to_voxels: bool = ErrorAwareOptions.colour_to_voxels,
     colour_variance: float | None = ErrorAwareOptions.colour_variance,
-    lighting_table: LightingErrorTable | None = None,
+    lighting_table: LightingErrorTable | str | os.PathLike | None = None,
     seed: int = 0, channel: str = "albedo", threads: int | None = None, progress: bool = False,
     columns: bool = True,
 ) -> RenderResult:

@@ -165,7 +165,7 @@ def block_source(spec: str, options: SceneOptions | None = None):
         return _terrain_layout(spec.split(":", 1)[1], options)
     path = Path(spec)
     suffix = path.suffix.lower()
-    if path.exists():
+    if spec.strip() and path.exists():
         path = _scene_file(spec)
     if suffix in DEM_SUFFIXES and path.exists():
         return _terrain_layout(str(path), options)

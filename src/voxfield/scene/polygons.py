@@ -43,7 +43,9 @@ def _convex(counts: np.ndarray, first: np.ndarray, points: np.ndarray) -> np.nda
     flat = _plane_coordinates(points, normal[polygon])
     into, out = flat - flat[preceding], flat[following] - flat
     turns = into[:, 0] * out[:, 1] - into[:, 1] * out[:, 0]
-    return (np.minimum.reduceat(turns, first) >= 0.0) | (counts == 3)
+    # a straight corner's turn is rounding noise of either sign: relative to its edges
+    slack = 1e-9 * np.hypot(*into.T) * np.hypot(*out.T)
+    return (np.minimum.reduceat(turns + slack, first) >= 0.0) | (counts == 3)
 
 
 def _plane_coordinates(points: np.ndarray, normal: np.ndarray) -> np.ndarray:
@@ -58,40 +60,48 @@ def _plane_coordinates(points: np.ndarray, normal: np.ndarray) -> np.ndarray:
 
 
 def ear_clip(points: np.ndarray) -> np.ndarray:
-    """(n - 2, 3) corner indices covering a simple polygon of ``n`` corners; where no ear is
-    left (a self-intersecting or degenerate rest), the rest is fanned."""
+    """(n - 2, 3) corner indices covering a simple polygon of ``n`` corners (a polygon whose
+    outline doubles back through the same corners to cut a hole, as exporters write holes,
+    included); where no ear is left (a self-intersecting or degenerate rest), the rest is
+    fanned. The scan goes on from the last ear, so a polygon of thousands of corners takes
+    a fraction of a second."""
     normal = np.sum(np.cross(points, np.roll(points, -1, axis=0)), axis=0)
     flat = _plane_coordinates(points, normal)
     left = list(range(len(flat)))
     triangles = []
+    i, misses = 0, 0
     while len(left) > 3:
-        for i in range(len(left)):
-            a, b, c = left[i - 1], left[i], left[(i + 1) % len(left)]
-            if _is_ear(flat, left, a, b, c):
-                triangles.append((a, b, c))
-                del left[i]
-                break
-        else:  # nothing clips cleanly: fan what is left
+        i %= len(left)
+        a, b, c = left[i - 1], left[i], left[(i + 1) % len(left)]
+        if _is_ear(flat, left, a, b, c):
+            triangles.append((a, b, c))
+            del left[i]
+            i, misses = max(i - 1, 0), 0  # the corner before may have become an ear
+        elif misses >= len(left):  # a whole round without an ear: fan what is left
             triangles += [(left[0], left[j], left[j + 1]) for j in range(1, len(left) - 1)]
             left = []
+        else:
+            i, misses = i + 1, misses + 1
     if left:
         triangles.append(tuple(left))
     return np.asarray(triangles, np.int64).reshape(-1, 3)
 
 
-def _cross(o: np.ndarray, p: np.ndarray, q: np.ndarray) -> float:
-    return float((p[0] - o[0]) * (q[1] - o[1]) - (p[1] - o[1]) * (q[0] - o[0]))
+def _cross(o: np.ndarray, p: np.ndarray, q: np.ndarray):
+    """(p - o) × (q - o), for one ``q`` or an array of them."""
+    return (p[0] - o[0]) * (q[..., 1] - o[1]) - (p[1] - o[1]) * (q[..., 0] - o[0])
 
 
 def _is_ear(flat: np.ndarray, left: list[int], a: int, b: int, c: int) -> bool:
-    """A convex corner ``b`` whose triangle holds no other remaining corner."""
+    """A convex corner ``b`` whose triangle holds no other remaining corner (a corner at
+    the same place as one of the triangle's, where an outline doubles back, does not
+    count)."""
     if _cross(flat[a], flat[b], flat[c]) <= 0.0:
         return False
-    for other in left:
-        if other in (a, b, c):
-            continue
-        p = flat[other]
-        if (_cross(flat[a], flat[b], p) >= 0.0 and _cross(flat[b], flat[c], p) >= 0.0
-                and _cross(flat[c], flat[a], p) >= 0.0):
-            return False
-    return True
+    others = flat[left]
+    inside = ((_cross(flat[a], flat[b], others) >= 0.0)
+              & (_cross(flat[b], flat[c], others) >= 0.0)
+              & (_cross(flat[c], flat[a], others) >= 0.0))
+    for corner in (flat[a], flat[b], flat[c]):
+        inside &= np.any(others != corner, axis=1)
+    return not inside.any()

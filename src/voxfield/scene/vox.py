@@ -143,7 +143,8 @@ def encode_rotation(matrix) -> int:
 class VoxModel:
     """One SIZE/XYZI pair: ``size`` (x, y, z, z-up) and ``voxels`` (N×4 uint8: x, y, z, index).
 
-    ``voxels`` is a read-only view of the file's bytes (no copy of large models).
+    ``voxels`` is a read-only view of the file's bytes (no copy of large models), a copy
+    where the model lists empty (colour index 0) voxels to drop.
     """
 
     size: tuple[int, int, int]
