@@ -565,3 +565,28 @@ def test_build_onto_its_own_scene_file_is_refused(tmp_path, capsys):
     assert main([*LIGHT, "--out", str(lit)]) == 0
     assert main(["light", str(lit), "--times", "evening", "--sky-rays", "0", "--no-preview",
                  "--quiet", "--out", str(lit)]) == 0
+
+
+@pytest.mark.parametrize("renderer", ["reference", "lod", "error-aware", "adaptive"])
+def test_options_another_renderer_takes_are_noted_not_silently_dropped(renderer, tmp_path,
+                                                                      capsys):
+    out = str(tmp_path / "x.png")
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--renderer", renderer,
+                 "--out", out]) == 0
+    assert capsys.readouterr().err == ""  # the defaults: nothing to say
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--renderer", renderer,
+                 "--reuse-parent", "--out", out]) == 0
+    err = capsys.readouterr().err
+    if renderer == "error-aware":
+        assert err == ""
+    else:
+        assert err.strip() == (f"voxfield: note: the {renderer} renderer takes no "
+                               "--reuse-parent (for error-aware); ignored")
+
+
+def test_a_bake_notes_the_options_its_radiance_renderer_does_not_take(tmp_path, capsys):
+    assert main(["bake", "builtin:sphere", "--grid", "1x1x1", "--resolution", "4",
+                 "--samples", "3", "--quiet", "--out", str(tmp_path / "p")]) == 0
+    assert capsys.readouterr().err.strip() == (
+        "voxfield: note: the error-aware radiance renderer takes no --samples (for "
+        "reference); ignored")

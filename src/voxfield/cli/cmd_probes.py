@@ -19,9 +19,10 @@ from voxfield.cli.options import (
     open_octree,
     output_named,
     positive_int,
+    warn_ignored,
 )
 from voxfield.errors import VoxfieldError
-from voxfield.probes.bake import export_cube_faces
+from voxfield.probes.bake import RADIANCE_FIELDS, export_cube_faces
 from voxfield.probes.folder_bake import bake_to_folder
 from voxfield.probes.grid import parse_grid, relocate
 from voxfield.probes.probe_folder import open_probe_set, read_header
@@ -130,6 +131,14 @@ def register(subparsers) -> None:
 
 
 def _bake_options(args):
+    defaults = BakeOptions()
+    ignored = {f"--{name.replace('_', '-')}": [r for r, taken in RADIANCE_FIELDS.items()
+                                               if name in taken]
+               for name in ("samples", "lod", "cone_scale", "threshold", "decay")
+               if name not in RADIANCE_FIELDS[args.renderer]
+               and getattr(args, name) != getattr(defaults, name)}
+    if ignored:  # --samples with the default error-aware renderer did nothing unsaid
+        warn_ignored(ignored, f"the {args.renderer} radiance renderer")
     return BakeOptions(
         resolution=args.resolution, renderer=args.renderer, channel=args.channel,
         samples=args.samples, lod=args.lod, cone_scale=args.cone_scale,

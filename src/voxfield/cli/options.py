@@ -11,6 +11,7 @@ import argparse
 import dataclasses
 import math
 import re
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -332,6 +333,12 @@ def add_renderer_options(p: argparse.ArgumentParser, renderers, *, only=None,
         p.add_argument(flag, **kwargs)
 
 
+def warn_ignored(ignored: dict[str, list[str]], what: str) -> None:
+    """A note naming options given that ``what`` does not take, and who does."""
+    parts = [f"{flag} (for {'/'.join(users)})" for flag, users in ignored.items()]
+    warnings.warn(f"{what} takes no {', '.join(parts)}; ignored", stacklevel=3)
+
+
 def _python_type(annotation: str):
     """The argparse type of an options field from its (string) annotation."""
     head = annotation.split("|")[0].strip()
@@ -339,8 +346,21 @@ def _python_type(annotation: str):
 
 
 def renderer_options_from(args, renderer: str):
-    """The named renderer's options dataclass filled from parsed arguments."""
+    """The named renderer's options dataclass filled from parsed arguments; a note names
+    the options given that only other renderers take (``--reuse-parent`` with the
+    reference renderer did nothing without a word)."""
     options_type = RENDERERS[renderer].options_type
+    own = {f.name for f in dataclasses.fields(options_type)}
+    ignored: dict[str, list[str]] = {}
+    for other, spec in RENDERERS.items():
+        for f in dataclasses.fields(spec.options_type):
+            if (f.name not in own and f.metadata.get("cli", True) is not False
+                    and f.default is not dataclasses.MISSING and hasattr(args, f.name)
+                    and getattr(args, f.name) != f.default):
+                flag = f.metadata.get("flag", "--" + f.name.replace("_", "-"))
+                ignored.setdefault(flag, []).append(other)
+    if ignored:
+        warn_ignored(ignored, f"the {renderer} renderer")
     values = {f.name: getattr(args, f.name) for f in dataclasses.fields(options_type)
               if f.metadata.get("cli", True) is not False and hasattr(args, f.name)}
     return options_type(**values)

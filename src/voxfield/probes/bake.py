@@ -159,17 +159,22 @@ def _passes(octree: Octree, camera: Camera, options: BakeOptions,
     return radiance, geometry
 
 
+#: Per radiance renderer, the bake's flat, file-recorded fields it takes, and as which of its
+#: own options; the rest mean nothing to it.
+RADIANCE_FIELDS = {
+    "reference": {"samples": "side"},
+    "lod": {"lod": "lod", "cone_scale": "cone_scale"},
+    # The adaptive renderer's first pass picks the cone LOD at scale 1 (no scale option).
+    "adaptive": {"lod": "base_lod"},
+    "error-aware": {"threshold": "threshold", "decay": "decay", "lod": "base_lod",
+                    "cone_scale": "cone_scale"},
+}
+
+
 def radiance_renderer(options: BakeOptions) -> tuple[str, object]:
-    """The registered renderer and its options for a bake's radiance pass: the bake's flat,
-    file-recorded fields mapped onto the renderer's own options."""
-    fields = {
-        "reference": {"side": options.samples},
-        "lod": {"lod": options.lod, "cone_scale": options.cone_scale},
-        # The adaptive renderer's first pass picks the cone LOD at scale 1 (no scale option).
-        "adaptive": {"base_lod": options.lod},
-        "error-aware": {"threshold": options.threshold, "decay": options.decay,
-                        "base_lod": options.lod, "cone_scale": options.cone_scale},
-    }[options.renderer]
+    """The registered renderer and its options for a bake's radiance pass."""
+    fields = {theirs: getattr(options, ours)
+              for ours, theirs in RADIANCE_FIELDS[options.renderer].items()}
     return options.renderer, renderer_options(options.renderer, **fields)
 
 
