@@ -31,6 +31,7 @@ from voxfield.cli.options import (
     hit_options,
     int_between,
     positive_int,
+    scene_options,
     vector_arg,
 )
 from voxfield.errors import VoxfieldError
@@ -64,7 +65,7 @@ from voxfield.render.device import DEVICES
 from voxfield.render.image_io import check_image_output, save_result_image, shade_for_display
 from voxfield.render.placement import camera_placement_problem
 from voxfield.render.primary import render_lod, render_reference
-from voxfield.scene.loaders import SceneOptions
+from voxfield.scene.terrain.columns import DEM_FITS
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree
 
@@ -126,7 +127,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="--scene terrain: footprint in voxels per side (default 512)")
     p.add_argument("--vertical-scale", type=float, default=None, metavar="S",
                    help="--scene terrain: height multiplier (default: true scale)")
-    p.add_argument("--dem-fit", choices=("stretch", "crop"), default=None,
+    p.add_argument("--dem-fit", choices=DEM_FITS, default=None,
                    help="--scene DEM not square on the ground: stretch it (default) or crop "
                    "its centred square")
     p.add_argument("--lod-colour", choices=LOD_COLOURS, default=DEFAULT_LOD_COLOUR,
@@ -233,11 +234,7 @@ def _trace_options(args):
 
 def _open_scene(args, probe_set):
     """The octree of ``--scene``; a note on stderr when it is not the one the probes saw."""
-    options = SceneOptions(mesh_resolution=args.mesh_resolution,
-                           terrain_footprint=args.footprint,
-                           vertical_scale=args.vertical_scale, seed=args.seed,
-                           dem_fit=args.dem_fit)
-    octree = open_octree(args.scene, options, progress=not args.quiet,
+    octree = open_octree(args.scene, scene_options(args), progress=not args.quiet,
                          lod_colour=args.lod_colour)
     try:
         same = octree.fingerprint(probe_set.options.channel) == probe_set.fingerprint

@@ -132,11 +132,12 @@ def register(subparsers) -> None:
 
 def _bake_options(args):
     defaults = BakeOptions()
-    ignored = {f"--{name.replace('_', '-')}": [r for r, taken in RADIANCE_FIELDS.items()
-                                               if name in taken]
-               for name in ("samples", "lod", "cone_scale", "threshold", "decay")
-               if name not in RADIANCE_FIELDS[args.renderer]
-               and getattr(args, name) != getattr(defaults, name)}
+    takers: dict[str, list[str]] = {}  # each radiance field: the renderers that take it
+    for renderer, taken in RADIANCE_FIELDS.items():
+        for name in taken:
+            takers.setdefault(name, []).append(renderer)
+    ignored = {f"--{name.replace('_', '-')}": users for name, users in takers.items()
+               if args.renderer not in users and getattr(args, name) != getattr(defaults, name)}
     if ignored:  # --samples with the default error-aware renderer did nothing unsaid
         warn_ignored(ignored, f"the {args.renderer} radiance renderer")
     return BakeOptions(

@@ -33,7 +33,7 @@ from voxfield.render.placement import check_camera_placement
 from voxfield.render.registry import RENDERERS
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
 from voxfield.scene.loaders import SceneOptions
-from voxfield.scene.terrain.columns import MAX_FOOTPRINT, MIN_FOOTPRINT
+from voxfield.scene.terrain.columns import DEM_FITS, MAX_FOOTPRINT, MIN_FOOTPRINT
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree as open_octree_from_spec
 
@@ -198,7 +198,7 @@ def add_scene_options(p: argparse.ArgumentParser) -> None:
     p.add_argument("--vertical-scale", type=positive_float, default=None, metavar="S",
                    help="DEM height multiplier, > 0 (default: true scale; terrain:RECIPE "
                    "scenes set their own)")
-    p.add_argument("--dem-fit", choices=("stretch", "crop"), default=None,
+    p.add_argument("--dem-fit", choices=DEM_FITS, default=None,
                    help="a DEM not square on the ground: stretch it into the square of "
                    "columns, or crop its centred square (default: stretch, with a note where "
                    "that distorts it by more than 10%%)")
@@ -311,7 +311,7 @@ def add_renderer_options(p: argparse.ArgumentParser, renderers, *, only=None,
         for f in dataclasses.fields(RENDERERS[name].options_type):
             if f.metadata.get("cli", True) is False or (only and f.name not in only):
                 continue
-            flag = f.metadata.get("flag", "--" + f.name.replace("_", "-"))
+            flag = _flag(f)
             if flag in by_flag:
                 by_flag[flag][1].append(name)
             else:
@@ -331,6 +331,11 @@ def add_renderer_options(p: argparse.ArgumentParser, renderers, *, only=None,
         kwargs["type"] = _FIELD_TYPES.get(f.metadata.get("type"), _python_type(f.type))
         kwargs["metavar"] = flag[2:].upper().replace("-", "_")
         p.add_argument(flag, **kwargs)
+
+
+def _flag(f: dataclasses.Field) -> str:
+    """The command-line flag of a renderer options field."""
+    return f.metadata.get("flag", "--" + f.name.replace("_", "-"))
 
 
 def warn_ignored(ignored: dict[str, list[str]], what: str) -> None:
@@ -357,8 +362,7 @@ def renderer_options_from(args, renderer: str):
             if (f.name not in own and f.metadata.get("cli", True) is not False
                     and f.default is not dataclasses.MISSING and hasattr(args, f.name)
                     and getattr(args, f.name) != f.default):
-                flag = f.metadata.get("flag", "--" + f.name.replace("_", "-"))
-                ignored.setdefault(flag, []).append(other)
+                ignored.setdefault(_flag(f), []).append(other)
     if ignored:
         warn_ignored(ignored, f"the {renderer} renderer")
     values = {f.name: getattr(args, f.name) for f in dataclasses.fields(options_type)

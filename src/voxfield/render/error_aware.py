@@ -132,7 +132,7 @@ def render_error_aware(
     pixels then start at their bound from the pyramid drawn into the image
     (``render.beam.raster_beam``), else at the block beam's.
     """
-    table = _error_table(table)
+    table = _table_asked(table, ErrorTable, load_error_table)
     encoding = encoding or table.default_encoding
     if encoding not in ENCODINGS:
         raise VoxfieldError(f"unknown encoding {encoding!r}; choose one of {ENCODINGS}")
@@ -233,12 +233,15 @@ def render_error_aware(
     return result
 
 
-def _error_table(table) -> ErrorTable:
-    """The table asked for: given, read from a path, or the packaged one (None)."""
+def _table_asked(table, table_type: type, load):
+    """The table asked for: given, read from a path by ``load``, or ``load``'s packaged one
+    (None); anything else refused in one line."""
     if table is None or isinstance(table, (str, os.PathLike)):
-        return load_error_table(table)
-    if not isinstance(table, ErrorTable):
-        raise VoxfieldError(f"the error table must be an ErrorTable or a path to one, not "
+        return load(table)
+    if not isinstance(table, table_type):
+        name = table_type.__name__
+        article = "an" if name[0] in "AEIOU" else "a"
+        raise VoxfieldError(f"the table must be {article} {name} or a path to one, not "
                             f"{type(table).__name__}")
     return table
 
@@ -248,11 +251,7 @@ def _lighting_arrays(table, needed: bool) -> tuple:
     if not needed:
         return (np.zeros((1, 3, 3), np.float32), np.full(1 << 16, -1, np.int16),
                 np.zeros(1 << 16, np.int8), np.zeros((48, 3, 3)))
-    if table is None or isinstance(table, (str, os.PathLike)):
-        table = load_lighting_error_table(table)
-    elif not isinstance(table, LightingErrorTable):
-        raise VoxfieldError(f"the lighting table must be a LightingErrorTable or a path to "
-                            f"one, not {type(table).__name__}")
+    table = _table_asked(table, LightingErrorTable, load_lighting_error_table)
     return (np.ascontiguousarray(table.oct_map, np.float32), table.class_of,
             table.symmetry_of, np.ascontiguousarray(table.symmetries, np.float64))
 

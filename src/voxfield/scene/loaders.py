@@ -141,9 +141,7 @@ STRETCH_NOTED = 1.10
 def _note_stretch(heightmap) -> None:
     """Say so where square columns stretch the DEM's ground (an SRTM tile away from the
     equator is narrower east to west than north to south: 1.31× at 40°)."""
-    n_r, n_c = heightmap.shape
-    dy, dx = heightmap.spacing or (1.0, 1.0)
-    north_south, east_west = n_r * dy, n_c * dx
+    north_south, east_west = heightmap.ground
     ratio = max(north_south, east_west) / min(north_south, east_west)
     if ratio > STRETCH_NOTED:
         unit = "m" if heightmap.spacing else "samples"

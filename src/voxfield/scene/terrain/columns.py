@@ -79,11 +79,15 @@ def check_footprint(footprint) -> int:
     return int(footprint)
 
 
+#: How a DEM not square on the ground fills the square of columns (``terrain_columns``).
+DEM_FITS = ("stretch", "crop")
+
+
 def square_crop(hm: Heightmap) -> Heightmap:
     """The centred window of the map that is square on the ground (in metres when known)."""
     n_r, n_c = hm.shape
     sy, sx = hm.spacing or (1.0, 1.0)
-    side_m = min(n_r * sy, n_c * sx)
+    side_m = min(hm.ground)
     k_r = max(2, min(n_r, int(round(side_m / sy))))
     k_c = max(2, min(n_c, int(round(side_m / sx))))
     r0, c0 = (n_r - k_r) // 2, (n_c - k_c) // 2
@@ -120,7 +124,7 @@ def terrain_columns(
     real = is_real(vertical_scale)
     if not (real and math.isfinite(vertical_scale) and vertical_scale > 0):
         raise VoxfieldError(f"vertical_scale must be a positive number, got {vertical_scale!r}")
-    if fit not in ("stretch", "crop"):
+    if fit not in DEM_FITS:
         raise VoxfieldError(f"fit must be 'stretch' or 'crop', got {fit!r}")
     if sea_level is not None and not math.isfinite(sea_level):
         raise VoxfieldError(f"sea_level must be a finite number of metres, got {sea_level!r}")

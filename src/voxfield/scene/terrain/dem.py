@@ -110,6 +110,14 @@ class Heightmap:
         return self.elevation.shape
 
     @property
+    def ground(self) -> tuple[float, float]:
+        """(north–south, east–west) extent: metres where the spacing is known, else
+        samples."""
+        n_r, n_c = self.shape
+        dy, dx = self.spacing or (1.0, 1.0)
+        return n_r * dy, n_c * dx
+
+    @property
     def voids(self) -> int:
         """Number of samples without data."""
         return int(np.isnan(self.elevation).sum())
