@@ -2,6 +2,7 @@
 something goes wrong (one line and a status, never a traceback)."""
 
 import errno
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -81,3 +82,32 @@ def test_a_big_world_too_small_for_its_recipe_is_refused_first(shared_data):
     assert "Traceback" not in proc.stderr
     assert proc.stderr.splitlines()[-1].startswith("bench_traversal: error: no room for")
     assert "building mountain at 64²" not in proc.stderr
+
+
+def _voxfield_writing_to(stdout, *argv):
+    return subprocess.run([sys.executable, "-m", "voxfield.cli", *argv], stdout=stdout,
+                          stderr=subprocess.PIPE, text=True, timeout=300)
+
+
+@pytest.mark.skipif(not Path("/dev/full").exists(), reason="needs /dev/full (Linux)")
+@pytest.mark.parametrize("argv", [["--help"], ["render", "--help"], [], ["scenes"]])
+def test_output_to_a_full_disk_is_one_line_and_a_failure(argv):
+    """argparse drops a failed write of its help (status 0, nothing written); a command's
+    own output failed in its first write, named as "a file"."""
+    with open("/dev/full", "w") as full:
+        proc = _voxfield_writing_to(full, *argv)
+    assert proc.returncode == EXIT_USAGE
+    assert proc.stderr.splitlines() == [
+        "voxfield: error: cannot write to standard output: the disk is full"]
+
+
+@pytest.mark.parametrize("argv", [["--help"], ["scenes"]])
+def test_output_to_a_closed_pipe_is_one_line_and_a_failure(argv):
+    read_end, write_end = os.pipe()
+    os.close(read_end)
+    try:
+        proc = _voxfield_writing_to(write_end, *argv)
+    finally:
+        os.close(write_end)
+    assert proc.returncode == EXIT_USAGE
+    assert proc.stderr.splitlines() == ["voxfield: error: output closed early (broken pipe)"]

@@ -49,23 +49,24 @@ def stopping_on_termination() -> Iterator[None]:
             signal.signal(kind, handler)
 
 
+#: Errors only a write gives: without a file name, they come from standard output.
+_WRITE_ONLY_ERRORS = frozenset({errno.ENOSPC, errno.EDQUOT, errno.EFBIG})
+
+
 def report_failures(prog: str, command: Callable[[], int | None]) -> int:
     """``command()``'s status (0 for None); bad input, an unusable file or a closed output
     pipe print ``prog: error: ...`` and give ``EXIT_USAGE``, Ctrl-C gives
     ``EXIT_INTERRUPTED``."""
     try:
         code = command()
-        sys.stdout.flush()  # a closed pipe shows here, not at exit
-        return code or 0
     except VoxfieldError as exc:
         print(f"{prog}: error: {exc}", file=sys.stderr)
         return EXIT_USAGE
-    except BrokenPipeError:
-        # The reader went away (``voxfield scenes | head -1``): say so once, quietly.
-        sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - Python would flush into the pipe
-        print(f"{prog}: error: output closed early (broken pipe)", file=sys.stderr)
-        return EXIT_USAGE
+    except BrokenPipeError as exc:
+        return stdout_failed(prog, exc)
     except OSError as exc:
+        if exc.filename is None and exc.errno in _WRITE_ONLY_ERRORS:
+            return stdout_failed(prog, exc)  # files are written by paths that name them
         print(f"{prog}: error: {os_error_text(exc)}", file=sys.stderr)
         return EXIT_USAGE
     except MemoryError as exc:
@@ -75,6 +76,29 @@ def report_failures(prog: str, command: Callable[[], int | None]) -> int:
         return EXIT_USAGE
     except KeyboardInterrupt as exc:
         return interrupted(prog, exc)
+    return _flushed_stdout(prog, code or 0)
+
+
+def _flushed_stdout(prog: str, code: int) -> int:
+    """``code``, once what the command printed has reached its reader: a closed pipe or a
+    full disk shows here, named as standard output, not as a traceback at exit."""
+    try:
+        sys.stdout.flush()
+    except OSError as exc:
+        return stdout_failed(prog, exc)
+    return code
+
+
+def stdout_failed(prog: str, exc: OSError) -> int:
+    """One line for output that cannot be written: the reader went away (``voxfield scenes
+    | head -1``) or the disk behind ``> file`` is full."""
+    sys.stdout = open(os.devnull, "w")  # noqa: SIM115 - Python would flush the same bytes at exit
+    if isinstance(exc, BrokenPipeError):
+        print(f"{prog}: error: output closed early (broken pipe)", file=sys.stderr)
+    else:
+        reason = os_error_text(exc).split(": ", 1)[-1]
+        print(f"{prog}: error: cannot write to standard output: {reason}", file=sys.stderr)
+    return EXIT_USAGE
 
 
 def interrupted(prog: str, exc: KeyboardInterrupt) -> int:

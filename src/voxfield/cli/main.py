@@ -18,6 +18,7 @@ from voxfield.cli.exits import (
     EXIT_USAGE,
     interrupted,
     report_failures,
+    stdout_failed,
     stopping_on_termination,
 )
 from voxfield.progress import compile_notice
@@ -32,6 +33,19 @@ class CommandLineParser(argparse.ArgumentParser):
 
     def error(self, message: str):
         self.exit(2, f"voxfield: error: {message} (see `{self.prog} --help`)\n")
+
+    def _print_message(self, message: str, file=None) -> None:
+        """argparse drops a failed write: ``--help > /dev/full`` wrote nothing and exited 0.
+        Help and usage that cannot reach standard output end in one line and status 2."""
+        if not message:
+            return
+        file = file or sys.stderr
+        try:
+            file.write(message)
+            file.flush()
+        except OSError as exc:
+            if file is sys.stdout:
+                sys.exit(stdout_failed("voxfield", exc))
 
 
 def build_parser(command: str | None = None) -> argparse.ArgumentParser:
