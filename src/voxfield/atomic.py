@@ -75,28 +75,32 @@ def atomic_paths(paths) -> Iterator[list[Path]]:
 def check_writable(path: str | os.PathLike) -> Path:
     """Fail now, before the work, where ``atomic_path`` would fail after it: a folder in
     the way, a file where a folder should be, a folder that cannot be created or written.
-    Creates the target's missing folders (as writing it would) and leaves no file behind;
-    errors name the target or the file in its way, not the probe file."""
+    Leaves nothing behind, not even the missing folders writing will create (a command
+    refused later, for its scene, left them empty); errors name the target or the file in
+    its way, not the probe."""
     path = Path(path)
     try:
-        target = _ready_folder(path)
-        fd, probe = tempfile.mkstemp(prefix=f".{target.stem[:64]}.", suffix=".probe",
-                                     dir=target.parent)
+        target = _checked_target(path)
+        folder = _nearest_folder(target.parent)
+        if folder == target.parent:
+            fd, probe = tempfile.mkstemp(prefix=f".{target.stem[:64]}.", suffix=".probe",
+                                         dir=folder)
+            os.close(fd)
+            os.unlink(probe)
+        else:  # the first missing folder, made and removed
+            os.rmdir(tempfile.mkdtemp(prefix=f".{target.stem[:64]}.", suffix=".probe",
+                                      dir=folder))
     except OSError as exc:  # name the target, or the file in its way, never the probe
         named = "" if exc.filename is None else str(exc.filename)
         culprit = named if named and not named.endswith(".probe") else str(path)
         raise type(exc)(exc.errno, exc.strerror, culprit) from None
-    os.close(fd)
-    os.unlink(probe)
     return path
 
 
-def _ready_folder(path: str | os.PathLike) -> Path:
+def _checked_target(path: Path) -> Path:
     """``path`` (a link's target for a link), refused if it names a folder or anything but a
     plain file (a device, a pipe, a socket: the rename would put a file in its place,
-    ``/dev/null`` included) or a file its owner made read-only, its folder created if
-    missing."""
-    path = Path(path)
+    ``/dev/null`` included) or a file its owner made read-only."""
     if path.is_symlink():  # written through, as open() would: the link stays a link
         path = Path(os.path.realpath(path))
     if path.is_dir():
@@ -105,13 +109,29 @@ def _ready_folder(path: str | os.PathLike) -> Path:
         raise OSError(errno.EINVAL, "it is a device, pipe or socket, not a file", str(path))
     if path.exists() and not os.access(path, os.W_OK):  # the rename would replace it anyway
         raise PermissionError(errno.EACCES, "the file is read-only", str(path))
+    return path
+
+
+def _nearest_folder(folder: Path) -> Path:
+    """``folder`` or its nearest existing ancestor; a file where a folder should be is
+    named as in the way."""
+    for candidate in (folder, *folder.parents):
+        if candidate.exists():
+            if not candidate.is_dir():
+                raise NotADirectoryError(errno.ENOTDIR, "is a file, not a folder",
+                                         str(candidate))
+            return candidate
+    return Path(os.getcwd())
+
+
+def _ready_folder(path: str | os.PathLike) -> Path:
+    """``_checked_target(path)`` with its folder created if missing."""
+    path = _checked_target(Path(path))
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
     except (FileExistsError, NotADirectoryError):  # "File exists" named no culprit
-        blocking = next((p for p in reversed(path.parents) if p.exists() and not p.is_dir()),
-                        path.parent)
-        raise NotADirectoryError(errno.ENOTDIR, "is a file, not a folder",
-                                 str(blocking)) from None
+        _nearest_folder(path.parent)
+        raise
     return path
 
 

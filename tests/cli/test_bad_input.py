@@ -103,14 +103,36 @@ def test_an_image_format_render_cannot_write_fails_before_the_scene_loads(
     assert list(tmp_path.iterdir()) == []
 
 
-def test_checking_an_output_leaves_nothing_but_its_folders(tmp_path):
-    target = tmp_path / "a" / "b" / "x.png"
-    assert check_writable(target) == target
-    assert [p.relative_to(tmp_path) for p in sorted(tmp_path.rglob("*"))] == [
-        Path("a"), Path("a/b")]
+def test_checking_an_output_leaves_nothing_behind(tmp_path):
+    for target in (tmp_path / "a" / "b" / "x.png", tmp_path / "y.png"):
+        assert check_writable(target) == target
+    assert list(tmp_path.iterdir()) == []
     (tmp_path / "x.png").mkdir()
     with pytest.raises(IsADirectoryError):
         check_writable(tmp_path / "x.png")
+
+
+def test_a_missing_folder_that_cannot_be_made_is_refused_before_the_work(tmp_path):
+    (tmp_path / "locked").mkdir(mode=0o500)
+    if os.access(tmp_path / "locked", os.W_OK):
+        pytest.skip("this user writes into read-only folders (root)")
+    with pytest.raises(PermissionError) as refused:
+        check_writable(tmp_path / "locked" / "new" / "x.png")
+    assert "probe" not in str(refused.value)
+
+
+@pytest.mark.parametrize("command", [
+    ["render", "missing.vox", "--size", "8"],
+    ["bake", "missing.vox", "--grid", "2"],
+    ["build", "missing.vox"],
+])
+def test_a_command_refused_after_its_output_check_leaves_no_folders(
+        command, tmp_path, capsys, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    name = {"render": "x.png", "bake": "probes", "build": "x.npz"}[command[0]]
+    assert main([*command, "--quiet", "--out", f"new/deeper/{name}"]) == 2
+    assert "missing.vox" in one_error_line(capsys)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_output_naming_a_folder_is_one_line(tmp_path, capsys):
