@@ -612,3 +612,17 @@ def test_a_bake_notes_the_options_its_radiance_renderer_does_not_take(tmp_path, 
     assert capsys.readouterr().err.strip() == (
         "voxfield: note: the error-aware radiance renderer takes no --samples (for "
         "reference); ignored")
+
+
+def test_a_probe_render_over_its_own_probe_set_s_files_is_refused(tmp_path, capsys):
+    probes = tmp_path / "p"
+    assert main(["bake", "builtin:sphere", "--grid", "1x1x1", "--resolution", "4",
+                 "--quiet", "--out", str(probes)]) == 0
+    atlas = (probes / "radiance.exr").read_bytes()
+    assert main(["probe-render", str(probes), "--size", "8", "--quiet", "--method",
+                 "environment", "--out", str(probes / "radiance.exr")]) == 2
+    assert "probe set it reads" in one_error_line(capsys)
+    assert (probes / "radiance.exr").read_bytes() == atlas
+    # beside the probes, under a name of its own, a render is welcome
+    assert main(["probe-render", str(probes), "--size", "8", "--quiet", "--method",
+                 "environment", "--out", str(probes / "view.exr")]) == 0

@@ -60,7 +60,7 @@ from voxfield.lightfield.trace import (
     march_step_problem,
 )
 from voxfield.metrics import compare_images
-from voxfield.probes.probe_folder import open_probe_set
+from voxfield.probes.probe_folder import open_probe_set, owned_file
 from voxfield.render.device import DEVICES
 from voxfield.render.image_io import check_image_output, save_result_image, shade_for_display
 from voxfield.render.placement import camera_placement_problem
@@ -166,6 +166,9 @@ def run(args) -> int:
     folder = Path(args.probes)
     if not folder.is_dir():
         raise VoxfieldError(f"{folder}: no such probe-set folder; bake one with voxfield bake")
+    if owned_file(folder, out):
+        raise VoxfieldError(f"{out}: --out names a file of the probe set it reads; write the "
+                            "render elsewhere")
     probe_set = open_probe_set(folder)
     octree = _open_scene(args, probe_set) if args.scene else None
     bounds = octree.voxel_bounds if octree is not None else probe_set_bounds(probe_set)

@@ -91,6 +91,17 @@ def probe_file_name(index: int) -> str:
     return f"probe_{index:05d}.npz"
 
 
+def owned_file(folder: str | os.PathLike, path: str | os.PathLike) -> bool:
+    """Whether ``path`` is one of the files a probe-set folder keeps (its header, atlases
+    or probes): an output written there would replace part of the bake."""
+    path, folder = Path(path), Path(folder)
+    if not path.parent.exists() or not folder.is_dir() or \
+            not path.parent.resolve() == folder.resolve():
+        return False
+    return (path.name in (HEADER_NAME, *ATLAS_FILES.values())
+            or (path.name.startswith("probe_") and path.suffix == ".npz"))
+
+
 def encodings(resolution: int) -> dict:
     """The per-probe array layout recorded in (and checked against) the header."""
     r = int(resolution)
