@@ -4,6 +4,9 @@ build --resolution``; and a table built with ``errors build`` must be named ``.n
 
 from __future__ import annotations
 
+import argparse
+import math
+
 import numpy as np
 import pytest
 
@@ -130,3 +133,52 @@ def test_a_list_option_with_a_repeat_or_nothing_in_it_is_refused(argv, words, ca
     check as two points that are one; an empty list quietly meant the defaults."""
     err = _refused_by_the_parser([*argv, "--out", "unused"], capsys)
     assert words in err, err
+
+
+@pytest.mark.parametrize("argv", [
+    ["sweep", "builtin:pillars", "--decays", "-0.5"],
+    ["study", "curves", "builtin:pillars", "--decays", "0.1,-0.2"],
+    ["sweep", "builtin:pillars", "--decays", "inf"],
+    ["render", "builtin:pillars", "--renderer", "error-aware", "--decay", "-1"],
+    ["compare", "builtin:pillars", "--decay", "-0.1"],
+    ["bake", "builtin:cornell", "--grid", "1", "--decay", "-1"],
+    ["bake", "builtin:cornell", "--grid", "1", "--threshold", "nan"],
+    ["bake", "builtin:cornell", "--grid", "1", "--cone-scale", "0"],
+])
+def test_a_negative_decay_is_refused_before_the_work(argv, capsys):
+    """The children's error weighs in with a decay of at least 0; the sweep refused -0.5
+    only after it had rendered its reference and adaptive cells."""
+    _refused_by_the_parser([*argv, "--out", "unused"], capsys)
+
+
+def test_a_negative_threshold_is_taken_and_refines_everywhere(tmp_path):
+    """A negative threshold is a setting (refine even where a node's error is zero), not a
+    mistake; its help says so."""
+    from voxfield.cli.options import threshold_arg
+
+    assert threshold_arg("-1") == -1.0 and threshold_arg("inf") == math.inf
+    out = tmp_path / "x.png"
+    assert main(["render", "builtin:pillars", "--renderer", "error-aware", "--size", "8",
+                 "--quiet", "--threshold", "-1", "--out", str(out)]) == 0
+
+
+def _command_parsers(parser, name="voxfield"):
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub_name, sub in action.choices.items():
+                yield from _command_parsers(sub, f"{name} {sub_name}")
+    yield name, parser
+
+
+def test_every_command_s_help_names_the_camera_it_uses_by_default():
+    """`study probes --help` said "(default top)" over a default of room, which fails on a
+    terrain: the user was told the wrong view."""
+    from voxfield.cli.main import build_parser
+
+    seen = 0
+    for name, parser in _command_parsers(build_parser()):
+        for action in parser._actions:
+            if action.dest == "camera":
+                seen += 1
+                assert f"(default {action.default}:" in action.help, name
+    assert seen >= 10

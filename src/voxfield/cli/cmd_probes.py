@@ -16,9 +16,12 @@ from voxfield.cli.options import (
     default_output,
     int_between,
     lod_arg,
+    non_negative_float,
     open_octree,
     output_named,
+    positive_float,
     positive_int,
+    threshold_arg,
     warn_ignored,
 )
 from voxfield.errors import VoxfieldError
@@ -68,11 +71,12 @@ def register(subparsers) -> None:
     p.add_argument("--lod", type=lod_arg, default=defaults.lod,
                    help="lod renderer: fixed LOD; adaptive/error-aware: base LOD; 'cone' "
                    "(default) picks it from the texel footprint")
-    p.add_argument("--cone-scale", type=float, default=defaults.cone_scale,
+    p.add_argument("--cone-scale", type=positive_float, default=defaults.cone_scale,
                    help="node size accepted per texel footprint (default 1)")
-    p.add_argument("--threshold", type=float, default=defaults.threshold,
-                   help=f"error-aware: refinement threshold (default {defaults.threshold})")
-    p.add_argument("--decay", type=float, default=defaults.decay,
+    p.add_argument("--threshold", type=threshold_arg, default=defaults.threshold,
+                   help=f"error-aware: refinement threshold (default {defaults.threshold}; "
+                   "inf never refines, a negative one refines everywhere)")
+    p.add_argument("--decay", type=non_negative_float, default=defaults.decay,
                    help=f"error-aware: weight of the children's error (default {defaults.decay})")
     add_channel_option(p)
     p.add_argument("--relocate", action="store_true",

@@ -14,7 +14,6 @@ from voxfield.cli.options import (
     default_output,
     open_octree,
     positive_int,
-    set_option_help,
     study_camera,
 )
 from voxfield.studies.shadow_study import run_shadow_study, summary_text
@@ -35,10 +34,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     scene = next(a for a in p._actions if a.dest == "scene")
     scene.nargs, scene.default = "?", DEFAULT_SCENE
     scene.help = f"{scene.help}; default {DEFAULT_SCENE}"
-    add_view_options(p, size=256)
-    p.set_defaults(camera="beam")
-    set_option_help(p, "camera", "beam (in front of the scene, above the floor, looking at "
-                    "it; default), top, oblique, orbit, ortho-top, room, cube+x..cube-z")
+    add_view_options(p, size=256, camera="beam")
     p.add_argument("--light-samples", type=positive_int, default=16,
                    help="light samples per pixel of the cheap renders (default 16)")
     p.add_argument("--reference-samples", type=positive_int, default=256,

@@ -23,6 +23,7 @@ from voxfield.cli.options import (
     int_between,
     lod_arg,
     name_list,
+    non_negative_float_list,
     open_octree,
     positive_int_list,
     scheduler_name,
@@ -172,7 +173,7 @@ def _register_curves(actions) -> None:
     c.add_argument("--thresholds", type=float_list, default=CURVE_THRESHOLDS,
                    help="EA thresholds (default " + ",".join(f"{t:g}" for t in CURVE_THRESHOLDS)
                    + ")")
-    c.add_argument("--decays", type=float_list, default=CURVE_DECAYS,
+    c.add_argument("--decays", type=non_negative_float_list, default=CURVE_DECAYS,
                    help="EA decays, one curve each (default "
                    + ",".join(f"{d:g}" for d in CURVE_DECAYS) + ")")
     c.add_argument("--normalisations", type=float_list, default=CURVE_NORMALISATIONS,
@@ -378,8 +379,8 @@ def _register_probes(actions) -> argparse.ArgumentParser:
                    help="timed runs per renderer in the wall-time section (default 3)")
     add_study_folder(p, "probe_study", scheduled=True)
     add_channel_option(p)
-    add_view_options(p, size=256)
-    p.set_defaults(func=run_probes, camera="room")
+    add_view_options(p, size=256, camera="room")
+    p.set_defaults(func=run_probes)
     return p
 
 

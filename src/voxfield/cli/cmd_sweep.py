@@ -12,6 +12,7 @@ from voxfield.cli.options import (
     add_study_folder,
     add_view_options,
     float_list,
+    non_negative_float_list,
     open_octree,
     study_camera,
 )
@@ -25,7 +26,7 @@ def register(subparsers) -> None:
         "the adaptive renderer and the 4×4 reference; resumable.",
     )
     add_scene_options(p)
-    p.add_argument("--decays", type=float_list, default=THESIS_DECAYS,
+    p.add_argument("--decays", type=non_negative_float_list, default=THESIS_DECAYS,
                    help="comma-separated decays (default the thesis's 0.05..0.3)")
     p.add_argument("--thresholds", type=float_list, default=THESIS_THRESHOLDS,
                    help="comma-separated thresholds (default the thesis's 0.175..0.05)")

@@ -114,6 +114,26 @@ def positive_float(text: str) -> float:
     return value
 
 
+def non_negative_float(text: str) -> float:
+    """A finite number of at least zero: a weight (the error-aware decay)."""
+    value = finite_float(text)
+    if not value >= 0.0:
+        raise argparse.ArgumentTypeError(f"expected a number of at least 0, got {text!r}")
+    return value
+
+
+def threshold_arg(text: str) -> float:
+    """An error-aware threshold: any number but NaN (inf never refines, a negative one
+    refines everywhere, as 0 does where a node's error is not zero)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if math.isnan(value):
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}")
+    return value
+
+
 def fov_arg(text: str) -> float:
     """A field of view from ``MIN_FOV_DEG`` to below 180 degrees."""
     value = finite_float(text)
@@ -154,6 +174,15 @@ def float_list(text: str) -> tuple[float, ...]:
     return distinct(values, text)
 
 
+def non_negative_float_list(text: str) -> tuple[float, ...]:
+    """``float_list`` of finite numbers of at least zero (decays, weights)."""
+    values = float_list(text)
+    if any(not (math.isfinite(v) and v >= 0.0) for v in values):
+        raise argparse.ArgumentTypeError(
+            f"expected finite numbers of at least 0, got {text!r}")
+    return values
+
+
 def positive_int_list(text: str) -> tuple[int, ...]:
     """Comma-separated positive whole numbers (sizes, resolutions), each once."""
     try:
@@ -174,7 +203,8 @@ def name_list(text: str) -> tuple[str, ...]:
 
 
 #: argparse types named by a renderer option's ``metadata["type"]``.
-_FIELD_TYPES = {"lod": lod_arg, "positive": positive_int, "positive_float": positive_float}
+_FIELD_TYPES = {"lod": lod_arg, "positive": positive_int, "positive_float": positive_float,
+                "non_negative_float": non_negative_float, "threshold": threshold_arg}
 
 
 # --------------------------------------------------------------------------- option groups
@@ -248,10 +278,12 @@ def display_shaded(args, out: Path, channel: str) -> bool:
                           and channel == "albedo")
 
 
-def add_view_options(p: argparse.ArgumentParser, size: int = 512) -> None:
-    """Camera and image options shared by every command that renders, plus --quiet."""
-    p.add_argument("--camera", default="top", action=_ChosenView,
-                   help=f"preset view: {', '.join(_preset_names())} (default top)")
+def add_view_options(p: argparse.ArgumentParser, size: int = 512, camera: str = "top") -> None:
+    """Camera and image options shared by every command that renders, plus --quiet; the
+    command's own default view is said in the help it prints."""
+    p.add_argument("--camera", default=camera, action=_ChosenView,
+                   help=f"preset view: {', '.join(_preset_names())} (default {camera}: "
+                   f"{CAMERA_PRESETS[camera][1]})")
     p.add_argument("--eye", type=vector_arg, default=None, metavar="X,Y,Z",
                    help="pinhole eye position in octree voxel units (with --target)")
     p.add_argument("--target", type=vector_arg, default=None, metavar="X,Y,Z")
@@ -289,11 +321,6 @@ def scheduler_name(text: str) -> str:
     except VoxfieldError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from exc
     return text
-
-
-def set_option_help(p: argparse.ArgumentParser, dest: str, help: str) -> None:
-    """Reword a shared option's help for one command (its default changed, say)."""
-    next(a for a in p._actions if a.dest == dest).help = help
 
 
 def add_threshold_options(p: argparse.ArgumentParser) -> None:

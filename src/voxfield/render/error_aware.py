@@ -49,9 +49,10 @@ class ErrorAwareOptions:
     default to the thesis's calibration on its Desert terrain (§5.1.4)."""
 
     threshold: float = field(default=THESIS_THRESHOLD, metadata={
-        "help": "refinement threshold (the thesis's calibration, EA §5.1.4)"})
+        "help": "refinement threshold (the thesis's calibration, EA §5.1.4); inf never "
+                "refines, a negative one refines everywhere", "type": "threshold"})
     decay: float = field(default=THESIS_DECAY, metadata={
-        "help": "weight of the children's error"})
+        "help": "weight of the children's error, at least 0", "type": "non_negative_float"})
     base_lod: int | None = field(default=2, metadata={
         "help": "LOD of the first ray, or 'cone' (default 2, the thesis's setup)",
         "type": "lod"})
