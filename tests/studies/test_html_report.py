@@ -130,3 +130,25 @@ def test_markup_in_results_is_text_and_paths_stay_in_the_folder(compare_folder, 
     (folder / "results.json").write_text(json.dumps(results))
     with pytest.raises(VoxfieldError, match="not a file in the study folder"):
         write_html_report(folder)
+
+
+def test_images_named_in_the_results_are_embedded_where_they_stand_once(compare_folder,
+                                                                       tmp_path):
+    """`shadows` names its beam profile and contact sheet in results.md: the page linked
+    them by relative path (broken once mailed) and showed them again among the figures."""
+    folder = tmp_path / "named"
+    shutil.copytree(compare_folder, folder)
+    png = folder / "beam_profile.png"
+    Image.fromarray(np.full((3, 5, 3), 90, np.uint8)).save(png)
+    (folder / "results.md").write_text(
+        f"# Named\n\nbefore\n\n![the picture]({png.name})\n\nafter\n\n"
+        "![outside](../elsewhere.png) ![missing](missing.png)\n")
+    write_html_report(folder)
+    html = (folder / "report.html").read_text(encoding="utf-8")
+    sources = re.findall(r'<img[^>]*src="([^"]*)"', html)
+    assert f'src="{png.name}"' not in html
+    encoded = base64.b64encode(png.read_bytes()).decode()
+    assert html.count(encoded) == 1
+    assert html.index("before") < html.index(encoded) < html.index("after")
+    # only a file beside results.md is read: other links stay links
+    assert "../elsewhere.png" in sources and "missing.png" in sources

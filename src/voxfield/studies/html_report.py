@@ -13,6 +13,7 @@ from __future__ import annotations
 import base64
 import io
 import json
+import re
 import warnings
 from pathlib import Path
 
@@ -49,10 +50,31 @@ def render_report(folder: Path) -> str:
                             f"{_kind(entries)}, not a list of comparisons")
     comparisons = [_comparison(folder, entry) for entry in entries]
     used = {name for c in comparisons for name in c.pop("files")}
-    text = _read_markdown(folder / "results.md")
+    text, embedded = _embedded_images(folder, _read_markdown(folder / "results.md"))
+    used |= embedded
     return render_page(title=_title(results), subtitle=_subtitle(results), markdown_text=text,
                        figures=[p for p in _figures(folder) if p.name not in used],
                        comparisons=comparisons)
+
+
+#: A Markdown image of a file beside results.md: ``![beam profile](beam_profile.png)``.
+_LOCAL_IMAGE = re.compile(r"!\[([^\]]*)\]\(([\w.-]+\.png)\)")
+
+
+def _embedded_images(folder: Path, text: str) -> tuple[str, set[str]]:
+    """``text`` with its images of the folder's PNGs as data URIs, where they stand (a
+    relative link breaks once the page is mailed), and the names so embedded, which the
+    figures after it then leave out."""
+    embedded: set[str] = set()
+
+    def embed(match: re.Match) -> str:
+        path = folder / match.group(2)
+        if not (path.is_file() and _readable_png(path)):
+            return match.group(0)
+        embedded.add(path.name)
+        return f"![{match.group(1)}]({data_uri(path)})"
+
+    return _LOCAL_IMAGE.sub(embed, text), embedded
 
 
 def render_page(*, title: str, subtitle: str, markdown_text: str, figures: list[Path],
