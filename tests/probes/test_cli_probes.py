@@ -119,3 +119,21 @@ def test_probes_show_takes_a_scene_or_none_not_both(run, capsys):
         run(["probes", "show", "folder", "--no-scene", "--scene", "builtin:sphere"])
     assert exc.value.code == 2
     assert "not allowed with argument" in capsys.readouterr().err
+
+
+def test_a_bake_whose_probes_all_stand_in_the_ground_is_refused(tmp_path, capsys):
+    """A flat DEM: the counted grid fits the box of a thin slab, every probe in the ground.
+    The bake wrote 18 probes of zero distance and exited 0; with --relocate it wrote none
+    and still exited 0."""
+    dem = tmp_path / "flat.npy"
+    np.save(dem, np.zeros((32, 32), np.float32))
+    for relocating in ([], ["--relocate"]):
+        out = tmp_path / f"probes{len(relocating)}"
+        assert cli.main(["bake", str(dem), "--footprint", "32", "--grid", "3x2x3", "--resolution",
+                     "8", "--quiet", *relocating, "--out", str(out)]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("voxfield: error: 3x2x3: ")
+        assert "surface:NXxNZ@H" in err[0]
+        assert not out.exists()
+    assert cli.main(["bake", str(dem), "--footprint", "32", "--grid", "surface:2x2@4",
+                 "--resolution", "8", "--quiet", "--out", str(tmp_path / "above")]) == 0

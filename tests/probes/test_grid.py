@@ -24,6 +24,8 @@ from voxfield.probes.grid import (
     ProbeGrid,
     fibonacci_directions,
     parse_grid,
+    placement_problem,
+    probes_inside,
     relocate,
 )
 from voxfield.scene.voxel_scene import VoxelScene
@@ -402,3 +404,41 @@ def test_relocate_refuses_bad_settings(block, kwargs, match):
 
 def test_max_offset_fraction_keeps_probes_in_order():
     assert MAX_OFFSET_FRACTION <= 0.5
+
+
+# --- placement checks before a bake ----------------------------------------------------------
+
+
+def test_probes_inside_match_the_voxels_they_stand_in(block):
+    """Against the brute-force distance oracle: zero distance is inside (faces belong to
+    the voxel above them, so a probe on the block's top face is outside)."""
+    grid = ProbeGrid(origin=(2.5, 2.5, 2.5), spacing=(5.0, 5.0, 5.0), counts=(5, 5, 5))
+    inside = probes_inside(grid, block)
+    strictly_in = np.all((grid.positions > 0) & (grid.positions < 16), axis=1)
+    assert np.array_equal(inside, strictly_in)
+    assert inside.any() and not inside.all()
+    assert np.array_equal(inside, _distance_to_solid(block, grid.positions) == 0)
+
+
+def test_a_slab_s_fitted_grid_is_all_inside_and_has_nothing_to_bake():
+    """A counted grid fits the voxel box: on a thin terrain every probe lands in the
+    ground, and the bake wrote all-zero distance maps without a word."""
+    slab = _octree(((0, 0, 0), (32, 2, 32)))
+    grid = ProbeGrid.fit(*slab.voxel_bounds, (3, 2, 3))
+    problem, nothing = placement_problem(grid, slab)
+    assert nothing and "all 18 probes stand inside solid voxels" in problem
+    assert "--relocate" in problem and "surface:" in problem
+    moved, _ = relocate(grid, slab)
+    problem, nothing = placement_problem(moved, slab, relocated=True)
+    assert nothing and "every probe is disabled" in problem and "--relocate" not in problem
+
+
+def test_placement_notes_a_grid_partly_inside_or_wholly_outside(block):
+    part = ProbeGrid(origin=(8.0, 8.0, 8.0), spacing=(20.0,) * 3, counts=(2, 1, 1))
+    problem, nothing = placement_problem(part, block)
+    assert not nothing and problem.startswith("1 of 2 probes stand inside")
+    far = ProbeGrid(origin=(500.0, 500.0, 500.0), spacing=(4.0,) * 3, counts=(2, 2, 2))
+    problem, nothing = placement_problem(far, block)
+    assert not nothing and "farther from the scene than its own size" in problem
+    for beside in ((20.0, 8.0, 8.0), (24.0, 24.0, 24.0)):  # around an object: welcome
+        assert placement_problem(_single_probe(beside), block) == (None, False)

@@ -13,6 +13,7 @@ from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_channel_option,
     add_scene_options,
+    check_probe_placement,
     default_output,
     int_between,
     lod_arg,
@@ -172,6 +173,7 @@ def run_bake(args) -> int:
         grid, report = relocate(grid, octree, seed=args.seed)
         if not args.quiet:
             print(report.summary())
+    check_probe_placement(grid, octree, args.grid, relocated=args.relocate)
     start = time.perf_counter()
     probe_set = bake_to_folder(
         octree, grid, options, out, scheduler=args.scheduler, fresh=args.fresh,

@@ -15,6 +15,7 @@ from voxfield.cli.options import (
     add_study_folder,
     add_threshold_options,
     add_view_options,
+    check_probe_placement,
     default_output,
     distinct,
     finite_float,
@@ -32,7 +33,7 @@ from voxfield.cli.options import (
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import LightFieldOptions
 from voxfield.lighting import bake_sun_lighting, parse_suns
-from voxfield.probes.grid import parse_grid
+from voxfield.probes.grid import parse_grid, relocate
 from voxfield.render.camera import preset_camera
 from voxfield.render.placement import check_camera_placement
 from voxfield.scaleout import SCHEDULER_HELP
@@ -133,6 +134,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     b.add_argument("--grid", default="1x1x1",
                    help="probe grid: NXxNYxNZ fitted to the scene, or origin=..;spacing=..;"
                    "counts=.. (default one probe at the centre)")
+    b.add_argument("--no-relocate", action="store_true",
+                   help="keep probes where the grid puts them even inside geometry (by "
+                   "default they are moved out first, as study probes does)")
     b.add_argument("--resolutions", type=positive_int_list, default=(64, 128, 256),
                    help="comma-separated map sides (default 64,128,256)")
     add_threshold_options(b)
@@ -325,6 +329,9 @@ def run_probe_resolution(args) -> int:
                          study="study probe-resolution")
     octree = open_octree(args)
     grid = parse_grid(args.grid, octree.voxel_bounds, octree=octree)
+    if not args.no_relocate:
+        grid, _ = relocate(grid, octree, seed=args.seed)
+    check_probe_placement(grid, octree, args.grid, relocated=not args.no_relocate)
     report = probe_resolution_study(
         octree, grid.positions[grid.enabled], args.resolutions, threshold=args.threshold,
         decay=args.decay, seed=args.seed, channel=args.channel, scene_name=args.scene,

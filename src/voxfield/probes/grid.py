@@ -425,6 +425,43 @@ class _VoxelOccupancy:
         return self.solid(np.floor(points).astype(np.int64))
 
 
+def probes_inside(grid: ProbeGrid, octree: Octree) -> np.ndarray:
+    """Which enabled probes stand in a solid voxel: every ray they cast starts in geometry,
+    so their distance maps are zero and their radiance one voxel's colour."""
+    inside = np.zeros(grid.count, bool)
+    enabled = np.flatnonzero(grid.enabled)
+    inside[enabled] = _VoxelOccupancy(octree).contains(grid.positions[enabled])
+    return inside
+
+
+def placement_problem(grid: ProbeGrid, octree: Octree, *,
+                      relocated: bool = False) -> tuple[str | None, bool]:
+    """What is wrong with where ``grid`` puts its probes in ``octree``, and whether it
+    leaves nothing worth baking; (None, False) for a usable grid. The hint offers
+    relocation unless the grid had it."""
+    hint = ("; " + ("" if relocated else "--relocate moves probes out of geometry, and ")
+            + "on a terrain --grid surface:NXxNZ@H lays them above the ground")
+    enabled = int(np.count_nonzero(grid.enabled))
+    if enabled == 0:
+        return "every probe is disabled (none found free space)" + hint, True
+    inside = int(np.count_nonzero(probes_inside(grid, octree)))
+    if inside == enabled:
+        return (f"{'the probe stands' if inside == 1 else f'all {inside} probes stand'} "
+                "inside solid voxels: the maps would hold nothing but that geometry" + hint,
+                True)
+    if inside:
+        return (f"{inside} of {enabled} probes stand inside solid voxels (distance maps of "
+                "zero)" + hint, False)
+    lo, hi = (np.asarray(b, np.float64) for b in octree.voxel_bounds)
+    positions = grid.positions[grid.enabled]
+    gap = np.linalg.norm(np.maximum(np.maximum(lo - positions, positions - hi), 0.0), axis=1)
+    if gap.min() > float((hi - lo).max()):  # probes around an object are welcome
+        return ("every probe lies farther from the scene than its own size (its box: "
+                f"{', '.join(f'{v:g}' for v in lo)} to {', '.join(f'{v:g}' for v in hi)}); "
+                "they see it from afar", False)
+    return None, False
+
+
 def fibonacci_directions(count: int, seed: int = 0) -> np.ndarray:
     """(count, 3) unit directions spread evenly over the sphere (golden-angle spiral), turned
     by a rotation drawn from ``seed`` so no direction lies exactly along a voxel axis."""
