@@ -487,3 +487,27 @@ def test_command_bad_input_exits_2(run, cornell_folder, tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         run(["probe-render", str(cornell_folder), "--method", "raster"])
     assert exc.value.code == 2
+
+
+def _strict_json(text: str):
+    def refuse(constant):
+        raise AssertionError(f"{constant} is not JSON")
+    return json.loads(text, parse_constant=refuse)
+
+
+def test_command_writes_strict_json_and_words_a_depth_never_found(run, cornell_folder,
+                                                                  tmp_path, capsys):
+    """From above the box most pixels fall back: the depth percentiles are infinite, which
+    the summary wrote as `Infinity` (not JSON) and the console as "inf voxels"."""
+    out = tmp_path / "top.png"
+    assert run(["probe-render", str(cornell_folder), "--scene", "builtin:cornell", "--camera",
+                "top", "--size", "16", "--compare", "--counters", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    summary = _strict_json((tmp_path / "top_summary.json").read_text())
+    assert summary["compare"]["depth"]["p99"] is None
+    assert "99th percentile no depth (missed or fell back)" in printed and "inf" not in printed
+    # The environment baseline has no depth to classify its pixels by: no bare "pixels:".
+    assert run(["probe-render", str(cornell_folder), "--scene", "builtin:cornell", "--method",
+                "environment", "--camera", "room", "--size", "16", "--compare", "--out",
+                str(tmp_path / "env.png")]) == 0
+    assert "pixels: \n" not in capsys.readouterr().out + "\n"

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 
 from voxfield.atomic import atomic_path
@@ -20,8 +18,8 @@ from voxfield.cli.options import (
     positive_int,
     study_camera,
 )
+from voxfield.json_output import json_text
 from voxfield.studies.calibrate import calibrate_threshold
-from voxfield.studies.report import to_json
 
 
 def register(subparsers) -> None:
@@ -58,7 +56,7 @@ def run(args) -> int:
         with atomic_path(args.out) as tmp:
             # Strict JSON: a PSNR that is NaN (no render yet) or infinite (equal images)
             # is written as null, as the studies write it.
-            tmp.write_text(json.dumps(to_json(cal.as_dict()), indent=2, allow_nan=False))
+            tmp.write_text(json_text(cal.as_dict()))
     if not args.quiet:
         quality = f", PSNR {cal.psnr:.2f} dB" if np.isfinite(cal.psnr) else ""
         print(f"threshold {cal.threshold:.4f} (decay {args.decay}): {cal.rays:,} rays, "

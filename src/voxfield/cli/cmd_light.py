@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -20,6 +19,7 @@ from voxfield.cli.options import (
     positive_int,
     scheduler_name,
 )
+from voxfield.json_output import json_text
 from voxfield.lighting.sun import parse_suns
 from voxfield.lighting.sun_bake import MAX_RAYS, bake_sun_lighting
 from voxfield.render.camera import top_down_camera
@@ -103,7 +103,7 @@ def run(args) -> int:
                *([out.with_suffix(".png")] if channels else [])]  # no channel's name
     with atomic_paths(written) as staged, ThreadPoolExecutor(1) as writer:
         saving = writer.submit(write_octree_file, lit, staged[0])
-        staged[1].write_text(json.dumps(details, indent=2))
+        staged[1].write_text(json_text(details))
         if channels:
             previews = render_previews(lit, channels, size=args.preview_size,
                                        threads=args.threads)

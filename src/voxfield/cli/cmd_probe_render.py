@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
+import math
 import sys
 from pathlib import Path
 
@@ -35,6 +35,7 @@ from voxfield.cli.options import (
     vector_arg,
 )
 from voxfield.errors import VoxfieldError
+from voxfield.json_output import json_text
 from voxfield.lightfield.accuracy import depth_agreement, perfect_trace_image, pixel_classes
 from voxfield.lightfield.baselines import FILTERS
 from voxfield.lightfield.packed import PackedProbes
@@ -209,15 +210,21 @@ def run(args) -> int:
             print(f"against the octree ({m['reference']}): PSNR {m['psnr']:.2f} dB, "
                   f"SSIM {m['ssim']:.4f}, RMSE {m['rmse']:.4f} (linear RGB in [0, 1])")
             print(f"perfect-trace bound {m['bound_psnr']:.2f} dB (gap {m['bound_gap_db']:.2f} "
-                  f"dB); depth: median {m['depth']['median']:.2f}, 99th percentile "
-                  f"{m['depth']['p99']:.2f} voxels, {100 * m['depth']['within_1']:.1f} % "
-                  "within 1 voxel")
-            print("pixels: " + ", ".join(
-                f"{name} {c['pixels']:,} ({100 * c['share_of_error']:.0f} % of the error)"
-                for name, c in m["classes"].items() if c["pixels"]))
+                  f"dB); depth: median {_depth_error(m['depth']['median'])}, 99th "
+                  f"percentile {_depth_error(m['depth']['p99'])}, "
+                  f"{100 * m['depth']['within_1']:.1f} % within 1 voxel")
+            classes = [f"{name} {c['pixels']:,} ({100 * c['share_of_error']:.0f} % of the "
+                       "error)" for name, c in m["classes"].items() if c["pixels"]]
+            if classes:  # the environment baseline has no depth to classify pixels by
+                print("pixels: " + ", ".join(classes))
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+def _depth_error(voxels: float) -> str:
+    """A depth error percentile: infinite where that share of pixels found no depth."""
+    return f"{voxels:.2f} voxels" if math.isfinite(voxels) else "no depth (missed or fell back)"
 
 
 def _displayed(result, shaded: bool):
@@ -287,13 +294,5 @@ def summary_line(summary: dict) -> str:
 def _write_summary(summary: dict, path) -> Path:
     path = Path(path)
     with atomic_path(path) as tmp:
-        tmp.write_text(json.dumps(summary, indent=2, default=_plain))
+        tmp.write_text(json_text(summary))
     return path
-
-
-def _plain(value):
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    return str(value)

@@ -3,13 +3,13 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import numpy as np
 from matplotlib import colormaps
 from matplotlib.colors import BoundaryNorm, ListedColormap, Normalize, SymLogNorm
 
+from voxfield.json_output import json_text
 from voxfield.render.image_io import save_png
 from voxfield.render.result import RenderResult
 
@@ -134,4 +134,4 @@ def write_counter_files(result: RenderResult, paths: list[Path], depth: int) -> 
     save_png(steps_figure(result), steps_path, encode_srgb=False)
     save_png(lod_figure(result, depth), lod_path, encode_srgb=False)
     save_png(rays_figure(result), rays_path, encode_srgb=False)
-    Path(summary_path).write_text(json.dumps(result.summary(), indent=2))
+    Path(summary_path).write_text(json_text(result.summary()))

@@ -24,6 +24,7 @@ import numpy as np
 import voxfield
 from voxfield.atomic import atomic_path, save_figure
 from voxfield.errors import VoxfieldError
+from voxfield.json_output import json_text, to_json
 from voxfield.metrics import compare_images
 from voxfield.parallel import thread_count
 from voxfield.render.image_io import save_png
@@ -35,24 +36,6 @@ CACHE_VERSION = 2
 
 _RESULT_ARRAYS = ("image", "depth", "normal", "ray_count", "hit_count", "steps", "finest_lod")
 _MAP_PREFIX = "map_"
-
-
-def to_json(value):
-    """A strictly JSON-valid copy: NumPy scalars and arrays become Python, NaN/±inf become None
-    (JSON has no infinity; a PSNR of identical images is reported as None)."""
-    if isinstance(value, dict):
-        return {str(k): to_json(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [to_json(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return to_json(value.tolist())
-    if isinstance(value, np.generic):
-        value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, Path):
-        return str(value)
-    return value
 
 
 def _json_hash(value, digest_size: int) -> str:
@@ -328,7 +311,7 @@ class StudyFolder:
     @staticmethod
     def _write_json_file(path: Path, data) -> None:
         with atomic_path(path) as tmp:
-            tmp.write_text(json.dumps(to_json(data), indent=2, allow_nan=False) + "\n")
+            tmp.write_text(json_text(data) + "\n")
 
 
 def markdown_table(headers: Sequence[str], rows: Sequence[Sequence], *,
