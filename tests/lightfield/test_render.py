@@ -511,3 +511,35 @@ def test_command_writes_strict_json_and_words_a_depth_never_found(run, cornell_f
                 "environment", "--camera", "room", "--size", "16", "--compare", "--out",
                 str(tmp_path / "env.png")]) == 0
     assert "pixels: \n" not in capsys.readouterr().out + "\n"
+
+
+@pytest.mark.parametrize("extra, note", [
+    (["--marcher", "dda", "--step", "0.1"],
+     "the light-field render with the dda marcher takes no --step (for the march3d marcher)"),
+    (["--method", "environment", "--marcher", "dda", "--epsilon", "constant"],
+     "the environment render takes no --marcher (for light-field), --epsilon (for "
+     "light-field)"),
+    (["--filter", "nearest"], "the light-field render takes no --filter (for "
+     "environment/box-proxy)"),
+    (["--method", "environment", "--box-min", "0,0,0", "--box-max", "1,1,1"],
+     "the environment render takes no --box-min/--box-max (for box-proxy)"),
+    (["--spp-side", "4"], "the light-field render takes no --spp-side (for --compare)"),
+    (["--method", "environment", "--no-fallback"],
+     "the environment render takes no --no-fallback (for light-field)"),
+])
+def test_command_notes_options_its_render_does_not_read(run, cornell_folder, tmp_path, capsys,
+                                                       extra, note):
+    """Each of these rendered the same image as without them, and said nothing."""
+    assert run(["probe-render", str(cornell_folder), "--camera", "room", "--size", "8",
+                "--quiet", *extra, "--out", str(tmp_path / "x.png")]) == 0
+    assert capsys.readouterr().err.strip() == f"voxfield: note: {note}; ignored"
+
+
+def test_command_notes_nothing_for_options_its_render_reads(run, cornell_folder, tmp_path,
+                                                           capsys):
+    for extra in (["--marcher", "march3d", "--step", "0.25"], ["--method", "environment",
+                  "--filter", "nearest"], ["--method", "box-proxy", "--box-min", "0,0,0",
+                  "--box-max", "32,32,32"], []):
+        assert run(["probe-render", str(cornell_folder), "--camera", "room", "--size", "8",
+                    "--quiet", *extra, "--out", str(tmp_path / "x.png")]) == 0
+        assert capsys.readouterr().err == "", extra

@@ -33,6 +33,7 @@ from voxfield.cli.options import (
     positive_int,
     scene_options,
     vector_arg,
+    warn_ignored,
 )
 from voxfield.errors import VoxfieldError
 from voxfield.json_output import json_text
@@ -163,7 +164,10 @@ def run(args) -> int:
         raise VoxfieldError("--compare renders the scene itself: name it with --scene")
     if (args.box_min is None) != (args.box_max is None):
         raise VoxfieldError("--box-min and --box-max must be given together")
-    options = _trace_options(args) if args.method == "light-field" else None
+    options = _trace_options(args)  # checked for every method: a baseline notes it unused
+    _note_unused_options(args, options)
+    if args.method != "light-field":
+        options = None
     folder = Path(args.probes)
     if not folder.is_dir():
         raise VoxfieldError(f"{folder}: no such probe-set folder; bake one with voxfield bake")
@@ -240,6 +244,31 @@ def _trace_options(args):
     return LightFieldOptions(
         marcher=args.marcher, step=args.step, ordering=args.ordering,
         colour_filter=args.colour_filter, **hit_options(args))
+
+
+def _note_unused_options(args, options: LightFieldOptions) -> None:
+    """A note naming the options given that this render does not read (a --step tuned for
+    the default hierarchical marcher left the image as it was, without a word)."""
+    ignored: dict[str, list[str]] = {}
+    defaults = LightFieldOptions()
+    if args.method != "light-field":
+        for f in dataclasses.fields(LightFieldOptions):
+            value = getattr(options, f.name)
+            if value != getattr(defaults, f.name):
+                flag = f.name.replace("_", "-")
+                flag = f"--{'no-' if value is False else ''}{flag}"
+                ignored[flag] = ["light-field"]
+    elif options.marcher != "march3d" and options.step != defaults.step:
+        ignored["--step"] = ["the march3d marcher"]
+    if args.method == "light-field" and args.filter != "bilinear":
+        ignored["--filter"] = ["environment", "box-proxy"]
+    if args.method != "box-proxy" and args.box_min is not None:
+        ignored["--box-min/--box-max"] = ["box-proxy"]
+    if not args.compare and args.spp_side != 1:
+        ignored["--spp-side"] = ["--compare"]
+    if ignored:
+        warn_ignored(ignored, f"the {args.method} render"
+                     + (f" with the {options.marcher} marcher" if "--step" in ignored else ""))
 
 
 def _open_scene(args, probe_set):
