@@ -237,7 +237,7 @@ def run_normalisation(args) -> int:
 
 
 def run_curves(args) -> int:
-    for name, values in (("--thresholds", args.thresholds), ("--decays", args.decays),
+    for name, values in (("--thresholds", args.thresholds),
                          ("--normalisations", args.normalisations)):
         if any(not math.isfinite(v) or v < 0 for v in values):
             raise VoxfieldError(f"{name} must be finite and not negative")
@@ -258,7 +258,7 @@ def run_curves(args) -> int:
                 print(f"{cam_name}: {d['curve']} vs {d['against']}: BD-PSNR "
                       f"{fmt(d['bd_psnr_steps'], '+.2f')} dB at equal steps, "
                       f"{fmt(d['bd_steps_percent'], '+.1f')} % steps at equal PSNR")
-        print(f"wrote {out}/report.html, results.md, results.json, curves.png")
+        print(f"wrote {out}/report.html, results.md, results.json, curves.png, view.png")
     return 0
 
 
@@ -278,7 +278,7 @@ def run_thresholds(args) -> int:
             e = row["error_aware"]
             print(f"  t={row['threshold']:g}: {e['rays']:,} rays, {e['steps']:,} steps, "
                   f"PSNR {fmt(e['psnr'], '.2f')} dB")
-        print(f"wrote {out}/report.html, results.md, results.json, thresholds.png")
+        print(f"wrote {out}/report.html, results.md, results.json, thresholds.png, view.png")
     return 0
 
 
@@ -296,7 +296,7 @@ def run_resolution(args) -> int:
                   f"{a['rays_per_pixel']:.2f} rays/px, PSNR {fmt(a['psnr'], '.2f')} dB; "
                   f"error-aware {e['rays_per_pixel']:.2f} rays/px, "
                   f"PSNR {fmt(e['psnr'], '.2f')} dB")
-        print(f"wrote {out}/report.html, results.md, results.json, resolution.png")
+        print(f"wrote {out}/report.html, results.md, results.json, resolution.png, view.png")
     return 0
 
 

@@ -55,5 +55,5 @@ def run(args) -> int:
             edge = "" if pick["within_grid"] else " (the grid's edge, not a match)"
             print(f"  d={pick['decay']}: t={pick['threshold']} → {pick['rays']:,} rays, "
                   f"{quality}{edge}")
-        print(f"wrote {out}/report.html, results.md, results.json, sweep.png")
+        print(f"wrote {out}/report.html, results.md, results.json, sweep.png, view.png")
     return 0

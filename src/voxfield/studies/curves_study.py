@@ -44,6 +44,7 @@ from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.studies.bjontegaard import bd_cost, bd_quality
+from voxfield.studies.figures import view_sheet
 from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import StudyFolder, costs, costs_and_quality, fmt, markdown_table
 from voxfield.studies.threshold_study import plot_value
@@ -113,9 +114,11 @@ def run_curves_study(
     report = {"scene": scene_name, "base_lod": base_lod, "seed": seed, "channel": channel,
               "metrics_on": "linear RGB in [0, 1]", "cameras": {}}
     settings = {"base_lod": base_lod, "seed": seed, "channel": channel}
+    references = {}
     with progress_bar(total=points, desc="curves", unit="render", enabled=progress) as bar:
         for cam_name, camera in cameras.items():
             sweep = CameraSweep(folder, octree, cam_name, camera, scene_name, settings, bar)
+            references[f"{cam_name} camera, 4×4 reference"] = sweep.reference
             curves = {}
             for decay in decays:
                 curves[ea_curve_name(decay)] = sweep.curve("threshold", [
@@ -157,6 +160,8 @@ def run_curves_study(
     folder.write_json("results.json", report)
     folder.write_text("results.md", results_markdown(report))
     folder.write_figure("curves.png", curves_figure(report))
+    folder.write_figure("view.png", view_sheet(references,
+                                               title=f"The views measured — {scene_name}"))
     write_html_report(folder.root)
     return report
 

@@ -100,3 +100,15 @@ def contact_sheet(cells: Sequence[Panel | str], *, columns: int, title: str = ""
     fig.subplots_adjust(left=0.01, right=0.99, bottom=0.01, top=0.90 if title else 0.96,
                         wspace=0.04, hspace=0.25)
     return fig
+
+
+def view_sheet(references: dict[str, RenderResult], *, title: str = ""):
+    """The view a study measured, one panel per camera or size: its 4×4 reference, lit for
+    display by the key light (the metrics use the unlit colours). A study's numbers mean
+    nothing for a camera under the terrain or looking past the scene; this shows which."""
+    from voxfield.render.image_io import shade_for_display
+
+    panels = [Panel(f"{name} (lit for display)", shade_for_display(result))
+              for name, result in references.items()]
+    return contact_sheet(panels, columns=min(len(panels), 4), title=title,
+                         panel_inches=3.2 if len(panels) > 1 else 4.0)

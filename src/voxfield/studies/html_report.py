@@ -175,11 +175,11 @@ def _subtitle(results: dict) -> str:
 
 
 def _figures(folder: Path) -> list[Path]:
-    """The folder's readable PNGs, the contact sheet first (it summarises the rest); one
-    that is not (truncated, or not a PNG at all) is left out with a warning, not embedded
-    as a broken image."""
+    """The folder's readable PNGs, the contact sheet first (it summarises the rest), then
+    the view measured; one that is not (truncated, or not a PNG at all) is left out with a
+    warning, not embedded as a broken image."""
     pngs = [p for p in sorted(folder.glob("*.png")) if _readable_png(p)]
-    return sorted(pngs, key=lambda p: (p.stem != "contact_sheet", p.name))
+    return sorted(pngs, key=lambda p: (p.stem != "contact_sheet", p.stem != "view", p.name))
 
 
 def _readable_png(path: Path) -> bool:

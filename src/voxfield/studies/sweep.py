@@ -13,6 +13,7 @@ from voxfield.render.adaptive import render_adaptive
 from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_reference
+from voxfield.studies.figures import view_sheet
 from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import (
     StudyFolder,
@@ -73,6 +74,8 @@ def run_sweep(
     folder.write_json("results.json", report)
     folder.write_text("results.md", _markdown(report, decays, thresholds))
     folder.write_figure("sweep.png", _figure(report, decays, thresholds))
+    folder.write_figure("view.png", view_sheet({"4×4 reference": reference},
+                                               title=f"The view measured — {scene_name}"))
     write_html_report(folder.root)
     return report
 
