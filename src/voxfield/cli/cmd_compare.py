@@ -16,7 +16,7 @@ from voxfield.cli.options import (
     study_camera,
 )
 from voxfield.studies.compare import run_compare
-from voxfield.studies.report import fmt
+from voxfield.studies.report import fmt, fmt_psnr
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -69,7 +69,7 @@ def summary_text(report: dict) -> str:
         c, q = row["cost"], row["quality"] or {}
         lines.append(
             f"{row['renderer']:<{width}}{c['rays_hit']:>12,}{c['rays_per_pixel']:>9.3f}"
-            f"{c['traversal_steps']:>14,}{fmt(q.get('psnr'), '.2f'):>8}"
+            f"{c['traversal_steps']:>14,}{fmt_psnr(q, '.2f'):>8}"
             f"{fmt(q.get('rmse'), '.5f'):>9}{fmt(q.get('ssim'), '.3f'):>7}"
             f"{fmt(q.get('flip'), '.3f'):>7}"
         )

@@ -61,7 +61,7 @@ from voxfield.studies.probe_study import (
     results_markdown,
     run_probe_study,
 )
-from voxfield.studies.report import StudyFolder, fmt
+from voxfield.studies.report import StudyFolder, fmt, fmt_psnr
 from voxfield.studies.resolution_study import THESIS_SIZES, run_resolution_study
 from voxfield.studies.threshold_study import THESIS_THRESHOLDS, run_threshold_study
 
@@ -273,11 +273,11 @@ def run_thresholds(args) -> int:
     if not args.quiet:
         a = report["adaptive"]
         print(f"adaptive: {a['rays']:,} rays, {a['steps']:,} steps, "
-              f"PSNR {fmt(a['psnr'], '.2f')} dB")
+              f"PSNR {fmt_psnr(a, '.2f')} dB")
         for row in report["rows"]:
             e = row["error_aware"]
             print(f"  t={row['threshold']:g}: {e['rays']:,} rays, {e['steps']:,} steps, "
-                  f"PSNR {fmt(e['psnr'], '.2f')} dB")
+                  f"PSNR {fmt_psnr(e, '.2f')} dB")
         print(f"wrote {out}/report.html, results.md, results.json, thresholds.png, view.png")
     return 0
 
@@ -293,9 +293,9 @@ def run_resolution(args) -> int:
         for row in report["rows"]:
             a, e = row["adaptive"], row["error_aware"]
             print(f"{row['size']}² (base LOD {row['base_lod']}): adaptive "
-                  f"{a['rays_per_pixel']:.2f} rays/px, PSNR {fmt(a['psnr'], '.2f')} dB; "
+                  f"{a['rays_per_pixel']:.2f} rays/px, PSNR {fmt_psnr(a, '.2f')} dB; "
                   f"error-aware {e['rays_per_pixel']:.2f} rays/px, "
-                  f"PSNR {fmt(e['psnr'], '.2f')} dB")
+                  f"PSNR {fmt_psnr(e, '.2f')} dB")
         print(f"wrote {out}/report.html, results.md, results.json, resolution.png, view.png")
     return 0
 
@@ -316,7 +316,7 @@ def run_lighting(args) -> int:
         scheduler=args.scheduler)
     if not args.quiet:
         for row in report["rows"]:
-            parts = [f"{label} {row[key]['steps']:,} steps {fmt(row[key]['psnr'], '.2f')} dB"
+            parts = [f"{label} {row[key]['steps']:,} steps {fmt_psnr(row[key], '.2f')} dB"
                      for key, label in (("adaptive", "A"), ("error_aware", "EA"),
                                         ("lighting_aware", "EA-L"))]
             print(f"{row['channel']:>10}: " + "; ".join(parts))

@@ -32,7 +32,7 @@ from voxfield.studies.figures import (
     variance_map,
 )
 from voxfield.studies.html_report import write_html_report
-from voxfield.studies.report import StudyFolder, fmt, markdown_table
+from voxfield.studies.report import StudyFolder, fmt, fmt_psnr, markdown_table
 from voxfield.svo.octree import Octree
 
 #: The thesis's reference: 4×4 CMJ rays per pixel, all at LOD 0 (§5.1.1).
@@ -180,7 +180,7 @@ def comparisons(rows: list[dict], images: dict) -> list[dict]:
         slug = _slug(name)
         cost, quality = row["cost"], row["quality"] or {}
         summary = (f"{cost['rays_per_pixel']:.2f} rays/px, {cost['steps_per_ray']:.2f} "
-                   f"steps/ray, PSNR {fmt(quality.get('psnr'), '.2f')} dB, SSIM "
+                   f"steps/ray, PSNR {fmt_psnr(quality, '.2f')} dB, SSIM "
                    f"{fmt(quality.get('ssim'), '.3f')}")
         maps = {label: images[f"{slug}_{key}"] for label, key in _REPORT_MAPS.items()
                 if f"{slug}_{key}" in images}
@@ -198,7 +198,7 @@ def _sheet(report: dict, results: dict[str, RenderResult], base_lod: int | None)
         cost, quality = rows[name]["cost"], rows[name]["quality"]
         title = f"{name}: {cost['rays_per_pixel']:.2f} rays/px"
         if quality is not None:
-            title += f", PSNR {fmt(quality['psnr'], '.1f')} dB, SSIM {fmt(quality['ssim'], '.3f')}"
+            title += f", PSNR {fmt_psnr(quality, '.1f')} dB, SSIM {fmt(quality['ssim'], '.3f')}"
         cells.append(Panel(title, result.image))
     cells.append(_summary_text(report))
     adaptive, error_aware = results["adaptive"], results["error-aware"]
@@ -236,7 +236,7 @@ def _summary_text(report: dict) -> str:
         q = row["quality"]
         if q is None:
             continue
-        lines.append(f"{row['renderer']:<18}{fmt(q['psnr'], '.2f'):>7}{fmt(q['rmse'], '.5f'):>9}"
+        lines.append(f"{row['renderer']:<18}{fmt_psnr(q, '.2f'):>7}{fmt(q['rmse'], '.5f'):>9}"
                      f"{fmt(q['ssim'], '.3f'):>7}{fmt(q['flip'], '.3f'):>7}")
     lines += ["", "metrics: linear RGB vs reference;", "FLIP on sRGB. Rays: hit rays only."]
     return "\n".join(lines)
@@ -288,7 +288,7 @@ def _main_row(row: dict) -> list[str]:
     return [
         row["renderer"], fmt(c["rays_hit"]), fmt(c["rays_per_pixel"], ".3f"),
         fmt(c["traversal_steps"]), fmt(c["steps_per_ray"], ".2f"),
-        fmt(q.get("psnr"), ".3f"), fmt(q.get("rmse"), ".5f"),
+        fmt_psnr(q, ".3f"), fmt(q.get("rmse"), ".5f"),
         fmt(q.get("ssim"), ".3f"), fmt(q.get("flip"), ".4f"), fmt(c["rays"]),
         fmt(c["seconds"], ".2f"),
     ]

@@ -46,7 +46,14 @@ from voxfield.render.primary import render_lod, render_reference
 from voxfield.studies.bjontegaard import bd_cost, bd_quality
 from voxfield.studies.figures import view_sheet
 from voxfield.studies.html_report import write_html_report
-from voxfield.studies.report import StudyFolder, costs, costs_and_quality, fmt, markdown_table
+from voxfield.studies.report import (
+    StudyFolder,
+    costs,
+    costs_and_quality,
+    fmt,
+    fmt_psnr,
+    markdown_table,
+)
 from voxfield.studies.threshold_study import plot_value
 from voxfield.svo.octree import Octree
 
@@ -323,7 +330,7 @@ def results_markdown(report: dict) -> str:
             for p in curve["points"]:
                 side = f" ({p['side']}×{p['side']})" if "side" in p else ""
                 rows.append([name, f"{curve['knob']} {fmt(p[curve['knob']], 'g')}{side}",
-                             fmt(p["rays"]), fmt(p["steps"]), fmt(p["psnr"], ".2f"),
+                             fmt(p["rays"]), fmt(p["steps"]), fmt_psnr(p, ".2f"),
                              fmt(p["ssim"], ".4f"), fmt(p.get("flip"), ".4f"),
                              _percent(p.get("refined_share")),
                              _percent(p.get("selection_precision")),

@@ -27,6 +27,7 @@ from voxfield.studies.report import (
     StudyFolder,
     costs_and_quality,
     fmt,
+    fmt_psnr,
     markdown_table,
 )
 from voxfield.svo.octree import Octree
@@ -134,7 +135,7 @@ def results_markdown(report: dict) -> str:
     names = [label for _, label in CONTENDERS]
     cost = [[r["channel"], *(fmt(r[key]["rays"]) for key, _ in CONTENDERS),
              *(fmt(r[key]["steps"]) for key, _ in CONTENDERS)] for r in rows]
-    quality = [[r["channel"], *(fmt(r[key]["psnr"], ".3f") for key, _ in CONTENDERS),
+    quality = [[r["channel"], *(fmt_psnr(r[key], ".3f") for key, _ in CONTENDERS),
                 *(fmt(r[key]["rmse"], ".5f") for key, _ in CONTENDERS),
                 *(fmt(r[key]["ssim"], ".4f") for key, _ in CONTENDERS)] for r in rows]
     luminance = [[r["channel"], fmt(r["luminance"], ".4f")] for r in rows]
@@ -180,16 +181,32 @@ def _figure(report: dict):
     x = np.arange(len(rows))
     width = 0.27
     fig, axes = plt.subplots(1, 3, figsize=(15, 3.6))
+    # A PSNR of null is an image equal to the reference: drawn as a hatched bar above every
+    # measured one and marked ∞ (left out, it read as the worst score, not the best).
+    measured = [r[name]["psnr"] for r in rows for name, _ in CONTENDERS
+                if r[name]["psnr"] is not None]
+    infinite_bar = 1.1 * max(measured, default=50.0)
     for ax, (key, title) in zip(axes, (("rays", "rays cast"), ("steps", "traversal steps"),
                                        ("psnr", "PSNR (dB)")), strict=True):
         for i, (name, label) in enumerate(CONTENDERS):
-            values = [np.nan if r[name][key] is None else r[name][key] for r in rows]
-            ax.bar(x + (i - 1) * width, values, width, label=label)
+            equal = [key == "psnr" and r[name][key] is None for r in rows]
+            values = [infinite_bar if eq else r[name][key] for r, eq in zip(rows, equal,
+                                                                             strict=True)]
+            bars = ax.bar(x + (i - 1) * width, values, width, label=label if key == "rays"
+                          else None)
+            for bar, eq in zip(bars, equal, strict=True):
+                if eq:
+                    bar.set_hatch("//")
+                    ax.annotate("∞", (bar.get_x() + bar.get_width() / 2, bar.get_height()),
+                                ha="center", va="bottom", fontsize=9)
+        if key == "psnr":
+            ax.set_ylim(top=1.12 * infinite_bar)  # room for the ∞ marks
         ax.set_xticks(x, [r["channel"] for r in rows], rotation=20)
         ax.set_title(title)
-        ax.legend(fontsize=7)
-    fig.suptitle(f"Lighting — {report['scene']}")
-    fig.tight_layout()
+    # one legend beside the panels, where it hides no bar
+    fig.legend(loc="upper right", fontsize=8, ncols=len(CONTENDERS))
+    fig.suptitle(f"Lighting — {report['scene']} (∞: equal to the reference)", x=0.3)
+    fig.tight_layout(rect=(0, 0, 1, 0.92))
     return fig
 
 

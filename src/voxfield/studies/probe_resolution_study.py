@@ -27,7 +27,7 @@ from voxfield.metrics import compare_images
 from voxfield.probes.bake import bake_probe
 from voxfield.probes.probe_set import BakeOptions
 from voxfield.progress import progress_bar
-from voxfield.studies.report import fmt, markdown_table
+from voxfield.studies.report import fmt, fmt_psnr, markdown_table
 from voxfield.svo.octree import Octree
 
 STUDY_RESOLUTIONS = (64, 128, 256)
@@ -128,7 +128,7 @@ def probe_resolution_markdown(report: dict) -> str:
     geometry = [[f"{r['resolution']}²", fmt(r["geometry_rays"]), fmt(r["geometry_steps"]),
                  fmt(r["geometry_seconds"], ".4f")]
                 for r in rows if r["baker"] == "reference"]
-    quality = [[f"{r['resolution']}²", r["baker"], fmt(r["psnr"], ".3f"), fmt(r["rmse"], ".5f"),
+    quality = [[f"{r['resolution']}²", r["baker"], fmt_psnr(r, ".3f"), fmt(r["rmse"], ".5f"),
                 fmt(r["ssim"], ".4f")] for r in rows if r["baker"] != "reference"]
     return "\n".join([
         f"# Probe bake resolution study — {report['scene']}",

@@ -337,6 +337,16 @@ def fmt(value, spec: str = ",") -> str:
     return format(value, spec)
 
 
+def fmt_psnr(quality: dict | None, spec: str = ".2f") -> str:
+    """A PSNR cell of a measured image: ``∞`` where it equals the reference (JSON keeps that
+    infinity as null, which ``fmt`` would show as missing), ``—`` where nothing was
+    compared (no quality, or none with a PSNR: the reference's own row)."""
+    if not isinstance(quality, dict) or "psnr" not in quality:
+        return "—"
+    value = quality["psnr"]
+    return "∞" if value is None else fmt(value, spec)
+
+
 def costs(result) -> dict:
     """``rays`` (all cast, discarded included), ``rays_hit_pixels`` (rays of pixels that hit
     geometry), ``steps`` (traversal steps) and ``rays_per_pixel`` (all cast / pixels)."""

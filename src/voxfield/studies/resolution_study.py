@@ -26,6 +26,7 @@ from voxfield.studies.report import (
     costs,
     costs_and_quality,
     fmt,
+    fmt_psnr,
     markdown_table,
 )
 from voxfield.studies.threshold_study import PANELS, plot_value
@@ -118,7 +119,7 @@ def _markdown(report) -> str:
         cost.append([res, str(r["base_lod"]), fmt(ref["rays"]), fmt(a["rays"]),
                      fmt(a["rays_per_pixel"], ".3f"), fmt(a["steps"]), fmt(e["rays"]),
                      fmt(e["rays_per_pixel"], ".3f"), fmt(e["steps"])])
-        quality.append([res, fmt(a["psnr"], ".3f"), fmt(e["psnr"], ".3f"), fmt(a["rmse"], ".5f"),
+        quality.append([res, fmt_psnr(a, ".3f"), fmt_psnr(e, ".3f"), fmt(a["rmse"], ".5f"),
                         fmt(e["rmse"], ".5f"), fmt(a["ssim"], ".4f"), fmt(e["ssim"], ".4f")])
     return "\n".join([
         f"# Resolution — {report['scene']}",

@@ -19,6 +19,7 @@ from voxfield.studies.report import (
     StudyFolder,
     costs_and_quality,
     fmt,
+    fmt_psnr,
     markdown_table,
 )
 from voxfield.svo.octree import Octree
@@ -102,12 +103,12 @@ def edge_advice(adaptive_rays: int) -> str:
 def _markdown(report, decays, thresholds) -> str:
     cells = {(c["decay"], c["threshold"]): c for c in report["cells"]}
     rays = [[f"d = {d}"] + [fmt(cells[d, t]["rays"]) for t in thresholds] for d in decays]
-    psnr = [[f"d = {d}"] + [fmt(cells[d, t]["psnr"], ".2f") for t in thresholds] for d in decays]
+    psnr = [[f"d = {d}"] + [fmt_psnr(cells[d, t], ".2f") for t in thresholds] for d in decays]
     headers = ["decay \\ threshold", *[str(t) for t in thresholds]]
     adaptive = report["adaptive"]
     picks = [[fmt(p["decay"], ".2f"),
               fmt(p["threshold"], ".3f") + ("" if p.get("within_grid", True) else " (edge)"),
-              fmt(p["rays"]), fmt(p["steps"]), fmt(p["psnr"], ".2f"), fmt(p["ssim"], ".4f")]
+              fmt(p["rays"]), fmt(p["steps"]), fmt_psnr(p, ".2f"), fmt(p["ssim"], ".4f")]
              for p in report["closest_to_adaptive"]]
     edges = [p for p in report["closest_to_adaptive"] if not p.get("within_grid", True)]
     edge_note = [] if not edges else [
@@ -118,7 +119,7 @@ def _markdown(report, decays, thresholds) -> str:
         f"# Decay × threshold sweep — {report['scene']}, {report['width']}×{report['height']}",
         "",
         f"Adaptive renderer: {fmt(adaptive['rays'])} rays, {fmt(adaptive['steps'])} steps, "
-        f"PSNR {fmt(adaptive['psnr'], '.2f')} dB (metrics on linear RGB in [0, 1]).",
+        f"PSNR {fmt_psnr(adaptive, '.2f')} dB (metrics on linear RGB in [0, 1]).",
         "",
         "## Ray counts (EA Table 5.1)",
         "",

@@ -19,6 +19,7 @@ from voxfield.studies.report import (
     costs,
     costs_and_quality,
     fmt,
+    fmt_psnr,
     markdown_table,
 )
 from voxfield.svo.octree import Octree
@@ -83,7 +84,7 @@ def _markdown(report) -> str:
     quality = []
     for r in report["rows"]:
         e = r["error_aware"]
-        quality.append([fmt(r["threshold"], "g"), fmt(a["psnr"], ".3f"), fmt(e["psnr"], ".3f"),
+        quality.append([fmt(r["threshold"], "g"), fmt_psnr(a, ".3f"), fmt_psnr(e, ".3f"),
                         fmt(a["rmse"], ".5f"), fmt(e["rmse"], ".5f"), fmt(a["ssim"], ".4f"),
                         fmt(e["ssim"], ".4f")])
     ref = report["reference"]

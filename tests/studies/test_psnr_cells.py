@@ -1,0 +1,47 @@
+"""A PSNR of identical images is infinite, which JSON keeps as null: the tables must say ∞
+(the best score), not "—" (nothing measured), whether the value is fresh or read back from
+a study's cache; the lighting figure must not drop it as a missing bar."""
+
+from __future__ import annotations
+
+import json
+import math
+
+from voxfield.json_output import to_json
+from voxfield.studies.lighting_study import _figure as lighting_figure
+from voxfield.studies.report import fmt_psnr
+from voxfield.studies.threshold_study import _markdown as threshold_markdown
+
+
+def test_a_psnr_cell_tells_equal_from_unmeasured():
+    assert fmt_psnr({"psnr": math.inf}) == "∞"
+    assert fmt_psnr({"psnr": None}) == "∞"  # the same, read back from JSON
+    assert fmt_psnr({"psnr": 31.234}, ".1f") == "31.2"
+    assert fmt_psnr(None) == fmt_psnr({}) == fmt_psnr({"rays": 3}) == "—"
+
+
+def _quality(psnr):
+    return {"rays": 10, "rays_hit_pixels": 10, "steps": 20, "psnr": psnr, "rmse": 0.0,
+            "ssim": 1.0}
+
+
+def test_a_study_table_reads_the_same_fresh_and_from_its_cache():
+    report = {"scene": "s", "width": 4, "height": 4, "decay": 0.2, "base_lod": 2, "seed": 0,
+              "reference": {"rays": 256, "steps": 300}, "adaptive": _quality(20.0),
+              "rows": [{"threshold": 0.1, "error_aware": _quality(math.inf),
+                        "adaptive": _quality(20.0)}]}
+    fresh = threshold_markdown(report)
+    cached = threshold_markdown(json.loads(json.dumps(to_json(report))))
+    assert fresh == cached
+    assert "| 0.1 | 20.000 | ∞ |" in fresh
+
+
+def test_the_lighting_figure_draws_an_equal_image_as_the_tallest_bar():
+    contenders = ("adaptive", "error_aware", "lighting_aware")
+    row = {"channel": "albedo", **{name: _quality(psnr) for name, psnr in
+                                   zip(contenders, (15.0, None, 40.0), strict=True)}}
+    figure = lighting_figure({"scene": "s", "rows": [row]})
+    psnr_axis = figure.axes[2]
+    heights = [bar.get_height() for bar in psnr_axis.patches]
+    assert len(heights) == 3 and heights[1] > max(heights[0], heights[2])
+    assert "∞" in [text.get_text() for text in psnr_axis.texts]
