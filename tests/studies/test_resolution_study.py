@@ -67,3 +67,22 @@ def test_study_cli_parses_resolution():
     assert args.func.__name__ == "run_resolution"
     with pytest.raises(SystemExit):
         parser.parse_args(["study", "resolution", "builtin:pillars", "--sizes", "0,8"])
+
+
+def test_the_notes_say_what_breaks_the_thesis_s_trend():
+    """At 32² on a 128-voxel DEM error-aware cast 19.2 rays a pixel (more than the 16-ray
+    reference) and scored better than at 64²: without a word, the table contradicted
+    EA §5.5. A base LOD of 0 left the cheap renderers nothing to refine, also unsaid."""
+    from voxfield.studies.resolution_study import _notes
+
+    def row(size, base_lod, ea_rays):
+        pixels = size * size
+        return {"size": size, "base_lod": base_lod, "reference": {"rays": 16 * pixels},
+                "error_aware": {"rays": ea_rays, "rays_per_pixel": ea_rays / pixels}}
+
+    assert _notes([row(64, 1, 4 * 4096), row(128, 1, 3 * 16384)]) == []
+    text = " ".join(_notes([row(32, 2, 19 * 1024), row(64, 1, 4 * 4096), row(128, 0, 16384)]))
+    assert "At 128² the base LOD is 0" in text
+    assert "more rays than the 16-ray reference at 32² (19.0 rays/px)" in text
+    assert "64²" not in text.split("reference at")[1].split(":")[0]
+    assert "The base LOD changes with the size" in text

@@ -139,7 +139,32 @@ def _markdown(report) -> str:
         "",
         markdown_table(["resolution", "PSNR (A)", "PSNR (EA)", "RMSE (A)", "RMSE (EA)",
                         "SSIM (A)", "SSIM (EA)"], quality),
+        *_notes(rows),
     ])
+
+
+def _notes(rows) -> list[str]:
+    """What makes a row read against the thesis's trend (rays grow with the pixels, quality
+    falls with the size): a base LOD of 0 leaves nothing to refine, and refinement can cost
+    more rays than the 4×4 reference, as every discarded coarser ray counts."""
+    notes = []
+    flat = [f"{r['size']}²" for r in rows if r["base_lod"] == 0]
+    if flat:
+        notes.append(f"At {', '.join(flat)} the base LOD is 0: the cheap renderers start at "
+                     "the voxels and have nothing to refine, so they cast one ray a pixel "
+                     "whatever the threshold; a larger footprint or a smaller image gives "
+                     "them LODs to work with.")
+    costly = [f"{r['size']}² ({r['error_aware']['rays_per_pixel']:.1f} rays/px)" for r in rows
+              if r["error_aware"]["rays"] > r["reference"]["rays"]]
+    if costly:
+        notes.append(f"Error-aware casts more rays than the 16-ray reference at "
+                     f"{', '.join(costly)}: a pixel refined twice casts 1 + 4 + 16 rays, "
+                     "the coarser ones discarded.")
+    if len({r["base_lod"] for r in rows}) > 1:
+        notes.append("The base LOD changes with the size (the rule above), so a smaller "
+                     "image may start coarser and refine more: its rays per pixel and its "
+                     "quality need not follow the larger sizes'.")
+    return ["## Notes", "", *(f"- {note}" for note in notes)] if notes else []
 
 
 def _figure(report):
