@@ -9,6 +9,7 @@ cached per item, so an interrupted or repeated run only does what is missing.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
@@ -84,8 +85,8 @@ def run_compare(
         options["threads"] = None  # the scheduler shares the cores out among its tasks
     # Each render reads the octree from ``shared`` (scattered to a cluster once).
     specs = [(_slug(name), keys[name],
-              lambda shared, name=name: render(shared, camera, _renderer_of(name),
-                                               **settings[name], **options))
+              lambda shared, name=name: _warm_render(shared, camera, _renderer_of(name),
+                                                     settings[name], options))
              for name in names]
     with progress_bar(total=len(specs), desc="compare", unit="render",
                       enabled=progress and not options["progress"]) as bar:
@@ -188,6 +189,16 @@ def comparisons(rows: list[dict], images: dict) -> list[dict]:
                     "reference_name": "reference", "summary": summary,
                     "maps": maps})
     return out
+
+
+def _warm_render(octree: Octree, camera: Camera, renderer: str, settings: dict,
+                 options: dict) -> RenderResult:
+    """``render``, after the same render on a few pixels: a first call's seconds held the
+    loading (or compiling) of its kernels (the 16-ray reference "took" 0.03 s, adaptive
+    0.15), and where it runs (a thread, a task's process) is where they must be warm."""
+    tiny = dataclasses.replace(camera, width=4, height=4)
+    render(octree, tiny, renderer, **settings, **{**options, "progress": False})
+    return render(octree, camera, renderer, **settings, **options)
 
 
 def _sheet(report: dict, results: dict[str, RenderResult], base_lod: int | None):
