@@ -249,7 +249,7 @@ def test_read_only_folder_is_one_line(tmp_path, capsys):
 
 def test_a_closed_pipe_is_one_line():
     proc = subprocess.run(
-        f"{sys.executable} -m voxfield.cli scenes | head -c 10", shell=True,
+        f"{sys.executable} -m voxfield scenes | head -c 10", shell=True,
         capture_output=True, text=True, timeout=120)
     assert "Traceback" not in proc.stderr
     assert proc.stderr.strip() == "" or proc.stderr.strip().startswith("voxfield: error:")

@@ -95,7 +95,7 @@ def test_bad_input_is_one_line_and_exit_two(argv, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
     if argv[1] == "data.unknown":
         (tmp_path / "data.unknown").write_text("x")
-    proc = subprocess.run([sys.executable, "-m", "voxfield.cli", *argv],
+    proc = subprocess.run([sys.executable, "-m", "voxfield", *argv],
                           capture_output=True, text=True)
     assert proc.returncode == 2
     lines = proc.stderr.strip().splitlines()
@@ -158,3 +158,13 @@ def test_png_is_shaded_by_default_and_metrics_images_are_not(tmp_path):
     with pytest.raises(SystemExit) as exc:  # the parser refuses both at once
         main([*common, "--shade", "--albedo", "--out", str(tmp_path / "x.png")])
     assert exc.value.code == 2
+
+
+def test_python_dash_m_voxfield_is_the_command(capsys):
+    """Where the environment's scripts are not on the PATH, `python -m voxfield` is how one
+    runs the tool; it said "No module named voxfield.__main__"."""
+    run = subprocess.run([sys.executable, "-m", "voxfield", "scenes"], capture_output=True,
+                         text=True, timeout=300)
+    assert main(["scenes"]) == 0
+    assert run.returncode == 0 and run.stdout == capsys.readouterr().out
+    assert "builtin:" in run.stdout

@@ -85,7 +85,7 @@ def test_a_big_world_too_small_for_its_recipe_is_refused_first(shared_data):
 
 
 def _voxfield_writing_to(stdout, *argv):
-    return subprocess.run([sys.executable, "-m", "voxfield.cli", *argv], stdout=stdout,
+    return subprocess.run([sys.executable, "-m", "voxfield", *argv], stdout=stdout,
                           stderr=subprocess.PIPE, text=True, timeout=300)
 
 

@@ -13,7 +13,6 @@ from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_channel_option,
     add_scene_options,
-    check_probe_placement,
     default_output,
     int_between,
     lod_arg,
@@ -28,7 +27,7 @@ from voxfield.cli.options import (
 from voxfield.errors import VoxfieldError
 from voxfield.probes.bake import RADIANCE_FIELDS, export_cube_faces
 from voxfield.probes.folder_bake import bake_to_folder
-from voxfield.probes.grid import parse_grid, relocate
+from voxfield.probes.grid import check_placement, parse_grid, relocate
 from voxfield.probes.probe_folder import open_probe_set, read_header
 from voxfield.probes.probe_set import BAKE_RENDERERS, MAX_RESOLUTION, MIN_RESOLUTION, BakeOptions
 from voxfield.probes.show import write_show
@@ -173,7 +172,7 @@ def run_bake(args) -> int:
         grid, report = relocate(grid, octree, seed=args.seed)
         if not args.quiet:
             print(report.summary())
-    check_probe_placement(grid, octree, args.grid, relocated=args.relocate)
+    check_placement(grid, octree, args.grid, relocated=args.relocate)
     start = time.perf_counter()
     probe_set = bake_to_folder(
         octree, grid, options, out, scheduler=args.scheduler, fresh=args.fresh,

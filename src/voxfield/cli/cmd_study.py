@@ -15,7 +15,6 @@ from voxfield.cli.options import (
     add_study_folder,
     add_threshold_options,
     add_view_options,
-    check_probe_placement,
     default_output,
     distinct,
     finite_float,
@@ -33,7 +32,7 @@ from voxfield.cli.options import (
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import LightFieldOptions
 from voxfield.lighting import bake_sun_lighting, parse_suns
-from voxfield.probes.grid import parse_grid, relocate
+from voxfield.probes.grid import check_placement, parse_grid, relocate
 from voxfield.render.camera import preset_camera
 from voxfield.render.placement import check_camera_placement
 from voxfield.scaleout import SCHEDULER_HELP
@@ -331,7 +330,7 @@ def run_probe_resolution(args) -> int:
     grid = parse_grid(args.grid, octree.voxel_bounds, octree=octree)
     if not args.no_relocate:
         grid, _ = relocate(grid, octree, seed=args.seed)
-    check_probe_placement(grid, octree, args.grid, relocated=not args.no_relocate)
+    check_placement(grid, octree, args.grid, relocated=not args.no_relocate)
     report = probe_resolution_study(
         octree, grid.positions[grid.enabled], args.resolutions, threshold=args.threshold,
         decay=args.decay, seed=args.seed, channel=args.channel, scene_name=args.scene,

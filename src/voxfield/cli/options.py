@@ -450,19 +450,6 @@ def study_camera(args, octree) -> Camera:
     return view
 
 
-def check_probe_placement(grid, octree, spec: str, *, relocated: bool) -> None:
-    """Refuse, before a bake, a grid whose probes all stand in geometry or were all
-    disabled (the bake "succeeded" with empty maps); note one that is partly inside or
-    wholly outside the scene."""
-    from voxfield.probes.grid import placement_problem  # deferred: for the probe commands
-
-    problem, nothing_to_bake = placement_problem(grid, octree, relocated=relocated)
-    if nothing_to_bake:
-        raise VoxfieldError(f"{spec}: {problem}")
-    if problem is not None:
-        warnings.warn(f"{spec}: {problem}", stacklevel=2)
-
-
 def default_output(prefix: str, scene: str, suffix: str = "") -> Path:
     """``out/PREFIX_NAME[SUFFIX]``, NAME the scene's file stem or ``kind:NAME`` name, made
     path-safe: where a command writes when no ``--out`` is given."""

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+import warnings
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -460,6 +461,17 @@ def placement_problem(grid: ProbeGrid, octree: Octree, *,
                 f"{', '.join(f'{v:g}' for v in lo)} to {', '.join(f'{v:g}' for v in hi)}); "
                 "they see it from afar", False)
     return None, False
+
+
+def check_placement(grid: ProbeGrid, octree: Octree, spec: str, *, relocated: bool) -> None:
+    """Refuse, before a bake, a grid (given as ``spec``) whose probes all stand in geometry
+    or were all disabled (the bake "succeeded" with empty maps); warn of one partly inside
+    or wholly far from the scene."""
+    problem, nothing_to_bake = placement_problem(grid, octree, relocated=relocated)
+    if nothing_to_bake:
+        raise VoxfieldError(f"{spec}: {problem}")
+    if problem is not None:
+        warnings.warn(f"{spec}: {problem}", stacklevel=2)
 
 
 def fibonacci_directions(count: int, seed: int = 0) -> np.ndarray:

@@ -13,6 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from voxfield.errors import VoxfieldError
+from voxfield.render.image_io import shade_for_display
 from voxfield.render.result import RenderResult
 from voxfield.scene.voxel_scene import linear_to_srgb
 
@@ -106,8 +107,6 @@ def view_sheet(references: dict[str, RenderResult], *, title: str = ""):
     """The view a study measured, one panel per camera or size: its 4×4 reference, lit for
     display by the key light (the metrics use the unlit colours). A study's numbers mean
     nothing for a camera under the terrain or looking past the scene; this shows which."""
-    from voxfield.render.image_io import shade_for_display
-
     panels = [Panel(f"{name} (lit for display)", shade_for_display(result))
               for name, result in references.items()]
     return contact_sheet(panels, columns=min(len(panels), 4), title=title,
