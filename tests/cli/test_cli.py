@@ -168,3 +168,21 @@ def test_python_dash_m_voxfield_is_the_command(capsys):
     assert main(["scenes"]) == 0
     assert run.returncode == 0 and run.stdout == capsys.readouterr().out
     assert "builtin:" in run.stdout
+
+
+def test_render_looks_at_a_terrain_from_above_and_at_anything_else_from_the_side(tmp_path):
+    """`render bunny.obj` showed the bunny from straight above and a Cornell box its roof:
+    the default view was the EA thesis's terrain camera for every scene."""
+    from PIL import Image
+
+    dem = tmp_path / "hill.npy"
+    np.save(dem, np.outer(np.hanning(24), np.hanning(24)).astype(np.float32) * 8)
+    for scene, preset in (("builtin:pillars", "orbit"), ("builtin:cornell", "orbit"),
+                          (str(dem), "top"), ("terrain:desert", "top")):
+        images = []
+        for camera in ([], ["--camera", preset]):
+            out = tmp_path / f"{len(camera)}.png"
+            assert main(["render", scene, "--footprint", "32", "--size", "12", "--quiet",
+                         "--renderer", "lod", "--lod", "0", *camera, "--out", str(out)]) == 0
+            images.append(np.asarray(Image.open(out)))
+        assert np.array_equal(*images), scene

@@ -32,7 +32,7 @@ from voxfield.render.framing import content_box
 from voxfield.render.placement import check_camera_placement
 from voxfield.render.registry import RENDERERS
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
-from voxfield.scene.loaders import SceneOptions
+from voxfield.scene.loaders import SceneOptions, is_heightmap
 from voxfield.scene.terrain.columns import DEM_FITS, MAX_FOOTPRINT, MIN_FOOTPRINT
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree as open_octree_from_spec
@@ -281,9 +281,10 @@ def display_shaded(args, out: Path, channel: str) -> bool:
 def add_view_options(p: argparse.ArgumentParser, size: int = 512, camera: str = "top") -> None:
     """Camera and image options shared by every command that renders, plus --quiet; the
     command's own default view is said in the help it prints."""
+    described = AUTO_VIEW if camera == "auto" else CAMERA_PRESETS[camera][1]
     p.add_argument("--camera", default=camera, action=_ChosenView,
-                   help=f"preset view: {', '.join(_preset_names())} (default {camera}: "
-                   f"{CAMERA_PRESETS[camera][1]})")
+                   help=f"preset view: {', '.join(_preset_names(camera == 'auto'))} (default "
+                   f"{camera}: {described})")
     p.add_argument("--eye", type=vector_arg, default=None, metavar="X,Y,Z",
                    help="pinhole eye position in octree voxel units (with --target)")
     p.add_argument("--target", type=vector_arg, default=None, metavar="X,Y,Z")
@@ -295,9 +296,18 @@ def add_view_options(p: argparse.ArgumentParser, size: int = 512, camera: str = 
     add_quiet(p)
 
 
-def _preset_names() -> list[str]:
+def _preset_names(auto: bool = False) -> list[str]:
     names = [n for n in CAMERA_PRESETS if not n.startswith("cube")]
-    return [*names, "cube+x..cube-z"]
+    return [*(["auto"] if auto else []), *names, "cube+x..cube-z"]
+
+
+#: ``--camera auto``: the view a scene of its kind is looked at from.
+AUTO_VIEW = "top for a terrain or DEM (the EA thesis's view), orbit for an object or a room"
+
+
+def auto_preset(scene: str) -> str:
+    """The preset ``--camera auto`` means for ``scene``."""
+    return "top" if is_heightmap(scene) else "orbit"
 
 
 def add_study_folder(p: argparse.ArgumentParser, prefix: str, cached: str = "items", *,
@@ -435,7 +445,10 @@ def camera(args, bounds) -> Camera:
 
 def scene_camera(args, octree) -> Camera:
     """``camera`` over an octree: the orbit view frames its content (``content_box``), not a
-    ground plane that dominates its voxel box; every other view keeps the voxel box."""
+    ground plane that dominates its voxel box; every other view keeps the voxel box.
+    ``--camera auto`` is resolved from the scene's kind (``auto_preset``)."""
+    if args.camera == "auto":
+        args = argparse.Namespace(**{**vars(args), "camera": auto_preset(args.scene)})
     if args.camera == "orbit" and args.eye is None and args.target is None:
         return camera(args, content_box(octree))
     return camera(args, octree.voxel_bounds)

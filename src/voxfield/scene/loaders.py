@@ -152,6 +152,18 @@ def _note_stretch(heightmap) -> None:
                       "--dem-fit stretch this without the note", stacklevel=3)
 
 
+def is_heightmap(spec: str) -> bool:
+    """Whether ``spec`` names a terrain: a recipe, a DEM file or a DEM ``.npz``: scenes seen
+    from above, where an object or a room is seen from the side."""
+    if spec.startswith(("terrain:", "dem:")):
+        return True
+    path = Path(spec)
+    suffix = path.suffix.lower()
+    if suffix in DEM_SUFFIXES:
+        return True
+    return suffix == ".npz" and path.is_file() and npz_kind(path) == "dem"
+
+
 def block_source(spec: str, options: SceneOptions | None = None):
     """The scene as column blocks (``svo.streamed_build.BlockSource``) where its format can
     deliver them without making every voxel first (terrains), else None."""
