@@ -133,6 +133,8 @@ def test_killed_bake_leaves_whole_files_and_resumes(tmp_path, octree, grid, loca
     assert names == ["probe_00000.npz", "probe_00001.npz", "probes.json"]  # no temp files
     header = probe_folder.read_header(tmp_path)
     assert sorted(header["probes"]) == ["0", "1"] and not header["complete"]
+    # what the run did, not what it set out to do (it said 6 baked)
+    assert header["last_run"]["baked"] == 2 and header["last_run"]["reused"] == 0
 
     counting = Counting()
     assert_same(bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial",

@@ -105,7 +105,9 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
         bake_each(octree, grid, options, todo, store, scheduler=scheduler, progress=progress,
                   baker=baker)
     finally:
-        # Whatever finished before an error or Ctrl-C is kept for the next run.
+        # Whatever finished before an error or Ctrl-C is kept for the next run, and the
+        # header says how many that was, not how many the run set out to bake.
+        header["last_run"]["baked"] = len(header["probes"]) - len(done)
         write_header(folder, header)
 
     probe_set = open_probe_set(folder)
