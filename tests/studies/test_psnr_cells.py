@@ -45,3 +45,28 @@ def test_the_lighting_figure_draws_an_equal_image_as_the_tallest_bar():
     heights = [bar.get_height() for bar in psnr_axis.patches]
     assert len(heights) == 3 and heights[1] > max(heights[0], heights[2])
     assert "∞" in [text.get_text() for text in psnr_axis.texts]
+
+
+def test_curves_that_share_points_stay_apart_and_legends_cover_no_panel():
+    """In curves.png an adaptive renderer that never refined sat, one point, under the LOD
+    curve's first, and "EA d=0.2" under "EA+colour"; thresholds.png's legends covered
+    points."""
+    from voxfield.studies.curves_study import curves_figure
+    from voxfield.studies.threshold_study import _figure as threshold_figure
+
+    point = {"steps": 100, "rays": 50, "psnr": 30.0, "ssim": 0.9}
+    curves = {name: {"points": [dict(point)]} for name in ("EA d=0.2", "EA+colour", "A", "LOD")}
+    figure = curves_figure({"scene": "s", "cameras": {"top": {"kind": "perspective",
+                                                               "curves": curves}}})
+    for ax in figure.axes:
+        lines = ax.get_lines()
+        assert len({line.get_marker() for line in lines}) == len(lines) == 4
+        assert len({line.get_markersize() for line in lines}) == 4
+    def varied(t):
+        return {"rays": 100 - 100 * t, "rays_hit_pixels": 90 - 100 * t, "steps": 300 - 100 * t,
+                "psnr": 30 - t, "rmse": 0.01 + t, "ssim": 0.95 - t}
+
+    report = {"scene": "s", "decay": 0.2, "adaptive": varied(0.5),
+              "rows": [{"threshold": t, "error_aware": varied(t)} for t in (0.1, 0.2)]}
+    figure = threshold_figure(report)
+    assert all(ax.get_legend() is None for ax in figure.axes) and len(figure.legends) == 1

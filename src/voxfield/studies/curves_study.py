@@ -379,10 +379,15 @@ def curves_figure(report: dict):
         panels.append(("steps", "flip", "traversal steps", "FLIP (lower is better)"))
     fig, axes = plt.subplots(len(cams), len(panels), figsize=(5 * len(panels), 4.0 * len(cams)),
                              squeeze=False)
+    # Curves often share points (a colour term that changed nothing, an adaptive renderer
+    # that never refined: one point under the LOD curve's): each its own marker, drawn
+    # smaller than the one before and hollow, so a point under another still shows.
+    markers = "osD^vPX<>*"
     for row, (cam_name, cam) in zip(axes, cams, strict=True):
-        for name, curve in cam["curves"].items():
+        for k, (name, curve) in enumerate(cam["curves"].items()):
             points = sorted(curve["points"], key=lambda p: p["steps"])
-            style = {"marker": "o"}
+            style = {"marker": markers[k % len(markers)], "markersize": max(9.0 - 0.6 * k, 4.0),
+                     "fillstyle": "none", "markeredgewidth": 1.4}
             if name == ORACLE:  # a bound to look up to: its best points, drawn apart
                 points = _sharpest_for_cost(points)
                 style = {"linestyle": "--", "color": "0.3", "marker": "."}

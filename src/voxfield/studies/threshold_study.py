@@ -155,7 +155,9 @@ def _figure(report):
             ax.set_xlim(-0.5, len(x) - 0.5)
         ax.set_xlabel("error threshold" + (" (evenly spaced)" if labels is not None else ""))
         ax.set_title(label)
-        ax.legend(fontsize=7)
-    fig.suptitle(f"error threshold — {report['scene']}, decay {report['decay']}")
-    fig.tight_layout()
+    # One legend above the panels (the rays panel's lines name them all): inside each panel
+    # it covered points.
+    fig.legend(*axes[0].get_legend_handles_labels(), loc="upper right", fontsize=8, ncols=3)
+    fig.suptitle(f"error threshold — {report['scene']}, decay {report['decay']}", x=0.3)
+    fig.tight_layout(rect=(0, 0, 1, 0.9))
     return fig
