@@ -440,5 +440,8 @@ def test_placement_notes_a_grid_partly_inside_or_wholly_outside(block):
     far = ProbeGrid(origin=(500.0, 500.0, 500.0), spacing=(4.0,) * 3, counts=(2, 2, 2))
     problem, nothing = placement_problem(far, block)
     assert not nothing and "farther from the scene than its own size" in problem
+    dense = ProbeGrid(origin=(20.0, 8.0, 8.0), spacing=(0.25, 4.0, 4.0), counts=(8, 1, 2))
+    problem, nothing = placement_problem(dense, block)
+    assert not nothing and "less than a voxel apart along x (0.25 voxels)" in problem
     for beside in ((20.0, 8.0, 8.0), (24.0, 24.0, 24.0)):  # around an object: welcome
         assert placement_problem(_single_probe(beside), block) == (None, False)

@@ -453,6 +453,11 @@ def placement_problem(grid: ProbeGrid, octree: Octree, *,
     if inside:
         return (f"{inside} of {enabled} probes stand inside solid voxels (distance maps of "
                 "zero)" + hint, False)
+    crowded = [f"{axis} ({grid.spacing[i]:.3g} voxels)" for i, axis in enumerate("xyz")
+               if grid.counts[i] > 1 and grid.spacing[i] < 1.0]
+    if crowded:  # 100000x1x1 on a 96-voxel scene baked for minutes what one voxel shows
+        return (f"probes less than a voxel apart along {', '.join(crowded)}: neighbours see "
+                "almost the same maps; fewer probes cost less for the same answer", False)
     lo, hi = (np.asarray(b, np.float64) for b in octree.voxel_bounds)
     positions = grid.positions[grid.enabled]
     gap = np.linalg.norm(np.maximum(np.maximum(lo - positions, positions - hi), 0.0), axis=1)
