@@ -11,18 +11,19 @@ from pathlib import Path
 import numpy as np
 
 
-def to_json(value):
-    """A strictly JSON-valid copy: NumPy scalars and arrays become Python, NaN/±inf become
-    None, paths strings."""
+def to_json(value, *, finite: bool = True):
+    """A JSON-valid copy: NumPy scalars and arrays become Python, paths strings, and NaN or
+    ±inf None; ``finite=False`` keeps them for a file voxfield alone reads back (a probe
+    set's header: Python writes and reads ``Infinity``)."""
     if isinstance(value, dict):
-        return {str(k): to_json(v) for k, v in value.items()}
+        return {str(k): to_json(v, finite=finite) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [to_json(v) for v in value]
+        return [to_json(v, finite=finite) for v in value]
     if isinstance(value, np.ndarray):
-        return to_json(value.tolist())
+        return to_json(value.tolist(), finite=finite)
     if isinstance(value, np.generic):
         value = value.item()
-    if isinstance(value, float) and not math.isfinite(value):
+    if finite and isinstance(value, float) and not math.isfinite(value):
         return None
     if isinstance(value, Path):
         return str(value)

@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from voxfield.json_output import to_json
 from voxfield.probes import probe_folder
 from voxfield.probes.bake import bake_probe, bake_probes
 from voxfield.probes.folder_bake import bake_to_folder
@@ -272,7 +273,7 @@ def test_an_edited_grid_is_rebaked_on_resume_not_reused(tmp_path, octree, grid):
     positions tell that every finished probe stood elsewhere."""
     bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial")
     moved = ProbeGrid(grid.origin + np.array([0.5, 0.0, 0.0]), grid.spacing, grid.counts)
-    _edit_grid(tmp_path, **json.loads(json.dumps(probe_folder.jsonable(moved.to_dict()))))
+    _edit_grid(tmp_path, **json.loads(json.dumps(to_json(moved.to_dict(), finite=False))))
     counting = Counting()
     resumed = bake_to_folder(octree, moved, OPTIONS, tmp_path, scheduler="serial",
                              baker=counting)

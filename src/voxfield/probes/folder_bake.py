@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.json_output import to_json
 from voxfield.probes.distributed import bake_each, check_scheduler
 from voxfield.probes.probe_folder import (
     HEADER_NAME,
@@ -17,7 +18,6 @@ from voxfield.probes.probe_folder import (
     clear_folder,
     differences,
     identity,
-    jsonable,
     new_header,
     open_probe_set,
     read_header,
@@ -62,11 +62,11 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
                         fingerprint=octree.fingerprint(channel), channel=channel,
                         scene_name=getattr(octree, "name", "scene"))
     if source is not None:
-        header["scene"]["source"] = jsonable(source)
+        header["scene"]["source"] = to_json(source, finite=False)
     if relocation is not None:
         report = relocation.to_dict() if hasattr(relocation, "to_dict") else dict(relocation)
         report.pop("offsets", None)  # the grid holds them
-        header["relocation"] = jsonable(report)
+        header["relocation"] = to_json(report, finite=False)
     if fresh:
         clear_folder(folder)
     elif (folder / HEADER_NAME).exists():

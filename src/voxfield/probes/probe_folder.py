@@ -60,6 +60,7 @@ import numpy as np
 from voxfield.atomic import atomic_path
 from voxfield.errors import VoxfieldError
 from voxfield.fingerprint import array_fingerprint
+from voxfield.json_output import to_json
 from voxfield.kernels.octahedral import add_border
 from voxfield.probes.grid import ProbeGrid
 from voxfield.probes.probe_set import COST_FIELDS, BakeCost, BakeOptions, ProbeMaps, ProbeSet
@@ -130,8 +131,8 @@ def new_header(*, grid, options, fingerprint: str, channel: str, scene_name: str
         "format": FORMAT_NAME,
         "version": FORMAT_VERSION,
         "scene": {"fingerprint": fingerprint, "channel": channel, "name": scene_name},
-        "grid": jsonable(grid.to_dict()),
-        "options": jsonable(options.to_dict()),
+        "grid": to_json(grid.to_dict(), finite=False),
+        "options": to_json(options.to_dict(), finite=False),
         "resolution": resolution,
         "probe_count": int(grid.count),
         "encodings": encodings(resolution),
@@ -139,20 +140,6 @@ def new_header(*, grid, options, fingerprint: str, channel: str, scene_name: str
         "probes": {},
         "complete": False,
     }
-
-
-def jsonable(value):
-    """Plain JSON types: NumPy arrays and scalars become lists and numbers (inf stays a float
-    and is written as ``Infinity``, which Python's json reads back)."""
-    if isinstance(value, dict):
-        return {str(k): jsonable(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [jsonable(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return jsonable(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    return value
 
 
 def header_text(header: dict) -> str:
