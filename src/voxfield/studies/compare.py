@@ -280,6 +280,10 @@ def results_markdown(report: dict) -> str:
             [_main_row(row) for row in rows],
         ),
         "## Pixels by rays per pixel (EA Table 5.3)\n",
+        "The thesis tabulates the adaptive renderer so (a pixel refined to 2×2 is a 4-ray "
+        "pixel). An error-aware pixel casts 1, 5 (1 + 4), 9, 13, 17 or 21 rays, its coarser "
+        "rays discarded but counted, so its refined pixels fall under \"other\"; the thesis "
+        "tabulates it by finest LOD instead (Table 5.4, next).\n",
         _histogram_table(rows, "ray_histogram", {"1": "1 ray", "4": "4 rays", "16": "16 rays"}),
         "## Pixels by finest LOD used (EA Table 5.4)\n",
         _histogram_table(rows, "lod_histogram", {}),
