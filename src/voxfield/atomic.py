@@ -87,9 +87,8 @@ def check_writable(path: str | os.PathLike) -> Path:
                                          dir=folder)
             os.close(fd)
             os.unlink(probe)
-        else:  # the first missing folder, made and removed
-            os.rmdir(tempfile.mkdtemp(prefix=f".{target.stem[:64]}.", suffix=".probe",
-                                      dir=folder))
+        else:  # the missing folders, made as writing would make them, then removed
+            _make_and_remove(folder, target.parent)
     except OSError as exc:  # name the target, or the file in its way, never the probe
         named = "" if exc.filename is None else str(exc.filename)
         culprit = named if named and not named.endswith(".probe") else str(path)
@@ -112,10 +111,27 @@ def _checked_target(path: Path) -> Path:
     return path
 
 
+def _make_and_remove(existing: Path, wanted: Path) -> None:
+    """Create the folders from ``existing`` down to ``wanted`` and remove them again,
+    deepest first: every refusal writing would meet (permissions, a name too long) shows
+    now, and nothing is left behind."""
+    missing = [wanted, *(p for p in wanted.parents if p != existing and existing in p.parents)]
+    made = []
+    try:
+        for folder in reversed(missing):
+            folder.mkdir()
+            made.append(folder)
+    finally:
+        for folder in reversed(made):
+            folder.rmdir()
+
+
 def _nearest_folder(folder: Path) -> Path:
-    """``folder`` or its nearest existing ancestor; a file where a folder should be is
-    named as in the way."""
+    """``folder`` or its nearest existing ancestor; a file where a folder should be, or a
+    link to nothing, is named as in the way."""
     for candidate in (folder, *folder.parents):
+        if candidate.is_symlink() and not candidate.exists():
+            raise FileNotFoundError(errno.ENOENT, "it is a link to nothing", str(candidate))
         if candidate.exists():
             if not candidate.is_dir():
                 raise NotADirectoryError(errno.ENOTDIR, "is a file, not a folder",

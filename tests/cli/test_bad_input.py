@@ -112,13 +112,28 @@ def test_checking_an_output_leaves_nothing_behind(tmp_path):
         check_writable(tmp_path / "x.png")
 
 
-def test_a_missing_folder_that_cannot_be_made_is_refused_before_the_work(tmp_path):
-    (tmp_path / "locked").mkdir(mode=0o500)
-    if os.access(tmp_path / "locked", os.W_OK):
-        pytest.skip("this user writes into read-only folders (root)")
+def test_a_missing_folder_that_cannot_be_made_is_refused_before_the_work(tmp_path,
+                                                                         monkeypatch):
+    """Missing folders are made and removed again: a refusal writing would meet shows
+    before the work (a name too long, a link to nothing, no permission), naming the path."""
+    long_name = tmp_path / "ok" / ("n" * 300) / "x.png"
+    with pytest.raises(OSError) as refused:
+        check_writable(long_name)
+    assert refused.value.errno == errno.ENAMETOOLONG
+    (tmp_path / "dangling").symlink_to(tmp_path / "nowhere")
+    with pytest.raises(OSError, match="link to nothing") as refused:
+        check_writable(tmp_path / "dangling" / "x.png")
+    assert refused.value.filename == str(tmp_path / "dangling")
+
+    def no_permission(self, *args, **kwargs):
+        raise PermissionError(errno.EACCES, "Permission denied", str(self))
+
+    monkeypatch.setattr(Path, "mkdir", no_permission)
     with pytest.raises(PermissionError) as refused:
-        check_writable(tmp_path / "locked" / "new" / "x.png")
+        check_writable(tmp_path / "new" / "x.png")
     assert "probe" not in str(refused.value)
+    monkeypatch.undo()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["dangling"]
 
 
 @pytest.mark.parametrize("command", [

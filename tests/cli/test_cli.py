@@ -177,8 +177,15 @@ def test_render_looks_at_a_terrain_from_above_and_at_anything_else_from_the_side
 
     dem = tmp_path / "hill.npy"
     np.save(dem, np.outer(np.hanning(24), np.hanning(24)).astype(np.float32) * 8)
+    saved = {}
+    for scene in ("terrain:desert", "builtin:cornell"):  # an octree keeps its scene's name
+        saved[scene] = tmp_path / f"{scene.replace(':', '_')}.npz"
+        assert main(["build", scene, "--footprint", "32", "--quiet", "--out",
+                     str(saved[scene])]) == 0
     for scene, preset in (("builtin:pillars", "orbit"), ("builtin:cornell", "orbit"),
-                          (str(dem), "top"), ("terrain:desert", "top")):
+                          (str(dem), "top"), ("terrain:desert", "top"),
+                          (str(saved["terrain:desert"]), "top"),
+                          (str(saved["builtin:cornell"]), "orbit")):
         images = []
         for camera in ([], ["--camera", preset]):
             out = tmp_path / f"{len(camera)}.png"

@@ -443,5 +443,9 @@ def test_placement_notes_a_grid_partly_inside_or_wholly_outside(block):
     dense = ProbeGrid(origin=(20.0, 8.0, 8.0), spacing=(0.25, 4.0, 4.0), counts=(8, 1, 2))
     problem, nothing = placement_problem(dense, block)
     assert not nothing and "less than a voxel apart along x (0.25 voxels)" in problem
+    both = ProbeGrid(origin=(15.0, 8.0, 8.0), spacing=(0.5, 4.0, 4.0), counts=(4, 1, 1))
+    problem, nothing = placement_problem(both, block)  # every problem, not the first alone
+    assert not nothing and "2 of 4 probes stand inside" in problem
+    assert "less than a voxel apart along x" in problem
     for beside in ((20.0, 8.0, 8.0), (24.0, 24.0, 24.0)):  # around an object: welcome
         assert placement_problem(_single_probe(beside), block) == (None, False)

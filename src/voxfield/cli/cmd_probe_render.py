@@ -68,6 +68,7 @@ from voxfield.render.image_io import check_image_output, save_result_image, shad
 from voxfield.render.placement import camera_placement_problem
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.scene.terrain.columns import DEM_FITS
+from voxfield.studies.report import fmt_psnr
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree
 
@@ -211,7 +212,7 @@ def run(args) -> int:
         print(summary_line(summary))
         if args.compare:
             m = summary["compare"]
-            print(f"against the octree ({m['reference']}): PSNR {m['psnr']:.2f} dB, "
+            print(f"against the octree ({m['reference']}): PSNR {fmt_psnr(m)} dB, "
                   f"SSIM {m['ssim']:.4f}, RMSE {m['rmse']:.4f} (linear RGB in [0, 1])")
             print(f"perfect-trace bound {m['bound_psnr']:.2f} dB (gap {m['bound_gap_db']:.2f} "
                   f"dB); depth: median {_depth_error(m['depth']['median'])}, 99th "
@@ -267,8 +268,9 @@ def _note_unused_options(args, options: LightFieldOptions) -> None:
     if not args.compare and args.spp_side != 1:
         ignored["--spp-side"] = ["--compare"]
     if ignored:
+        marcher = args.method == "light-field" and "--step" in ignored
         warn_ignored(ignored, f"the {args.method} render"
-                     + (f" with the {options.marcher} marcher" if "--step" in ignored else ""))
+                     + (f" with the {options.marcher} marcher" if marcher else ""))
 
 
 def _open_scene(args, probe_set):

@@ -329,8 +329,11 @@ def run_probe_resolution(args) -> int:
     octree = open_octree(args)
     grid = parse_grid(args.grid, octree.voxel_bounds, octree=octree)
     if not args.no_relocate:
-        grid, _ = relocate(grid, octree, seed=args.seed)
-    check_placement(grid, octree, args.grid, relocated=not args.no_relocate)
+        grid, moved = relocate(grid, octree, seed=args.seed)
+        if not args.quiet:
+            print(moved.summary())
+    check_placement(grid, octree, args.grid, relocated=not args.no_relocate,
+                    relocate_with="leaving out --no-relocate")
     report = probe_resolution_study(
         octree, grid.positions[grid.enabled], args.resolutions, threshold=args.threshold,
         decay=args.decay, seed=args.seed, channel=args.channel, scene_name=args.scene,

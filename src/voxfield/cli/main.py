@@ -43,6 +43,8 @@ class CommandLineParser(argparse.ArgumentParser):
         try:
             file.write(message)
             file.flush()
+        except AttributeError:  # no stream at all (pythonw, some daemons): as argparse does
+            pass
         except OSError as exc:
             if file is sys.stdout:
                 sys.exit(stdout_failed("voxfield", exc))

@@ -305,9 +305,11 @@ def _preset_names(auto: bool = False) -> list[str]:
 AUTO_VIEW = "top for a terrain or DEM (the EA thesis's view), orbit for an object or a room"
 
 
-def auto_preset(scene: str) -> str:
-    """The preset ``--camera auto`` means for ``scene``."""
-    return "top" if is_heightmap(scene) else "orbit"
+def auto_preset(scene: str, octree=None) -> str:
+    """The preset ``--camera auto`` means for ``scene``, or for the scene a saved octree was
+    built from (its name: ``build terrain:desert --out t.npz`` keeps ``terrain:desert``)."""
+    names = [scene, str(getattr(octree, "name", "") or "")]
+    return "top" if any(name and is_heightmap(name) for name in names) else "orbit"
 
 
 def add_study_folder(p: argparse.ArgumentParser, prefix: str, cached: str = "items", *,
@@ -448,7 +450,7 @@ def scene_camera(args, octree) -> Camera:
     ground plane that dominates its voxel box; every other view keeps the voxel box.
     ``--camera auto`` is resolved from the scene's kind (``auto_preset``)."""
     if args.camera == "auto":
-        args = argparse.Namespace(**{**vars(args), "camera": auto_preset(args.scene)})
+        args = argparse.Namespace(**{**vars(args), "camera": auto_preset(args.scene, octree)})
     if args.camera == "orbit" and args.eye is None and args.target is None:
         return camera(args, content_box(octree))
     return camera(args, octree.voxel_bounds)

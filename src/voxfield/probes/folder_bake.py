@@ -97,6 +97,8 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
     def store(index: int, maps) -> None:
         nonlocal last_flush
         header["probes"][str(index)] = write_probe(folder, index, maps, positions[index])
+        # what the run did so far, not what it set out to do: a killed run's header says so
+        header["last_run"]["baked"] = len(header["probes"]) - len(done)
         if time.monotonic() - last_flush >= HEADER_FLUSH_SECONDS:
             write_header(folder, header)
             last_flush = time.monotonic()
@@ -105,8 +107,7 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
         bake_each(octree, grid, options, todo, store, scheduler=scheduler, progress=progress,
                   baker=baker)
     finally:
-        # Whatever finished before an error or Ctrl-C is kept for the next run, and the
-        # header says how many that was, not how many the run set out to bake.
+        # Whatever finished before an error or Ctrl-C is kept for the next run.
         header["last_run"]["baked"] = len(header["probes"]) - len(done)
         write_header(folder, header)
 

@@ -435,12 +435,12 @@ def probes_inside(grid: ProbeGrid, octree: Octree) -> np.ndarray:
     return inside
 
 
-def placement_problem(grid: ProbeGrid, octree: Octree, *,
-                      relocated: bool = False) -> tuple[str | None, bool]:
+def placement_problem(grid: ProbeGrid, octree: Octree, *, relocated: bool = False,
+                      relocate_with: str = "--relocate") -> tuple[str | None, bool]:
     """What is wrong with where ``grid`` puts its probes in ``octree``, and whether it
     leaves nothing worth baking; (None, False) for a usable grid. The hint offers
-    relocation unless the grid had it."""
-    hint = ("; " + ("" if relocated else "--relocate moves probes out of geometry, and ")
+    relocation (asked for by ``relocate_with``) unless the grid had it."""
+    hint = ("; " + ("" if relocated else f"{relocate_with} moves probes out of geometry, and ")
             + "on a terrain --grid surface:NXxNZ@H lays them above the ground")
     enabled = int(np.count_nonzero(grid.enabled))
     if enabled == 0:
@@ -450,29 +450,33 @@ def placement_problem(grid: ProbeGrid, octree: Octree, *,
         return (f"{'the probe stands' if inside == 1 else f'all {inside} probes stand'} "
                 "inside solid voxels: the maps would hold nothing but that geometry" + hint,
                 True)
+    problems = []
     if inside:
-        return (f"{inside} of {enabled} probes stand inside solid voxels (distance maps of "
-                "zero)" + hint, False)
+        problems.append(f"{inside} of {enabled} probes stand inside solid voxels (distance "
+                        "maps of zero)" + hint)
     crowded = [f"{axis} ({grid.spacing[i]:.3g} voxels)" for i, axis in enumerate("xyz")
                if grid.counts[i] > 1 and grid.spacing[i] < 1.0]
     if crowded:  # 100000x1x1 on a 96-voxel scene baked for minutes what one voxel shows
-        return (f"probes less than a voxel apart along {', '.join(crowded)}: neighbours see "
-                "almost the same maps; fewer probes cost less for the same answer", False)
+        problems.append(f"probes less than a voxel apart along {', '.join(crowded)}: "
+                        "neighbours see almost the same maps; fewer probes cost less for the "
+                        "same answer")
     lo, hi = (np.asarray(b, np.float64) for b in octree.voxel_bounds)
     positions = grid.positions[grid.enabled]
     gap = np.linalg.norm(np.maximum(np.maximum(lo - positions, positions - hi), 0.0), axis=1)
     if gap.min() > float((hi - lo).max()):  # probes around an object are welcome
-        return ("every probe lies farther from the scene than its own size (its box: "
-                f"{', '.join(f'{v:g}' for v in lo)} to {', '.join(f'{v:g}' for v in hi)}); "
-                "they see it from afar", False)
-    return None, False
+        problems.append("every probe lies farther from the scene than its own size (its "
+                        f"box: {', '.join(f'{v:g}' for v in lo)} to "
+                        f"{', '.join(f'{v:g}' for v in hi)}); they see it from afar")
+    return ("; and ".join(problems) or None), False
 
 
-def check_placement(grid: ProbeGrid, octree: Octree, spec: str, *, relocated: bool) -> None:
+def check_placement(grid: ProbeGrid, octree: Octree, spec: str, *, relocated: bool,
+                    relocate_with: str = "--relocate") -> None:
     """Refuse, before a bake, a grid (given as ``spec``) whose probes all stand in geometry
     or were all disabled (the bake "succeeded" with empty maps); warn of one partly inside
     or wholly far from the scene."""
-    problem, nothing_to_bake = placement_problem(grid, octree, relocated=relocated)
+    problem, nothing_to_bake = placement_problem(grid, octree, relocated=relocated,
+                                                 relocate_with=relocate_with)
     if nothing_to_bake:
         raise VoxfieldError(f"{spec}: {problem}")
     if problem is not None:

@@ -95,7 +95,7 @@ def probe_file_name(index: int) -> str:
 def owned_file(folder: str | os.PathLike, path: str | os.PathLike) -> bool:
     """Whether ``path`` is one of the files a probe-set folder keeps (its header, atlases
     or probes): an output written there would replace part of the bake."""
-    path, folder = Path(path), Path(folder)
+    path, folder = Path(os.path.realpath(path)), Path(folder)  # a link is written through
     if not path.parent.exists() or not folder.is_dir() or \
             not path.parent.resolve() == folder.resolve():
         return False

@@ -203,7 +203,7 @@ def _figure(report: dict):
             ax.set_ylim(top=1.12 * infinite_bar)  # room for the ∞ marks
         ax.set_xticks(x, [r["channel"] for r in rows], rotation=20)
         ax.set_title(title)
-    # one legend beside the panels, where it hides no bar
+    # one legend above the panels, where it hides no bar
     fig.legend(loc="upper right", fontsize=8, ncols=len(CONTENDERS))
     fig.suptitle(f"Lighting — {report['scene']} (∞: equal to the reference)", x=0.3)
     fig.tight_layout(rect=(0, 0, 1, 0.92))

@@ -49,6 +49,7 @@ from voxfield.probes.distributed import bake_probes_dask
 from voxfield.probes.grid import (
     DEFAULT_CLEARANCE_FRACTION,
     ProbeGrid,
+    placement_problem,
     relocate,
     surface_layer,
     surface_spec,
@@ -332,9 +333,11 @@ class _Study:
                             DEFAULT_CLEARANCE_FRACTION * float(grid.spacing.min()))
             grid, moved = relocate(grid, self.octree, clearance=clearance, seed=self.seed)
             summary = moved.summary()
-        if not np.asarray(grid.enabled).any():
-            raise VoxfieldError(f"every probe of the {spec} grid sits in "
-                                "geometry; use another grid or --no-relocate")
+        problem, nothing_to_bake = placement_problem(
+            grid, self.octree, relocated=self.relocate_probes,
+            relocate_with="leaving out --no-relocate")
+        if nothing_to_bake:  # the rule bake and probe-resolution refuse by
+            raise VoxfieldError(f"the {spec} grid: {problem}")
         return grid, summary
 
     def describe_grid(self, spec: str) -> dict:

@@ -148,23 +148,37 @@ def _notes(rows) -> list[str]:
     falls with the size): a base LOD of 0 leaves nothing to refine, and refinement can cost
     more rays than the 4×4 reference, as every discarded coarser ray counts."""
     notes = []
-    flat = [f"{r['size']}²" for r in rows if r["base_lod"] == 0]
+    flat = [f"{r['size']}x{r['size']}" for r in rows if r["base_lod"] == 0]
     if flat:
         notes.append(f"At {', '.join(flat)} the base LOD is 0: the cheap renderers start at "
                      "the voxels and have nothing to refine, so they cast one ray a pixel "
                      "whatever the threshold; a larger footprint or a smaller image gives "
                      "them LODs to work with.")
-    costly = [f"{r['size']}² ({r['error_aware']['rays_per_pixel']:.1f} rays/px)" for r in rows
+    costly = [f"{r['size']}x{r['size']} ({r['error_aware']['rays_per_pixel']:.1f} rays/px)"
+              for r in rows
               if r["error_aware"]["rays"] > r["reference"]["rays"]]
     if costly:
         notes.append(f"Error-aware casts more rays than the 16-ray reference at "
                      f"{', '.join(costly)}: a pixel refined twice casts 1 + 4 + 16 rays, "
                      "the coarser ones discarded.")
-    if len({r["base_lod"] for r in rows}) > 1:
+    if len({r["base_lod"] for r in rows}) > 1 and _against_the_trend(rows):
         notes.append("The base LOD changes with the size (the rule above), so a smaller "
                      "image may start coarser and refine more: its rays per pixel and its "
                      "quality need not follow the larger sizes'.")
     return ["## Notes", "", *(f"- {note}" for note in notes)] if notes else []
+
+
+def _against_the_trend(rows) -> bool:
+    """Whether a smaller image cost error-aware more rays or scored higher than a larger
+    one (an image equal to the reference, PSNR null, as the highest score)."""
+    def psnr(row):
+        value = row["error_aware"].get("psnr")
+        return math.inf if value is None else value
+
+    ordered = sorted(rows, key=lambda r: r["size"])
+    return any(small["error_aware"]["rays"] > large["error_aware"]["rays"]
+               or psnr(small) > psnr(large)
+               for k, small in enumerate(ordered) for large in ordered[k + 1:])
 
 
 def _figure(report):
