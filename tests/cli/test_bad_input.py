@@ -637,6 +637,11 @@ def test_a_probe_render_over_its_own_probe_set_s_files_is_refused(tmp_path, caps
     assert main(["probe-render", str(probes), "--size", "8", "--quiet", "--method",
                  "environment", "--out", str(probes / "radiance.exr")]) == 2
     assert "probe set it reads" in one_error_line(capsys)
+    link = tmp_path / "view.exr"  # written through, a link is the file it names
+    link.symlink_to(probes / "radiance.exr")
+    assert main(["probe-render", str(probes), "--size", "8", "--quiet", "--method",
+                 "environment", "--out", str(link)]) == 2
+    assert "probe set it reads" in one_error_line(capsys)
     assert (probes / "radiance.exr").read_bytes() == atlas
     # beside the probes, under a name of its own, a render is welcome
     assert main(["probe-render", str(probes), "--size", "8", "--quiet", "--method",

@@ -526,6 +526,8 @@ def test_command_writes_strict_json_and_words_a_depth_never_found(run, cornell_f
     (["--spp-side", "4"], "the light-field render takes no --spp-side (for --compare)"),
     (["--method", "environment", "--no-fallback"],
      "the environment render takes no --no-fallback (for light-field)"),
+    (["--method", "box-proxy", "--step", "0.5"],
+     "the box-proxy render takes no --step (for light-field)"),
 ])
 def test_command_notes_options_its_render_does_not_read(run, cornell_folder, tmp_path, capsys,
                                                        extra, note):
