@@ -54,8 +54,15 @@ def test_a_command_stopped_by_a_signal_says_so_in_one_line(signum, status, words
         return 0
 
     monkeypatch.setattr("voxfield.cli.cmd_render.run", stopped)
-    assert main(["render", "builtin:sphere", "--size", "8", "--out",
-                 str(tmp_path / "x.png")]) == status
+    # a suite started under nohup inherits SIGHUP ignored, which the command rightly keeps
+    before = signal.signal(signum, signal.SIG_DFL if signum != signal.SIGINT
+                           else signal.default_int_handler)
+    try:
+        code = main(["render", "builtin:sphere", "--size", "8", "--out",
+                     str(tmp_path / "x.png")])
+    finally:
+        signal.signal(signum, before)
+    assert code == status
     assert _last_line(capsys) == f"voxfield: {words}"
     assert list(tmp_path.iterdir()) == []
 
