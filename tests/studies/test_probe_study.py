@@ -179,3 +179,24 @@ def test_command_line_runs_the_study(tmp_path, capsys):
     assert main(["study", "probes", "builtin:cornell", "--marchers", "teleport",
                  "--out", str(out), "--quiet"]) == 2
     assert "voxfield: error:" in capsys.readouterr().err
+
+
+def test_a_grid_with_nothing_to_bake_is_refused_before_any_render(tmp_path, monkeypatch):
+    """A counted grid over a slab, kept where it stands: every probe in the ground. The
+    study baked zero-distance maps (its own rule spoke only when relocation disabled all),
+    and refused, once it did, after the octree's reference render."""
+    from voxfield.studies import probe_study
+
+    x, z = np.meshgrid(np.arange(32), np.arange(32), indexing="ij")
+    coords = np.stack([x.ravel(), np.zeros(x.size, np.int64), z.ravel()], axis=1)
+    slab = build_octree(VoxelScene(coords, np.full((len(coords), 3), 0.5, np.float32)))
+    camera = Camera.look_at((16.0, 30.0, 40.0), (16.0, 0.0, 16.0), fov_deg=60.0, width=8)
+
+    def no_render(*args, **kwargs):
+        raise AssertionError("rendered before the grid was checked")
+
+    monkeypatch.setattr(probe_study, "render_lod", no_render)
+    with pytest.raises(VoxfieldError, match="all 2 probes stand inside solid voxels"):
+        run_probe_study(slab, tmp_path / "s", camera=camera, grid_counts="2x1x1",
+                        resolutions=(8, 16), probe_counts=("2x1x1",), marchers=("hierarchical",),
+                        orderings=("nearest",), timing_repeats=1, relocate_probes=False)

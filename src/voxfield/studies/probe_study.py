@@ -128,9 +128,11 @@ def run_probe_study(
     total = (len(plan["resolutions"]) * len(plan["marchers"]) + len(QUALITY_METHODS)
              + len(plan["probe_counts"]) * (len(plan["marchers"]) + len(plan["orderings"])))
     with progress_bar(total=total, desc="probe study", unit="item", enabled=progress) as bar:
-        reference = study.reference()
+        # every grid checked (and relocated) before any render: one with nothing to bake is
+        # refused before the octree's reference render, not after it
         for spec in dict.fromkeys((main, *plan["probe_counts"])):
             study.describe_grid(spec)
+        reference = study.reference()
         resolution_rows = []
         quality_rows = []
         timing = None
