@@ -13,19 +13,36 @@ it is reused and the geometry pass costs nothing. Both passes are counted in ``B
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 
 import numpy as np
 
 from voxfield.checks import integer_in
 from voxfield.errors import VoxfieldError
-from voxfield.probes.probe_set import BakeCost, BakeOptions, ProbeMaps, ProbeSet, encode_normals
+from voxfield.probes.probe_set import (
+    MIN_RESOLUTION,
+    BakeCost,
+    BakeOptions,
+    ProbeMaps,
+    ProbeSet,
+    encode_normals,
+)
 from voxfield.progress import progress_bar
 from voxfield.render.camera import MAX_IMAGE_SIDE, Camera, cube_cameras
 from voxfield.render.primary import render_lod
 from voxfield.render.registry import render, renderer_options
 from voxfield.render.result import RenderResult
 from voxfield.svo.octree import Octree
+
+
+def warm_up(octree: Octree, position, options: BakeOptions, *,
+            threads: int | None = None) -> None:
+    """One probe at the smallest maps with ``options``' baker, its maps dropped: a timed
+    bake that follows no longer holds the loading (or compiling) of the baker's kernels
+    (a first 16² bake took 20 times a 32² one)."""
+    bake_probe(octree, position, dataclasses.replace(options, resolution=MIN_RESOLUTION),
+               threads=threads)
 
 
 def bake_probe(octree: Octree, position, options: BakeOptions, *,

@@ -88,7 +88,7 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
     todo = [i for i in range(grid.count) if enabled[i] and i not in done]
     header["complete"] = False
     header.pop("atlas", None)
-    header["last_run"] = {"baked": len(todo), "reused": len(done),
+    header["last_run"] = {"baked": 0, "reused": len(done),  # counted up as probes are stored
                           "scheduler": _scheduler_name(scheduler)}
     write_header(folder, header)
 
@@ -108,7 +108,6 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
                   baker=baker)
     finally:
         # Whatever finished before an error or Ctrl-C is kept for the next run.
-        header["last_run"]["baked"] = len(header["probes"]) - len(done)
         write_header(folder, header)
 
     probe_set = open_probe_set(folder)

@@ -24,8 +24,8 @@ import numpy as np
 from voxfield.error_table.table import THESIS_DECAY, THESIS_THRESHOLD
 from voxfield.errors import VoxfieldError
 from voxfield.metrics import compare_images
-from voxfield.probes.bake import bake_probe
-from voxfield.probes.probe_set import MIN_RESOLUTION, BakeOptions
+from voxfield.probes.bake import bake_probe, warm_up
+from voxfield.probes.probe_set import BakeOptions
 from voxfield.progress import progress_bar
 from voxfield.studies.report import fmt, fmt_psnr, markdown_table
 from voxfield.svo.octree import Octree
@@ -51,11 +51,8 @@ def probe_resolution_study(
         raise VoxfieldError(f"unknown baker(s) {unknown}; choose from {', '.join(CHEAP_BAKERS)}")
     common = {"channel": channel, "seed": seed, "threshold": threshold, "decay": decay,
               "samples": samples}
-    # Each baker once on the smallest map first: a first call's seconds held the loading
-    # (or compiling) of its kernels, 20 times a warm bake's at 16² (the seconds column).
-    for baker in ("reference", *bakers):
-        bake_probe(octree, positions[0], BakeOptions(resolution=MIN_RESOLUTION, renderer=baker,
-                                                     **common), threads=threads)
+    for baker in ("reference", *bakers):  # the seconds column times warm bakers
+        warm_up(octree, positions[0], BakeOptions(renderer=baker, **common), threads=threads)
     rows = []
     total = len(resolutions) * (1 + len(bakers)) * len(positions)
     with progress_bar(total=total, desc="probe resolution", unit="bake",

@@ -25,7 +25,6 @@ only what a missing item needs, and a finished study re-runs without baking at a
 
 from __future__ import annotations
 
-import dataclasses
 import re
 import time
 import warnings
@@ -44,7 +43,7 @@ from voxfield.lightfield.trace import MARCHERS as KNOWN_MARCHERS
 from voxfield.lightfield.trace import ORDERINGS as KNOWN_ORDERINGS
 from voxfield.lightfield.trace import checked_options
 from voxfield.metrics import compare_images
-from voxfield.probes.bake import bake_probe, bake_probes
+from voxfield.probes.bake import bake_probes, warm_up
 from voxfield.probes.distributed import bake_probes_dask
 from voxfield.probes.grid import (
     DEFAULT_CLEARANCE_FRACTION,
@@ -363,11 +362,8 @@ class _Study:
             grid, _ = self.grid(spec)
             bake = BakeOptions(resolution=int(resolution), renderer="lod", lod=0,
                                channel=self.channel, seed=self.seed)
-            if self.folder.scheduler in (None, "serial"):
-                # one probe at the smallest maps first: the first bake's seconds held the
-                # loading of its kernels (1.65 s at 16², 0.07 s at 32²)
-                bake_probe(self.octree, grid.positions[0],
-                           dataclasses.replace(bake, resolution=MIN_RESOLUTION))
+            if self.folder.scheduler in (None, "serial"):  # the bake's seconds, warm
+                warm_up(self.octree, grid.positions[0], bake)
             start = time.perf_counter()
             if self.folder.scheduler in (None, "serial"):
                 probe_set = bake_probes(self.octree, grid, bake)

@@ -36,7 +36,7 @@ _COLOUR_FIELDS = frozenset({"attributes", "facing", "name"})
 #: context-aware error's repeating-surface flags and the children's mean SH error
 #: coefficients for an error table (``render.error_aware``).
 STRUCTURAL_TABLES = frozenset({"column_tops", "exposed_faces", "inside_repeating_surface",
-                               "children_sh_means"})
+                               "children_sh_means", "voxel_occupancy"})
 
 
 @dataclass(frozen=True)
