@@ -162,6 +162,41 @@ def test_hierarchical_trace_fetches_fewer_texels_than_the_dda(cornell, cornell_p
     assert hier.fetches.sum() < 0.5 * dda.fetches.sum()
 
 
+def test_the_3d_march_proves_a_miss_once_past_every_surface(cornell_probe64):
+    """Rays from the probe out of the box's open side, unbounded: the 3D march answers MISS,
+    as the 2D walks do, and stops soon after the farthest surface the probe stores (moving
+    away, no later point can meet one). Without that bound it spent its whole point budget
+    on each and handed it on UNKNOWN, for the fallback to answer."""
+    r = 64
+    stored = cornell_probe64.distance[0].ravel()
+    escaping = ~np.isfinite(stored)
+    assert escaping.sum() > 100
+    dirs = texel_directions(r)[escaping]
+    origins = np.repeat(CORNELL_PROBE[None], len(dirs), axis=0)
+    options = LightFieldOptions(marcher="march3d")
+    hits = trace_single(cornell_probe64, 0, origins, dirs, options)
+    assert np.all(hits.kind == MISS) and np.all(hits.t == math.inf)
+    points = math.ceil(stored[~escaping].max() / options.step) + 1
+    walk = 4 * (2 * r + 4)  # the 2D walk of one octant piece fetches at most this many
+    assert hits.fetches.max() <= points + walk < options.max_steps
+
+
+def test_what_the_dda_proves_empty_the_3d_march_finds_empty(cornell_probe64):
+    """Each point of the march reads one texel the DDA crosses, at a radial distance inside
+    the range the DDA tests there, so where the DDA finds every texel in front of its surface
+    (MISS), so does the march, up to the farthest surface and past it."""
+    rng = np.random.default_rng(5)
+    n = 3000
+    origins = CORNELL_PROBE + rng.uniform(-4.0, 4.0, (n, 3))
+    dirs = _unit(rng.normal(size=(n, 3)))
+    dda = trace_single(cornell_probe64, 0, origins, dirs, LightFieldOptions(marcher="dda"))
+    march = trace_single(cornell_probe64, 0, origins, dirs,
+                         LightFieldOptions(marcher="march3d"))
+    proved = dda.kind == MISS
+    assert proved.sum() > 300
+    assert np.all(march.kind[proved] == MISS)
+
+
 def test_backface_rejection_turns_a_hit_from_inside_a_wall_into_unknown(cornell):
     """A ray starting just inside the floor and leaving it upwards meets the floor's top
     face from behind: accepted as a hit within ε without normals, lost with them (§7.2)."""

@@ -17,7 +17,12 @@ direction falls in:
 Three marchers share that test (``MARCH3D``, ``DDA``, ``HIERARCHICAL``):
 
 1. ``MARCH3D`` — the thesis's baseline (§4.2, Algorithm 3): fixed world steps ``step``, one
-   texel fetch per step, no termination bound except ``max_steps`` (then ``UNKNOWN``).
+   texel fetch per step, up to ``max_steps`` points (then ``UNKNOWN``). Once the ray is
+   farther from the probe than every surface it stores and moving away, no point can meet one
+   (``farthest_surface``): the rest of the ray can only stay in empty texels (a miss) or pass
+   behind a surface (unknown), and the ``DDA`` walks it to say which. Without that bound an
+   escaping ray marched its whole point budget and ended unknown, and the fallback answered
+   it.
 2. ``DDA`` — McGuire et al. 2017's 2D trace: the ray is split where it crosses the probe's
    three axis planes; each piece stays in one octant, where the octahedral map is a projective
    map of the direction, so the piece is a straight segment in texture space. Its texels are
@@ -95,6 +100,9 @@ P_FRONT = 9  # footprint ε in front of a surface: at most this many texel width
 P_REFINE = 10  # a hit is re-traced against its colour probe within ± this many texel widths
 P_RING = 11  # 1.0: when a cage loses the ray, the probes one step outside it try (``probe_multi``)
 N_PARAMS = 12
+
+#: ``march_3d``'s answer when the ray has gone past every stored surface, moving away.
+_PAST_SURFACES = -1
 
 #: Events of one texel (or one march step): nothing yet, a hit, a loss of visibility.
 _GO = 0
@@ -529,6 +537,13 @@ def walk_piece(top: int, eps_mode: int, params: np.ndarray, mips: np.ndarray,
     return _GO, t1, -1, -1, fetches, fetches
 
 
+@njit(cache=True, nogil=True, inline="always")
+def farthest_surface(mips: np.ndarray, probe: int) -> float:
+    """The largest finite distance ``probe`` stores (0 where it stores none): the last
+    column of ``PackedProbes.mips``."""
+    return np.float64(mips[probe, mips.shape[1] - 1])
+
+
 @njit(cache=True, nogil=True)
 def march_3d(eps_mode: int, params: np.ndarray, mips: np.ndarray, normals: np.ndarray,
              resolution: int, probe: int, ox: float, oy: float, oz: float, dx: float,
@@ -537,10 +552,12 @@ def march_3d(eps_mode: int, params: np.ndarray, mips: np.ndarray, normals: np.nd
     """The thesis's 3D march (Algorithm 3): test points ``tmin + k·step`` against the texel
     of their direction from the probe. Returns ``(kind, t, row, col, fetches, steps)``;
     ``UNKNOWN`` carries the last point known visible, and also ends a march that used up
-    ``max_steps`` before ``tmax``."""
+    ``max_steps`` before ``tmax``; ``_PAST_SURFACES`` the point from which the ray, moving
+    away, is farther than every stored surface (``trace_probe`` walks the rest)."""
     r = resolution
     step = params[P_STEP]
     max_steps = int(params[P_MAX_STEPS])
+    far = farthest_surface(mips, probe)
     ax = ox - px
     ay = oy - py
     az = oz - pz
@@ -548,12 +565,14 @@ def march_3d(eps_mode: int, params: np.ndarray, mips: np.ndarray, normals: np.nd
     t_prev = tmin
     steps = 0
     while t < tmax:
-        if steps >= max_steps:
-            return UNKNOWN, t_prev, -1, -1, steps, steps
         qx = ax + t * dx
         qy = ay + t * dy
         qz = az + t * dz
         rho = math.sqrt(qx * qx + qy * qy + qz * qz)
+        if rho > far and qx * dx + qy * dy + qz * dz >= 0.0:
+            return _PAST_SURFACES, t, -1, -1, steps, steps
+        if steps >= max_steps:
+            return UNKNOWN, t_prev, -1, -1, steps, steps
         if rho == 0.0:
             qx = dx
             qy = dy
@@ -590,9 +609,31 @@ def trace_probe(marcher: int, eps_mode: int, params: np.ndarray, positions: np.n
     if not tmin < tmax:
         return MISS, tmax, -1, -1, 0, 0
     if marcher == MARCH3D:
-        return march_3d(eps_mode, params, mips, normals, resolution, probe, ox, oy, oz,
-                        dx, dy, dz, px, py, pz, tmin, tmax)
+        kind, t, row, col, points, _ = march_3d(eps_mode, params, mips, normals, resolution,
+                                                probe, ox, oy, oz, dx, dy, dz, px, py, pz,
+                                                tmin, tmax)
+        if kind != _PAST_SURFACES:
+            return kind, t, row, col, points, points
+        kind, t, row, col, cells = walk_segment(0, eps_mode, params, mips, mip_offsets,
+                                                mip_sizes, normals, resolution, probe, ox,
+                                                oy, oz, dx, dy, dz, px, py, pz, t, tmax, tmin)
+        return kind, t, row, col, points + cells, points + cells
     top = len(mip_sizes) - 1 if marcher == HIERARCHICAL else 0
+    kind, t, row, col, fetches = walk_segment(top, eps_mode, params, mips, mip_offsets,
+                                              mip_sizes, normals, resolution, probe, ox, oy,
+                                              oz, dx, dy, dz, px, py, pz, tmin, tmax, tmin)
+    return kind, t, row, col, fetches, fetches
+
+
+@njit(cache=True, nogil=True)
+def walk_segment(top: int, eps_mode: int, params: np.ndarray, mips: np.ndarray,
+                 mip_offsets: np.ndarray, mip_sizes: np.ndarray, normals: np.ndarray,
+                 resolution: int, probe: int, ox: float, oy: float, oz: float, dx: float,
+                 dy: float, dz: float, px: float, py: float, pz: float, t_start: float,
+                 tmax: float, t_floor: float):
+    """The 2D walk (``top = 0``: ``DDA``; the mip chain's top: ``HIERARCHICAL``) of the ray
+    over ``[t_start, tmax)``, one octant piece after another. Returns ``(kind, t, row, col,
+    fetches)``; ``t_floor`` is the segment's own start, before which no loss is placed."""
     ax = ox - px
     ay = oy - py
     az = oz - pz
@@ -613,7 +654,7 @@ def trace_probe(marcher: int, eps_mode: int, params: np.ndarray, positions: np.n
     if s0 > s1:
         s0, s1 = s1, s0
     fetches = 0
-    t0 = tmin
+    t0 = t_start
     for i in range(4):
         if i == 0:
             t1 = s0
@@ -628,11 +669,11 @@ def trace_probe(marcher: int, eps_mode: int, params: np.ndarray, positions: np.n
             continue
         event, t, row, col, f, _ = walk_piece(top, eps_mode, params, mips, mip_offsets,
                                               mip_sizes, normals, resolution, probe, ox, oy,
-                                              oz, dx, dy, dz, px, py, pz, t0, t1, tmin)
+                                              oz, dx, dy, dz, px, py, pz, t0, t1, t_floor)
         fetches += f
         if event == _HIT:
-            return HIT, t, row, col, fetches, fetches
+            return HIT, t, row, col, fetches
         if event == _LOST:
-            return UNKNOWN, t, row, col, fetches, fetches
+            return UNKNOWN, t, row, col, fetches
         t0 = t1
-    return MISS, tmax, -1, -1, fetches, fetches
+    return MISS, tmax, -1, -1, fetches

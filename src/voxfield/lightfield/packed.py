@@ -25,9 +25,12 @@ class PackedProbes:
     - ``radiance`` (N, R, R, 3) float32, ``distance`` (N, R, R) float32 radial distance
       (inf: no surface), ``normals`` (N, R, R, 3) float32 unit normals (zero where none);
       texel (row, col) follows the octahedral layout of ``kernels.octahedral`` (row = v).
-    - ``mips`` (N, total) float32: the min-distance chain of ``min_distance_mips``, level 0
-      (the distance map itself) first; level ``k`` is ``mip_sizes[k]`` texels a side, stored
-      row-major at ``mips[:, mip_offsets[k]:mip_offsets[k] + mip_sizes[k] ** 2]``.
+    - ``mips`` (N, total + 1) float32: the min-distance chain of ``min_distance_mips``,
+      level 0 (the distance map itself) first; level ``k`` is ``mip_sizes[k]`` texels a side,
+      stored row-major at ``mips[:, mip_offsets[k]:mip_offsets[k] + mip_sizes[k] ** 2]``.
+      The last column is each probe's farthest finite distance (0 where it stores none): past
+      it a ray moving away can meet no surface the probe knows
+      (``kernels.probe_march.farthest_surface``).
     - ``grid_origin``, ``grid_spacing`` (3,) float64 and ``grid_counts`` (3,) int64: the probe
       lattice (x fastest, as ``ProbeGrid``), for finding the 8-probe cage around a point.
     - ``radiance_bordered`` (N, R + 2, R + 2, 3) and ``distance_bordered`` (N, R + 2, R + 2)
@@ -122,7 +125,10 @@ class PackedProbes:
         chain = min_distance_mips(distance)
         sizes = np.array([level.shape[-1] for level in chain], np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes * sizes)[:-1]]).astype(np.int64)
-        mips = np.concatenate([level.reshape(n, -1) for level in chain], axis=1)
+        finite = np.where(np.isfinite(distance) & (distance > 0), distance, 0)
+        farthest = finite.reshape(n, r * r).max(axis=1, initial=0)
+        mips = np.concatenate([*(level.reshape(n, -1) for level in chain), farthest[:, None]],
+                              axis=1)
         packed = cls(positions, enabled, radiance, distance, normals,
                      np.ascontiguousarray(mips, np.float32), offsets, sizes,
                      origin.copy(), spacing.copy(), counts.copy(),

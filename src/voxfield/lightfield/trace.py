@@ -68,7 +68,8 @@ class LightFieldOptions:
     """How rays are marched against probes.
 
     ``marcher``: ``"march3d"`` (fixed world ``step``, at most ``max_steps`` points per probe;
-    the step is ``1 / max_steps`` to ``MAX_STEP`` voxels, see ``march_step_problem``),
+    the step is ``1 / max_steps`` to ``MAX_STEP`` voxels, see ``march_step_problem``; past
+    the probe's farthest surface the DDA finishes the ray),
     ``"dda"`` (texel by texel in octahedral space) or ``"hierarchical"`` (over the min-distance
     mips; same answers as ``"dda"``, fewer fetches).
     ``epsilon``: hit acceptance — ``"footprint"`` (the default: ``epsilon_value`` plus the
