@@ -74,6 +74,16 @@ def psnr(reference, test) -> float:
     return _psnr(*_check_pair(reference, test))
 
 
+def psnr_text(value, spec: str = ".2f") -> str:
+    """A PSNR as people read it: ``∞`` for images equal to the reference (an infinite PSNR,
+    or the ``None`` JSON makes of one), ``—`` for NaN, else ``format(value, spec)``."""
+    if value is None or (isinstance(value, float) and math.isinf(value)):
+        return "∞"
+    if isinstance(value, float) and math.isnan(value):
+        return "—"
+    return format(value, spec)
+
+
 def ssim(reference, test) -> float:
     """Mean structural similarity over RGB (scikit-image, 7×7 window); 1 for identical images."""
     return _ssim(*_check_pair(reference, test))

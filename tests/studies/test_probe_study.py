@@ -200,3 +200,26 @@ def test_a_grid_with_nothing_to_bake_is_refused_before_any_render(tmp_path, monk
         run_probe_study(slab, tmp_path / "s", camera=camera, grid_counts="2x1x1",
                         resolutions=(8, 16), probe_counts=("2x1x1",), marchers=("hierarchical",),
                         orderings=("nearest",), timing_repeats=1, relocate_probes=False)
+
+
+def test_a_psnr_equal_to_the_reference_reads_as_infinite_not_missing(study):
+    """Every row of the study is measured against the octree, so a PSNR JSON stores as null
+    is an image equal to it: ∞ in every table, as the other studies print it."""
+    from voxfield.json_output import to_json
+    from voxfield.studies.probe_study import results_markdown
+
+    _, report = study
+    report = json.loads(json.dumps(to_json(report)))
+    light_field = next(q for q in report["quality"] if q["method"] == "light-field")
+    light_field["psnr"] = light_field["bound_psnr"] = None
+    for row in report["resolution"] + report["probe_count"]:
+        for measured in row["marchers"].values():
+            measured["psnr"] = measured["bound_psnr"] = None
+    text = results_markdown(report)
+    quality = next(line for line in text.splitlines() if line.startswith("| light-field"))
+    assert quality.split("|")[2:4] == [" ∞ ", " ∞ "]
+    for size in ("16²", "32²"):
+        row = next(line for line in text.splitlines() if line.startswith(f"| {size}"))
+        assert row.rstrip(" |").endswith("∞ | ∞")
+    counted = next(line for line in text.splitlines() if line.startswith("| 2x2x2"))
+    assert counted.rstrip(" |").endswith("∞ | ∞")

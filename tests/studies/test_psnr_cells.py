@@ -8,6 +8,7 @@ import json
 import math
 
 from voxfield.json_output import to_json
+from voxfield.metrics import psnr_text
 from voxfield.studies.lighting_study import _figure as lighting_figure
 from voxfield.studies.report import fmt_psnr
 from voxfield.studies.threshold_study import _markdown as threshold_markdown
@@ -18,6 +19,10 @@ def test_a_psnr_cell_tells_equal_from_unmeasured():
     assert fmt_psnr({"psnr": None}) == "∞"  # the same, read back from JSON
     assert fmt_psnr({"psnr": 31.234}, ".1f") == "31.2"
     assert fmt_psnr(None) == fmt_psnr({}) == fmt_psnr({"rays": 3}) == "—"
+    # The probe render's console and comparison figure read a bare value the same way.
+    assert psnr_text(math.inf) == psnr_text(None) == "∞"
+    assert psnr_text(math.nan) == fmt_psnr({"psnr": math.nan}) == "—"
+    assert psnr_text(31.234) == "31.23"
 
 
 def _quality(psnr):
@@ -70,3 +75,29 @@ def test_curves_that_share_points_stay_apart_and_legends_cover_no_panel():
               "rows": [{"threshold": t, "error_aware": varied(t)} for t in (0.1, 0.2)]}
     figure = threshold_figure(report)
     assert all(ax.get_legend() is None for ax in figure.axes) and len(figure.legends) == 1
+
+
+def test_the_shadow_table_tells_the_reference_from_an_equal_image():
+    """The reference's own row has no PSNR ("—"); a render equal to it has an infinite one,
+    which JSON stores as null (∞). Both were null, and both read "—"."""
+    from voxfield.studies.shadow_study import results_markdown, summary_text
+
+    def row(renderer, **psnr):
+        return {"renderer": renderer, "shadow_lod": renderer, "light_samples": 4,
+                "shadow_rays": 10, "shadow_traversals": 10, "shadow_steps": 30,
+                "shadow_steps_per_ray": 3.0, "shadow_refinements": 0, "traversal_steps": 90,
+                "seconds": 0.1, **psnr}
+
+    report = {"settings": {"lod_distance": 8.0, "threshold": 0.1, "decay": 0.2,
+                           "encoding": "f16", "max_refinements": None},
+              "beam": None, "scene": {"name": "s", "depth": 5, "voxels": 100},
+              "camera": {"width": 4, "height": 4, "label": ""}, "note": "",
+              "folder": "out", "rows": [row("reference"), row("full-res", psnr=math.inf),
+                                        row("distance", psnr=21.5)]}
+    for text in (results_markdown(report),
+                 results_markdown(json.loads(json.dumps(to_json(report))))):
+        cells = {line.split("|")[1].strip(): line.split("|")[3].strip()
+                 for line in text.splitlines() if line.startswith("| ")}
+        assert (cells["reference"], cells["full-res"], cells["distance"]) == ("—", "∞", "21.50")
+    console = summary_text(report).splitlines()
+    assert console[1].split()[2] == "—" and console[2].split()[2] == "∞"

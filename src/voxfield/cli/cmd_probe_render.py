@@ -61,14 +61,14 @@ from voxfield.lightfield.trace import (
     LightFieldOptions,
     march_step_problem,
 )
-from voxfield.metrics import compare_images
+from voxfield.metrics import compare_images, psnr_text
 from voxfield.probes.probe_folder import open_probe_set, owned_file
 from voxfield.render.device import DEVICES
 from voxfield.render.image_io import check_image_output, save_result_image, shade_for_display
 from voxfield.render.placement import camera_placement_problem
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.scene.terrain.columns import DEM_FITS
-from voxfield.studies.report import fmt_psnr
+from voxfield.studies.report import fmt, fmt_psnr
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree
 
@@ -214,9 +214,10 @@ def run(args) -> int:
             m = summary["compare"]
             print(f"against the octree ({m['reference']}): PSNR {fmt_psnr(m)} dB, "
                   f"SSIM {m['ssim']:.4f}, RMSE {m['rmse']:.4f} (linear RGB in [0, 1])")
-            print(f"perfect-trace bound {m['bound_psnr']:.2f} dB (gap {m['bound_gap_db']:.2f} "
-                  f"dB); depth: median {_depth_error(m['depth']['median'])}, 99th "
-                  f"percentile {_depth_error(m['depth']['p99'])}, "
+            print(f"perfect-trace bound {psnr_text(m['bound_psnr'])} dB (gap "
+                  f"{fmt(m['bound_gap_db'], '.2f')} dB); depth: median "
+                  f"{_depth_error(m['depth']['median'])}, 99th percentile "
+                  f"{_depth_error(m['depth']['p99'])}, "
                   f"{100 * m['depth']['within_1']:.1f} % within 1 voxel")
             classes = [f"{name} {c['pixels']:,} ({100 * c['share_of_error']:.0f} % of the "
                        "error)" for name, c in m["classes"].items() if c["pixels"]]

@@ -9,6 +9,7 @@ import numpy as np
 
 from voxfield.atomic import save_figure
 from voxfield.lightfield.probe_render import kind_names
+from voxfield.metrics import psnr_text
 from voxfield.scene.voxel_scene import linear_to_srgb
 
 
@@ -111,7 +112,7 @@ def write_side_by_side(result, reference, metrics: dict, path, *, difference=Non
     fig = Figure(figsize=(13.5, 4.8), facecolor="white", layout="constrained")
     panels = [(linear_to_srgb(probe), f"{result.renderer}"),
               (linear_to_srgb(direct), f"octree: {metrics['reference']}"),
-              (difference, f"|difference| × 4: PSNR {metrics['psnr']:.2f} dB, "
+              (difference, f"|difference| × 4: PSNR {psnr_text(metrics['psnr'])} dB, "
                            f"SSIM {metrics['ssim']:.3f}")]
     for k, (image, title) in enumerate(panels):
         ax = fig.add_subplot(1, 3, k + 1)

@@ -67,6 +67,7 @@ from voxfield.studies.probe_study_figures import (
 from voxfield.studies.report import (
     StudyFolder,
     fmt,
+    fmt_psnr,
     markdown_table,
 )
 
@@ -483,6 +484,12 @@ class _Study:
         return self.folder.value_item(f"timing-r{resolution}", params, compute)
 
 
+def _bound_cell(quality: dict) -> str:
+    """The perfect-trace bound's PSNR cell: ``∞`` where the bound equals the reference, ``—``
+    for a row without one (the baselines)."""
+    return fmt_psnr({"psnr": quality["bound_psnr"]}) if "bound_psnr" in quality else "—"
+
+
 def _item_name(spec: str) -> str:
     """A grid's name as part of an item's file name."""
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", spec)
@@ -584,7 +591,7 @@ def results_markdown(report: dict) -> str:
     lines += [f"## 1. Quality against the octree ({report['quality_resolution']}² probes, "
               f"grid {grid})", ""]
     rows = [[q["method"] + (f" ({o['marcher']})" if q["method"] == "light-field" else ""),
-             fmt(q["psnr"], ".2f"), fmt(q.get("bound_psnr"), ".2f"),
+             fmt_psnr(q), _bound_cell(q),
              fmt(None if q.get("bound_psnr") is None or q["psnr"] is None
                  else q["bound_psnr"] - q["psnr"], ".2f"),
              fmt(q["ssim"], ".4f"), fmt(q["rmse"], ".4f"),
@@ -613,7 +620,7 @@ def results_markdown(report: dict) -> str:
         cells = [f"{r}²", fmt(row["bake"]["seconds"], ".2f")]
         cells += [fmt(row["marchers"][m]["fetches_per_pixel"], ".1f") for m in marchers]
         cells += [fmt(100 * row["marchers"][m]["failures"], ".1f") for m in marchers]
-        cells += [fmt(row["marchers"][m]["psnr"], ".2f") for m in marchers]
+        cells += [fmt_psnr(row["marchers"][m]) for m in marchers]
         rows.append(cells)
     lines.append(markdown_table(
         ["R", "bake s", *(f"fetches ({m})" for m in marchers),
@@ -636,8 +643,8 @@ def results_markdown(report: dict) -> str:
             c = row["marchers"][m]
             cells += [fmt(100 * c["failures"], ".1f"), fmt(c["fetches_per_pixel"], ".1f"),
                       fmt(c["probes_tried_per_pixel"], ".2f")]
-        cells.append(fmt(row["marchers"][marchers[-1]]["psnr"], ".2f"))
-        cells.append(fmt(row["marchers"][marchers[-1]].get("bound_psnr"), ".2f"))
+        cells.append(fmt_psnr(row["marchers"][marchers[-1]]))
+        cells.append(_bound_cell(row["marchers"][marchers[-1]]))
         rows.append(cells)
     headers = ["grid", "probes"]
     for m in marchers:

@@ -12,6 +12,7 @@ import numpy as np
 
 from voxfield.lightfield.probe_render import result_kinds
 from voxfield.studies.figures import Panel, contact_sheet
+from voxfield.studies.report import fmt_psnr
 
 #: Colours of the result-kind map: hit, miss, unknown, fallback, environment.
 KIND_COLOURS = {"hit": (0.1, 0.75, 0.2), "miss": (0.15, 0.35, 0.95),
@@ -144,8 +145,7 @@ def contact_sheet_figure(report: dict, reference, renders: dict):
     cells: list = [Panel("octree (LOD 0, pixel centres)", reference.image)]
     for method, result in renders.items():
         q = quality.get(method, {})
-        psnr = q.get("psnr")
-        title = method if psnr is None else f"{method}: {psnr:.2f} dB"
+        title = f"{method}: {fmt_psnr(q)} dB" if "psnr" in q else method
         cells.append(Panel(title, result.image))
     lf = renders.get("light-field")
     if lf is not None:
@@ -155,7 +155,7 @@ def contact_sheet_figure(report: dict, reference, renders: dict):
                            f"{fetch_scale(lf):.0f} or more)", fetch_image(lf), linear_rgb=False))
     lines = [f"{'method':<12} {'PSNR':>7} {'SSIM':>7} {'fail%':>6}"]
     for q in report["quality"]:
-        lines.append(f"{q['method']:<12} {_value(q['psnr']):7.2f} {_value(q['ssim']):7.4f} "
+        lines.append(f"{q['method']:<12} {fmt_psnr(q):>7} {_value(q['ssim']):7.4f} "
                      f"{100 * q['failures']:6.1f}")
     cells.append("\n".join(lines))
     grid = report["grid"]

@@ -25,7 +25,7 @@ import voxfield
 from voxfield.atomic import atomic_path, save_figure
 from voxfield.errors import VoxfieldError
 from voxfield.json_output import json_text, to_json
-from voxfield.metrics import compare_images
+from voxfield.metrics import compare_images, psnr_text
 from voxfield.parallel import thread_count
 from voxfield.render.image_io import save_png
 from voxfield.render.result import RenderResult
@@ -343,8 +343,7 @@ def fmt_psnr(quality: dict | None, spec: str = ".2f") -> str:
     compared (no quality, or none with a PSNR: the reference's own row)."""
     if not isinstance(quality, dict) or "psnr" not in quality:
         return "—"
-    value = quality["psnr"]
-    return "∞" if value is None else fmt(value, spec)
+    return psnr_text(quality["psnr"], spec)
 
 
 def costs(result) -> dict:

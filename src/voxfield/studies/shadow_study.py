@@ -25,7 +25,7 @@ from voxfield.render.direct_light import light_on_surface, render_direct_light
 from voxfield.scene.shadow_box import shadow_box_layout
 from voxfield.scene.voxel_scene import linear_to_srgb
 from voxfield.studies.html_report import write_html_report
-from voxfield.studies.report import StudyFolder, fmt, markdown_table
+from voxfield.studies.report import StudyFolder, fmt, fmt_psnr, markdown_table
 
 #: Bump when the shadow kernels' results change, so cached renders are not reused.
 STUDY_VERSION = 1
@@ -106,14 +106,14 @@ def run_shadow_study(
         row = {
             "renderer": name, "shadow_lod": mode,
             "light_samples": result.params.get("light_samples"),
-            "psnr": None if name == "reference" else psnr(results["reference"].image,
-                                                          result.image),
             "shadow_rays": shadow_rays, "shadow_traversals": traversals,
             "shadow_steps": shadow_steps,
             "shadow_steps_per_ray": shadow_steps / shadow_rays if shadow_rays else 0.0,
             "shadow_refinements": int(result.maps["shadow_refinements"].sum()),
             "traversal_steps": summary["traversal_steps"], "seconds": result.seconds,
         }
+        if name != "reference":  # the reference's own row has no PSNR, not an infinite one
+            row["psnr"] = psnr(results["reference"].image, result.image)
         if beam is not None:
             row["floor_light"] = beam["floor_light"][mode]
             row["far_floor_light"] = beam["far_floor_light"][mode]
@@ -283,8 +283,8 @@ def _sheet(results: dict, top_maps: dict, beam: dict | None, max_lod: int, repor
         ax.set_axis_off()
         row = rows[name]
         title = f"{name} ({row['light_samples']} spp): {row['shadow_steps']:,} shadow steps"
-        if row["psnr"] is not None:
-            title += f"\nPSNR {row['psnr']:.2f} dB"
+        if "psnr" in row:
+            title += f"\nPSNR {fmt_psnr(row)} dB"
         ax.set_title(title, fontsize=9)
     panels = [("distance: LOD used", results["distance"]),
               ("error-aware: LOD used", results["error-aware"]),
@@ -312,7 +312,7 @@ def results_markdown(report: dict) -> str:
         headers += ["floor light", "% of ref", "far floor light", "far % of ref"]
     table = []
     for row in report["rows"]:
-        line = [row["renderer"], row["light_samples"], fmt(row["psnr"], ".2f"),
+        line = [row["renderer"], row["light_samples"], fmt_psnr(row),
                 fmt(row["shadow_rays"]), fmt(row["shadow_traversals"]), fmt(row["shadow_steps"]),
                 fmt(row["shadow_steps_per_ray"], ".1f"), fmt(row["shadow_refinements"]),
                 fmt(row["seconds"], ".2f")]
@@ -356,7 +356,7 @@ def summary_text(report: dict) -> str:
              f"{'far':>9}{'seconds':>9}"]
     for row in report["rows"]:
         lines.append(
-            f"{row['renderer']:<13}{row['light_samples']:>5}{fmt(row['psnr'], '.2f'):>8}"
+            f"{row['renderer']:<13}{row['light_samples']:>5}{fmt_psnr(row):>8}"
             f"{row['shadow_steps']:>15,}{fmt(row.get('floor_light'), '.4f'):>13}"
             f"{fmt(row.get('far_floor_light'), '.4f'):>9}{row['seconds']:>9.2f}"
         )
