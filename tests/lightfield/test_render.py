@@ -467,6 +467,50 @@ def test_command_says_when_no_probe_answers_most_pixels(run, cornell_folder, tmp
     assert "answered by no probe" not in capsys.readouterr().err
 
 
+def test_the_default_view_stands_among_the_probes(run, cornell_folder, tmp_path, capsys):
+    """A probe set of a room is looked through from inside its grid by default (the old
+    default, top, stood above the Cornell box's roof, where no probe answers a ray); a
+    grid in one corner of the scene is looked through from inside that corner."""
+    import argparse
+
+    from voxfield.cli.cmd_probe_render import probe_view
+    from voxfield.probes.folder_bake import bake_to_folder
+    from voxfield.probes.probe_folder import open_probe_set
+    from voxfield.svo.open import open_octree
+
+    assert run(["probe-render", str(cornell_folder), "--size", "16", "--counters", "--out",
+                str(tmp_path / "default.png")]) == 0
+    assert run(["probe-render", str(cornell_folder), "--camera", "room", "--size", "16",
+                "--out", str(tmp_path / "room.png")]) == 0
+    assert (tmp_path / "default.png").read_bytes() == (tmp_path / "room.png").read_bytes()
+    kinds = json.loads((tmp_path / "default_summary.json").read_text())["pixels_by_kind"]
+    assert kinds.get("fallback", 0) + kinds.get("unknown", 0) < 0.2 * 256
+
+    octree = open_octree("builtin:cornell")
+    lo, hi = octree.voxel_bounds
+    corner = ProbeGrid.fit(lo, lo + 0.4 * (hi - lo), (2, 2, 2))
+    folder = tmp_path / "corner"
+    bake_to_folder(octree, corner, BakeOptions(resolution=8, renderer="lod", lod=0), folder,
+                   scheduler="serial")
+    probes = open_probe_set(folder)
+    args = argparse.Namespace(camera="auto", eye=None, target=None, fov=None, size=8,
+                              scene=None)
+    view = probe_view(args, folder, probes, None, (lo, hi))
+    box_lo, box_hi = probe_set_bounds(probes)
+    assert np.all(view.position > box_lo) and np.all(view.position < box_hi)
+
+
+def test_the_default_view_of_a_terrain_s_probes_is_from_above(run, tmp_path, capsys):
+    """Probes laid over a terrain are looked down on, as ``render`` looks at a terrain."""
+    folder = tmp_path / "desert"
+    assert run(["bake", "terrain:desert", "--footprint", "32", "--grid", "surface:2x2@4",
+                "--resolution", "8", "--quiet", "--out", str(folder)]) == 0
+    for camera in ("auto", "top"):
+        assert run(["probe-render", str(folder), "--camera", camera, "--size", "8", "--quiet",
+                    "--out", str(tmp_path / f"{camera}.png")]) == 0
+    assert (tmp_path / "auto.png").read_bytes() == (tmp_path / "top.png").read_bytes()
+
+
 def test_command_bad_input_exits_2(run, cornell_folder, tmp_path, capsys):
     def error(argv) -> str:
         assert run(argv) == 2

@@ -25,6 +25,7 @@ from voxfield.cli.options import (
     add_display_options,
     add_hit_options,
     add_view_options,
+    auto_preset,
     camera,
     default_output,
     display_shaded,
@@ -62,7 +63,7 @@ from voxfield.lightfield.trace import (
     march_step_problem,
 )
 from voxfield.metrics import compare_images, psnr_text
-from voxfield.probes.probe_folder import open_probe_set, owned_file
+from voxfield.probes.probe_folder import open_probe_set, owned_file, read_header
 from voxfield.render.device import DEVICES
 from voxfield.render.image_io import check_image_output, save_result_image, shade_for_display
 from voxfield.render.placement import camera_placement_problem
@@ -151,7 +152,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--out", default=None,
                    help="output .png or .exr (default out/probe_render_NAME_METHOD.png)")
     add_display_options(p)
-    add_view_options(p, size=256)
+    add_view_options(p, size=256, camera="auto", auto_view=PROBE_AUTO_VIEW)
     p.set_defaults(func=run)
     return p
 
@@ -178,7 +179,7 @@ def run(args) -> int:
     probe_set = open_probe_set(folder)
     octree = _open_scene(args, probe_set) if args.scene else None
     bounds = octree.voxel_bounds if octree is not None else probe_set_bounds(probe_set)
-    view = camera(args, bounds)
+    view = probe_view(args, folder, probe_set, octree, bounds)
     problem = None if octree is None else camera_placement_problem(octree, view)
     if problem is not None:
         print(f"voxfield: note: {problem}; its figures describe no real view",
@@ -272,6 +273,25 @@ def _note_unused_options(args, options: LightFieldOptions) -> None:
         marcher = args.method == "light-field" and "--step" in ignored
         warn_ignored(ignored, f"the {args.method} render"
                      + (f" with the {options.marcher} marcher" if marcher else ""))
+
+
+#: ``--camera auto`` for a probe render.
+PROBE_AUTO_VIEW = ("top for probes over a terrain or DEM, else room inside the box the probe "
+                   "grid fills, where every ray starts among the probes")
+
+
+def probe_view(args, folder: Path, probe_set, octree, bounds):
+    """The camera over ``bounds``; ``--camera auto`` resolved from the baked scene's kind:
+    a terrain's probes are looked down on from above, as ``render`` looks at a terrain, and
+    any other set is looked through from inside its grid (``room`` over the grid's box),
+    so that rays start where probes surround them. (``top`` over a room's box stood above
+    its ceiling, and every ray was lost.)"""
+    if args.camera != "auto":
+        return camera(args, bounds)
+    names = (str(read_header(folder)["scene"].get("name") or ""), args.scene or "")
+    terrain = any(auto_preset(name, octree) == "top" for name in names)
+    chosen = argparse.Namespace(**{**vars(args), "camera": "top" if terrain else "room"})
+    return camera(chosen, bounds if terrain else probe_set_bounds(probe_set))
 
 
 def _open_scene(args, probe_set):

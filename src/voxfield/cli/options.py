@@ -278,10 +278,12 @@ def display_shaded(args, out: Path, channel: str) -> bool:
                           and channel == "albedo")
 
 
-def add_view_options(p: argparse.ArgumentParser, size: int = 512, camera: str = "top") -> None:
+def add_view_options(p: argparse.ArgumentParser, size: int = 512, camera: str = "top",
+                     auto_view: str | None = None) -> None:
     """Camera and image options shared by every command that renders, plus --quiet; the
-    command's own default view is said in the help it prints."""
-    described = AUTO_VIEW if camera == "auto" else CAMERA_PRESETS[camera][1]
+    command's own default view is said in the help it prints (``auto_view``: what ``auto``
+    means for this command, if not ``AUTO_VIEW``)."""
+    described = (auto_view or AUTO_VIEW) if camera == "auto" else CAMERA_PRESETS[camera][1]
     p.add_argument("--camera", default=camera, action=_ChosenView,
                    help=f"preset view: {', '.join(_preset_names(camera == 'auto'))} (default "
                    f"{camera}: {described})")
