@@ -155,12 +155,45 @@ def test_corrupt_octree_files_give_clear_errors(tmp_path):
     save_octree(replace(octree, descriptors=descriptors), broken)
     with pytest.raises(OctreeFormatError, match="child pointers"):
         load_octree(broken)
-    # A voxel box outside the root cube.
-    outside = tmp_path / "outside.npz"
-    save_octree(replace(octree, voxel_box=np.array([[0, 0, 0], [octree.size + 1] * 3])),
-                outside)
-    with pytest.raises(OctreeFormatError, match="voxel box"):
+    # A voxel box outside the root cube (an Octree refuses to hold one: written by hand).
+    outside = _saved_with(octree, tmp_path / "outside.npz",
+                          voxel_box=np.array([[0, 0, 0], [octree.size + 1] * 3]))
+    with pytest.raises(OctreeFormatError, match="voxel box outside"):
         load_octree(outside)
+    short = _saved_with(octree, tmp_path / "short.npz",
+                        attr_color=octree.attributes["color"][:10])
+    with pytest.raises(OctreeFormatError, match="short.npz: .*attribute 'color' has shape"):
+        load_octree(short)
+
+
+def _saved_with(octree, path, **arrays):
+    """``octree``'s file with some of its arrays replaced, as a damaged file holds them."""
+    save_octree(octree, path)
+    with np.load(path) as data:
+        stored = {name: data[name] for name in data.files}
+    with open(path, "wb") as f:
+        np.savez(f, **{**stored, **arrays})
+    return path
+
+
+def test_an_octree_cannot_be_changed_in_place_or_assembled_from_arrays_that_disagree():
+    """The kernels index one array by another's values: an octree changed in place, or made
+    with a short colour array or the wrong depth, crashed the interpreter or read garbage
+    (a render of one built with ``depth=2`` drew 8 hits of 500)."""
+    octree = build_octree(random_scene(5))
+    for array in (octree.descriptors, octree.level_offsets, octree.voxel_box,
+                  octree.scene_origin, octree.attributes["color"]):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = array[-1]
+    bad = {"a short colour array": {"attributes": {"color": octree.attributes["color"][:10]}},
+           "another depth": {"depth": 2},
+           "descriptors of another type": {"descriptors": octree.descriptors.astype(np.int32)},
+           "a box past the root cube": {"voxel_box": np.array([[0, 0, 0],
+                                                               [octree.size + 1] * 3])}}
+    for what, change in bad.items():
+        with pytest.raises(VoxfieldError, match="octree 'random5'"):
+            replace(octree, **change)
+            pytest.fail(what)
 
 
 def test_octree_files_whose_solid_flags_or_voxel_box_lie_are_refused(tmp_path):

@@ -136,6 +136,11 @@ class Camera:
         basis = vectors[1:]
         if not np.abs(basis @ basis.T - np.eye(3)).max() <= 1e-9:
             raise CameraError("camera forward, right and up must be orthonormal")
+        # Checked copies, read-only: ``camera.position[1] += 10`` would move a checked camera
+        # past every check (a NaN there rendered a black image without a word).
+        vectors.flags.writeable = False
+        for name, row in zip(("position", "forward", "right", "up"), vectors, strict=True):
+            object.__setattr__(self, name, row)
         if not (np.isfinite(self.half_width) and np.isfinite(self.half_height)):
             raise CameraError("camera field of view or extent is not finite")
         if self.half_width <= 0.0 or self.half_height <= 0.0:

@@ -9,14 +9,13 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.atomic import atomic_path
-from voxfield.errors import OctreeFormatError
+from voxfield.errors import OctreeFormatError, VoxfieldError
 from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT, pack_descriptors
 from voxfield.svo.octree import (
     CHILD_COUNT,
     Octree,
     check_octree,
-    colour_array_problem,
-    facing_array_problem,
+    shape_problem,
     solid_flags,
 )
 
@@ -96,6 +95,8 @@ def load_octree(path: str | os.PathLike) -> Octree:
             )
     except OctreeFormatError:
         raise
+    except VoxfieldError as exc:  # arrays that disagree in shape or type
+        raise OctreeFormatError(f"{path}: {exc}") from exc
     except Exception as exc:  # noqa: BLE001 - zip/zlib/json fail in many ways on a bad file
         raise OctreeFormatError(f"{path}: unreadable or corrupt octree file ({exc})") from exc
     validate_octree(octree, str(path))
@@ -118,35 +119,17 @@ def _from_version_1(data, offsets: np.ndarray, where: str) -> tuple[np.ndarray, 
 
 
 def validate_octree(octree: Octree, where: str = "octree") -> None:
-    """Check the structural invariants a kernel relies on; raise rather than crash later."""
-    off = np.asarray(octree.level_offsets)
-    if (off.ndim != 1 or not np.issubdtype(off.dtype, np.integer) or octree.depth < 1
-            or octree.depth > 21 or len(off) != octree.depth + 2 or off[0] != 0):
-        raise OctreeFormatError(f"{where}: inconsistent depth or level offsets")
-    origin = np.asarray(octree.scene_origin)
-    if origin.shape != (3,) or not np.issubdtype(origin.dtype, np.integer):
-        raise OctreeFormatError(f"{where}: the scene origin must be three whole numbers")
-    if not np.issubdtype(np.asarray(octree.voxel_box).dtype, np.integer):
-        raise OctreeFormatError(f"{where}: the voxel box must be whole numbers")
+    """Check the structural invariants a kernel relies on; raise rather than crash later.
+    (The arrays' shapes and types are checked as the ``Octree`` is made.)"""
+    problem = shape_problem(octree)
+    if problem is not None:
+        raise OctreeFormatError(f"{where}: {problem}")
+    off = octree.level_offsets
     n = octree.node_count
-    if np.any(np.diff(off) <= 0):
-        raise OctreeFormatError(f"{where}: a level has no nodes")
-    if octree.descriptors.dtype != np.int64 or octree.descriptors.shape != (int(off[-2]),):
-        raise OctreeFormatError(f"{where}: descriptor array has the wrong type or length")
     box = octree.voxel_box
-    if box.shape != (2, 3) or np.any(box[0] < 0) or np.any(box[1] <= box[0]) or np.any(
-            box[1] > octree.size):
-        raise OctreeFormatError(f"{where}: voxel box outside the root cube")
     for name, values in octree.attributes.items():
-        problem = colour_array_problem(values, n)
-        if problem is not None:
-            raise OctreeFormatError(f"{where}: attribute {name!r} {problem}")
         if values.dtype == np.float32 and not np.all(np.isfinite(values)):
             raise OctreeFormatError(f"{where}: attribute {name!r} holds NaN or infinity")
-    problem = None if octree.facing is None else facing_array_problem(octree.facing,
-                                                                      int(off[-2]))
-    if problem is not None:
-        raise OctreeFormatError(f"{where}: directional colours {problem}")
     masks = octree.descriptors & 0xFF
     if np.any(masks == 0):
         raise OctreeFormatError(f"{where}: inner node without children")

@@ -54,6 +54,21 @@ class Octree:
     #: ``(inner nodes, 6, 4)`` uint8 directional albedo (``svo.lod_colours``), or None.
     facing: np.ndarray | None = None
 
+    def __post_init__(self) -> None:
+        """Arrays that disagree in shape or type are refused, and every array is made
+        read-only: the kernels index one array by another's values, so an octree changed in
+        place (``octree.descriptors[:] = …``) or assembled with a short colour array read
+        past their ends and crashed the interpreter. Whether the child pointers describe a
+        tree is checked where octrees come from outside (``svo.io.validate_octree``, run by
+        ``load_octree``); run it on an octree assembled from arrays of unknown origin."""
+        problem = shape_problem(self)
+        if problem is not None:
+            raise VoxfieldError(f"octree {self.name!r}: {problem}")
+        arrays = [self.descriptors, self.level_offsets, self.voxel_box, self.scene_origin,
+                  *self.attributes.values()]
+        for array in arrays + ([] if self.facing is None else [self.facing]):
+            array.flags.writeable = False
+
     @property
     def node_count(self) -> int:
         return int(self.level_offsets[-1])
@@ -108,16 +123,7 @@ class Octree:
         and the stages of one command (LOD colours, a bake) work each out once."""
         if not changes.keys() <= _COLOUR_FIELDS:
             raise ValueError(f"recoloured changes colours only, not {sorted(changes)}")
-        # Kernels index colours by node: a short or mistyped array reads past its end.
-        for name, values in changes.get("attributes", {}).items():
-            problem = colour_array_problem(values, self.node_count)
-            if problem is not None:
-                raise VoxfieldError(f"attribute {name!r} {problem}")
-        facing = changes.get("facing")
-        problem = None if facing is None else facing_array_problem(facing, self.inner_count)
-        if problem is not None:
-            raise VoxfieldError(f"directional colours {problem}")
-        copy = replace(self, **changes)
+        copy = replace(self, **changes)  # new colour arrays are checked as it is made
         kept = {key: table for key, table in self.__dict__.get("_derived", {}).items()
                 if key[0] in STRUCTURAL_TABLES}
         copy.__dict__["_derived"] = kept
@@ -259,6 +265,43 @@ def check_octree(value, user: str) -> None:
     if not isinstance(value, Octree):
         raise VoxfieldError(f"{user} needs a voxfield Octree (voxfield.svo.open_octree), got "
                             f"{type(value).__name__}")
+
+
+def shape_problem(octree: Octree) -> str | None:
+    """What makes ``octree``'s arrays disagree with each other in shape or type (the kernels
+    would read past an end), or None; checked without reading the arrays' contents."""
+    off = octree.level_offsets
+    if not isinstance(off, np.ndarray) or off.ndim != 1 or not np.issubdtype(off.dtype,
+                                                                           np.integer):
+        return "inconsistent depth or level offsets"
+    if (not isinstance(octree.depth, (int, np.integer)) or not 1 <= octree.depth <= 21
+            or len(off) != octree.depth + 2 or off[0] != 0 or np.any(np.diff(off) <= 0)):
+        return "inconsistent depth or level offsets (or a level without nodes)"
+    origin = octree.scene_origin
+    if (not isinstance(origin, np.ndarray) or origin.shape != (3,)
+            or not np.issubdtype(origin.dtype, np.integer)):
+        return "the scene origin must be three whole numbers"
+    box = octree.voxel_box
+    if (not isinstance(box, np.ndarray) or box.shape != (2, 3)
+            or not np.issubdtype(box.dtype, np.integer)):
+        return "the voxel box must be two corners of whole numbers"
+    if np.any(box[0] < 0) or np.any(box[1] <= box[0]) or np.any(box[1] > (1 << octree.depth)):
+        return "voxel box outside the root cube"
+    descriptors = octree.descriptors
+    if (not isinstance(descriptors, np.ndarray) or descriptors.dtype != np.int64
+            or descriptors.shape != (int(off[-2]),)):
+        return "descriptor array has the wrong type or length"
+    if not isinstance(octree.attributes, dict):
+        return "attributes must be a dict of colour arrays"
+    for name, values in octree.attributes.items():
+        problem = colour_array_problem(values, int(off[-1]))
+        if problem is not None:
+            return f"attribute {name!r} {problem}"
+    if octree.facing is not None:
+        problem = facing_array_problem(octree.facing, int(off[-2]))
+        if problem is not None:
+            return f"directional colours {problem}"
+    return None
 
 
 def colour_array_problem(values, nodes: int) -> str | None:
