@@ -22,6 +22,8 @@ from voxfield.lightfield import (
     trace_single,
 )
 from voxfield.lightfield.trace import _rays
+from voxfield.probes.bake import bake_probes
+from voxfield.probes.probe_set import BakeOptions
 from voxfield.render.ray_query import trace
 
 MARCHERS = ("march3d", "dda", "hierarchical")
@@ -343,15 +345,23 @@ def _probe_arrays(n=8, r=8):
     ({"positions": "nan"}, "position"),
     ({"distance": -1.0}, "lengths >= 0"),
     ({"distance": math.nan}, "lengths >= 0"),
+    ({"radiance": math.nan}, "radiance holds NaN"),
+    ({"normals": math.inf}, "normals hold NaN"),
+    ({"resolution": 3}, "even 4..2048 texels a side"),
+    ({"resolution": 2}, "even 4..2048 texels a side"),
 ])
 def test_packed_probes_refuse_a_grid_or_maps_the_trace_cannot_use(change, message):
     """Zero spacing crashed the trace (a SystemError from its kernel); a NaN position gave
-    NaN distances back as hits."""
+    NaN distances back as hits, as NaN radiance or normals did colours and normals; an odd
+    side puts a texel in two octants, which the marchers do not allow for."""
     arrays = _probe_arrays()
     for key, value in change.items():
         if key == "positions":
             arrays[key][3] = np.nan
-        elif key == "distance":
+        elif key == "resolution":
+            for name in ("radiance", "distance", "normals"):
+                arrays[name] = arrays[name][:, :value, :value]
+        elif key in ("distance", "radiance", "normals"):
             arrays[key][2, 1, 1] = value
         else:
             arrays[key] = value
@@ -434,3 +444,29 @@ def test_rays_reach_the_kernels_as_one_type_whatever_their_count(count):
     origins, dirs = np.zeros((count, 3)), np.tile([0.3, -0.2, 0.9], (count, 1))
     for array in _rays(origins, dirs, 0.0, math.inf):
         assert array.flags.writeable and array.flags.c_contiguous and array.dtype == np.float64
+
+
+def test_a_baked_probe_set_traces_as_its_packing_and_anything_else_is_named(cornell):
+    """A ProbeSet straight from a bake is what a user has in hand: it is packed for the
+    trace, with the packed set's answers; other objects got an AttributeError from deep
+    inside ('ProbeSet' object has no attribute 'mips', 'Octree' … 'enabled')."""
+    from voxfield.lightfield.probe_render import render_from_probes
+    from voxfield.probes.grid import ProbeGrid
+    from voxfield.render.camera import room_camera
+
+    probe_set = bake_probes(cornell, ProbeGrid(CORNELL_PROBE, [1, 1, 1], [1, 1, 1]),
+                            BakeOptions(resolution=8, renderer="lod", lod=0))
+    packed = PackedProbes.from_probe_set(probe_set)
+    origins, dirs = [CORNELL_PROBE] * 3, np.eye(3)
+    for trace_it in (lambda p: trace_light_field(p, origins, dirs),
+                     lambda p: trace_single(p, 0, origins, dirs)):
+        from_set, from_packed = trace_it(probe_set), trace_it(packed)
+        assert np.array_equal(from_set.kind, from_packed.kind)
+        assert np.array_equal(from_set.t, from_packed.t)
+    for wrong in (None, cornell, probe_set.positions):
+        with pytest.raises(VoxfieldError, match="needs probes"):
+            trace_light_field(wrong, origins, dirs)
+    with pytest.raises(VoxfieldError, match="render_from_probes needs probes"):
+        render_from_probes(cornell, room_camera(*cornell.voxel_bounds, size=4))
+    with pytest.raises(VoxfieldError, match="needs a probe grid"):
+        bake_probes(cornell, [CORNELL_PROBE.tolist()], BakeOptions(resolution=8))

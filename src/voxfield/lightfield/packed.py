@@ -14,7 +14,12 @@ import numpy as np
 
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.octahedral import add_border
-from voxfield.probes.probe_set import decode_normals, min_distance_mips
+from voxfield.probes.probe_set import (
+    MAX_RESOLUTION,
+    MIN_RESOLUTION,
+    decode_normals,
+    min_distance_mips,
+)
 
 
 @dataclass(frozen=True)
@@ -101,6 +106,11 @@ class PackedProbes:
             raise VoxfieldError(f"distance maps must be (N, R, R) for {n} probes, got "
                                 f"{distance.shape}")
         r = distance.shape[1]
+        if r % 2 or not MIN_RESOLUTION <= r <= MAX_RESOLUTION:
+            # Odd sides put fold lines through texel centres, a texel in two octants, which
+            # the marchers' octant pieces do not allow for; the bake makes none.
+            raise VoxfieldError(f"probe maps must be an even {MIN_RESOLUTION}..{MAX_RESOLUTION} "
+                                f"texels a side, as a bake makes them; got {r}")
         radiance = np.ascontiguousarray(radiance, np.float32)
         normals = np.ascontiguousarray(normals, np.float32)
         enabled = np.ascontiguousarray(enabled, bool).reshape(-1)
@@ -122,6 +132,11 @@ class PackedProbes:
         lengths = distance[enabled]
         if np.isnan(lengths).any() or np.any(lengths < 0):
             raise VoxfieldError("distance maps must hold lengths >= 0 (inf: no surface)")
+        # A hit returns these as they are: NaN would reach the image and the normals' uses.
+        if not np.isfinite(radiance[enabled]).all():
+            raise VoxfieldError("an enabled probe's radiance holds NaN or infinity")
+        if not np.isfinite(normals[enabled]).all():
+            raise VoxfieldError("an enabled probe's normals hold NaN or infinity (zero: none)")
         chain = min_distance_mips(distance)
         sizes = np.array([level.shape[-1] for level in chain], np.int64)
         offsets = np.concatenate([[0], np.cumsum(sizes * sizes)[:-1]]).astype(np.int64)

@@ -77,6 +77,9 @@ def render_from_probes(probe_set, camera: Camera, *, method: str = "light-field"
                             f"{', '.join(METHODS)}")
     if not isinstance(camera, Camera):
         raise VoxfieldError(f"camera must be a voxfield Camera, got {type(camera).__name__}")
+    if not all(hasattr(probe_set, name) for name in ("positions", "enabled", "radiance")):
+        raise VoxfieldError(f"render_from_probes needs probes: a ProbeSet from a bake, or a "
+                            f"PackedProbes; got {type(probe_set).__name__}")
     if filter not in FILTERS:
         raise VoxfieldError(f"unknown lookup filter {filter!r}; choose one of "
                             f"{', '.join(FILTERS)}")

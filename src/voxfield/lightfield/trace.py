@@ -22,6 +22,7 @@ from voxfield.kernels import probe_multi as mk
 from voxfield.lightfield.cuda_trace import trace_light_field_cuda
 from voxfield.lightfield.packed import PackedProbes
 from voxfield.parallel import thread_count, threads_for
+from voxfield.probes.probe_set import ProbeSet
 from voxfield.render.camera import unit_vectors
 from voxfield.render.device import check_device
 
@@ -286,11 +287,25 @@ def _pixel_angle(value) -> float:
     return float(value)
 
 
+def packed_probes(probes, user: str) -> PackedProbes:
+    """``probes`` as the kernels read them: a ``PackedProbes`` as it is, a ``ProbeSet``
+    packed here (on every call: pack it once, ``PackedProbes.from_probe_set``, to trace it
+    many times)."""
+    if isinstance(probes, PackedProbes):
+        return probes
+    if isinstance(probes, ProbeSet):
+        return PackedProbes.from_probe_set(probes)
+    raise VoxfieldError(f"{user} needs probes: a PackedProbes, or a ProbeSet from a bake; got "
+                        f"{type(probes).__name__}")
+
+
 def trace_single(packed: PackedProbes, probe: int, origins, dirs,
                  options: LightFieldOptions = LightFieldOptions(), tmin=0.0, tmax=math.inf,
                  *, pixel_angle: float = 0.0, threads: int | None = None) -> ProbeHits:
     """March rays ``o + t·d`` (``d`` normalised here; ``t`` in world units) with
-    ``tmin <= t < tmax`` (scalars or per-ray arrays) against probe ``probe`` alone."""
+    ``tmin <= t < tmax`` (scalars or per-ray arrays) against probe ``probe`` alone
+    (``packed``: see ``packed_probes``)."""
+    packed = packed_probes(packed, "trace_single")
     if not is_integer(probe) or not -packed.count <= probe < packed.count:
         raise VoxfieldError(f"probe index {probe!r} is not an integer in 0..{packed.count - 1}")
     probe = int(probe) % packed.count
@@ -334,8 +349,9 @@ def trace_light_field(packed: PackedProbes, origins, dirs,
     """Answer rays ``o + t·d`` (``d`` normalised here) from the probe cage around each
     origin (Algorithms 4-6); ``pixel_angle`` is θ of the adaptive and angular ε (radians).
     ``device="cuda"`` traces them on a GPU (``lightfield.cuda_trace``) with the same
-    results."""
+    results. ``packed``: see ``packed_probes``."""
     check_device(device)
+    packed = packed_probes(packed, "trace_light_field")
     options = checked_options(options)
     if not packed.enabled.any():
         raise VoxfieldError("no probe of the set is enabled; bake some probes first")

@@ -95,6 +95,9 @@ def bake_probes(octree: Octree, grid, options: BakeOptions, *, progress: bool = 
     ``enabled`` (N,) or None, e.g. ``ProbeGrid``) in grid order; disabled probes hold
     ``ProbeMaps.empty`` and are flagged in ``ProbeSet.enabled``."""
     _check(octree, options)
+    if not hasattr(grid, "positions"):
+        raise VoxfieldError(f"bake_probes needs a probe grid (probes.grid.ProbeGrid, or "
+                            f"anything with positions (N, 3)), got {type(grid).__name__}")
     positions = np.asarray(grid.positions, np.float64).reshape(-1, 3)
     enabled = getattr(grid, "enabled", None)
     enabled = (np.ones(len(positions), bool) if enabled is None
