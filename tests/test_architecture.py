@@ -17,6 +17,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "src" / "voxfield"
 #: Lowest first. A module may import its own layer and the layers before it, never after.
 LAYERS = (
     ("base", ("voxfield", "voxfield.errors", "voxfield.checks", "voxfield.atomic",
+              "voxfield.array_files",
               "voxfield.progress", "voxfield.data", "voxfield.parallel",
               "voxfield.fingerprint")),
     ("kernels", ("voxfield.kernels",)),

@@ -10,6 +10,7 @@ import pytest
 from random_scenes import random_scene
 from voxfield.errors import VoxfieldError
 from voxfield.render import Camera, orbit_camera, ray_query, render, render_lod, render_reference
+from voxfield.render.adaptive import render_adaptive
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import TILE, tile_order
 from voxfield.scene.builtin import pillars
@@ -119,6 +120,7 @@ def test_bad_renderer_options_raise(pillar_octree):
     (lambda o, c: render_error_aware(o, c, seed=0.5), "seed must be an integer"),
     (lambda o, c: render_error_aware(o, c, max_refinements=1.5), "refinements must be"),
     (lambda o, c: render_error_aware(o, c, base_lod=1.0), "base LOD must be an integer"),
+    (lambda o, c: render_adaptive(o, c, base_lod=99), "base LOD must be an integer in 0.."),
     (lambda o, c: ray_query.trace(o, [[1, 40, 1]], [[0, -1, 0]], lod=0.5), "LOD must be"),
     (lambda o, c: ray_query.trace(o, [[1, 40, 1]], [[0, -1, 0]], tmin=math.nan), "tmin must"),
     (lambda o, c: ray_query.occluded(o, [[1, 40, 1]], [[0, -1, 0]], tmax=math.nan), "tmax"),

@@ -148,6 +148,12 @@ def test_corrupt_octree_files_give_clear_errors(tmp_path):
         bad.write_bytes(good[:cut])
         with pytest.raises(OctreeFormatError):
             load_octree(bad)
+    # Another kind of file under the name: NumPy's words were pickle advice.
+    misnamed = tmp_path / "model.npz"
+    misnamed.write_bytes(b"VOX \x96\x00\x00\x00MAIN")
+    with pytest.raises(OctreeFormatError, match="not a NumPy .npz or .npy file") as caught:
+        load_octree(misnamed)
+    assert "pickle" not in str(caught.value)
     # Structurally wrong but readable: a child pointer past the end.
     broken = tmp_path / "broken.npz"
     descriptors = octree.descriptors.copy()

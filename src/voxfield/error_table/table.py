@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.array_files import load_arrays
 from voxfield.atomic import atomic_path
 from voxfield.error_table.directions import fibonacci_directions, random_directions
 from voxfield.error_table.spherical_harmonics import fit_sh, sh_basis
@@ -199,7 +200,7 @@ def read_table_file(path: Path, keys: tuple[str, ...], fmt: str, version: int, w
     (``maker``) rather than advice to write over it."""
     header = None
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with load_arrays(path) as data:
             header = json.loads(bytes(data["header"]).decode())
             arrays = {k: data[k] for k in keys}
     except Exception as exc:  # noqa: BLE001 - zip/zlib/json can fail many ways on a bad file

@@ -57,6 +57,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.array_files import load_arrays
 from voxfield.atomic import atomic_path
 from voxfield.errors import VoxfieldError
 from voxfield.fingerprint import array_fingerprint
@@ -260,7 +261,7 @@ def reconcile_probes(folder: Path, header: dict, positions: np.ndarray) -> list[
         if str(index) in header["probes"] or not 0 <= index < header["probe_count"]:
             continue
         try:
-            with np.load(path, allow_pickle=False) as data:
+            with load_arrays(path) as data:
                 record = json.loads(str(data["record"]))
             if not isinstance(record, dict) or record.get("file") != path.name:
                 continue
@@ -301,7 +302,7 @@ def read_probe(folder: Path, index: int, header: dict,
         raise ProbeFileError(f"{path}: probe {index}'s file is missing; resume the bake to "
                              "re-bake it")
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with load_arrays(path) as data:
             arrays = tuple(np.array(data[name]) for name in MAP_NAMES)
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile, zlib.error) as exc:
         raise ProbeFileError(f"{path}: probe {index}'s file is corrupt ({exc}); resume the "

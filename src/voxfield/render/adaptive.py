@@ -26,7 +26,7 @@ from voxfield.render.device import check_device, trace_pixels_cuda
 from voxfield.render.primary import pixel_columns, render_lod
 from voxfield.render.result import RenderResult
 from voxfield.svo.column_tops import octree_column_tops
-from voxfield.svo.octree import Octree
+from voxfield.svo.octree import Octree, check_octree
 
 #: Normalisation of the 3×3 sum of squared luminance differences, one constant for every
 #: scene (the thesis normalises "across all datasets"): a window holding two flat regions
@@ -146,6 +146,9 @@ def render_adaptive(
     first pass and the refinements on a GPU (the variance and the beam bounds stay on the
     CPU), with the same image. ``columns``: as ``render_lod``'s."""
     check_device(device)
+    check_octree(octree, "render_adaptive")
+    if base_lod is not None:  # named here: render_lod's message would say "LOD"
+        base_lod = integer_in(base_lod, "base LOD", 0, octree.depth)
     iterations = integer_in(iterations, "iterations", 0)
     if not real_number(variance_normalisation, "variance normalisation", finite=False) > 0:
         raise VoxfieldError("the variance normalisation must be positive")

@@ -12,8 +12,7 @@ import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
-
+from voxfield.array_files import load_arrays
 from voxfield.errors import DataNotFoundError, SceneFormatError, VoxfieldError
 from voxfield.scene.builtin import builtin_scene
 from voxfield.scene.mesh import MESH_SUFFIXES, load_mesh
@@ -44,7 +43,7 @@ class SceneOptions:
 def npz_kind(path: Path) -> str:
     """``octree``, ``scene`` or ``dem`` for a ``.npz`` file, by the arrays it holds."""
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with load_arrays(path) as data:
             files = set(data.files)
     except Exception as exc:  # noqa: BLE001 - any failure here means "not a readable npz"
         raise SceneFormatError(f"{path}: not a readable .npz file ({exc})") from exc

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.array_files import load_arrays
 from voxfield.atomic import atomic_path
 from voxfield.errors import SceneFormatError, VoxfieldError
 from voxfield.scene.voxel_scene import VoxelScene
@@ -27,7 +28,7 @@ def save_scene(scene: VoxelScene, path: str | os.PathLike) -> Path:
 def load_scene_npz(path: str | os.PathLike) -> VoxelScene:
     path = Path(path)
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with load_arrays(path) as data:
             if "coords" not in data or "color" not in data:
                 raise SceneFormatError(f"{path}: a voxel-scene .npz needs 'coords' and 'color'")
             emission = data["emission"] if "emission" in data else None

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 import voxfield
+from voxfield.array_files import load_arrays
 from voxfield.atomic import atomic_path, save_figure
 from voxfield.errors import VoxfieldError
 from voxfield.json_output import json_text, to_json
@@ -270,7 +271,7 @@ class StudyFolder:
                 return None
             arrays = {}
             if names:
-                with np.load(npz_path, allow_pickle=False) as npz:
+                with load_arrays(npz_path) as npz:
                     arrays = {k: npz[k] for k in names}
             return record["data"], arrays
         except (OSError, ValueError, KeyError, TypeError, EOFError, RecursionError,

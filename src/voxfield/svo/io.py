@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.array_files import load_arrays
 from voxfield.atomic import atomic_path
 from voxfield.errors import OctreeFormatError, VoxfieldError
 from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT, pack_descriptors
@@ -66,7 +67,7 @@ def load_octree(path: str | os.PathLike) -> Octree:
     if not path.is_file():
         raise OctreeFormatError(f"{path}: no such octree file")
     try:
-        with np.load(path, allow_pickle=False) as data:
+        with load_arrays(path) as data:
             header = json.loads(bytes(data["header"]).decode())
             if header.get("format") != FORMAT:
                 raise OctreeFormatError(f"{path}: not a voxfield octree file")

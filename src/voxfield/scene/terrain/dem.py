@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.array_files import load_arrays
 from voxfield.errors import DataNotFoundError, SceneFormatError, VoxfieldError
 
 #: Metres per degree on a spherical Earth (mean radius 6,371,008.8 m).
@@ -360,7 +361,7 @@ def read_npz(path, name: str | None = None) -> Heightmap:
     """
     path = existing_file(path)
     try:
-        with np.load(path, allow_pickle=False) as npz:
+        with load_arrays(path) as npz:
             data = {k: npz[k] for k in npz.files}
     except Exception as exc:  # noqa: BLE001 - numpy raises many kinds for a bad archive
         raise SceneFormatError(f"{path}: not a readable .npz archive ({exc})") from exc
@@ -422,7 +423,7 @@ def load_heightmap(source) -> Heightmap:
             if f.read(6) != b"\x93NUMPY":  # else NumPy blames pickled data, for any bytes
                 raise SceneFormatError(f"{path}: not a .npy array (no NumPy header)")
         try:
-            arr = np.load(path, allow_pickle=False)
+            arr = load_arrays(path)
         except Exception as exc:  # noqa: BLE001
             raise SceneFormatError(f"{path}: not a readable .npy array ({exc})") from exc
         return Heightmap(arr, name=path.stem)
