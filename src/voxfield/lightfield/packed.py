@@ -57,6 +57,11 @@ class PackedProbes:
     radiance_bordered: np.ndarray
     distance_bordered: np.ndarray
 
+    def __repr__(self) -> str:  # the default printed every map in full
+        r = self.resolution
+        return (f"PackedProbes({self.count} probes, {int(np.count_nonzero(self.enabled))} "
+                f"enabled, {r}x{r} maps)")
+
     @property
     def count(self) -> int:
         return len(self.positions)

@@ -73,6 +73,12 @@ class ProbeGrid:
     offsets: np.ndarray | None = None
     enabled: np.ndarray | None = None
 
+    def __repr__(self) -> str:  # the default printed every offset in full
+        counts = "x".join(str(int(c)) for c in self.counts)
+        enabled = "" if self.enabled is None else f", {int(np.count_nonzero(self.enabled))} enabled"
+        return (f"ProbeGrid({counts} at {np.round(self.origin, 3).tolist()} spacing "
+                f"{np.round(self.spacing, 3).tolist()}{enabled})")
+
     def __post_init__(self) -> None:
         origin = _vector(self.origin, "origin")
         spacing = _vector(self.spacing, "spacing")

@@ -251,6 +251,11 @@ class ProbeSet:
     cost: dict
     fingerprint: str
 
+    def __repr__(self) -> str:  # the default printed every map in full
+        r = self.options.resolution
+        return (f"ProbeSet({len(self.positions)} probes, {int(np.count_nonzero(self.enabled))} "
+                f"enabled, {r}x{r} maps, channel {self.options.channel!r})")
+
     def __post_init__(self) -> None:
         n, r = len(self.positions), self.options.resolution
         expected = {"positions": (n, 3), "enabled": (n,), "radiance": (n, r, r, 3),

@@ -30,6 +30,12 @@ class RenderResult:
     params: dict = field(default_factory=dict)
     maps: dict = field(default_factory=dict)  # renderer-specific per-pixel maps (H, W)
 
+    def __repr__(self) -> str:  # the default printed every array in full
+        h, w = self.image.shape[:2]
+        return (f"RenderResult({self.renderer or 'render'}: {w}x{h}, "
+                f"{int(self.ray_count.sum()):,} rays, {int(self.steps.sum()):,} steps, "
+                f"{self.seconds:.3g} s)")
+
     @classmethod
     def allocate(cls, height: int, width: int, renderer: str = "") -> RenderResult:
         """Uninitialised buffers for a renderer's kernels to fill."""

@@ -33,6 +33,11 @@ class VoxelScene:
     channels: Mapping[str, np.ndarray] = field(default_factory=dict)
     name: str = "scene"
 
+    def __repr__(self) -> str:  # the default printed every array in full
+        extra = sorted(self.channels) + (["emission"] if self.emission is not None else [])
+        return (f"VoxelScene({self.name!r}: {len(self.coords):,} voxels"
+                f"{', also ' + ', '.join(extra) if extra else ''})")
+
     def __post_init__(self) -> None:
         coords = np.asarray(self.coords)
         if coords.ndim != 2 or coords.shape[1] != 3:

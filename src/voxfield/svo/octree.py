@@ -73,6 +73,10 @@ class Octree:
     def node_count(self) -> int:
         return int(self.level_offsets[-1])
 
+    def __repr__(self) -> str:  # the default printed every array in full
+        return (f"Octree({self.name!r}: depth {self.depth}, {self.voxel_count:,} voxels, "
+                f"{self.node_count:,} nodes, channels {sorted(self.attributes)})")
+
     @property
     def inner_count(self) -> int:
         return int(self.level_offsets[-2])
