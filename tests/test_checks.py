@@ -85,6 +85,11 @@ def test_rays_come_back_as_contiguous_float64_arrays():
     ([[0, 0, 0]], [[math.nan, 1, 0]], "NaN or infinity"),
     ([[0, 0]], [[1, 0]], "N×3"),
     ([[0, 0, 0], [1, 1, 1]], [[1, 0, 0]], "N×3"),
+    # NumPy's own words (a ValueError about converting "a"), or a ComplexWarning and the
+    # imaginary parts dropped, before.
+    ([["a", "b", "c"]], [[1, 0, 0]], "real numbers, got <U1"),
+    ([[0, 0, 1j]], [[1, 0, 0]], "real numbers, got complex128"),
+    ([[0, 0, 0], [1, 1]], [[1, 0, 0], [0, 1, 0]], "rows of three numbers"),
 ])
 def test_bad_rays_are_refused(origins, directions, message):
     with pytest.raises(VoxfieldError, match=message):

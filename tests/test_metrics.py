@@ -177,3 +177,13 @@ def test_malformed_results_are_refused():
     good.maps["refined"] = np.zeros((3, 3))
     with pytest.raises(VoxfieldError, match="refined"):
         cost_summary(good)
+
+
+def test_renders_compare_as_their_images():
+    """What a renderer returns is what a user compares: its colour image is taken, where
+    the error read "must be H×W×3 RGB, got shape ()"."""
+    a = RenderResult.allocate(8, 8)
+    b = RenderResult.allocate(8, 8)
+    a.image[:] = 0.5
+    b.image[:] = 0.25
+    assert compare_images(a, b) == compare_images(a.image, b.image)

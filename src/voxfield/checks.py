@@ -59,8 +59,15 @@ def ray_arrays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
     direction the zero vector (it has no crossing times). A read-only array is copied: to
     Numba it is another type, and the kernels compiled again for it (a first call on
     read-only rays took seconds more)."""
-    o = _writable(np.ascontiguousarray(origins, dtype=np.float64))
-    d = _writable(np.ascontiguousarray(directions, dtype=np.float64))
+    try:
+        arrays = [np.asarray(origins), np.asarray(directions)]
+    except ValueError as exc:  # ragged lists
+        raise VoxfieldError("origins and directions must both be N×3, rows of three numbers") \
+            from exc
+    if any(a.dtype.kind not in "biuf" for a in arrays):  # text, objects, complex numbers
+        raise VoxfieldError(f"ray origins and directions must be real numbers, got "
+                            f"{arrays[0].dtype} and {arrays[1].dtype}")
+    o, d = (_writable(np.ascontiguousarray(a, dtype=np.float64)) for a in arrays)
     if o.ndim != 2 or o.shape[1] != 3 or d.shape != o.shape:
         raise VoxfieldError(f"origins and directions must both be N×3, got {o.shape}, {d.shape}")
     if not (np.isfinite(o).all() and np.isfinite(d).all()):

@@ -35,6 +35,8 @@ def _check_pair(reference, test) -> tuple[np.ndarray, np.ndarray]:
     """Both images as float32 H×W×3 in [0, 1], or a VoxfieldError that says what is wrong."""
     images = []
     for name, image in (("reference", reference), ("test", test)):
+        if isinstance(image, RenderResult):  # what a renderer returns: its colour image
+            image = image.image
         a = np.asarray(image)
         if a.ndim != 3 or a.shape[2] != 3:
             raise VoxfieldError(f"the {name} image must be H×W×3 RGB, got shape {a.shape}")

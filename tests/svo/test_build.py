@@ -143,6 +143,8 @@ def test_corrupt_octree_files_give_clear_errors(tmp_path):
     good = save_octree(octree, tmp_path / "good.npz").read_bytes()
     with pytest.raises(OctreeFormatError, match="no such"):
         load_octree(tmp_path / "missing.npz")
+    with pytest.raises(OctreeFormatError, match="a folder, not an octree file"):
+        load_octree(tmp_path)
     for cut in (10, len(good) // 2, len(good) - 5):
         bad = tmp_path / f"cut{cut}.npz"
         bad.write_bytes(good[:cut])

@@ -64,6 +64,8 @@ def write_octree_file(octree: Octree, path: str | os.PathLike) -> None:
 def load_octree(path: str | os.PathLike) -> Octree:
     """Read and validate an octree written by ``save_octree``."""
     path = Path(path)
+    if path.is_dir():
+        raise OctreeFormatError(f"{path}: a folder, not an octree file")
     if not path.is_file():
         raise OctreeFormatError(f"{path}: no such octree file")
     try:
