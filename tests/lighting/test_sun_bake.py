@@ -112,6 +112,29 @@ def test_a_sun_below_the_horizon_leaves_only_sky_light():
     assert report.shadow_rays == 0
 
 
+def test_a_zenith_sun_lights_no_wall_whatever_its_azimuth():
+    """A sun straight overhead is square to every top face and grazes every wall; its
+    direction's horizontal parts are rounding (~1e-16, by azimuth), which lit one side of a
+    pillar by a hair and made the "in sun" share depend on the azimuth."""
+    octree = octree_of(slab(range(9), 0, range(9)), np.array([(4, y, 4) for y in range(1, 5)]))
+    suns = [SunLight(f"z{azimuth}", azimuth, 90.0, (1.0, 1.0, 1.0), (0.0, 0.0, 0.0))
+            for azimuth in (0, 45, 90, 180, 270)]
+    lit, report = bake_sun_lighting(octree, suns, sky_rays=0, shadow_rays=2)
+    # By hand: faces weigh (1 + n_y) / 2 without sky rays; only top faces see the sun, and
+    # nothing stands above any of them.
+    exposed = exposed_faces_by_hand(octree.node_coords(octree.depth))
+    weight = np.where(exposed, (1.0 + NORMALS[:, 1]) / 2.0, 0.0)
+    total = weight.sum(axis=1)  # 0 under the pillar: only its bottom face is open
+    expected = np.divide(weight[:, 3], total, out=np.zeros_like(total), where=total > 0)
+    assert 0.0 < (expected > 0).mean() < 1.0  # the pillar's lower voxels show only walls
+    for sun in suns:
+        assert np.allclose(leaf_channel(lit, sun.name), ALBEDO * expected[:, None],
+                           rtol=1e-6, atol=0.0)
+        assert report.sunlit_fraction[sun.name] == pytest.approx(
+            (expected > 0).sum() / (total > 0).sum())
+    assert report.shadow_rays == 2 * len(suns) * int(exposed[:, 3].sum())
+
+
 def exposed_faces_by_hand(coords: np.ndarray) -> np.ndarray:
     occupied = {tuple(c) for c in coords}
     return np.array([[tuple(c + n) not in occupied for n in NORMALS] for c in coords])

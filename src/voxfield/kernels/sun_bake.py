@@ -10,7 +10,7 @@ is treated as a small Lambertian square and gets
   and a face looking down 0;
 * sun visibility ``V_f`` per sun: the fraction of shadow rays towards the sun, started at
   stratified points of the face, that hit nothing at LOD 0; only faces turned to the sun
-  (``n_f · l > 0``) of a sun above the horizon cast them.
+  (``n_f · l > LIT_COSINE``: by more than rounding) of a sun above the horizon cast them.
 
 A voxel has one colour, so its faces are averaged, each weighted by how much of the sky it
 sees, ``w_f = S_f`` (by reciprocity, how much of it a viewer above sees). The bottom face of a
@@ -98,6 +98,14 @@ FACE_DOWN = 2
 BAKE_BLOCK = 128
 #: Sky rays a block queues before it walks them (more when one voxel casts more).
 SKY_QUEUE_RAYS = 2048
+#: The cosine between a face's normal and the sun above which the sun lights the face. A
+#: sun's direction comes from degrees through float64 sines and cosines, so a component
+#: that is zero in exact arithmetic comes out as up to about 1e-16 (cos 90° is 6.1e-17):
+#: with ``> 0`` a sun at the zenith grazed the walls on one side and not the other, by its
+#: azimuth. 1e-9 is millions of times that rounding, and the light it leaves out is none a
+#: channel keeps: at most a billionth of the sun's, below float32's resolution (1.2e-7) of
+#: what the face gets square to the sun, from a sun within 6e-8° of the face's plane.
+LIT_COSINE = 1e-9
 
 
 @njit(cache=True, nogil=True)
@@ -476,7 +484,7 @@ def bake_block(
             for i in range(first, last):
                 j = i - first
                 for f in range(6):
-                    if face_weight[j, f] == 0.0 or face_cosine(f, lx, ly, lz) <= 0.0:
+                    if face_weight[j, f] == 0.0 or face_cosine(f, lx, ly, lz) <= LIT_COSINE:
                         continue
                     out_shadow_rays[i] += shadow_rays
                     # Every ray of the face starts in the rear corner's column, none lower:
@@ -534,7 +542,7 @@ def bake_block(
             direct = 0.0
             for f in range(6):
                 cos_theta = face_cosine(f, lx, ly, lz)
-                if ly > 0.0 and face_weight[j, f] != 0.0 and cos_theta > 0.0:
+                if ly > 0.0 and face_weight[j, f] != 0.0 and cos_theta > LIT_COSINE:
                     direct += face_weight[j, f] * cos_theta * (unblocked[j, f] / shadow_rays)
             out_direct[sun, out_rows[i]] = direct / total_weight[j]
 
