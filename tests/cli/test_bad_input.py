@@ -346,6 +346,18 @@ def test_gltf_with_broken_json_says_so(tmp_path, capsys):
     assert "not valid glTF" in one_error_line(capsys)
 
 
+def test_a_mesh_vertex_at_infinity_or_1e300_gets_no_arithmetic_notes(tmp_path, capsys):
+    """An infinite vertex printed five "invalid value" notes before its error; one at 1e300
+    four "overflow" notes before a correct voxelization."""
+    triangle = "v 0 0 0\nv {x} 0 0\nv 0 1 0\nf 1 2 3\n"
+    (tmp_path / "inf.obj").write_text(triangle.format(x="inf"))
+    assert main(["info", str(tmp_path / "inf.obj"), "--quiet"]) == 2
+    assert "vertex 2 is at inf 0 0" in one_error_line(capsys)
+    (tmp_path / "huge.obj").write_text(triangle.format(x="1e300"))
+    assert main(["info", str(tmp_path / "huge.obj"), "--quiet"]) == 0
+    assert capsys.readouterr().err == ""
+
+
 def test_library_warnings_are_one_plain_note(capsys):
     _note_warning(UserWarning("model 3 is missing"), UserWarning, "x.py", 1)
     assert capsys.readouterr().err == "voxfield: note: model 3 is missing\n"

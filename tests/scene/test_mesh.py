@@ -104,6 +104,9 @@ def test_vertex_colours_in_obj_are_srgb(tmp_path):
         ("v 0 0 zero\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "malformed vertex"),
         ("v 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "vertex 1 has 2 numbers"),
         ("v nan 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", "NaN"),
+        ("v 0 0 0\nv 1 0 0\nv inf 1 0\nf 1 2 3\n", "vertex 3 is at inf 1 0"),
+        ("v 0 0 0\nv 1e400 0 0\nv 0 1 0\nf 1 2 3\n", "vertex 2 is at 1e400 0 0"),
+        (SQUARE + "v -1.7e308 0 0\nv 1.7e308 0 0\nf 5 6 3\n", "vertices lie too far apart"),
         ("v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\n", "degenerate"),
         (SQUARE + "vt 0 0\nf 1/2 2/1 3/1\n", "texture 2"),
     ],
@@ -111,6 +114,18 @@ def test_vertex_colours_in_obj_are_srgb(tmp_path):
 def test_bad_obj_files_raise_scene_format_error(tmp_path, text, match):
     with pytest.raises(SceneFormatError, match=match):
         load_mesh(_write(tmp_path, "bad.obj", text))
+
+
+def test_a_mesh_in_units_of_1e300_voxelizes_as_at_unit_size(tmp_path):
+    """Finite but huge coordinates: the same voxels as the same shape at unit size, and no
+    floating-point warning on the way (the suite turns one into an error)."""
+    from voxfield.scene.voxelize import voxelize_mesh
+
+    text = "v 0 0 0\nv {s} 0 0\nv {s} {s} 0\nv {h} {t} 0\nv 0 {s} 0\nf 1 2 3 4 5\n"
+    unit = _write(tmp_path, "unit.obj", text.format(s=1, h=0.5, t=0.2))
+    huge = _write(tmp_path, "huge.obj", text.format(s=1e300, h=5e299, t=2e299))
+    a, b = (voxelize_mesh(load_mesh(p), resolution=32) for p in (unit, huge))
+    np.testing.assert_array_equal(a.coords, b.coords)
 
 
 def test_missing_binary_and_unknown_files(tmp_path):
@@ -168,6 +183,37 @@ def test_ply_with_nan_vertex_raises(tmp_path):
     )
     with pytest.raises(SceneFormatError, match="NaN"):
         load_mesh(_write(tmp_path, "n.ply", text))
+
+
+@pytest.mark.parametrize("kind, value", [("float", "1e300"), ("double", "inf"),
+                                         ("double", "1e400")])
+def test_ply_vertex_past_its_type_is_refused_in_one_message(tmp_path, kind, value):
+    """A float property of 1e300 reads as infinity (trimesh's cast warned first)."""
+    text = (
+        f"ply\nformat ascii 1.0\nelement vertex 3\nproperty {kind} x\nproperty {kind} y\n"
+        f"property {kind} z\nelement face 1\nproperty list uchar int vertex_indices\n"
+        f"end_header\n0 0 0\n{value} 1 0\n0 1 0\n3 0 1 2\n"
+    )
+    with pytest.raises(SceneFormatError, match=r"p\.ply: a vertex reads as \(inf, 1, 0\)"):
+        load_mesh(_write(tmp_path, "p.ply", text))
+
+
+def test_gltf_nodes_scaling_far_from_unit_size(tmp_path):
+    """trimesh's arithmetic on a node scaled by 1e300 overflows in its checks (warnings) but
+    places the vertices right; a scale that carries them past the largest number is
+    refused, naming the file."""
+    import json
+
+    doc = _one_triangle_gltf()
+    doc["nodes"][0]["scale"] = [1e300, 1e300, 1e300]
+    (tmp_path / "huge.gltf").write_text(json.dumps(doc))
+    np.testing.assert_array_equal(load_mesh(tmp_path / "huge.gltf").vertices,
+                                  [[0, 0, 0], [1e300, 0, 0], [0, 1e300, 0]])
+    doc["nodes"][0]["scale"] = [1e308] * 3
+    doc["nodes"][0]["translation"] = [1e308, 0, 0]
+    (tmp_path / "past.gltf").write_text(json.dumps(doc))
+    with pytest.raises(SceneFormatError, match=r"past\.gltf: a vertex lands at \(inf"):
+        load_mesh(tmp_path / "past.gltf")
 
 
 def test_glb_base_colour_texture_and_node_transforms(tmp_path):

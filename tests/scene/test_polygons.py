@@ -60,6 +60,21 @@ def test_convex_polygons_keep_their_fan_and_concave_ones_are_clipped():
     assert not np.any((centroids[:, 0] > 1) & (centroids[:, 1] > 1))  # nothing in the notch
 
 
+@pytest.mark.parametrize("scale", [1e300, 1e-300, 2.0 ** 600])
+def test_polygons_far_from_unit_size_are_cut_as_at_unit_size(scale):
+    """Turns and normals multiply coordinates: at 1e300 they overflowed (NumPy warning at
+    each step), at 1e-300 they underflowed to 0 and an L passed for convex and was fanned
+    over its notch."""
+    notch = np.array([[0, 0, 0], [2, 0, 0], [2, 1, 0], [1, 1, 0], [1, 2, 0], [0, 2, 0]],
+                     float)
+    corners = np.arange(len(notch))
+    unit = triangulate(np.array([6]), corners, notch)
+    np.testing.assert_array_equal(triangulate(np.array([6]), corners, notch * scale), unit)
+    np.testing.assert_array_equal(ear_clip(notch * scale), ear_clip(notch))
+    areas = _triangle_areas(notch[:, :2], unit)
+    assert np.all(areas > 0) and areas.sum() == pytest.approx(3.0)
+
+
 def test_an_obj_floor_plan_keeps_its_notch_empty(tmp_path):
     (tmp_path / "plan.obj").write_text(
         "v 0 0 0\nv 2 0 0\nv 2 0 1\nv 1 0 1\nv 1 0 2\nv 0 0 2\nf 3 4 5 6 1 2\n")

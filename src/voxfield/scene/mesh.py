@@ -167,8 +167,8 @@ def _check_extents(mesh: TriangleMesh, path: Path) -> None:
         ext = mesh.extents
     if not np.isfinite(ext).all():
         raise SceneFormatError(
-            f"{path}: mesh extents {ext.tolist()} are not finite (vertex coordinates too "
-            "large, or not numbers)")
+            f"{path}: the mesh's extents {ext.tolist()} overflow: its vertices lie too far "
+            "apart to measure or voxelize")
     if ext.max() <= 0.0:
         raise SceneFormatError(
             f"{path}: mesh extents {ext.tolist()} are degenerate (all vertices at one point)"
@@ -338,6 +338,14 @@ def _parse_vertices(rows: list[str], path: Path) -> tuple[np.ndarray, np.ndarray
         )
     table = flat.reshape(-1, width)
     vertices = table[:, :3].copy()
+    # Refused here, before any arithmetic on them: NumPy would print its own warning at each
+    # step that met the NaN (a note apiece on the command line) before the mesh's own check.
+    finite = np.isfinite(vertices).all(axis=1)
+    if not finite.all():
+        bad = int(np.argmin(finite))
+        raise SceneFormatError(
+            f"{path}: vertex {bad + 1} is at {' '.join(rows[bad].split()[:3])}; every "
+            "coordinate must be a finite number, not NaN or infinite (nor past ±1.8e308)")
     colour = None
     if width == 6:
         rgb = table[:, 3:6]
@@ -490,21 +498,43 @@ def _load_with_trimesh(path: Path) -> TriangleMesh:
     # zeros: the file is checked (and its emission strengths folded in) first.
     source = prepared_gltf(path) if gltf else None
     try:
-        if source is None:
-            scene = trimesh.load_scene(str(path), process=False)
-        else:
-            scene = trimesh.load_scene(
-                file_obj=io.BytesIO(source), file_type=path.suffix.lower()[1:], process=False,
-                resolver=trimesh.resolvers.FilePathResolver(str(path)))
-        parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
+        # trimesh's arithmetic on what it reads (a node scaled by 1e300, a PLY float of 1e300)
+        # warns wherever it overflows, a note apiece on the command line; the vertices it
+        # hands back are checked once, below.
+        with np.errstate(all="ignore"):
+            if source is None:
+                scene = trimesh.load_scene(str(path), process=False)
+            else:
+                scene = trimesh.load_scene(
+                    file_obj=io.BytesIO(source), file_type=path.suffix.lower()[1:],
+                    process=False, resolver=trimesh.resolvers.FilePathResolver(str(path)))
+            parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
     except Exception as exc:  # trimesh raises many kinds for broken files
         raise SceneFormatError(
             f"{path}: cannot be read as a mesh ({type(exc).__name__}: {exc})"
         ) from exc
     if not parts:
         raise SceneFormatError(f"{path}: holds no triangles")
+    for g in parts:
+        _check_finite(np.asarray(g.vertices, np.float64), path, gltf)
     pieces = [_from_trimesh(g, gltf) for g in parts]
     return _concatenate(pieces, path.stem)
+
+
+def _check_finite(vertices: np.ndarray, path: Path, gltf: bool) -> None:
+    """Refuse a vertex trimesh read as NaN or infinite: written so, past the range of the
+    type the file stores it in, or (glTF) moved there by its nodes' transforms."""
+    finite = np.isfinite(vertices).all(axis=1)
+    if finite.all():
+        return
+    where = ", ".join(f"{c:g}" for c in vertices[int(np.argmin(finite))])
+    if gltf:
+        raise SceneFormatError(f"{path}: a vertex lands at ({where}) once its nodes' "
+                               "transforms are applied; every coordinate must stay a finite "
+                               "number, not NaN or infinite")
+    raise SceneFormatError(f"{path}: a vertex reads as ({where}); every coordinate must be a "
+                           "finite number, not NaN or infinite, within the range of the type "
+                           "the file declares for it")
 
 
 def _from_trimesh(geom, gltf: bool) -> dict:

@@ -21,11 +21,24 @@ def triangulate(counts: np.ndarray, corners: np.ndarray, vertices: np.ndarray) -
     a = first[face_of_tri]
     triangles = np.stack([a, a + k + 1, a + k + 2], axis=1)
     tri_start = np.cumsum(n_tri) - n_tri
+    vertices = unit_scaled(vertices)
     for face in np.flatnonzero(~_convex(counts, first, vertices[corners])):
         rows = np.arange(first[face], first[face] + counts[face])
         clipped = ear_clip(vertices[corners[rows]])
         triangles[tri_start[face] : tri_start[face] + n_tri[face]] = rows[clipped]
     return triangles
+
+
+def unit_scaled(points: np.ndarray) -> np.ndarray:
+    """``points`` times the power of two that brings their largest coordinate into [0.5, 1):
+    the turns and normals below multiply coordinates, which overflowed to infinity (or
+    underflowed to 0) for any finite coordinates far from 1 (a mesh in units of 1e300). A
+    power of two scales exactly, so every sign, and the triangles, stay the same."""
+    points = np.asarray(points, np.float64)
+    largest = float(np.abs(points).max(initial=0.0))
+    if largest == 0.0 or not np.isfinite(largest):
+        return points
+    return np.ldexp(points, -int(np.frexp(largest)[1]))
 
 
 #: The two axes a polygon keeps in 2D, by the axis its normal leans on most.
@@ -65,6 +78,7 @@ def ear_clip(points: np.ndarray) -> np.ndarray:
     included); where no ear is left (a self-intersecting or degenerate rest), the rest is
     fanned. The scan goes on from the last ear, so a polygon of thousands of corners takes
     a fraction of a second."""
+    points = unit_scaled(points)
     normal = np.sum(np.cross(points, np.roll(points, -1, axis=0)), axis=0)
     flat = _plane_coordinates(points, normal)
     left = list(range(len(flat)))
