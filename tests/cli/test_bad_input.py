@@ -358,6 +358,27 @@ def test_a_mesh_vertex_at_infinity_or_1e300_gets_no_arithmetic_notes(tmp_path, c
     assert capsys.readouterr().err == ""
 
 
+def test_damaged_scene_files_are_one_plain_line(tmp_path, capsys):
+    """Each named the reading library's internals (``IndexError: list index out of range``,
+    ``claims 0 + -2147483648 bytes``); now one line of plain words each."""
+    import tifffile
+
+    tifffile.imwrite(tmp_path / "whole.tif", np.zeros((8, 8), np.int16))
+    files = {
+        "cut.ply": b"ply\nformat ascii 1.0\nelement vertex 3\n",
+        "cut.tif": (tmp_path / "whole.tif").read_bytes()[:8],
+        "huge.vox": b"VOX " + (150).to_bytes(4, "little") + b"MAIN" + bytes(4)
+        + (0x80000000).to_bytes(4, "little"),
+        "empty.gltf": b'{"asset": {"version": "2.0"}, "meshes": [{"primitives": '
+                      b'[{"attributes": {"POSITION": 0}}]}]}',
+    }
+    for name, data in files.items():
+        (tmp_path / name).write_bytes(data)
+        assert main(["info", str(tmp_path / name), "--quiet"]) == 2
+        line = one_error_line(capsys)
+        assert "Error" not in line and "-2147483648" not in line, line
+
+
 def test_library_warnings_are_one_plain_note(capsys):
     _note_warning(UserWarning("model 3 is missing"), UserWarning, "x.py", 1)
     assert capsys.readouterr().err == "voxfield: note: model 3 is missing\n"

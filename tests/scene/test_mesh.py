@@ -216,6 +216,56 @@ def test_gltf_nodes_scaling_far_from_unit_size(tmp_path):
         load_mesh(tmp_path / "past.gltf")
 
 
+_PLY_HEADER = ("ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\n"
+               "property float z\nelement face 1\nproperty list uchar int vertex_indices\n"
+               "end_header\n")
+
+
+@pytest.mark.parametrize("text, words", [
+    ("ply\nformat ascii 1.0\nelement vertex 3\n", "its header stops before 'end_header'"),
+    (_PLY_HEADER + "0 0 0\n1 0\n0 1 0\n3 0 1 2\n",
+     "line 11: vertex 1 has 2 values where the header's properties need 3"),
+    (_PLY_HEADER + "0 0 0\n1 x 0\n0 1 0\n3 0 1 2\n", "line 11: 'x' is not a number"),
+    (_PLY_HEADER + "0 0 0\n1 0 0\n", "it ends after 2 of the 3 vertex lines"),
+    (_PLY_HEADER.replace("float x", "flot x") + "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n",
+     "header line 4: property 'x' has type 'flot', which PLY does not define"),
+    (_PLY_HEADER.replace("ascii", "binary_little_endian") + "\0\0\0\0",
+     "cannot be read as a PLY mesh: its data does not match its header \\(damaged or cut "
+     "short\\)"),
+])
+def test_a_damaged_ply_is_refused_in_plain_words(tmp_path, text, words):
+    """trimesh's own words named its internals ("IndexError: list index out of range" for
+    a header cut short, "setting an array element with a sequence" for a short line)."""
+    with pytest.raises(SceneFormatError, match=f"d\\.ply: {words}") as caught:
+        load_mesh(_write(tmp_path, "d.ply", text))
+    assert "Error" not in str(caught.value)
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda doc: doc.pop("bufferViews"), "accessor 0 names buffer view 0, but the file has "
+     "no buffer views"),
+    (lambda doc: doc.update(accessors=[]), "mesh 0 primitive 0's POSITION names accessor 0, "
+     "but the file has no accessors"),
+    (lambda doc: doc["meshes"][0]["primitives"][0].update(indices=4),
+     "mesh 0 primitive 0's indices names accessor 4, but the file has 1 accessor "),
+    (lambda doc: doc["accessors"][0].update(componentType=1),
+     "accessor 0 has component type 1, which glTF does not define"),
+    (lambda doc: doc["accessors"][0].update(count=300), "cannot be read as a glTF mesh: its "
+     "data is damaged"),
+])
+def test_a_damaged_gltf_is_refused_in_plain_words(tmp_path, change, words):
+    """trimesh's own words named its internals ("UnboundLocalError: cannot access local
+    variable 'access'" for a file without buffer views)."""
+    import json
+
+    doc = _one_triangle_gltf()
+    change(doc)
+    (tmp_path / "d.gltf").write_text(json.dumps(doc))
+    with pytest.raises(SceneFormatError, match=f"d\\.gltf: .*{words}") as caught:
+        load_mesh(tmp_path / "d.gltf")
+    assert "Error" not in str(caught.value)
+
+
 def test_glb_base_colour_texture_and_node_transforms(tmp_path):
     import trimesh
     from trimesh.visual.material import PBRMaterial

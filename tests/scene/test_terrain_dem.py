@@ -58,6 +58,33 @@ def test_file_errors(tmp_path):
         load_heightmap(garbage)
 
 
+def _tiff_bytes(tmp_path) -> bytes:
+    tifffile.imwrite(tmp_path / "whole.tif", (np.arange(4096) % 97).reshape(64, 64)
+                     .astype(np.int16))
+    return (tmp_path / "whole.tif").read_bytes()
+
+
+def test_a_damaged_tiff_is_refused_in_plain_words(tmp_path):
+    """tifffile's own words named its internals ("IndexError: index 0 out of range(0)" for
+    a file cut after its header)."""
+    data = _tiff_bytes(tmp_path)
+    with tifffile.TiffFile(tmp_path / "whole.tif") as tif:
+        compression = tif.pages[0].tags["Compression"].valueoffset
+    unknown = bytearray(data)
+    unknown[compression:compression + 2] = (40000).to_bytes(2, "little")  # no such code
+    cases = {
+        "header.tif": (data[:8], "holds no image \\(damaged or cut short\\)$"),
+        "cut.tif": (data[:len(data) // 2], "cannot be read: the file is damaged or cut short$"),
+        "words.tif": (b"hello, not a tiff", "not a TIFF file \\(it does not begin with a TIFF"),
+        "unknown.tif": (bytes(unknown), "compression code 40000 is none this reader knows$"),
+    }
+    for name, (content, words) in cases.items():
+        (tmp_path / name).write_bytes(content)
+        with pytest.raises(SceneFormatError, match=f"{name}: .*{words}") as caught:
+            load_heightmap(tmp_path / name)
+        assert "Error" not in str(caught.value)
+
+
 # --------------------------------------------------------------------------------------------
 # Readers on hand-made files
 

@@ -4,9 +4,12 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
+import tifffile
 from PIL import Image
 from terrain_helpers import column_ranges, hills
 
+from voxfield.errors import SceneFormatError
 from voxfield.scene.terrain.columns import terrain_columns
 from voxfield.scene.terrain.dem import Heightmap, load_heightmap
 from voxfield.scene.terrain.ground_colours import ColorRamp
@@ -58,6 +61,15 @@ def test_colours_from_a_stretched_image(tmp_path):
     by_x = {x: scene.color[scene.coords[:, 0] == x] for x in (0, 15)}
     assert np.allclose(by_x[0], (1, 0, 0), atol=1e-6)
     assert np.allclose(by_x[15], (0, 0, 1), atol=1e-6)
+
+
+def test_a_colour_tiff_cut_after_its_header_is_refused_in_plain_words(tmp_path):
+    """Its IndexError escaped the reader (only tifffile's own errors were caught)."""
+    tifffile.imwrite(tmp_path / "whole.tif", np.zeros((8, 8, 3), np.uint8), photometric="rgb")
+    (tmp_path / "cut.tif").write_bytes((tmp_path / "whole.tif").read_bytes()[:8])
+    with pytest.raises(SceneFormatError, match="cut.tif: a TIFF that holds no image"):
+        terrain_scene(Heightmap(np.zeros((8, 8)), spacing=(1, 1)), 16,
+                      colors=tmp_path / "cut.tif")
 
 
 def test_colours_from_shaded_relief_are_placed_by_position(shared_data):

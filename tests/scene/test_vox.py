@@ -770,6 +770,23 @@ def test_rich_synthetic_file_loads():
     assert scene.emission is not None
 
 
+def test_chunk_sizes_past_two_gigabytes_read_as_unsigned():
+    """Sizes of 0x80000000 and more were read as signed: "claims 0 + -2147483648 bytes"."""
+    data = bytearray(vox(size(1, 1, 1), xyzi([(0, 0, 0, 1)])))
+    main_children = bytearray(data)
+    main_children[16:20] = struct.pack("<I", 0x80000000)
+    with pytest.raises(SceneFormatError, match="claims 0 \\+ 2,147,483,648 bytes"):
+        load_vox(bytes(main_children))
+    chunk_content = bytearray(data)
+    chunk_content[24:28] = struct.pack("<I", 0xFFFFFFF0)  # SIZE's content
+    with pytest.raises(SceneFormatError, match="'SIZE' claims 4,294,967,280 \\+ 0 bytes"):
+        load_vox(bytes(chunk_content))
+    voxel_count = bytearray(data)
+    voxel_count[len(data) - 8:len(data) - 4] = struct.pack("<I", 0x80000000)
+    with pytest.raises(SceneFormatError, match="voxel count 2147483648 does not fit"):
+        load_vox(bytes(voxel_count))
+
+
 def _with_main_size(data: bytes) -> bytes:
     """Patch MAIN's child size to the truncated length so parsing must go inside the chunks."""
     if len(data) < 20:

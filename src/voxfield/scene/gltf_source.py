@@ -6,6 +6,9 @@ refused or folded in first.
   that requires it is refused in one line.
 - ``KHR_materials_emissive_strength`` (Blender writes it for every emission above 1) scales
   ``emissiveFactor``; trimesh drops it, so it is multiplied in here.
+- An index that names no accessor, buffer view or buffer, and an accessor of a type glTF
+  does not define, are refused by name: trimesh failed on them with its own internals
+  (``UnboundLocalError: ... 'access'``, ``IndexError``, ``KeyError: 1``).
 """
 
 from __future__ import annotations
@@ -39,6 +42,7 @@ def prepared_gltf(path: Path) -> bytes:
     if not isinstance(tree, dict):
         raise SceneFormatError(f"{path}: not valid glTF (its JSON is not an object)")
     _check_required(tree, path)
+    _check_references(tree, path)
     if not _fold_emissive_strength(tree):
         return data
     text = json.dumps(tree).encode("utf-8")
@@ -52,6 +56,64 @@ def _check_required(tree: dict, path: Path) -> None:
             raise SceneFormatError(
                 f"{path}: its meshes are compressed with {name}, which cannot be decoded "
                 "here; export it again without mesh compression")
+
+
+#: glTF's accessor component types and element types (glTF 2.0, §5.1).
+_COMPONENT_TYPES = {5120, 5121, 5122, 5123, 5125, 5126}
+_ELEMENT_TYPES = {"SCALAR", "VEC2", "VEC3", "VEC4", "MAT2", "MAT3", "MAT4"}
+
+
+def _items(tree: dict, key: str) -> list:
+    items = tree.get(key)
+    return items if isinstance(items, list) else []
+
+
+def _check_index(index, tree: dict, key: str, what: str, path: Path) -> None:
+    """``index`` must name one of ``tree[key]``: said in plain words where it does not."""
+    count = len(_items(tree, key))
+    if isinstance(index, int) and not isinstance(index, bool) and 0 <= index < count:
+        return
+    singular = {"accessors": "accessor", "bufferViews": "buffer view", "buffers": "buffer"}[key]
+    holds = f"has {count} {singular}{'s' if count > 1 else ''} (numbered from 0)" if count \
+        else f"has no {singular}s"
+    raise SceneFormatError(f"{path}: damaged glTF: {what} names {singular} {index!r}, but the "
+                           f"file {holds}")
+
+
+def _check_references(tree: dict, path: Path) -> None:
+    """The accessors the meshes read, and the buffer views and buffers those read, exist and
+    are of types glTF defines."""
+    for m, mesh in enumerate(_items(tree, "meshes")):
+        primitives = mesh.get("primitives") if isinstance(mesh, dict) else None
+        for k, primitive in enumerate(primitives if isinstance(primitives, list) else []):
+            if not isinstance(primitive, dict):
+                continue
+            attributes = primitive.get("attributes")
+            attributes = attributes if isinstance(attributes, dict) else {}
+            if "POSITION" not in attributes:
+                raise SceneFormatError(f"{path}: mesh {m} primitive {k} has no vertex "
+                                       "positions (no POSITION attribute)")
+            for name, index in attributes.items():
+                _check_index(index, tree, "accessors", f"mesh {m} primitive {k}'s {name}",
+                             path)
+            if "indices" in primitive:
+                _check_index(primitive["indices"], tree, "accessors",
+                             f"mesh {m} primitive {k}'s indices", path)
+    for a, accessor in enumerate(_items(tree, "accessors")):
+        if not isinstance(accessor, dict):
+            continue
+        if accessor.get("componentType") not in _COMPONENT_TYPES:
+            raise SceneFormatError(f"{path}: damaged glTF: accessor {a} has component type "
+                                   f"{accessor.get('componentType')!r}, which glTF does not "
+                                   "define")
+        if accessor.get("type") not in _ELEMENT_TYPES:
+            raise SceneFormatError(f"{path}: damaged glTF: accessor {a} has type "
+                                   f"{accessor.get('type')!r}, which glTF does not define")
+        if "bufferView" in accessor:
+            _check_index(accessor["bufferView"], tree, "bufferViews", f"accessor {a}", path)
+    for v, view in enumerate(_items(tree, "bufferViews")):
+        if isinstance(view, dict):
+            _check_index(view.get("buffer"), tree, "buffers", f"buffer view {v}", path)
 
 
 def _fold_emissive_strength(tree: dict) -> bool:

@@ -27,6 +27,7 @@ from PIL import Image, UnidentifiedImageError
 
 from voxfield.errors import DataNotFoundError, SceneFormatError
 from voxfield.scene.gltf_source import prepared_gltf
+from voxfield.scene.ply_source import body_problem, read_header
 from voxfield.scene.polygons import triangulate
 from voxfield.scene.voxel_scene import srgb_to_linear
 
@@ -497,6 +498,9 @@ def _load_with_trimesh(path: Path) -> TriangleMesh:
     # trimesh reports broken glTF JSON as a missing file and reads what it cannot decode as
     # zeros: the file is checked (and its emission strengths folded in) first.
     source = prepared_gltf(path) if gltf else None
+    header = None if gltf else read_header(path)
+    if isinstance(header, str):
+        raise SceneFormatError(f"{path}: {header}")
     try:
         # trimesh's arithmetic on what it reads (a node scaled by 1e300, a PLY float of 1e300)
         # warns wherever it overflows, a note apiece on the command line; the vertices it
@@ -509,16 +513,28 @@ def _load_with_trimesh(path: Path) -> TriangleMesh:
                     file_obj=io.BytesIO(source), file_type=path.suffix.lower()[1:],
                     process=False, resolver=trimesh.resolvers.FilePathResolver(str(path)))
             parts = [g for g in scene.dump() if isinstance(g, trimesh.Trimesh) and len(g.faces)]
-    except Exception as exc:  # trimesh raises many kinds for broken files
-        raise SceneFormatError(
-            f"{path}: cannot be read as a mesh ({type(exc).__name__}: {exc})"
-        ) from exc
+    except FileNotFoundError as exc:  # a buffer or image the file names
+        raise SceneFormatError(f"{path}: a file it refers to is not there ({exc})") from exc
+    except Exception as exc:  # trimesh raises many kinds for broken files, in its own terms
+        raise SceneFormatError(f"{path}: {_unreadable(path, header)}") from exc
     if not parts:
-        raise SceneFormatError(f"{path}: holds no triangles")
+        problem = body_problem(path, header) if header is not None else None
+        raise SceneFormatError(f"{path}: {problem or 'holds no triangles'}")
     for g in parts:
         _check_finite(np.asarray(g.vertices, np.float64), path, gltf)
     pieces = [_from_trimesh(g, gltf) for g in parts]
     return _concatenate(pieces, path.stem)
+
+
+def _unreadable(path: Path, header) -> str:
+    """Why trimesh could not read a file whose header (PLY) or JSON (glTF) checked out:
+    where a PLY's ASCII body first disagrees with its header, else plain words. trimesh's
+    own message names its internals ("UnboundLocalError: ... 'access'")."""
+    if header is None:
+        return ("cannot be read as a glTF mesh: its data is damaged, or uses what this "
+                "reader does not support")
+    return body_problem(path, header) or ("cannot be read as a PLY mesh: its data does not "
+                                          "match its header (damaged or cut short)")
 
 
 def _check_finite(vertices: np.ndarray, path: Path, gltf: bool) -> None:

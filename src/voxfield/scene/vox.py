@@ -63,6 +63,7 @@ MAX_NODE_VISITS = 1 << 18
 _MAX_TRANSLATION = MAX_EXTENT
 
 _I32 = struct.Struct("<i")
+_U32 = struct.Struct("<I")
 _IDENTITY_ROTATION = 4  # row 0 -> column 0, row 1 -> column 1, all signs positive
 _SUPPORTED_VERSIONS = (150, 200)
 _EMISSIVE_MATL_TYPES = ("_emit", "_blend")
@@ -219,6 +220,14 @@ class _Cursor:
         self.pos += 4
         return value
 
+    def u32(self) -> int:
+        """A byte count or a length prefix: unsigned, so 0x80000000 reads as 2,147,483,648
+        bytes, as its writer meant it, not as a negative number."""
+        self.need(4)
+        (value,) = _U32.unpack_from(self.buf, self.pos)
+        self.pos += 4
+        return value
+
     def f32(self) -> float:
         self.need(4)
         value = float(np.frombuffer(self.buf, dtype="<f4", count=1, offset=self.pos)[0])
@@ -227,8 +236,8 @@ class _Cursor:
 
     def count(self, what: str, item_bytes: int) -> int:
         """A length prefix, checked against what is left so a bad one cannot allocate or loop."""
-        n = self.i32()
-        if n < 0 or n * item_bytes > self.end - self.pos:
+        n = self.u32()
+        if n * item_bytes > self.end - self.pos:
             left = self.end - self.pos
             raise self.fail(f"{what} count {n} does not fit in the {left} bytes left")
         return n
@@ -310,13 +319,13 @@ def _parse(data: bytes, label: str, name: str) -> VoxFile:
     if data[8:12] != b"MAIN":
         raise head.fail(f"the first chunk is {data[8:12]!r}, expected b'MAIN'")
     head.pos = 12
-    main_content, main_children = head.i32(), head.i32()
+    main_content, main_children = head.u32(), head.u32()
     start = 20 + main_content
     end = start + main_children
-    if main_content < 0 or main_children < 0 or end > len(data):
+    if end > len(data):
         raise head.fail(
-            f"claims {main_content} + {main_children} bytes but the file has {len(data) - 20} "
-            "after its header (truncated?)"
+            f"claims {main_content:,} + {main_children:,} bytes (content + children) but the "
+            f"file has {len(data) - 20:,} after its header (cut short or damaged)"
         )
 
     models: list[VoxModel] = []
@@ -334,14 +343,15 @@ def _parse(data: bytes, label: str, name: str) -> VoxFile:
         if pos + 12 > end:
             raise SceneFormatError(f"{where}: chunk header runs past the end of MAIN at {end}")
         chunk_id = data[pos : pos + 4]
-        n_content = int.from_bytes(data[pos + 4 : pos + 8], "little", signed=True)
-        n_children = int.from_bytes(data[pos + 8 : pos + 12], "little", signed=True)
+        # Sizes are unsigned: a size of 0x80000000 read as signed was "-2147483648 bytes".
+        n_content = int.from_bytes(data[pos + 4 : pos + 8], "little")
+        n_children = int.from_bytes(data[pos + 8 : pos + 12], "little")
         c_start = pos + 12
         c_end = c_start + n_content
-        if n_content < 0 or n_children < 0 or c_end + n_children > end:
+        if c_end + n_children > end:
             raise SceneFormatError(
-                f"{where}: {chunk_id!r} claims {n_content} + {n_children} bytes, past the end of "
-                f"MAIN at byte {end} (truncated or corrupt)"
+                f"{where}: {chunk_id!r} claims {n_content:,} + {n_children:,} bytes (content + "
+                f"children), past the end of MAIN at byte {end:,} (cut short or damaged)"
             )
         tag = chunk_id.decode("latin-1")
         cur = _Cursor(data, c_start, c_end, f"{label}: {tag} chunk at byte {pos}")

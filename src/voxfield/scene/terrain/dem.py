@@ -272,6 +272,33 @@ def _gdal_nodata(page) -> float | None:
         return None
 
 
+#: The first bytes of a TIFF (little- or big-endian) and of a BigTIFF.
+TIFF_MAGIC = (b"II*\0", b"MM\0*", b"II+\0", b"MM\0+")
+
+
+def unreadable_tiff(path: Path, page=None) -> str:
+    """Why tifffile could not read ``path``, in plain words: not a TIFF, a compression it
+    cannot decode, or a damaged file. Its own messages name its internals ("IndexError:
+    index 0 out of range(0)" for a file cut short after its header)."""
+    import tifffile  # lazy: a heavy import that only .tif inputs need
+
+    try:
+        with open(path, "rb") as f:
+            magic = f.read(4)
+    except OSError as exc:  # not there to be read: no finding about its contents
+        return f"cannot read the file ({exc.strerror or exc})"
+    if magic not in TIFF_MAGIC:
+        return "not a TIFF file (it does not begin with a TIFF header)"
+    compression = getattr(page, "compression", None)
+    if compression is not None and compression not in tifffile.TIFF.DECOMPRESSORS:
+        try:
+            return (f"its compression ({tifffile.COMPRESSION(compression).name}) cannot be "
+                    "decoded here")
+        except ValueError:
+            return f"its compression code {int(compression)} is none this reader knows"
+    return "a TIFF that cannot be read: the file is damaged or cut short"
+
+
 def read_geotiff(path) -> Heightmap:
     """A single-band GeoTIFF DEM (int or float). Voids: NaN, −32768 (deeper than any sea),
     and the GDAL_NODATA tag's value where it has one, else −9999 (a tag naming another value
@@ -279,17 +306,20 @@ def read_geotiff(path) -> Heightmap:
     import tifffile  # lazy: a heavy import that only .tif inputs need
 
     path = existing_file(path)
+    page = None
     try:
         with quiet_tifffile(), tifffile.TiffFile(path) as tif:
+            if len(tif.pages) == 0:
+                raise SceneFormatError(f"{path}: a TIFF that holds no image (damaged or cut "
+                                       "short)")
             page = tif.pages[0]
             arr = page.asarray()
             nodata = _gdal_nodata(page)
             geo = geotiff_grid(page)
-    except FileNotFoundError:
+    except (FileNotFoundError, SceneFormatError):
         raise
     except Exception as exc:  # noqa: BLE001 - a damaged file can fail anywhere in tifffile
-        raise SceneFormatError(f"{path}: not a readable TIFF ({type(exc).__name__}: "
-                               f"{exc})") from exc
+        raise SceneFormatError(f"{path}: {unreadable_tiff(path, page)}") from exc
     if geo is not None and not (math.isfinite(geo.dx) and math.isfinite(geo.dy)
                                 and geo.dx > 0 and geo.dy > 0 and math.isfinite(geo.x0)
                                 and math.isfinite(geo.y0)):

@@ -20,6 +20,7 @@ from voxfield.scene.terrain.dem import (
     existing_file,
     geotiff_grid,
     quiet_tifffile,
+    unreadable_tiff,
 )
 from voxfield.scene.terrain.resample import axis_weights, sample_centres
 from voxfield.scene.voxel_scene import srgb_to_linear
@@ -116,13 +117,19 @@ def _read_color_image(source) -> tuple[np.ndarray, GeoGrid | None]:
     if path.suffix.lower() in (".tif", ".tiff"):
         import tifffile  # lazy: a heavy import that only .tif images need
 
+        page = None
         try:
             with quiet_tifffile(), tifffile.TiffFile(path) as tif:
+                if len(tif.pages) == 0:
+                    raise SceneFormatError(f"{path}: a TIFF that holds no image (damaged or "
+                                           "cut short)")
                 page = tif.pages[0]
                 img = page.asarray()
                 geo = geotiff_grid(page)
-        except (tifffile.TiffFileError, ValueError, OSError) as exc:
-            raise SceneFormatError(f"{path}: not a readable TIFF image ({exc})") from exc
+        except SceneFormatError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - a damaged file can fail anywhere in tifffile
+            raise SceneFormatError(f"{path}: {unreadable_tiff(path, page)}") from exc
     else:
         from PIL import Image, UnidentifiedImageError  # lazy: only non-TIFF images need it
 
