@@ -654,6 +654,42 @@ def test_options_another_renderer_takes_are_noted_not_silently_dropped(renderer,
                                "--reuse-parent (for error-aware); ignored")
 
 
+@pytest.mark.parametrize("command", [
+    ["info"],
+    ["render", "--size", "8", "--out", "view.png"],
+    ["light", "--times", "noon", "--sky-rays", "0", "--no-preview", "--out", "lit.npz"],
+])
+def test_build_options_given_with_a_saved_octree_are_noted(command, tmp_path, capsys,
+                                                           monkeypatch):
+    """A saved octree is drawn as it was built: ``render lit.npz --vertical-scale 3`` drew
+    the saved relief without a word."""
+    monkeypatch.chdir(tmp_path)
+    assert main(["build", "builtin:sphere", "--quiet", "--out", "saved.npz"]) == 0
+    name, *rest = command
+    assert main([name, "saved.npz", *rest, "--quiet"]) == 0
+    assert capsys.readouterr().err == ""  # no build option given: nothing to say
+    assert main([name, "saved.npz", *rest, "--quiet", "--vertical-scale", "3",
+                 "--lod-colour", "mean", "--mesh-resolution", "256"]) == 0
+    assert capsys.readouterr().err == (
+        "voxfield: note: saved.npz, a saved octree, takes no --vertical-scale (for DEMs), "
+        "--lod-colour (for a scene being built); ignored\n")
+
+
+def test_a_probe_render_notes_the_build_options_its_saved_scene_does_not_read(tmp_path,
+                                                                              capsys):
+    saved, probes = str(tmp_path / "saved.npz"), str(tmp_path / "p")
+    assert main(["build", "builtin:sphere", "--quiet", "--out", saved]) == 0
+    assert main(["bake", saved, "--grid", "1x1x1", "--resolution", "4", "--quiet",
+                 "--out", probes]) == 0
+    capsys.readouterr()
+    assert main(["probe-render", probes, "--scene", saved, "--footprint", "64", "--size", "8",
+                 "--method", "environment", "--quiet",
+                 "--out", str(tmp_path / "view.exr")]) == 0
+    assert capsys.readouterr().err == (
+        f"voxfield: note: {saved}, a saved octree, takes no --footprint (for terrains and "
+        "DEMs); ignored\n")
+
+
 def test_a_bake_notes_the_options_its_radiance_renderer_does_not_take(tmp_path, capsys):
     assert main(["bake", "builtin:sphere", "--grid", "1x1x1", "--resolution", "4",
                  "--samples", "3", "--quiet", "--out", str(tmp_path / "p")]) == 0

@@ -31,6 +31,7 @@ from voxfield.cli.options import (
     display_shaded,
     hit_options,
     int_between,
+    note_unread_scene_options,
     positive_int,
     scene_options,
     vector_arg,
@@ -298,6 +299,7 @@ def _open_scene(args, probe_set):
     """The octree of ``--scene``; a note on stderr when it is not the one the probes saw."""
     octree = open_octree(args.scene, scene_options(args), progress=not args.quiet,
                          lod_colour=args.lod_colour)
+    note_unread_scene_options(args, args.scene)
     try:
         same = octree.fingerprint(probe_set.options.channel) == probe_set.fingerprint
     except VoxfieldError:

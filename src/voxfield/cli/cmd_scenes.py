@@ -8,7 +8,12 @@ import time
 from pathlib import Path
 
 from voxfield.cli.commands import add_command, add_quiet
-from voxfield.cli.options import add_scene_options, open_octree, output_named
+from voxfield.cli.options import (
+    add_scene_options,
+    note_unread_scene_options,
+    open_octree,
+    output_named,
+)
 from voxfield.scene.builtin import BUILTIN_SCENES
 from voxfield.scene.loaders import npz_kind
 from voxfield.scene.terrain import RECIPES
@@ -40,6 +45,7 @@ def run_info(args) -> int:
     path = Path(args.scene)
     if path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree":
         octree = load_octree(path)
+        note_unread_scene_options(args, args.scene)
         load_note = "loaded"
     else:
         # As every command opens a scene: terrains stream block by block (bounded memory,

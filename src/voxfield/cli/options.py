@@ -32,7 +32,7 @@ from voxfield.render.framing import content_box
 from voxfield.render.placement import check_camera_placement
 from voxfield.render.registry import RENDERERS
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
-from voxfield.scene.loaders import SceneOptions, is_heightmap
+from voxfield.scene.loaders import SceneOptions, is_heightmap, npz_kind
 from voxfield.scene.terrain.columns import DEM_FITS, MAX_FOOTPRINT, MIN_FOOTPRINT
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree as open_octree_from_spec
@@ -424,10 +424,43 @@ def scene_options(args) -> SceneOptions:
 
 def open_octree(args):
     """The octree the scene options name: loaded from a file or built (streamed for
-    terrains), with a progress bar unless --quiet."""
-    return open_octree_from_spec(
+    terrains), with a progress bar unless --quiet; a note names the options given that a
+    saved octree does not read."""
+    octree = open_octree_from_spec(
         args.scene, scene_options(args), progress=not args.quiet,
         lod_colour=args.lod_colour, colour_storage=getattr(args, "colour_storage", "srgb8"))
+    note_unread_scene_options(args, args.scene)
+    return octree
+
+
+#: The scene options only a build reads, their defaults and the scenes that take them: a
+#: saved octree keeps what its own build chose.
+BUILD_OPTIONS = {
+    "mesh_resolution": ("--mesh-resolution", SceneOptions.mesh_resolution, "meshes"),
+    "footprint": ("--footprint", SceneOptions.terrain_footprint, "terrains and DEMs"),
+    "vertical_scale": ("--vertical-scale", None, "DEMs"),
+    "dem_fit": ("--dem-fit", None, "DEMs"),
+    "colour_storage": ("--colour-storage", "srgb8", "a scene being built"),
+    "lod_colour": ("--lod-colour", DEFAULT_LOD_COLOUR, "a scene being built"),
+}
+
+
+def note_unread_scene_options(args, scene: str) -> None:
+    """A note naming the build options given (other than their defaults) where ``scene`` is
+    a saved octree, which reads none of them: ``render lit.npz --vertical-scale 3`` drew the
+    saved relief without a word."""
+    if not is_saved_octree(scene):
+        return
+    ignored = {flag: [users] for dest, (flag, default, users) in BUILD_OPTIONS.items()
+               if getattr(args, dest, default) != default}
+    if ignored:
+        warn_ignored(ignored, f"{scene}, a saved octree,")
+
+
+def is_saved_octree(scene: str) -> bool:
+    """Whether ``scene`` names a saved octree file (``svo.open`` loads it as it is)."""
+    path = Path(scene)
+    return path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree"
 
 
 def camera(args, bounds) -> Camera:
