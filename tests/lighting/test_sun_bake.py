@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -437,6 +438,40 @@ def test_the_light_command_writes_the_octree_report_and_previews(tmp_path, capsy
                           f"{suns[0].elevation_deg:g}°", "dawn: azimuth 90°, elevation 5°"]
     with pytest.raises(VoxfieldError, match="unknown time of day"):
         run_light_command(["builtin:sphere", "--times", "dusk", "--out", str(out)])
+
+
+def test_lighting_a_lit_octree_again_keeps_the_record_of_its_kept_channels(tmp_path):
+    """The record beside a re-lit octree listed only the new suns, and a channel of the same
+    name was replaced without a word: the suns behind the kept channels were lost."""
+    out = tmp_path / "lit.npz"
+    quick = ["--sky-rays", "0", "--no-preview", "--quiet", "--out", str(out)]
+    assert run_light_command(["builtin:sphere", "--times", "noon;east=90,45", *quick]) == 0
+    first = json.loads(out.with_suffix(".json").read_text())
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert run_light_command([str(out), "--times", "east=90,20", *quick]) == 0
+    assert [str(w.message) for w in caught] == [
+        f"{out} already has channel east; this bake replaces it"]
+    second = json.loads(out.with_suffix(".json").read_text())
+    assert [s["name"] for s in second["suns"]] == ["east"]
+    assert second["suns"][0]["elevation_deg"] == 20.0 and second["replaced"] == ["east"]
+    noon = [s for s in first["suns"] if s["name"] == "noon"]
+    assert second["earlier_bakes"] == [{**first, "suns": noon}]
+    assert set(load_octree(out).attributes) == {"color", "noon", "east"}
+    # Newest first: each channel's sun from the bake that made it.
+    assert run_light_command([str(out), "--times", "west=270,30", *quick]) == 0
+    third = json.loads(out.with_suffix(".json").read_text())
+    assert [[s["name"] for s in bake["suns"]] for bake in third["earlier_bakes"]] == [
+        ["east"], ["noon"]]
+    assert third["earlier_bakes"][0]["suns"] == second["suns"]
+    assert "replaced" not in third
+    # Without the record: said, and listed as such.
+    out.with_suffix(".json").unlink()
+    with pytest.warns(UserWarning, match="no record of the suns behind channels east, noon, "
+                      "west of"):
+        assert run_light_command([str(out), "--times", "dusk=280,5", *quick]) == 0
+    assert json.loads(out.with_suffix(".json").read_text())["unrecorded_channels"] == [
+        "east", "noon", "west"]
 
 
 def test_scheduled_bake_is_bit_identical_to_the_local_loop(monkeypatch, dask_client):

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import json
+import warnings
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -78,6 +80,14 @@ def run(args) -> int:
                        "a lit octree", source=_replaceable(args.scene))
     args.quiet = quiet = getattr(args, "quiet", False)  # as ``voxfield.cli.main`` sets it
     octree = open_octree(args)
+    names = [s.name for s in suns]
+    replaced = [name for name in names if name in octree.attributes]
+    if replaced:
+        warnings.warn(f"{args.scene} already has channel{'s' if len(replaced) > 1 else ''} "
+                      f"{', '.join(replaced)}; this bake replaces "
+                      f"{'them' if len(replaced) > 1 else 'it'}", stacklevel=2)
+    kept = [name for name in octree.attributes
+            if name not in NOT_LIGHT and name not in names]
     lit, report = bake_sun_lighting(
         octree, suns, sky_rays=args.sky_rays, shadow_rays=args.shadow_rays, seed=args.seed,
         threads=args.threads, progress=not quiet, scheduler=args.scheduler,
@@ -92,6 +102,7 @@ def run(args) -> int:
         ],
         "seed": args.seed,
         "cost": report.as_dict(),
+        **kept_record(args.scene, kept, replaced),
     }
     # The octree file (a gigabyte on a 2048² terrain) is written by a thread while the
     # previews render in memory (writing is mostly the kernel copying pages, which leaves
@@ -117,6 +128,56 @@ def run(args) -> int:
         for path in written:
             print(f"wrote {path}")
     return 0
+
+
+#: Attributes of an octree that are not light channels: the albedo and the emission.
+NOT_LIGHT = ("color", "emission")
+
+
+def read_record(octree_path: Path) -> dict | None:
+    """The JSON ``light`` wrote beside a lit octree, or None where there is none that reads
+    as one."""
+    try:
+        record = json.loads(octree_path.with_suffix(".json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(record, dict) or not isinstance(record.get("suns"), list):
+        return None
+    return record
+
+
+def kept_record(scene: str, kept: list[str], replaced: list[str]) -> dict:
+    """What the record of a bake over a lit octree adds for the channels it keeps: the
+    earlier bakes that made them (from the JSON beside the octree, newest first, each
+    with only the suns whose channels are kept: its seed and rays made them), the kept
+    channels no record names, and the channels this bake replaced. A record that listed
+    only the new suns lost the suns behind the kept channels. A note names kept channels
+    whose suns are not on record."""
+    extra: dict = {"replaced": replaced} if replaced else {}
+    if not kept:
+        return extra
+    record = read_record(Path(scene)) or {}
+    bakes = [{k: v for k, v in record.items()
+              if k not in ("earlier_bakes", "unrecorded_channels", "replaced")},
+             *(b for b in record.get("earlier_bakes") or [] if isinstance(b, dict))]
+    unclaimed = set(kept)
+    earlier = []
+    for bake in bakes:
+        suns = [s for s in bake.get("suns") or [] if isinstance(s, dict)
+                and s.get("name") in unclaimed]
+        unclaimed -= {s["name"] for s in suns}
+        if suns:
+            earlier.append({**bake, "suns": suns})
+    if earlier:
+        extra["earlier_bakes"] = earlier
+    if unclaimed:
+        unrecorded = [name for name in kept if name in unclaimed]
+        extra["unrecorded_channels"] = unrecorded
+        sidecar = Path(scene).with_suffix(".json")
+        warnings.warn(f"no record of the suns behind channel{'s' if len(unrecorded) > 1 else ''}"
+                      f" {', '.join(unrecorded)} of {scene} (none in {sidecar}); the new "
+                      "record lists them as unrecorded", stacklevel=2)
+    return extra
 
 
 def _replaceable(scene: str) -> str | None:
