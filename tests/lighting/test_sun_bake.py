@@ -474,6 +474,48 @@ def test_lighting_a_lit_octree_again_keeps_the_record_of_its_kept_channels(tmp_p
         "east", "noon", "west"]
 
 
+def _notes_of(argv) -> list[str]:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert run_light_command(argv) == 0
+    return [str(w.message) for w in caught]
+
+
+def test_previews_a_bake_leaves_behind_are_named_not_removed(tmp_path):
+    """``--no-preview`` over an earlier bake's outputs left its previews beside the new
+    octree without a word, though they showed channels it no longer has (or has anew)."""
+    out = tmp_path / "o.npz"
+    quick = ["--sky-rays", "0", "--preview-size", "8", "--quiet", "--out", str(out)]
+    assert _notes_of(["builtin:sphere", "--times", "noon;dawn=90,5", *quick]) == []
+    assert json.loads(out.with_suffix(".json").read_text())["previews"] == {
+        "o_noon.png": ["noon"], "o_dawn.png": ["dawn"], "o.png": ["noon", "dawn"]}
+    (tmp_path / "o_notes.png").write_bytes(b"the user's own")  # named by no record
+    before = {p.name: p.read_bytes() for p in tmp_path.glob("o*.png")}
+    # A new octree without dawn, no previews: every earlier one is stale.
+    assert _notes_of(["builtin:sphere", "--times", "noon", "--no-preview", *quick]) == [
+        f"o.png, o_dawn.png, o_noon.png beside {out} are previews of an earlier bake that "
+        "no longer match it; left as they are"]
+    assert {p.name: p.read_bytes() for p in tmp_path.glob("o*.png")} == before
+    # Written again, they are fresh; lit again in place, the kept channels' previews stay
+    # true, and only the re-baked channel's preview and the sheet that shows it go stale.
+    assert _notes_of(["builtin:sphere", "--times", "noon;dawn=90,5", *quick]) == []
+    relit = [str(out), "--no-preview", *quick]
+    assert _notes_of([*relit, "--times", "east=90,45"]) == []
+    assert _notes_of([*relit, "--times", "dawn=90,8"]) == [
+        f"{out} already has channel dawn; this bake replaces it",
+        f"o.png, o_dawn.png beside {out} are previews of an earlier bake that no longer "
+        "match it; left as they are"]
+    # Still stale on the next bake, until written again or removed.
+    assert _notes_of([*relit, "--times", "west=270,20"]) == [
+        f"o.png, o_dawn.png beside {out} are previews of an earlier bake that no longer "
+        "match it; left as they are"]
+    (tmp_path / "o.png").unlink()
+    assert _notes_of([*relit, "--times", "west=270,20"]) == [
+        f"{out} already has channel west; this bake replaces it",
+        f"o_dawn.png beside {out} is a preview of an earlier bake that no longer matches "
+        "it; left as it is"]
+
+
 def test_scheduled_bake_is_bit_identical_to_the_local_loop(monkeypatch, dask_client):
     """Voxel chunks as Dask tasks (threads, a LocalCluster) merge into exactly the arrays
     and counters of the plain loop, whatever order the chunks finish in."""

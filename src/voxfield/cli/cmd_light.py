@@ -112,6 +112,14 @@ def run(args) -> int:
     written = [out, out.with_suffix(".json"),
                *(out.with_name(f"{out.stem}_{name}.png") for name in channels),
                *([out.with_suffix(".png")] if channels else [])]  # no channel's name
+    if channels:
+        details["previews"] = {**{path.name: [name] for path, name in
+                                  zip(written[2:], channels, strict=False)},
+                               written[-1].name: channels}
+    in_place = out.is_file() and Path(args.scene).is_file() and out.samefile(args.scene)
+    stale = stale_previews(out, written, kept if in_place else [])
+    if stale:
+        details["stale_previews"] = [path.name for path in stale]
     with atomic_paths(written) as staged, ThreadPoolExecutor(1) as writer:
         saving = writer.submit(write_octree_file, lit, staged[0])
         staged[1].write_text(json_text(details))
@@ -123,6 +131,11 @@ def run(args) -> int:
             sheet = preview_sheet(previews, suns, args.scene)
             write_figure_png(sheet, staged[-1], dpi=100)
         saving.result()  # raises the save's error; leaving waits for the thread either way
+    if stale:
+        warnings.warn(f"{', '.join(p.name for p in stale)} beside {out} "
+                      f"{'are previews' if len(stale) > 1 else 'is a preview'} of an earlier "
+                      f"bake that no longer {'match' if len(stale) > 1 else 'matches'} it; "
+                      f"left as {'they are' if len(stale) > 1 else 'it is'}", stacklevel=2)
     if not quiet:
         print(report.summary())
         for path in written:
@@ -158,7 +171,8 @@ def kept_record(scene: str, kept: list[str], replaced: list[str]) -> dict:
         return extra
     record = read_record(Path(scene)) or {}
     bakes = [{k: v for k, v in record.items()
-              if k not in ("earlier_bakes", "unrecorded_channels", "replaced")},
+              if k not in ("earlier_bakes", "unrecorded_channels", "replaced",
+                           "stale_previews")},
              *(b for b in record.get("earlier_bakes") or [] if isinstance(b, dict))]
     unclaimed = set(kept)
     earlier = []
@@ -178,6 +192,43 @@ def kept_record(scene: str, kept: list[str], replaced: list[str]) -> dict:
                       f" {', '.join(unrecorded)} of {scene} (none in {sidecar}); the new "
                       "record lists them as unrecorded", stacklevel=2)
     return extra
+
+
+def stale_previews(out: Path, written: list[Path], kept: list[str]) -> list[Path]:
+    """Previews an earlier ``light`` wrote beside ``out`` that are still there, are not
+    written again now and no longer show the octree: each shows channels of the bake that
+    wrote it (its record's ``previews``), and stays true only where that bake still owns
+    every one of them in an octree lit again in place (``kept``: the channels this bake
+    keeps as they are). A record without ``previews`` names its suns' previews and its
+    sheet. They are named in a note, not removed: a file of that name may be the user's by
+    now, and nothing here can tell for certain."""
+    record = read_record(out)
+    if record is None:
+        return []
+    stale: dict[Path, None] = {}
+    bakes = [record, *(b for b in record.get("earlier_bakes") or [] if isinstance(b, dict))]
+    for bake in bakes:
+        owned = {s.get("name") for s in bake.get("suns") or [] if isinstance(s, dict)}
+        previews = bake.get("previews")
+        if not isinstance(previews, dict):
+            if bake is not record:
+                continue
+            previews = {f"{out.stem}_{name}.png": [name] for name in owned}
+            previews[f"{out.stem}.png"] = list(owned)
+        for name, shows in previews.items():
+            if not isinstance(name, str) or Path(name).name != name or not name:
+                continue  # a record names files beside its octree, no others
+            path = out.with_name(name)
+            valid = isinstance(shows, list) and set(shows) <= owned & set(kept)
+            if path.is_file() and path not in written and not valid:
+                stale[path] = None
+    for name in record.get("stale_previews") or []:
+        if not isinstance(name, str) or Path(name).name != name or not name:
+            continue
+        path = out.with_name(name)
+        if path.is_file() and path not in written:
+            stale[path] = None
+    return sorted(stale)
 
 
 def _replaceable(scene: str) -> str | None:
