@@ -514,6 +514,13 @@ def test_previews_a_bake_leaves_behind_are_named_not_removed(tmp_path):
         f"{out} already has channel west; this bake replaces it",
         f"o_dawn.png beside {out} is a preview of an earlier bake that no longer matches "
         "it; left as it is"]
+    # Another octree lit from this one: this one's previews are not its to judge, on its
+    # first bake or any later one (they were carried over and named stale).
+    other = tmp_path / "p.npz"
+    again = ["--sky-rays", "0", "--preview-size", "8", "--quiet", "--out", str(other)]
+    assert _notes_of([str(out), "--times", "evening=270,20", *again]) == []
+    assert _notes_of([str(other), "--times", "noon", "--no-preview", *again]) == [
+        f"{other} already has channel noon; this bake replaces it"]  # p's still show evening
 
 
 def test_scheduled_bake_is_bit_identical_to_the_local_loop(monkeypatch, dask_client):

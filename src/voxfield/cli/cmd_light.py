@@ -102,7 +102,7 @@ def run(args) -> int:
         ],
         "seed": args.seed,
         "cost": report.as_dict(),
-        **kept_record(args.scene, kept, replaced),
+        **kept_record(args.scene, kept, replaced, out),
     }
     # The octree file (a gigabyte on a 2048² terrain) is written by a thread while the
     # previews render in memory (writing is mostly the kernel copying pages, which leaves
@@ -159,7 +159,15 @@ def read_record(octree_path: Path) -> dict | None:
     return record
 
 
-def kept_record(scene: str, kept: list[str], replaced: list[str]) -> dict:
+def _own_previews(bake: dict, out: Path) -> dict:
+    """A bake's ``previews`` entry, kept only where the bake wrote them beside ``out``."""
+    octree = bake.get("octree")
+    if isinstance(octree, str) and Path(octree).name == out.name and "previews" in bake:
+        return {"previews": bake["previews"]}
+    return {}
+
+
+def kept_record(scene: str, kept: list[str], replaced: list[str], out: Path) -> dict:
     """What the record of a bake over a lit octree adds for the channels it keeps: the
     earlier bakes that made them (from the JSON beside the octree, newest first, each
     with only the suns whose channels are kept: its seed and rays made them), the kept
@@ -170,6 +178,8 @@ def kept_record(scene: str, kept: list[str], replaced: list[str]) -> dict:
     if not kept:
         return extra
     record = read_record(Path(scene)) or {}
+    # Previews are files beside the octree a bake wrote: those of another octree's bakes
+    # are not this one's to judge (they stay true of that octree).
     bakes = [{k: v for k, v in record.items()
               if k not in ("earlier_bakes", "unrecorded_channels", "replaced",
                            "stale_previews")},
@@ -181,7 +191,8 @@ def kept_record(scene: str, kept: list[str], replaced: list[str]) -> dict:
                 and s.get("name") in unclaimed]
         unclaimed -= {s["name"] for s in suns}
         if suns:
-            earlier.append({**bake, "suns": suns})
+            earlier.append({**{k: v for k, v in bake.items() if k != "previews"},
+                            "suns": suns, **_own_previews(bake, out)})
     if earlier:
         extra["earlier_bakes"] = earlier
     if unclaimed:
