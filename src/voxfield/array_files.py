@@ -18,13 +18,18 @@ _ZIP_STARTS = (b"PK\x03\x04", b"PK\x05\x06")
 _NPY_START = b"\x93NUMPY"
 
 
-def load_arrays(path: str | os.PathLike):
+def load_arrays(path: str | os.PathLike, kind: str = "npz"):
     """``np.load(path, allow_pickle=False)``, after refusing (``ValueError``) a file that
-    does not begin as a ``.npz`` or ``.npy`` file does."""
+    does not begin as a ``.npz`` (``kind="npz"``: an archive of named arrays, as the
+    callers' ``with`` blocks need) or a ``.npy`` (``kind="npy"``: one array) does."""
+    starts = {"npz": _ZIP_STARTS, "npy": (_NPY_START,)}[kind]
     with open(path, "rb") as f:
         head = f.read(len(_NPY_START))
     if not head:
         raise ValueError("the file is empty")
-    if not (head.startswith(_ZIP_STARTS) or head == _NPY_START):
-        raise ValueError("not a NumPy .npz or .npy file (damaged, or another kind of file)")
+    if not head.startswith(starts):
+        other = "a single-array .npy file" if head.startswith(_NPY_START) else (
+            "an .npz archive" if head.startswith(_ZIP_STARTS) else
+            "damaged, or another kind of file")
+        raise ValueError(f"not a NumPy .{kind} file ({other})")
     return np.load(path, allow_pickle=False)

@@ -237,7 +237,7 @@ def test_bad_folders_give_clear_errors(tmp_path, octree, grid):
     with pytest.raises(ProbeFileError, match="corrupt"):
         open_probe_set(tmp_path)
     # Not an archive at all: NumPy took it for a pickle and advised loading it "unsafely".
-    for damaged, words in ((b"x", "not a NumPy .npz"), (b"", "empty")):
+    for damaged, words in ((b"x", "not a NumPy .npz file"), (b"", "empty")):
         probe0.write_bytes(damaged)
         with pytest.raises(ProbeFileError, match=f"corrupt .*{words}") as caught:
             open_probe_set(tmp_path)

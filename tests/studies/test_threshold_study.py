@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+import numpy as np
 import pytest
 
 from voxfield.render import Camera
@@ -56,13 +57,11 @@ def test_a_scaled_channel_is_studied_apart_with_the_same_costs(scene, tmp_path):
     # A channel that is albedo × 0.5 changes colours, not geometry: the error-aware ray counts
     # (geometric error) match albedo's; the cache keeps the two channels apart.
     octree, camera = scene
-    octree.attributes["half"] = octree.color * 0.5
-    try:
-        kwargs = {"thresholds": (0.1,), "scene_name": "pillars"}
-        albedo = run_threshold_study(octree, camera, tmp_path, **kwargs)
-        half = run_threshold_study(octree, camera, tmp_path, channel="half", **kwargs)
-    finally:
-        del octree.attributes["half"]
+    half_albedo = octree.color * np.float32(0.5)
+    octree = octree.recoloured(attributes={**octree.attributes, "half": half_albedo})
+    kwargs = {"thresholds": (0.1,), "scene_name": "pillars"}
+    albedo = run_threshold_study(octree, camera, tmp_path, **kwargs)
+    half = run_threshold_study(octree, camera, tmp_path, channel="half", **kwargs)
     assert half["rows"][0]["error_aware"]["rays"] == albedo["rows"][0]["error_aware"]["rays"]
     assert half["rows"][0]["error_aware"]["psnr"] != albedo["rows"][0]["error_aware"]["psnr"]
     assert len(list((tmp_path / "items").glob("*.json"))) == 2 * 3

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import pickle
 from dataclasses import replace
 
 import numpy as np
@@ -153,9 +154,13 @@ def test_corrupt_octree_files_give_clear_errors(tmp_path):
     # Another kind of file under the name: NumPy's words were pickle advice.
     misnamed = tmp_path / "model.npz"
     misnamed.write_bytes(b"VOX \x96\x00\x00\x00MAIN")
-    with pytest.raises(OctreeFormatError, match="not a NumPy .npz or .npy file") as caught:
+    with pytest.raises(OctreeFormatError, match="not a NumPy .npz file") as caught:
         load_octree(misnamed)
     assert "pickle" not in str(caught.value)
+    np.save(tmp_path / "one.npy", np.zeros(3))  # one array where an archive belongs
+    (tmp_path / "one.npy").rename(misnamed)
+    with pytest.raises(OctreeFormatError, match=r"not a NumPy .npz file \(a single-array"):
+        load_octree(misnamed)
     # Structurally wrong but readable: a child pointer past the end.
     broken = tmp_path / "broken.npz"
     descriptors = octree.descriptors.copy()
@@ -202,6 +207,15 @@ def test_an_octree_cannot_be_changed_in_place_or_assembled_from_arrays_that_disa
         with pytest.raises(VoxfieldError, match="octree 'random5'"):
             replace(octree, **change)
             pytest.fail(what)
+    # Nor can a channel be added or dropped in place; a copy with other channels is checked.
+    with pytest.raises(TypeError, match="channels are read-only"):
+        octree.attributes["half"] = octree.attributes["color"][:10]
+    with pytest.raises(TypeError, match="channels are read-only"):
+        del octree.attributes["color"]
+    with pytest.raises(VoxfieldError, match="attribute 'half' has shape"):
+        octree.recoloured(attributes={**octree.attributes,
+                                      "half": octree.attributes["color"][:10]})
+    assert pickle.loads(pickle.dumps(octree)).attributes.keys() == {"color"}
 
 
 def test_octree_files_whose_solid_flags_or_voxel_box_lie_are_refused(tmp_path):

@@ -602,7 +602,8 @@ def trace_probe(marcher: int, eps_mode: int, params: np.ndarray, positions: np.n
     (row, col) the texel whose radiance/normal/distance answer it), ``MISS`` (no surface on
     the segment; ``t = tmax``) or ``UNKNOWN`` (``t`` is how far the probe could vouch for the
     ray). ``fetches`` counts distance-texel reads (mip texels included), ``steps`` march
-    iterations (cells visited at any level for the 2D marchers, points for ``MARCH3D``)."""
+    iterations (cells visited at any level for the 2D marchers, points for ``MARCH3D``, plus
+    the cells of the DDA that finishes its ray past the farthest surface)."""
     px = positions[probe, 0]
     py = positions[probe, 1]
     pz = positions[probe, 2]

@@ -8,12 +8,17 @@ ASCII body only once trimesh has failed on it (a walk over every line in Python)
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-#: PLY's property types, under both their old and their sized names.
+#: PLY's property types, under both their old and their sized names, and the 64-bit and
+#: half types some writers use and trimesh reads.
 TYPES = {"char", "uchar", "short", "ushort", "int", "uint", "float", "double", "int8",
-         "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64"}
+         "uint8", "int16", "uint16", "int32", "uint32", "float32", "float64", "int64",
+         "uint64", "float16"}
+#: The header's last line (a comment may hold the words: only a line of its own counts).
+_END_HEADER = re.compile(rb"^end_header[ \t\r]*$", re.M)
 FORMATS = ("ascii", "binary_little_endian", "binary_big_endian")
 #: A header longer than this is no header (a few hundred bytes is usual).
 MAX_HEADER_BYTES = 1 << 20
@@ -31,7 +36,7 @@ class _Element:
 class PlyHeader:
     format: str
     elements: list[_Element]
-    body_line: int  # the file's line number (from 1) of the first line after end_header
+    body_line: int  # the file's line number (from 1) of end_header: the body follows it
 
 
 def read_header(path: Path) -> PlyHeader | str:
@@ -40,9 +45,10 @@ def read_header(path: Path) -> PlyHeader | str:
         head = f.read(MAX_HEADER_BYTES)
     if head.split(b"\n", 1)[0].strip() != b"ply":
         return "not a PLY file (its first line is not 'ply')"
-    end = head.find(b"end_header")
-    if end < 0:
+    found = _END_HEADER.search(head)
+    if found is None:
         return "its header stops before 'end_header' (the file is cut short or damaged)"
+    end = found.start()
     lines = head[:end].decode("ascii", errors="replace").splitlines()
     fmt = None
     elements: list[_Element] = []

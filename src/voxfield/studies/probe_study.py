@@ -25,6 +25,7 @@ only what a missing item needs, and a finished study re-runs without baking at a
 
 from __future__ import annotations
 
+import math
 import re
 import time
 import warnings
@@ -484,6 +485,15 @@ class _Study:
         return self.folder.value_item(f"timing-r{resolution}", params, compute)
 
 
+def _gap(quality: dict) -> float | None:
+    """Bound minus PSNR in dB; None (not ±∞) where either is infinite, fresh or read back
+    as null, so a table reads the same from the cache."""
+    bound, psnr = quality.get("bound_psnr"), quality.get("psnr")
+    if bound is None or psnr is None or not math.isfinite(bound - psnr):
+        return None
+    return bound - psnr
+
+
 def _bound_cell(quality: dict) -> str:
     """The perfect-trace bound's PSNR cell: ``∞`` where the bound equals the reference, ``—``
     for a row without one (the baselines)."""
@@ -592,8 +602,7 @@ def results_markdown(report: dict) -> str:
               f"grid {grid})", ""]
     rows = [[q["method"] + (f" ({o['marcher']})" if q["method"] == "light-field" else ""),
              fmt_psnr(q), _bound_cell(q),
-             fmt(None if q.get("bound_psnr") is None or q["psnr"] is None
-                 else q["bound_psnr"] - q["psnr"], ".2f"),
+             fmt(_gap(q), ".2f"),
              fmt(q["ssim"], ".4f"), fmt(q["rmse"], ".4f"),
              fmt(q.get("depth", {}).get("p99"), ".2f"),
              fmt(None if "depth" not in q else 100 * q["depth"]["within_1"], ".1f"),

@@ -39,6 +39,22 @@ STRUCTURAL_TABLES = frozenset({"column_tops", "exposed_faces", "inside_repeating
                                "children_sh_means", "voxel_occupancy"})
 
 
+class Channels(dict):
+    """An octree's colour channels, read-only as its arrays are: a channel added in place
+    (``octree.attributes["half"] = …``) would skip the checks an octree makes of its
+    arrays. ``Octree.recoloured`` makes a copy with other channels."""
+
+    def _refuse(self, *args, **kwargs):
+        raise TypeError("an octree's channels are read-only; make a copy with other ones: "
+                        "octree.recoloured(attributes={...})")
+
+    __setitem__ = __delitem__ = clear = pop = popitem = setdefault = update = _refuse
+    __ior__ = _refuse
+
+    def __reduce__(self):  # pickling rebuilds it whole (unpickling a dict sets items)
+        return type(self), (dict(self),)
+
+
 @dataclass(frozen=True)
 class Octree:
     """An SVO over ``[0, 2**depth)^3`` in finest-voxel units."""
@@ -64,6 +80,7 @@ class Octree:
         problem = shape_problem(self)
         if problem is not None:
             raise VoxfieldError(f"octree {self.name!r}: {problem}")
+        object.__setattr__(self, "attributes", Channels(self.attributes))
         arrays = [self.descriptors, self.level_offsets, self.voxel_box, self.scene_origin,
                   *self.attributes.values()]
         for array in arrays + ([] if self.facing is None else [self.facing]):

@@ -449,11 +449,8 @@ def load_heightmap(source) -> Heightmap:
     if suffix == ".npz":
         return read_npz(path)
     if suffix == ".npy":
-        with open(path, "rb") as f:
-            if f.read(6) != b"\x93NUMPY":  # else NumPy blames pickled data, for any bytes
-                raise SceneFormatError(f"{path}: not a .npy array (no NumPy header)")
         try:
-            arr = load_arrays(path)
+            arr = load_arrays(path, kind="npy")
         except Exception as exc:  # noqa: BLE001
             raise SceneFormatError(f"{path}: not a readable .npy array ({exc})") from exc
         return Heightmap(arr, name=path.stem)
