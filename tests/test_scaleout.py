@@ -1,21 +1,24 @@
 """``scaleout``: the pool of threads (results by index, handed over as they land, a failure
-stopping the job), the local process cluster started for a job, and addresses where no
-scheduler answers."""
+stopping the job), the local process cluster started for a job, addresses where no
+scheduler answers, and a cluster that loses its workers or its scheduler mid-job."""
 
 import contextlib
 import os
+import re
 import socket
 import subprocess
 import sys
 import threading
 import time
 import warnings
+from collections.abc import Callable
 
 import numba
 import pytest
 
 from voxfield import scaleout
-from voxfield.scaleout import scheduler_client
+from voxfield.errors import VoxfieldError
+from voxfield.scaleout import local_cluster, scheduler_client
 
 DASK_DEFAULT_HTTP_PORT = 8787
 
@@ -179,3 +182,121 @@ def test_each_pool_thread_runs_its_kernels_on_its_share_of_the_cores():
     assert {given for given, _ in seen.values()} == {expected}
     if expected is not None:
         assert {count for _, count in seen.values()} == {expected}
+
+
+def _slow_square_plus(shared, argument, kernel_threads):
+    time.sleep(0.02)
+    return argument * argument + shared["offset"]
+
+
+@pytest.fixture
+def lone_worker():
+    """A cluster in this process with a single worker: closing it loses the job's scattered
+    shared argument, as killing the last worker of a real cluster does."""
+    distributed = pytest.importorskip("distributed", reason="needs Dask's distributed")
+    with local_cluster(1, processes=False) as cluster, distributed.Client(cluster) as client:
+        yield cluster, client
+
+
+def _run_until(client, arguments, when_first_lands: Callable[[], None], **options) -> dict:
+    """Run ``_slow_square_plus`` on ``client``, calling ``when_first_lands`` once the first
+    result is in; every value handed over must be a real result."""
+    got: dict[int, int] = {}
+
+    def emit(index, value):
+        assert value == arguments[index] ** 2 + 3, f"task {index} handed over {value!r}"
+        got[index] = value
+        if len(got) == 1:
+            when_first_lands()
+
+    scaleout.run_tasks(_slow_square_plus, {"offset": 3}, arguments, emit, scheduler=client,
+                       name="item", **options)
+    return got
+
+
+@pytest.mark.parametrize(("resumes", "rerun"), [
+    (False, "rerun to start again"), (True, r"rerun to resume \(what finished is kept\)")])
+def test_a_worker_gone_mid_job_is_one_error_not_a_result(lone_worker, resumes, rerun):
+    """Its cancellation was handed to the caller as if it were the task's result (a sun bake
+    failed unpacking it, a probe bake reading ``.radiance`` off it); the caller must get real
+    results or one error that says what happened."""
+    cluster, client = lone_worker
+    [worker] = cluster.workers.values()
+    arguments = list(range(30))
+    with pytest.raises(VoxfieldError, match=rf"^the Dask scheduler at \S+ lost item task \d+ "
+                       rf"of 30: the workers holding the job's shared data went away \(or the "
+                       rf"scheduler did\); {rerun}$"):
+        _run_until(client, arguments, lambda: cluster.sync(worker.close),
+                   **({"resumes": True} if resumes else {}))
+
+
+def test_a_connection_to_the_scheduler_broken_mid_job_is_one_error(lone_worker):
+    _, client = lone_worker
+
+    async def drop_connection():
+        client.scheduler_comm.comm.abort()
+
+    with pytest.raises(VoxfieldError, match=r"lost item task \d+ of 30: the connection to the "
+                       "scheduler broke; rerun to start again$"):
+        _run_until(client, list(range(30)), lambda: client.sync(drop_connection))
+
+
+def test_a_scheduler_without_workers_is_one_error():
+    distributed = pytest.importorskip("distributed", reason="needs Dask's distributed")
+    with local_cluster(0, processes=False) as cluster, \
+            distributed.Client(cluster, timeout="1s") as client:
+        with pytest.raises(VoxfieldError, match="has no workers to run the job; start them "
+                           "with `dask worker ADDRESS`$"):
+            scaleout.run_tasks(_square_plus, {"offset": 3}, [1, 2], lambda i, v: None,
+                               scheduler=client)
+
+
+def _fails_on_three(shared, argument, kernel_threads):
+    if argument == 3:
+        raise ValueError("task 3 failed")
+    return argument
+
+
+def test_a_task_that_raises_on_a_cluster_raises_its_own_error(dask_client):
+    with pytest.raises(ValueError, match="task 3 failed"):
+        scaleout.run_tasks(_fails_on_three, None, list(range(8)), lambda i, v: None,
+                           scheduler=dask_client)
+
+
+_SCHEDULER_GONE_SCRIPT = """
+import os, sys, time
+from distributed import LocalCluster
+from voxfield import scaleout
+from voxfield.cli.exits import report_failures
+
+def task(shared, argument, kernel_threads):
+    time.sleep(0.05)
+    return argument
+
+cluster = LocalCluster(n_workers=1, threads_per_worker=1, processes=False, protocol="tcp://",
+                       dashboard_address=None,
+                       scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+landed = []
+
+def emit(index, value):
+    landed.append(index)
+    if len(landed) == 1:
+        cluster.sync(cluster.scheduler.close)
+
+code = report_failures("job", lambda: scaleout.run_tasks(
+    task, None, list(range(30)), emit, scheduler=cluster.scheduler_address, name="item"))
+sys.stderr.flush()
+os._exit(code)  # the cluster, its scheduler gone, is not this test's subject
+"""
+
+
+def test_a_scheduler_gone_mid_job_is_one_line_on_stderr():
+    """Past the error itself, Dask logged tracebacks: the closed connection, and the reconnect
+    it was still trying when the job closed its client."""
+    pytest.importorskip("distributed", reason="needs Dask's distributed")
+    proc = subprocess.run([sys.executable, "-c", _SCHEDULER_GONE_SCRIPT], capture_output=True,
+                          text=True, timeout=60)
+    assert proc.returncode == 2, proc.stderr
+    assert re.fullmatch(r"job: error: the Dask scheduler at tcp://127\.0\.0\.1:\d+ lost item task "
+                        r"\d+ of 30: the connection to the scheduler broke; rerun to start "
+                        r"again\n", proc.stderr), proc.stderr

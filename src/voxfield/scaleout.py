@@ -24,11 +24,15 @@ task receives only its own small argument. When several tasks run at once the co
 out among them (``kernel_threads``; one each on a cluster worker), so tasks, not pixels, are
 the parallel axis and the cores are not oversubscribed. Callers decide what ``None`` means:
 ``run_tasks`` takes it as ``"threads"``; the studies and the sun bake keep their plain loop.
+A task that raises ends the job with its own error; one lost with its workers or the
+scheduler ends it with ``TaskLostError`` (see ``_run_client``), never a result.
 """
 
 from __future__ import annotations
 
+import contextlib
 import itertools
+import logging
 import os
 import threading
 import uuid
@@ -48,6 +52,11 @@ class SchedulerError(VoxfieldError):
     """The Dask scheduler could not be reached or started."""
 
 
+class TaskLostError(SchedulerError):
+    """A task ended without a result of its own: its workers died (taking the job's shared
+    argument, which Dask cannot recompute, with them) or the scheduler went away."""
+
+
 def check_scheduler(scheduler) -> None:
     """Refuse a scheduler that names nothing (before any file is written): threads, serial,
     processes, a ``host:port`` address or a ``distributed.Client`` are accepted."""
@@ -61,12 +70,14 @@ def check_scheduler(scheduler) -> None:
 
 def run_tasks(
     task: Callable, shared, arguments: Sequence, emit: Callable[[int, object], None], *,
-    scheduler=None, name: str = "task",
+    scheduler=None, name: str = "task", resumes: bool = False,
 ) -> None:
     """Call ``task(shared, argument, kernel_threads)`` for every argument and
     ``emit(index, result)`` for each, in this thread, as soon as it finishes (completion order,
     not index order). ``task`` must be importable by workers (a module-level function) for
-    process and cluster schedulers."""
+    process and cluster schedulers. A task lost on a Dask scheduler raises ``TaskLostError``,
+    whose message says a rerun resumes where ``resumes`` (the caller keeps each result as it
+    lands: a probe folder, a study's cache)."""
     check_scheduler(scheduler)
     if not arguments:
         return
@@ -77,7 +88,8 @@ def run_tasks(
         _run_threads(task, shared, arguments, emit)
     else:
         with scheduler_client(scheduler) as client:
-            _run_client(client, task, shared, arguments, emit, name)
+            _run_client(client, task, shared, arguments, emit, name,
+                        where=_cluster_name(scheduler, client), resumes=resumes)
 
 
 #: Tasks in flight per thread: enough that a thread never waits for the next, few enough that
@@ -115,26 +127,69 @@ def _run_threads(task, shared, arguments, emit) -> None:
             raise
 
 
-def _run_client(client, task, shared, arguments, emit, name: str) -> None:
+def _run_client(client, task, shared, arguments, emit, name: str, *,
+                where: str = "the Dask scheduler", resumes: bool = False) -> None:
     """Scatter the shared argument once, submit one task per argument, deliver results as
-    they finish."""
+    they finish; a task that ends without a result raises ``TaskLostError`` (a task that
+    raised raises its own error).
+
+    No ``retries``: Dask already reruns a task whose worker died on another worker that holds
+    the shared argument (``distributed.scheduler.allowed-failures`` times, then
+    ``KilledWorker``), and ``retries`` reruns only tasks that raised, which are pure and would
+    raise again. Once the last worker holding the shared argument is gone the scheduler cannot
+    make it again (scattered data is not computed) and cancels the tasks; so does the client
+    when the scheduler goes. ``as_completed(with_results=True)`` hands such a cancellation over
+    as if it were the task's result, so it is caught here rather than reaching ``emit``."""
     # heavy: Dask loads only when a job runs on a scheduler
-    from distributed import as_completed
+    from distributed import KilledWorker, as_completed
 
     # In a list, the shared argument is one object even when it is a tuple or a dict.
-    [scattered] = client.scatter([shared], broadcast=True, hash=False)
+    try:
+        [scattered] = client.scatter([shared], broadcast=True, hash=False)
+    except TimeoutError as exc:  # no worker joined while Dask waited for one
+        raise SchedulerError(f"{where} has no workers to run the job; start them with "
+                             "`dask worker ADDRESS`") from exc
+    except OSError as exc:  # the connection broke (Dask's CommClosedError)
+        raise SchedulerError(f"{where} went away while the job's data was sent ({exc}); "
+                             "rerun once it is back") from exc
     run = uuid.uuid4().hex[:12]  # keys unique per job on a shared cluster
     futures = [client.submit(task, scattered, argument, 1, key=f"voxfield-{name}-{run}-{i}",
                              pure=False) for i, argument in enumerate(arguments)]
     index_of = {f.key: i for i, f in enumerate(futures)}
+
+    def lost(key, why: str) -> TaskLostError:
+        which = (f"{name} task {index_of[key] + 1} of {len(futures)}" if key in index_of
+                 else f"a {name} task")
+        rerun = "rerun to resume (what finished is kept)" if resumes else "rerun to start again"
+        return TaskLostError(f"{where} lost {which}: {why}; {rerun}")
+
     try:
         for future, result in as_completed(futures, with_results=True):
+            if future.status != "finished":
+                connection = (getattr(result, "reason", None) == "scheduler-connection-lost"
+                              or client.status != "running")
+                raise lost(future.key, "the connection to the scheduler broke" if connection
+                           else "the workers holding the job's shared data went away (or the "
+                           "scheduler did)")
             emit(index_of[future.key], result)
             future.release()
+    except KilledWorker as exc:
+        deaths = exc.allowed_failures + 1
+        raise lost(exc.task, f"the workers running it died {deaths} time"
+                   f"{'s' if deaths > 1 else ''} (out of memory?)") from None
     finally:
         for future in futures:
             future.release()
         scattered.release()
+
+
+def _cluster_name(scheduler, client) -> str:
+    """Where the tasks ran, for an error message."""
+    if scheduler == "processes":
+        return "the local Dask cluster"
+    address = (scheduler if isinstance(scheduler, str)
+               else getattr(getattr(client, "scheduler", None), "address", None))
+    return f"the Dask scheduler at {address}" if address else "the Dask scheduler"
 
 
 def local_cluster(workers: int, *, processes: bool):
@@ -187,11 +242,16 @@ def _connect(client_type, address: str):
 
 class scheduler_client:
     """A context manager yielding a ``distributed.Client`` for ``scheduler``: a local
-    process cluster for ``"processes"``, a connection for an address, or the given client."""
+    process cluster for ``"processes"``, a connection for an address, or the given client.
+
+    While it holds a client of its own, Dask's log records in this process are withheld
+    (``_dask_logs_withheld``): what goes wrong reaches the caller as one error, where Dask
+    also logged tracebacks (a lost scheduler's closed connection, the reconnect cancelled on
+    close). A ``Client`` passed in is used as it is, its logging untouched."""
 
     def __init__(self, scheduler) -> None:
         self.scheduler = scheduler
-        self.owned: list = []
+        self.stack = contextlib.ExitStack()
 
     def __enter__(self):
         # heavy: Dask loads only when a job runs on a scheduler
@@ -203,24 +263,41 @@ class scheduler_client:
         if not isinstance(s, str) or not (s == "processes" or ":" in s):
             raise SchedulerError(f"scheduler must be threads, processes, serial or a Dask "
                                  f"scheduler address like tcp://host:8786, got {s!r}")
-        try:
-            if s == "processes":
-                cluster = local_cluster(os.cpu_count() or 1, processes=True)
-                self.owned.append(cluster)
-                client = Client(cluster)
-            else:
-                client = _connect(Client, s)
-        except (OSError, TimeoutError, ValueError) as exc:
-            self.__exit__(None, None, None)
-            raise SchedulerError(
-                f"cannot reach the Dask scheduler {s!r} ({exc}); start one with "
-                "`dask scheduler` and workers with `dask worker ADDRESS`, or use "
-                "--scheduler threads|processes"
-            ) from exc
-        self.owned.insert(0, client)
+        with contextlib.ExitStack() as stack:  # unwound if anything below fails
+            stack.enter_context(_dask_logs_withheld())
+            try:
+                if s == "processes":
+                    cluster = local_cluster(os.cpu_count() or 1, processes=True)
+                    stack.callback(cluster.close)
+                    client = Client(cluster)
+                else:
+                    client = _connect(Client, s)
+            except (OSError, TimeoutError, ValueError) as exc:
+                raise SchedulerError(
+                    f"cannot reach the Dask scheduler {s!r} ({exc}); start one with "
+                    "`dask scheduler` and workers with `dask worker ADDRESS`, or use "
+                    "--scheduler threads|processes"
+                ) from exc
+            stack.callback(client.close)
+            self.stack = stack.pop_all()
         return client
 
     def __exit__(self, *exc) -> None:
-        for thing in self.owned:
-            thing.close()
-        self.owned.clear()
+        self.stack.close()
+
+
+@contextlib.contextmanager
+def _dask_logs_withheld():
+    """Dask's log records in this process reach no one inside the block. Dask sends them
+    all through the stream handlers of its ``distributed`` logger, whose level it raises
+    the same way to silence a local cluster (``distributed.utils.silence_logging_cmgr``)."""
+    handlers = [h for h in logging.getLogger("distributed").handlers
+                if isinstance(h, logging.StreamHandler)]
+    levels = [h.level for h in handlers]
+    for handler in handlers:
+        handler.setLevel(logging.CRITICAL + 1)
+    try:
+        yield
+    finally:
+        for handler, level in zip(handlers, levels, strict=True):
+            handler.setLevel(level)

@@ -32,12 +32,14 @@ def bake_probe_task(shared, position, kernel_threads: int | None = None):
 def bake_each(
     octree, grid, options, indices: Sequence[int], on_result: Callable[[int, object], None], *,
     scheduler=None, progress: bool = False, baker: Callable | None = None,
+    resumes: bool = False,
 ) -> None:
     """Bake the probes ``indices`` of ``grid`` and call ``on_result(index, maps)`` for each, in
     this thread, as soon as it finishes (completion order, not index order).
 
     ``baker(octree, position, options, threads=...)`` replaces ``bake_probe`` (it must be
-    picklable for process or cluster schedulers).
+    picklable for process or cluster schedulers). ``resumes``: ``on_result`` keeps each
+    probe, so a lost task's error says a rerun resumes (``scaleout.run_tasks``).
     """
     positions = np.asarray(grid.positions, np.float64).reshape(-1, 3)
     indices = [int(i) for i in indices]
@@ -52,7 +54,7 @@ def bake_each(
             bar.update(1)
 
         run_tasks(bake_probe_task, shared, [positions[i] for i in indices], emit,
-                  scheduler=scheduler, name="probe")
+                  scheduler=scheduler, name="probe", resumes=resumes)
 
 
 def bake_probes_dask(octree, grid, options, *, scheduler=None, progress: bool = False):

@@ -105,7 +105,7 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
 
     try:
         bake_each(octree, grid, options, todo, store, scheduler=scheduler, progress=progress,
-                  baker=baker)
+                  baker=baker, resumes=True)
     finally:
         # Whatever finished before an error or Ctrl-C is kept for the next run.
         write_header(folder, header)

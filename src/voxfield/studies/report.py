@@ -228,7 +228,7 @@ class StudyFolder:
                 bar.update(1)
 
         run_tasks(compute_item_task, shared, [specs[k][2] for k in missing], land,
-                  scheduler=self.scheduler or "serial", name="item")
+                  scheduler=self.scheduler or "serial", name="item", resumes=True)
         return results
 
     def render_batch(self, specs, *, shared=None, bar=None) -> list[RenderResult]:
