@@ -5,6 +5,7 @@ scheduler answers, and a cluster that loses its workers or its scheduler mid-job
 import contextlib
 import os
 import re
+import signal
 import socket
 import subprocess
 import sys
@@ -12,6 +13,7 @@ import threading
 import time
 import warnings
 from collections.abc import Callable
+from pathlib import Path
 
 import numba
 import pytest
@@ -300,3 +302,58 @@ def test_a_scheduler_gone_mid_job_is_one_line_on_stderr():
     assert re.fullmatch(r"job: error: the Dask scheduler at tcp://127\.0\.0\.1:\d+ lost item task "
                         r"\d+ of 30: the connection to the scheduler broke; rerun to start "
                         r"again\n", proc.stderr), proc.stderr
+
+
+_INTERRUPTED_SCRIPT = """
+import os, signal, sys, time
+from voxfield import scaleout
+from voxfield.cli.exits import report_failures
+
+def task(shared, argument, kernel_threads):
+    time.sleep(0.1)
+    return argument
+
+landed = []
+
+def emit(index, value):
+    landed.append(index)
+    if len(landed) == 1:
+        os.killpg(0, signal.SIGINT)  # what Ctrl-C at a terminal does
+
+if __name__ == "__main__":
+    os.cpu_count = lambda: 2  # two worker processes, whatever the machine
+    sys.exit(report_failures("job", lambda: scaleout.run_tasks(
+        task, None, list(range(40)), emit, scheduler="processes")))
+"""
+
+
+def _session_processes(session: int) -> list[int]:
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        with contextlib.suppress(OSError, IndexError, ValueError):
+            # the fields after the command's closing parenthesis: state ppid pgrp session
+            if int(stat.read_text().rsplit(")", 1)[1].split()[3]) == session:
+                found.append(int(stat.parent.name))
+    return found
+
+
+@pytest.mark.skipif(not hasattr(os, "killpg") or not Path("/proc/self/stat").exists(),
+                    reason="needs POSIX process groups and /proc")
+def test_ctrl_c_on_a_process_cluster_is_one_line_and_leaves_no_process():
+    """Ctrl-C signals the whole process group: each worker process raised KeyboardInterrupt
+    and printed its traceback (some 70 lines after the one line) while the job was closing
+    them anyway."""
+    pytest.importorskip("distributed", reason="needs Dask's distributed")
+    proc = subprocess.Popen([sys.executable, "-c", _INTERRUPTED_SCRIPT], text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            start_new_session=True)
+    try:
+        _, stderr = proc.communicate(timeout=60)
+        assert (proc.returncode, stderr) == (130, "job: interrupted\n")
+        deadline = time.monotonic() + 10.0
+        while _session_processes(proc.pid) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert _session_processes(proc.pid) == []
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(proc.pid, signal.SIGKILL)

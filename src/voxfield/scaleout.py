@@ -34,6 +34,7 @@ import contextlib
 import itertools
 import logging
 import os
+import signal
 import threading
 import uuid
 from collections.abc import Callable, Sequence
@@ -192,17 +193,72 @@ def _cluster_name(scheduler, client) -> str:
     return f"the Dask scheduler at {address}" if address else "the Dask scheduler"
 
 
-def local_cluster(workers: int, *, processes: bool):
+def local_cluster(workers: int, *, processes: bool, quiet: bool = False):
     """A ``distributed.LocalCluster`` of single-threaded workers (processes, or threads in this
     process) with no dashboard. Its scheduler serves its HTTP routes on a free loopback port:
     without a dashboard it still took Dask's default 8787, so two clusters at once (two jobs,
-    or a job beside a user's own cluster) fought over it and the second warned."""
+    or a job beside a user's own cluster) fought over it and the second warned. ``quiet``:
+    Dask logs nothing, here or in the worker processes (its ``silence_logs``; warnings
+    otherwise), for a job that reports its own failures."""
     # heavy: Dask loads only when a job runs on a scheduler
     from distributed import LocalCluster
 
     return LocalCluster(n_workers=workers, threads_per_worker=1, processes=processes,
                         dashboard_address=None,
-                        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"})
+                        scheduler_kwargs={"dashboard_address": "127.0.0.1:0"},
+                        silence_logs=logging.CRITICAL + 1 if quiet else logging.WARNING)
+
+
+@contextlib.contextmanager
+def _ctrl_c_held():
+    """A Ctrl-C inside the block is held back and raised as KeyboardInterrupt at its end (in
+    the main thread; elsewhere Python raises none), so starting a local cluster and its
+    client, or closing them, is never left half done: a Ctrl-C there left a cluster nothing
+    closed (Dask's own logs, and a coroutine never awaited, after ``voxfield:
+    interrupted``). A second SIGINT does land during the first one's cleanup: a user presses
+    Ctrl-C twice, and ``timeout -s INT`` signals both the command and its process group."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    caught: list[int] = []
+
+    def hold(signum, _frame) -> None:
+        caught.append(signum)
+
+    previous = signal.signal(signal.SIGINT, hold)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler if previous is None
+                      else previous)
+    if caught:
+        raise KeyboardInterrupt
+
+
+@contextlib.contextmanager
+def _sigint_kept_from_new_threads():
+    """SIGINT blocked in this thread inside the block, and so in every thread started there
+    (a local cluster's event loop, the threads that spawn and respawn its workers) and in
+    every process those start: a blocked signal stays blocked through fork and exec, and
+    Python installs its Ctrl-C handler without unblocking it. On Ctrl-C the terminal
+    signals the whole process group, and each worker process raised KeyboardInterrupt (a
+    traceback apiece, some 70 lines after ``voxfield: interrupted``) while this process was
+    shutting them down anyway. Python runs signal handlers in the main thread whichever
+    thread a signal reaches, so this does not hold Ctrl-C back here (``_ctrl_c_held``)."""
+    mask = getattr(signal, "pthread_sigmask", None)
+    if mask is None:  # not POSIX
+        yield
+        return
+    # The first process multiprocessing starts launches its resource tracker, and unblocks
+    # SIGINT in the thread that launched it (its own child's guard): launched now, before.
+    from multiprocessing import resource_tracker
+
+    resource_tracker.ensure_running()
+    before = mask(signal.SIG_BLOCK, {signal.SIGINT})
+    try:
+        yield
+    finally:
+        mask(signal.SIG_SETMASK, before)
 
 
 #: Seconds to wait for a scheduler's answer, the handshake included.
@@ -263,27 +319,36 @@ class scheduler_client:
         if not isinstance(s, str) or not (s == "processes" or ":" in s):
             raise SchedulerError(f"scheduler must be threads, processes, serial or a Dask "
                                  f"scheduler address like tcp://host:8786, got {s!r}")
-        with contextlib.ExitStack() as stack:  # unwound if anything below fails
+        stack = contextlib.ExitStack()
+        try:
             stack.enter_context(_dask_logs_withheld())
-            try:
-                if s == "processes":
-                    cluster = local_cluster(os.cpu_count() or 1, processes=True)
+            if s == "processes":
+                # Its workers never see Ctrl-C: this process closes them. A Ctrl-C while
+                # they start lands once the cluster and its client are here to be closed.
+                with _ctrl_c_held(), _sigint_kept_from_new_threads():
+                    cluster = local_cluster(os.cpu_count() or 1, processes=True, quiet=True)
                     stack.callback(cluster.close)
                     client = Client(cluster)
-                else:
-                    client = _connect(Client, s)
-            except (OSError, TimeoutError, ValueError) as exc:
+                    stack.callback(client.close)
+            else:
+                client = _connect(Client, s)
+                stack.callback(client.close)
+        except BaseException as exc:
+            self.stack = stack
+            self.__exit__()
+            if isinstance(exc, (OSError, TimeoutError, ValueError)):
                 raise SchedulerError(
                     f"cannot reach the Dask scheduler {s!r} ({exc}); start one with "
                     "`dask scheduler` and workers with `dask worker ADDRESS`, or use "
                     "--scheduler threads|processes"
                 ) from exc
-            stack.callback(client.close)
-            self.stack = stack.pop_all()
+            raise
+        self.stack = stack
         return client
 
     def __exit__(self, *exc) -> None:
-        self.stack.close()
+        with _ctrl_c_held():  # closed whole, a Ctrl-C or two notwithstanding
+            self.stack.close()
 
 
 @contextlib.contextmanager
