@@ -96,6 +96,25 @@ def test_an_address_where_no_scheduler_answers_is_one_error_in_bounded_time(
         assert time.monotonic() - start < 10.0
 
 
+
+def test_a_tls_address_without_certificates_is_not_reported_as_something_answering():
+    """Dask refuses a tls:// address without certificates before it connects (a TypeError),
+    which read as "what answered is not a Dask scheduler" with nothing listening."""
+    dask = pytest.importorskip("dask", reason="needs Dask's distributed")
+    pytest.importorskip("distributed", reason="needs Dask's distributed")
+    with socket.socket() as probe:  # a port where nothing listens
+        probe.bind(("127.0.0.1", 0))
+        address = f"tls://127.0.0.1:{probe.getsockname()[1]}"
+    none_set = {f"distributed.comm.tls.{key}": None
+                for key in ("ca-file", "client.cert", "client.key")}
+    with dask.config.set(none_set), pytest.raises(scaleout.SchedulerError) as caught:
+        with scheduler_client(address):
+            pass
+    assert str(caught.value) == (
+        f"cannot use the Dask scheduler {address!r}: tls:// needs TLS certificates, and "
+        "voxfield takes none itself: set them in Dask's configuration "
+        "(distributed.comm.tls.ca-file, client.cert and client.key) or use a tcp:// address")
+
 def _square_plus(shared, argument, kernel_threads):
     return argument * argument + shared["offset"]
 

@@ -296,6 +296,35 @@ def _connect(client_type, address: str):
     return outcome["client"]
 
 
+def _unusable_address(address: str) -> str | None:
+    """Why this process cannot open a connection to ``address`` whatever listens there, or
+    None. Dask fails such an attempt with a TypeError before anything answers, which
+    ``_connect`` would have to report as a server that answered something else: a tls://
+    address without certificates (voxfield takes none; Dask's configuration can hold them,
+    and ``Client`` reads them there), a scheme whose support is not installed (ucx://)."""
+    # heavy: Dask loads only when a job runs on a scheduler
+    from distributed.comm import parse_address
+    from distributed.comm.registry import get_backend
+    from distributed.security import Security
+
+    try:
+        scheme, _ = parse_address(address)
+        backend = get_backend(scheme)
+    except (TypeError, ValueError):
+        return None  # the attempt names what is wrong
+    if scheme == "tls" and Security().get_connection_args("client")["ssl_context"] is None:
+        return ("tls:// needs TLS certificates, and voxfield takes none itself: set them in "
+                "Dask's configuration (distributed.comm.tls.ca-file, client.cert and "
+                "client.key) or use a tcp:// address")
+    try:
+        backend.get_connector()
+    except Exception as exc:  # noqa: BLE001 - whatever the reason, no connection can open
+        detail = str(exc).splitlines()[0] if str(exc) else ""
+        return (f"Dask cannot open {scheme}:// connections here ({type(exc).__name__}"
+                + (f": {detail})" if detail else ")"))
+    return None
+
+
 class scheduler_client:
     """A context manager yielding a ``distributed.Client`` for ``scheduler``: a local
     process cluster for ``"processes"``, a connection for an address, or the given client.
@@ -331,6 +360,9 @@ class scheduler_client:
                     client = Client(cluster)
                     stack.callback(client.close)
             else:
+                why = _unusable_address(s)
+                if why:
+                    raise SchedulerError(f"cannot use the Dask scheduler {s!r}: {why}")
                 client = _connect(Client, s)
                 stack.callback(client.close)
         except BaseException as exc:
