@@ -16,6 +16,7 @@ from voxfield.cli.options import (
     add_scene_options,
     default_output,
     int_between,
+    is_saved_octree,
     open_octree,
     output_named,
     positive_int,
@@ -28,7 +29,6 @@ from voxfield.render.camera import top_down_camera
 from voxfield.render.image_io import png_bytes
 from voxfield.render.primary import render_reference
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
-from voxfield.scene.loaders import npz_kind
 from voxfield.studies.figures import Panel, contact_sheet
 from voxfield.svo.io import write_octree_file
 
@@ -245,10 +245,7 @@ def stale_previews(out: Path, written: list[Path], kept: list[str]) -> list[Path
 def _replaceable(scene: str) -> str | None:
     """The scene file ``--out`` must not name: any but an octree (a lit octree may be lit
     again in place, the file is read whole before it is replaced)."""
-    path = Path(scene)
-    if path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree":
-        return None
-    return scene
+    return None if is_saved_octree(scene) else scene
 
 
 def preview_sheet(previews: list[tuple[str, np.ndarray]], suns, scene: str):

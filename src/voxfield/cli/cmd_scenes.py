@@ -10,12 +10,12 @@ from pathlib import Path
 from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_scene_options,
+    is_saved_octree,
     note_unread_scene_options,
     open_octree,
     output_named,
 )
 from voxfield.scene.builtin import BUILTIN_SCENES
-from voxfield.scene.loaders import npz_kind
 from voxfield.scene.terrain import RECIPES
 from voxfield.scene.terrain.dem import SAMPLE_DEMS
 from voxfield.svo.io import load_octree, save_octree
@@ -43,7 +43,7 @@ def register(subparsers) -> None:
 
 def run_info(args) -> int:
     path = Path(args.scene)
-    if path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree":
+    if is_saved_octree(args.scene):
         octree = load_octree(path)
         note_unread_scene_options(args, args.scene)
         load_note = "loaded"

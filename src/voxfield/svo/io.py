@@ -16,7 +16,6 @@ from voxfield.svo.octree import (
     CHILD_COUNT,
     Octree,
     check_octree,
-    shape_problem,
     solid_flags,
 )
 
@@ -123,10 +122,7 @@ def _from_version_1(data, offsets: np.ndarray, where: str) -> tuple[np.ndarray, 
 
 def validate_octree(octree: Octree, where: str = "octree") -> None:
     """Check the structural invariants a kernel relies on; raise rather than crash later.
-    (The arrays' shapes and types are checked as the ``Octree`` is made.)"""
-    problem = shape_problem(octree)
-    if problem is not None:
-        raise OctreeFormatError(f"{where}: {problem}")
+    (The arrays' shapes and types were checked as the ``Octree`` was made.)"""
     off = octree.level_offsets
     n = octree.node_count
     box = octree.voxel_box
