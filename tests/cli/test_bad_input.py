@@ -675,6 +675,44 @@ def test_build_options_given_with_a_saved_octree_are_noted(command, tmp_path, ca
         "--lod-colour (for a scene being built); ignored\n")
 
 
+def test_build_options_a_scene_kind_does_not_read_are_noted(tmp_path, capsys, monkeypatch):
+    """``render builtin:sphere --footprint 4096`` drew the sphere as ever without a word;
+    each kind of scene names the build options it does not read, and only those."""
+    monkeypatch.chdir(tmp_path)
+    np.save("hills.npy", np.add.outer(np.arange(16.0), np.arange(16.0)))
+    render = ["render", "--size", "8", "--quiet", "--out", "view.png"]
+    assert main([*render[:1], "builtin:sphere", *render[1:], "--lod-colour", "mean",
+                 "--colour-storage", "float32"]) == 0
+    assert capsys.readouterr().err == ""  # a built scene reads both
+    assert main([*render[:1], "builtin:sphere", *render[1:], "--footprint", "64",
+                 "--mesh-resolution", "128"]) == 0
+    assert capsys.readouterr().err == (
+        "voxfield: note: builtin:sphere, a built-in scene, takes no --mesh-resolution (for "
+        "meshes), --footprint (for terrains and DEMs); ignored\n")
+    assert main([*render[:1], "hills.npy", *render[1:], "--footprint", "16",
+                 "--vertical-scale", "2", "--dem-fit", "crop"]) == 0
+    assert capsys.readouterr().err == ""  # a DEM reads all three
+    assert main([*render[:1], "hills.npy", *render[1:], "--footprint", "16",
+                 "--mesh-resolution", "64"]) == 0
+    assert capsys.readouterr().err == (
+        "voxfield: note: hills.npy, a DEM, takes no --mesh-resolution (for meshes); "
+        "ignored\n")
+
+
+def test_a_study_of_several_scenes_notes_the_build_options_none_of_them_reads(tmp_path,
+                                                                              capsys):
+    np.save(tmp_path / "hills.npy", np.add.outer(np.arange(16.0), np.arange(16.0)))
+    hills = str(tmp_path / "hills.npy")
+    study = ["study", "normalisation", "builtin:sphere", hills, "--size", "8", "--quiet",
+             "--footprint", "16"]
+    assert main([*study, "--out", str(tmp_path / "a")]) == 0
+    assert capsys.readouterr().err == ""  # the DEM reads the footprint the sphere does not
+    assert main([*study, "--mesh-resolution", "64", "--out", str(tmp_path / "b")]) == 0
+    assert capsys.readouterr().err == (
+        f"voxfield: note: none of the scenes builtin:sphere, {hills} takes --mesh-resolution "
+        "(for meshes); ignored\n")
+
+
 def test_a_probe_render_notes_the_build_options_its_saved_scene_does_not_read(tmp_path,
                                                                               capsys):
     saved, probes = str(tmp_path / "saved.npz"), str(tmp_path / "p")

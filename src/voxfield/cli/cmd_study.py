@@ -24,6 +24,7 @@ from voxfield.cli.options import (
     lod_arg,
     name_list,
     non_negative_float_list,
+    note_unread_scene_options,
     open_octree,
     positive_int_list,
     scheduler_name,
@@ -223,8 +224,10 @@ def run_normalisation(args) -> int:
         raise VoxfieldError(f"--quantile must be in (0, 1], got {args.quantile}")
     scenes = {}
     for spec in (args.scene, *args.more_scenes):
-        octree = open_octree(argparse.Namespace(**{**vars(args), "scene": spec}))
+        octree = open_octree(argparse.Namespace(**{**vars(args), "scene": spec}),
+                             note_unread=False)
         scenes[spec] = (octree, study_camera(args, octree))
+    note_unread_scene_options(args, *scenes)
     out = args.out or default_output("normalisation", next(iter(scenes)))
     report = run_normalisation_study(scenes, out, base_lod=args.base_lod,
                                      quantile=args.quantile, seed=args.seed,

@@ -32,7 +32,7 @@ from voxfield.render.framing import content_box
 from voxfield.render.placement import check_camera_placement
 from voxfield.render.registry import RENDERERS
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
-from voxfield.scene.loaders import SceneOptions, is_heightmap, npz_kind
+from voxfield.scene.loaders import SCENE_KINDS, SceneOptions, is_heightmap, scene_kind
 from voxfield.scene.terrain.columns import DEM_FITS, MAX_FOOTPRINT, MIN_FOOTPRINT
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree as open_octree_from_spec
@@ -379,10 +379,10 @@ def _flag(f: dataclasses.Field) -> str:
     return f.metadata.get("flag", "--" + f.name.replace("_", "-"))
 
 
-def warn_ignored(ignored: dict[str, list[str]], what: str) -> None:
+def warn_ignored(ignored: dict[str, list[str]], what: str, *, verb: str = "takes no") -> None:
     """A note naming options given that ``what`` does not take, and who does."""
     parts = [f"{flag} (for {'/'.join(users)})" for flag, users in ignored.items()]
-    warnings.warn(f"{what} takes no {', '.join(parts)}; ignored", stacklevel=3)
+    warnings.warn(f"{what} {verb} {', '.join(parts)}; ignored", stacklevel=3)
 
 
 def _python_type(annotation: str):
@@ -422,45 +422,54 @@ def scene_options(args) -> SceneOptions:
     )
 
 
-def open_octree(args):
+def open_octree(args, *, note_unread: bool = True):
     """The octree the scene options name: loaded from a file or built (streamed for
-    terrains), with a progress bar unless --quiet; a note names the options given that a
-    saved octree does not read."""
+    terrains), with a progress bar unless --quiet; a note names the build options given
+    that this scene does not read (unless ``note_unread`` is false: a caller of several
+    scenes names those none of them reads)."""
     octree = open_octree_from_spec(
         args.scene, scene_options(args), progress=not args.quiet,
         lod_colour=args.lod_colour, colour_storage=getattr(args, "colour_storage", "srgb8"))
-    note_unread_scene_options(args, args.scene)
+    if note_unread:
+        note_unread_scene_options(args, args.scene)
     return octree
 
 
-#: The scene options only a build reads, their defaults and the scenes that take them: a
-#: saved octree keeps what its own build chose.
+#: The scene options only a build reads: their defaults, who takes them, and the kinds of
+#: scene (``scene.loaders.SCENE_KINDS``) whose build reads them.
+_BUILT = ("scene", "builtin", "recipe", "dem", "vox", "mesh")
 BUILD_OPTIONS = {
-    "mesh_resolution": ("--mesh-resolution", SceneOptions.mesh_resolution, "meshes"),
-    "footprint": ("--footprint", SceneOptions.terrain_footprint, "terrains and DEMs"),
-    "vertical_scale": ("--vertical-scale", None, "DEMs"),
-    "dem_fit": ("--dem-fit", None, "DEMs"),
-    "colour_storage": ("--colour-storage", "srgb8", "a scene being built"),
-    "lod_colour": ("--lod-colour", DEFAULT_LOD_COLOUR, "a scene being built"),
+    "mesh_resolution": ("--mesh-resolution", SceneOptions.mesh_resolution, "meshes",
+                        ("mesh",)),
+    "footprint": ("--footprint", SceneOptions.terrain_footprint, "terrains and DEMs",
+                  ("recipe", "dem")),
+    "vertical_scale": ("--vertical-scale", None, "DEMs", ("dem",)),
+    "dem_fit": ("--dem-fit", None, "DEMs", ("dem",)),
+    "colour_storage": ("--colour-storage", "srgb8", "a scene being built", _BUILT),
+    "lod_colour": ("--lod-colour", DEFAULT_LOD_COLOUR, "a scene being built", _BUILT),
 }
 
 
-def note_unread_scene_options(args, scene: str) -> None:
-    """A note naming the build options given (other than their defaults) where ``scene`` is
-    a saved octree, which reads none of them: ``render lit.npz --vertical-scale 3`` drew the
-    saved relief without a word."""
-    if not is_saved_octree(scene):
+def note_unread_scene_options(args, *scenes: str) -> None:
+    """A note naming the build options given (other than their defaults) that no scene of
+    ``scenes`` reads: ``render lit.npz --vertical-scale 3`` drew the saved relief, and
+    ``render builtin:sphere --footprint 4096`` the sphere, without a word."""
+    kinds = [scene_kind(scene) for scene in scenes]
+    if None in kinds:  # no scene this names could have opened: nothing to say
         return
-    ignored = {flag: [users] for dest, (flag, default, users) in BUILD_OPTIONS.items()
-               if getattr(args, dest, default) != default}
-    if ignored:
-        warn_ignored(ignored, f"{scene}, a saved octree,")
+    ignored = {flag: [users] for dest, (flag, default, users, readers) in BUILD_OPTIONS.items()
+               if getattr(args, dest, default) != default and not set(readers) & set(kinds)}
+    if not ignored:
+        return
+    if len(scenes) == 1:
+        warn_ignored(ignored, f"{scenes[0]}, {SCENE_KINDS[kinds[0]]},")
+    else:
+        warn_ignored(ignored, f"none of the scenes {', '.join(scenes)}", verb="takes")
 
 
 def is_saved_octree(scene: str) -> bool:
     """Whether ``scene`` names a saved octree file (``svo.open`` loads it as it is)."""
-    path = Path(scene)
-    return path.suffix.lower() == ".npz" and path.is_file() and npz_kind(path) == "octree"
+    return scene_kind(scene) == "octree"
 
 
 def camera(args, bounds) -> Camera:

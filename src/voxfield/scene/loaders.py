@@ -163,6 +163,36 @@ def is_heightmap(spec: str) -> bool:
     return suffix == ".npz" and path.is_file() and npz_kind(path) == "dem"
 
 
+#: What each kind of scene description is called in a note.
+SCENE_KINDS = {
+    "octree": "a saved octree", "scene": "a saved voxel scene", "builtin": "a built-in scene",
+    "recipe": "a terrain recipe", "dem": "a DEM", "vox": "a MagicaVoxel scene",
+    "mesh": "a mesh",
+}
+
+
+def scene_kind(spec: str) -> str | None:
+    """Which of ``SCENE_KINDS`` a description names, by its prefix, suffix or (``.npz``)
+    arrays; None where it names none of them (a missing file, an unknown suffix)."""
+    if spec.startswith("builtin:"):
+        return "builtin"
+    if spec.startswith("terrain:"):
+        return "recipe"
+    if spec.startswith("dem:"):
+        return "dem"
+    path = Path(spec)
+    suffix = path.suffix.lower()
+    if not path.is_file():
+        return None
+    if suffix == ".npz":
+        return npz_kind(path)
+    if suffix in DEM_SUFFIXES:
+        return "dem"
+    if suffix == ".vox":
+        return "vox"
+    return "mesh" if suffix in MESH_SUFFIXES else None
+
+
 def block_source(spec: str, options: SceneOptions | None = None):
     """The scene as column blocks (``svo.streamed_build.BlockSource``) where its format can
     deliver them without making every voxel first (terrains), else None."""
