@@ -10,6 +10,8 @@ import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
+from voxfield.errors import VoxfieldError
+
 
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
@@ -39,6 +41,17 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
         raise
     finally:
         tmp_path.unlink(missing_ok=True)
+
+
+def named_for(path: str | os.PathLike, suffix: str, what: str) -> Path:
+    """``path``, refused unless it ends in ``suffix``: a writer of one format under another
+    name (an octree as ``o.vox``, a PNG as ``a.jpg``) leaves a file that every reader of that
+    name then misreads."""
+    path = Path(path)
+    if path.suffix.lower() != suffix:
+        raise VoxfieldError(f"{path}: {what} writes {suffix} files; give a name ending in "
+                            f"{suffix}")
+    return path
 
 
 def save_figure(figure, path: str | os.PathLike, *, dpi: float | None = None) -> Path:

@@ -10,6 +10,7 @@ from PIL import Image
 
 from voxfield.errors import VoxfieldError
 from voxfield.render.image_io import load_exr, save_exr, save_png, shade_for_display
+from voxfield.svo import open_octree, save_octree
 
 
 def test_exr_round_trip_is_bit_exact(tmp_path):
@@ -32,6 +33,22 @@ def test_png_is_srgb_encoded(tmp_path):
 def test_png_rejects_bad_shapes(tmp_path):
     with pytest.raises(VoxfieldError):
         save_png(np.zeros((2, 2, 5)), tmp_path / "x.png")
+
+
+@pytest.mark.parametrize(("save", "name", "suffix"), [
+    (lambda path: save_png(np.zeros((2, 2, 3)), path), "a.jpg", ".png"),
+    (lambda path: save_exr({"Z": np.zeros((2, 2))}, path), "a.png", ".exr"),
+    (lambda path: save_octree(open_octree("builtin:sphere"), path), "o.vox", ".npz"),
+])
+def test_a_writer_refuses_a_name_of_another_format_and_writes_nothing(save, name, suffix,
+                                                                       tmp_path):
+    """A PNG saved as ``a.jpg`` or an octree as ``o.vox`` is misread by every reader that
+    goes by the name (``voxfield render o.vox`` parsed the octree as MagicaVoxel)."""
+    with pytest.raises(VoxfieldError, match=rf"{name}: save_\w+ writes \{suffix} files"):
+        save(tmp_path / name)
+    assert list(tmp_path.iterdir()) == []
+    save(tmp_path / f"upper{suffix.upper()}")  # the case of the suffix does not matter
+    assert [p.name for p in tmp_path.iterdir()] == [f"upper{suffix.upper()}"]
 
 
 def test_display_shading_darkens_faces_by_their_normal_and_keeps_the_rest():

@@ -10,14 +10,14 @@ from pathlib import Path
 import numpy as np
 from PIL import Image
 
-from voxfield.atomic import atomic_path, check_writable
+from voxfield.atomic import atomic_path, check_writable, named_for
 from voxfield.errors import VoxfieldError
 from voxfield.scene.voxel_scene import linear_to_srgb
 
 
 def save_png(image: np.ndarray, path: str | os.PathLike, *, encode_srgb: bool = True) -> Path:
     """Write a linear [0, 1] image (H×W×3 or H×W) as 8-bit PNG, sRGB-encoded by default."""
-    path = Path(path)
+    path = named_for(path, ".png", "save_png")
     pixels = png_pixels(image, encode_srgb=encode_srgb)
     with atomic_path(path) as tmp:
         Image.fromarray(pixels).save(tmp, format="PNG")
@@ -47,7 +47,7 @@ def save_exr(channels: dict[str, np.ndarray], path: str | os.PathLike) -> Path:
     # optional: OpenEXR loads only when an EXR file is read or written
     import OpenEXR
 
-    path = Path(path)
+    path = named_for(path, ".exr", "save_exr")
     data = {k: np.ascontiguousarray(v, dtype=np.float32) for k, v in channels.items()}
     sizes = [v.shape[:2] if v.ndim in (2, 3) else None for v in data.values()]
     if not sizes or None in sizes or len(set(sizes)) != 1 or 0 in sizes[0]:

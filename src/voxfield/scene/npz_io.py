@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.array_files import load_arrays
-from voxfield.atomic import atomic_path
+from voxfield.atomic import atomic_path, named_for
 from voxfield.errors import SceneFormatError, VoxfieldError
 from voxfield.scene.voxel_scene import VoxelScene
 
 
 def save_scene(scene: VoxelScene, path: str | os.PathLike) -> Path:
-    path = Path(path)
+    path = named_for(path, ".npz", "save_scene")
     arrays = {"coords": scene.coords.astype(np.int32), "color": scene.color}
     if scene.emission is not None:
         arrays["emission"] = scene.emission

@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.array_files import load_arrays
-from voxfield.atomic import atomic_path
+from voxfield.atomic import atomic_path, named_for
 from voxfield.errors import OctreeFormatError, VoxfieldError
 from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT, pack_descriptors
 from voxfield.svo.octree import (
@@ -28,7 +28,7 @@ FORMAT_VERSION = 2
 def save_octree(octree: Octree, path: str | os.PathLike) -> Path:
     """Write the octree to ``path`` (temporary file, then rename)."""
     check_octree(octree, "save_octree")
-    path = Path(path)
+    path = named_for(path, ".npz", "save_octree")
     with atomic_path(path) as tmp:
         write_octree_file(octree, tmp)
     return path
