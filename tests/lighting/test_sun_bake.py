@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -29,6 +30,8 @@ from voxfield.lighting import (
 from voxfield.lighting import sun_bake as bake_module
 from voxfield.metrics import psnr
 from voxfield.render import Camera, render_reference
+from voxfield.scene.builtin import builtin_scene
+from voxfield.scene.npz_io import save_scene
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree
 from voxfield.svo.horizons import no_horizon_slopes
@@ -472,6 +475,22 @@ def test_lighting_a_lit_octree_again_keeps_the_record_of_its_kept_channels(tmp_p
         assert run_light_command([str(out), "--times", "dusk=280,5", *quick]) == 0
     assert json.loads(out.with_suffix(".json").read_text())["unrecorded_channels"] == [
         "east", "noon", "west"]
+
+
+def test_a_voxel_scene_s_own_channels_are_kept_as_its_own_not_as_unrecorded_suns(tmp_path):
+    """A saved voxel scene with a channel of its own was taken for a lit octree: the bake
+    noted "no record of the suns behind" a channel no sun made."""
+    sphere = builtin_scene("sphere")
+    mask = np.linspace(0.0, 1.0, len(sphere.coords), dtype=np.float32)[:, None].repeat(3, 1)
+    scene = save_scene(replace(sphere, channels={"mask": mask}), tmp_path / "masked.npz")
+    out = tmp_path / "lit.npz"
+    notes = _notes_of([str(scene), "--times", "noon", "--sky-rays", "0", "--no-preview",
+                       "--quiet", "--out", str(out)])
+    assert notes == []
+    record = json.loads(out.with_suffix(".json").read_text())
+    assert record["scene_channels"] == ["mask"]
+    assert "unrecorded_channels" not in record and "earlier_bakes" not in record
+    assert set(load_octree(out).attributes) == {"color", "mask", "noon"}
 
 
 def _notes_of(argv) -> list[str]:

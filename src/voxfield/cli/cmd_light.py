@@ -173,10 +173,13 @@ def kept_record(scene: str, kept: list[str], replaced: list[str], out: Path) -> 
     with only the suns whose channels are kept: its seed and rays made them), the kept
     channels no record names, and the channels this bake replaced. A record that listed
     only the new suns lost the suns behind the kept channels. A note names kept channels
-    whose suns are not on record."""
+    of a lit octree whose suns are not on record; a voxel scene's own channels, which no
+    sun made, are listed as ``scene_channels``."""
     extra: dict = {"replaced": replaced} if replaced else {}
     if not kept:
         return extra
+    if not is_saved_octree(scene):  # channels a scene file brought: no bake made them
+        return {**extra, "scene_channels": kept}
     record = read_record(Path(scene)) or {}
     # Previews are files beside the octree a bake wrote: those of another octree's bakes
     # are not this one's to judge (they stay true of that octree).
