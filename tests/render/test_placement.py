@@ -3,6 +3,8 @@ found, one in a room or above the ground is not; a surface probe layer floats at
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -70,6 +72,18 @@ def test_a_surface_layer_floats_at_its_height_over_the_ground(hollow_terrain):
                  lod=0)
     assert down.hit.all()
     np.testing.assert_allclose(down.t, 6.0, atol=1e-9)  # H above the ground below each
+
+
+def test_a_surface_layer_over_a_roof_says_its_probes_lie_outside(hollow_terrain):
+    """``--grid surface:`` over a closed room laid every probe above the ceiling, where no
+    probe sees the room, without a word; over a terrain it says nothing."""
+    with pytest.warns(UserWarning, match="every probe of the 3x3 surface layer lies above "
+                      "the scene's box"):
+        grid = parse_grid("surface:3x3@4", octree=open_octree("builtin:cornell"))
+    assert np.all(grid.positions[:, 1] > open_octree("builtin:cornell").voxel_bounds[1][1])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        parse_grid("surface:3x3@4", octree=hollow_terrain)
 
 
 def _random_view(rng, kind):

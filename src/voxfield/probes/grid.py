@@ -304,6 +304,10 @@ def surface_layer(octree, counts_xz, height: float) -> ProbeGrid:
     hits = trace(octree, origins, down, lod=0)
     ground = np.where(hits.hit, origins[:, 1] - hits.t, lo[1])
     target = ground + height
+    if np.all(ground > hi[1] - 0.5):  # every ray stopped on the box's top: a roof, a lid
+        warnings.warn(f"every probe of the {nx}x{nz} surface layer lies above the scene's "
+                      "box, over its top; probes inside a room or an object need a grid "
+                      "NXxNYxNZ", stacklevel=2)
     centre = 0.5 * (target.min() + target.max())
     spacing = flat.spacing.copy()
     spacing[1] = max(2.0 * float(np.abs(target - centre).max()) + 1.0, 1.0)
