@@ -6,12 +6,13 @@ from __future__ import annotations
 import re
 
 import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from PIL import Image
 
 from voxfield.render.image_io import shade_for_display
 from voxfield.render.result import RenderResult
 from voxfield.scene.voxel_scene import linear_to_srgb
-from voxfield.studies.figures import view_sheet
+from voxfield.studies.figures import Panel, contact_sheet, view_sheet
 from voxfield.studies.threshold_study import run_threshold_study
 
 
@@ -50,3 +51,17 @@ def test_a_threshold_study_shows_its_view_in_its_report(tmp_path):
     html = (tmp_path / "report.html").read_text(encoding="utf-8")
     labels = re.findall(r"<figcaption>([^<]*)</figcaption>", html)
     assert labels and labels[0].lower().startswith("view"), labels
+
+
+def test_a_long_title_stays_on_a_narrow_sheet_and_clear_of_its_panels():
+    """A one-panel sheet (``light``'s preview of one sun) cut its title at both sides."""
+    title = "terrain:desert: baked sun and sky light from above, north (-z) up, " * 2
+    figure = contact_sheet([Panel("noon", np.zeros((4, 4, 3)))], columns=1, title=title)
+    canvas = FigureCanvasAgg(figure)  # text extents in display pixels
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    box = figure._suptitle.get_window_extent(renderer)
+    width, height = figure.bbox.width, figure.bbox.height
+    assert 0.0 <= box.x0 and box.x1 <= width and box.y1 <= height
+    panel_top = max(ax.get_tightbbox(renderer).y1 for ax in figure.axes if ax.images)
+    assert box.y0 >= panel_top  # the title's lines sit above the panel's own title

@@ -79,9 +79,14 @@ def contact_sheet(cells: Sequence[Panel | str], *, columns: int, title: str = ""
 
 
     rows = max(1, -(-len(cells) // columns))
-    fig = Figure(figsize=(panel_inches * columns, panel_inches * rows + 0.6), facecolor="white")
+    # Wrapped to the sheet, the sheet grown by the lines it adds: a one-panel sheet cut a
+    # long title at both sides.
+    title_lines = textwrap.wrap(title, width=int(panel_inches * columns * 8)) if title else []
+    added = 0.25 * max(len(title_lines) - 1, 0)
+    height = panel_inches * rows + 0.6
+    fig = Figure(figsize=(panel_inches * columns, height + added), facecolor="white")
     if title:
-        fig.suptitle(title, fontsize=13)
+        fig.suptitle("\n".join(title_lines), fontsize=13)
     axes = fig.subplots(rows, columns, squeeze=False).ravel()
     for ax in axes:
         ax.set_axis_off()
@@ -98,8 +103,8 @@ def contact_sheet(cells: Sequence[Panel | str], *, columns: int, title: str = ""
                       interpolation="nearest")
         # Wrapped to the panel: a long title ran past the sheet's edge.
         ax.set_title(textwrap.fill(cell.title, width=int(panel_inches * 12)), fontsize=9)
-    fig.subplots_adjust(left=0.01, right=0.99, bottom=0.01, top=0.90 if title else 0.96,
-                        wspace=0.04, hspace=0.25)
+    top = (0.90 * height) / (height + added) if title else 0.96
+    fig.subplots_adjust(left=0.01, right=0.99, bottom=0.01, top=top, wspace=0.04, hspace=0.25)
     return fig
 
 
