@@ -30,6 +30,20 @@ def test_validation_rejects_bad_arrays():
         VoxelScene(np.zeros((1, 3), int), np.full((1, 3), np.nan))
 
 
+def test_albedo_outside_zero_to_one_is_refused_with_a_hint_for_8_bit_colours():
+    """8-bit colours (0..255) were built as white without a word; light and emission, which
+    may exceed 1, are kept."""
+    coords = np.array([[0, 0, 0], [1, 0, 0]])
+    with pytest.raises(VoxfieldError, match=r"color is linear albedo in \[0, 1\], got values "
+                       r"0\.\.255 \(8-bit sRGB\? give voxfield\.scene\.srgb_to_linear"):
+        VoxelScene(coords, np.array([[255, 128, 0], [0, 0, 0]], np.uint8))
+    with pytest.raises(VoxfieldError, match=r"got values -0\.1\.\.0\.5$"):
+        VoxelScene(coords, [[-0.1, 0.5, 0.5], [0.0, 0.0, 0.0]])
+    bright = VoxelScene(coords, np.ones((2, 3)), emission=np.full((2, 3), 40.0),
+                        channels={"noon": np.full((2, 3), 3.5)})
+    assert bright.emission.max() == 40.0 and bright.channels["noon"].max() == 3.5
+
+
 def test_dedupe_keeps_the_last_voxel_given():
     scene = VoxelScene(np.array([[0, 0, 0], [1, 1, 1], [0, 0, 0]]),
                        np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1]]))

@@ -50,7 +50,7 @@ class VoxelScene:
                                 f"{coords.min()}..{coords.max()}")
         object.__setattr__(self, "coords", coords.astype(np.int64, copy=False))
         n = len(coords)
-        object.__setattr__(self, "color", _checked_rgb(self.color, n, "color"))
+        object.__setattr__(self, "color", _checked_albedo(_checked_rgb(self.color, n, "color")))
         if self.emission is not None:
             object.__setattr__(self, "emission", _checked_rgb(self.emission, n, "emission"))
         if not isinstance(self.channels, Mapping):
@@ -142,6 +142,18 @@ def _checked_rgb(values, n: int, what: str) -> np.ndarray:
     if n and not np.isfinite(arr).all():
         raise VoxfieldError(f"{what} holds NaN or infinite values")
     return arr
+
+
+def _checked_albedo(color: np.ndarray) -> np.ndarray:
+    """``color`` refused outside [0, 1]: a build kept 8-bit colours (0..255) as white without
+    a word. Light and emission may exceed 1; albedo reflects at most what arrives."""
+    if color.size and (color.max() > 1.0 or color.min() < 0.0):
+        low, high = float(color.min()), float(color.max())
+        hint = (" (8-bit sRGB? give voxfield.scene.srgb_to_linear(values / 255))"
+                if high <= 255.0 and low >= 0.0 and np.all(color == np.round(color)) else "")
+        raise VoxfieldError(f"color is linear albedo in [0, 1], got values {low:g}..{high:g}"
+                            f"{hint}")
+    return color
 
 
 def compose(
