@@ -470,3 +470,16 @@ def test_a_baked_probe_set_traces_as_its_packing_and_anything_else_is_named(corn
         render_from_probes(cornell, room_camera(*cornell.voxel_bounds, size=4))
     with pytest.raises(VoxfieldError, match="needs a probe grid"):
         bake_probes(cornell, [CORNELL_PROBE.tolist()], BakeOptions(resolution=8))
+
+
+def test_a_probe_index_counts_from_either_end_and_the_refusal_says_both(cornell):
+    """``trace_single`` takes -1 as the last probe, Python's way, where its refusal named
+    only 0..N-1."""
+    packed = one_probe(cornell, CORNELL_PROBE, 8)
+    origin, direction = CORNELL_PROBE[None] + 0.5, np.array([[0.0, -1.0, 0.0]])
+    last = trace_single(packed, -1, origin, direction)
+    first = trace_single(packed, 0, origin, direction)
+    assert np.array_equal(last.t, first.t) and np.array_equal(last.kind, first.kind)
+    for probe in (1, -2, 0.5):
+        with pytest.raises(VoxfieldError, match=r"in 0\.\.0 \(or -1\.\.-1, counted from "):
+            trace_single(packed, probe, origin, direction)

@@ -320,7 +320,8 @@ def trace_single(packed: PackedProbes, probe: int, origins, dirs,
     (``packed``: see ``packed_probes``)."""
     packed = packed_probes(packed, "trace_single")
     if not is_integer(probe) or not -packed.count <= probe < packed.count:
-        raise VoxfieldError(f"probe index {probe!r} is not an integer in 0..{packed.count - 1}")
+        raise VoxfieldError(f"probe index {probe!r} is not an integer in 0..{packed.count - 1}"
+                            f" (or -{packed.count}..-1, counted from the last)")
     probe = int(probe) % packed.count
     options = checked_options(options)
     o, d, lo, hi = _rays(origins, dirs, tmin, tmax)
