@@ -128,7 +128,7 @@ def register(subparsers) -> argparse.ArgumentParser:
         "5.29-5.30, for probes)",
         description="Bake probes at each octahedral map size with the 4×4 reference baker "
         "and the cheap bakers (LOD cone, adaptive, error-aware); rays and steps per texel, "
-        "PSNR/RMSE/SSIM of radiance against the reference.",
+        "PSNR/RMSE/SSIM of radiance against the reference. Resumable.",
     )
     add_scene_options(b)
     b.add_argument("--grid", default="1x1x1",
@@ -141,8 +141,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    help="comma-separated map sides (default 64,128,256)")
     add_threshold_options(b)
     add_channel_option(b)
-    b.add_argument("--out", default=None,
-                   help="output folder (default out/probe_resolution_SCENE)")
+    add_study_folder(b, "probe_resolution", "bakes")
     add_quiet(b)
     b.set_defaults(func=run_probe_resolution)
 
@@ -328,7 +327,7 @@ def run_lighting(args) -> int:
 
 def run_probe_resolution(args) -> int:
     folder = StudyFolder(args.out or default_output("probe_resolution", args.scene),
-                         study="study probe-resolution")
+                         study="study probe-resolution", fresh=args.fresh)
     octree = open_octree(args)
     grid = parse_grid(args.grid, octree.voxel_bounds, octree=octree)
     if not args.no_relocate:
@@ -340,7 +339,7 @@ def run_probe_resolution(args) -> int:
     report = probe_resolution_study(
         octree, grid.positions[grid.enabled], args.resolutions, threshold=args.threshold,
         decay=args.decay, seed=args.seed, channel=args.channel, scene_name=args.scene,
-        progress=not args.quiet)
+        progress=not args.quiet, folder=folder)
     folder.write_json("results.json", report)
     path = folder.write_text("results.md", probe_resolution_markdown(report))
     write_html_report(folder.root)
