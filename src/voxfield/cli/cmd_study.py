@@ -46,7 +46,6 @@ from voxfield.studies.curves_study import (
     CURVE_THRESHOLDS,
     run_curves_study,
 )
-from voxfield.studies.html_report import write_html_report
 from voxfield.studies.lighting_study import lighting_channels, run_lighting_study
 from voxfield.studies.probe_resolution_study import (
     probe_resolution_markdown,
@@ -342,7 +341,7 @@ def run_probe_resolution(args) -> int:
         progress=not args.quiet, folder=folder)
     folder.write_json("results.json", report)
     path = folder.write_text("results.md", probe_resolution_markdown(report))
-    write_html_report(folder.root)
+    folder.publish_report()
     if not args.quiet:
         print(probe_resolution_markdown(report))
         print(f"wrote {path}, results.json and report.html")

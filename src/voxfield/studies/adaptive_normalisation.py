@@ -23,7 +23,6 @@ from voxfield.render.adaptive import (
 from voxfield.render.camera import Camera
 from voxfield.render.primary import render_lod
 from voxfield.scaleout import run_tasks
-from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import StudyFolder, fmt, markdown_table
 from voxfield.svo.octree import Octree
 
@@ -68,7 +67,7 @@ def run_normalisation_study(
               "default": VARIANCE_NORMALISATION, "scenes": rows}
     folder.write_json("results.json", report)
     folder.write_text("results.md", _markdown(report))
-    write_html_report(folder.root)
+    folder.publish_report()
     return report
 
 

@@ -32,7 +32,6 @@ from voxfield.studies.figures import (
     refinement_map,
     variance_map,
 )
-from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import StudyFolder, fmt, fmt_psnr, markdown_table
 from voxfield.svo.octree import Octree
 
@@ -121,7 +120,7 @@ def run_compare(
                                        dpi=dpi))
     written.append(folder.write_json("results.json", report))
     written.append(folder.write_text("results.md", results_markdown(report)))
-    written.append(write_html_report(folder.root))
+    written.append(folder.publish_report())
     return {**report, "folder": str(folder.root), "written": [str(p) for p in written],
             "computed": folder.computed, "reused": folder.reused}
 

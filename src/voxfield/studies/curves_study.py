@@ -45,7 +45,6 @@ from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.studies.bjontegaard import bd_cost, bd_quality
 from voxfield.studies.figures import view_sheet
-from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import (
     StudyFolder,
     costs,
@@ -169,7 +168,7 @@ def run_curves_study(
     folder.write_figure("curves.png", curves_figure(report))
     folder.write_figure("view.png", view_sheet(references,
                                                title=f"The views measured — {scene_name}"))
-    write_html_report(folder.root)
+    folder.publish_report()
     return report
 
 

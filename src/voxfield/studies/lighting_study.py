@@ -22,7 +22,6 @@ from voxfield.render.camera import Camera
 from voxfield.render.error_aware import DEFAULT_BRIGHT_RATIO
 from voxfield.render.registry import render, renderer_options
 from voxfield.studies.figures import Panel, contact_sheet, finest_lod_map, refinement_map
-from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import (
     StudyFolder,
     costs_and_quality,
@@ -125,7 +124,7 @@ def run_lighting_study(
     folder.write_figure("lighting.png", _figure(report))
     folder.write_figure("contact_sheet.png", _sheet(sheet, base_lod, scene_name),
                         dpi=int(min(160, max(90, camera.width / 4))))
-    write_html_report(folder.root)
+    folder.publish_report()
     return report
 
 

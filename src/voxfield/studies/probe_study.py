@@ -58,7 +58,6 @@ from voxfield.probes.probe_set import MAX_RESOLUTION, MIN_RESOLUTION, BakeOption
 from voxfield.progress import progress_bar
 from voxfield.render.camera import Camera
 from voxfield.render.primary import render_lod
-from voxfield.studies.html_report import write_html_report
 from voxfield.studies.probe_study_figures import (
     contact_sheet_figure,
     count_figure,
@@ -190,7 +189,7 @@ def run_probe_study(
     folder.write_figure("orderings.png", ordering_figure(report))
     folder.write_figure("contact_sheet.png", contact_sheet_figure(
         report, reference, study.kept), dpi=int(min(160, max(90, camera.width / 3))))
-    write_html_report(folder.root)
+    folder.publish_report()
     return report
 
 

@@ -1,6 +1,9 @@
 """A study's output folder: results written atomically, finished items cached so runs resume.
 
 Every file goes through ``atomic_path``, so an interrupted study never leaves half a file.
+The report files (results, figures, ``report.html``) are staged in a hidden folder and moved
+into place together by ``publish_report``, so a rerun stopped part way leaves the earlier
+report whole, never its page beside new tables that a reader would take for one run.
 Expensive items (renders, metrics) are cached under ``items/`` as ``NAME-KEY.json`` (plus
 ``NAME-KEY.npz`` for arrays), ``KEY`` a hash of everything the item depends on; re-running the
 study with the same inputs loads them instead of recomputing, and changed inputs get new keys.
@@ -14,6 +17,8 @@ from __future__ import annotations
 import hashlib
 import json
 import math
+import os
+import shutil
 import zipfile
 import zlib
 from collections.abc import Callable, Sequence
@@ -31,6 +36,7 @@ from voxfield.parallel import thread_count
 from voxfield.render.image_io import save_png
 from voxfield.render.result import RenderResult
 from voxfield.scaleout import check_scheduler, run_tasks
+from voxfield.studies.html_report import REPORT_NAME, write_html_report
 
 #: Bump when the cached item layout changes, so old caches are recomputed, not misread.
 CACHE_VERSION = 2
@@ -109,8 +115,12 @@ class _as_value:
         return self.compute(shared), {}
 
 
-#: The file that names the study a folder holds (``StudyFolder``'s ``study``).
+#: The file that names the study a folder holds (``StudyFolder``'s ``study``) and the
+#: report files its last published report wrote.
 STUDY_MARK = "study.json"
+
+#: Where a run's report files wait until ``publish_report`` moves them into the folder.
+STAGING = ".report-in-progress"
 
 
 class StudyFolder:
@@ -139,17 +149,24 @@ class StudyFolder:
         self.computed: list[str] = []
         self.reused: list[str] = []
         self._written: set[Path] = set()  # items this run wrote (trusted even when fresh)
+        self._staged: set[str] = set()  # report files of this run, not yet published
 
     def path(self, name: str) -> Path:
+        """Where report file ``name`` lies once published."""
         return self.root / name
 
-    def _held_study(self) -> str | None:
-        """The study named in the folder's mark; None where there is none (a new folder, or
-        one an older voxfield wrote) or it cannot be read (it is then claimed anew)."""
+    def _mark(self) -> dict:
+        """The folder's mark; empty where there is none (a new folder, or one an older
+        voxfield wrote) or it cannot be read (the folder is then claimed anew)."""
         try:
-            held = json.loads((self.root / STUDY_MARK).read_text()).get("study")
-        except (OSError, ValueError, AttributeError):
-            return None
+            mark = json.loads((self.root / STUDY_MARK).read_text())
+        except (OSError, ValueError):
+            return {}
+        return mark if isinstance(mark, dict) else {}
+
+    def _held_study(self) -> str | None:
+        """The study named in the folder's mark; None where there is none."""
+        held = self._mark().get("study")
         return held if isinstance(held, str) else None
 
     def _claim(self) -> None:
@@ -157,6 +174,27 @@ class StudyFolder:
         if self._held != self.study:
             self._write_json_file(self.root / STUDY_MARK, {"study": self.study})
             self._held = self.study
+
+    def _published(self) -> set[str]:
+        """The report files the mark lists: those of the last published report (and, after
+        a publish that was stopped, those of the one before)."""
+        names = self._mark().get("report")
+        if not isinstance(names, list):
+            return set()
+        # Plain names only: the mark never makes a publish remove a file outside the folder.
+        return {n for n in names if isinstance(n, str) and n == Path(n).name
+                and n not in ("", ".", "..", STUDY_MARK, STAGING, "items")}
+
+    def _stage(self, name: str) -> Path:
+        """Where this run writes report file ``name`` until ``publish_report``; the first
+        call clears what a stopped run left staged."""
+        self._claim()
+        staging = self.root / STAGING
+        if not self._staged:
+            shutil.rmtree(staging, ignore_errors=True)
+        staging.mkdir(parents=True, exist_ok=True)
+        self._staged.add(name)
+        return staging / name
 
     # --- cached items -------------------------------------------------------------------------
 
@@ -280,34 +318,57 @@ class StudyFolder:
 
     # --- outputs ------------------------------------------------------------------------------
 
+    # The writers below stage a report file and return where it lies once published.
+
     def write_json(self, name: str, data) -> Path:
-        self._claim()
-        path = self.path(name)
-        self._write_json_file(path, data)
-        return path
+        self._write_json_file(self._stage(name), data)
+        return self.path(name)
 
     def write_text(self, name: str, text: str) -> Path:
-        self._claim()
-        path = self.path(name)
-        with atomic_path(path) as tmp:
+        with atomic_path(self._stage(name)) as tmp:
             tmp.write_text(text, encoding="utf-8")
-        return path
+        return self.path(name)
 
     def write_png(self, name: str, image: np.ndarray, *, encode_srgb: bool = True) -> Path:
         """A linear image as sRGB PNG (``encode_srgb=False`` for maps that are already grey
         levels or colours)."""
-        self._claim()
-        return save_png(image, self.path(name), encode_srgb=encode_srgb)
+        save_png(image, self._stage(name), encode_srgb=encode_srgb)
+        return self.path(name)
 
     def write_figure(self, name: str, figure, *, dpi: int = 100) -> Path:
         """A matplotlib Figure as PNG; the figure is closed (pyplot keeps every open one)."""
-        self._claim()
         try:
-            return save_figure(figure, self.path(name), dpi=dpi)
+            save_figure(figure, self._stage(name), dpi=dpi)
+            return self.path(name)
         finally:
             import matplotlib.pyplot as plt  # heavy: loaded already by whoever drew the figure
 
             plt.close(figure)
+
+    def publish_report(self) -> Path:
+        """Build ``report.html`` from this run's staged files alone and move them all into
+        the folder, the page last; the files of the report before that this run did not
+        write again are removed (the page would show a stale figure as this run's).
+        Until then the folder shows the earlier report whole; returns the page's path."""
+        staging = self.root / STAGING
+        write_html_report(staging)
+        new = sorted(self._staged | {REPORT_NAME})
+        stale = self._published() - set(new)
+        # The mark lists both reports while they are swapped: a stopped swap is undone next.
+        self._write_json_file(self.root / STUDY_MARK, {"study": self.study,
+                                                       "report": sorted(stale | set(new))})
+        (self.root / REPORT_NAME).unlink(missing_ok=True)  # no page while tables change
+        for name in new:
+            if name != REPORT_NAME:
+                os.replace(staging / name, self.root / name)
+        for name in stale:
+            if not (self.root / name).is_dir():
+                (self.root / name).unlink(missing_ok=True)
+        os.replace(staging / REPORT_NAME, self.root / REPORT_NAME)
+        self._write_json_file(self.root / STUDY_MARK, {"study": self.study, "report": new})
+        shutil.rmtree(staging, ignore_errors=True)
+        self._staged.clear()
+        return self.root / REPORT_NAME
 
     @staticmethod
     def _write_json_file(path: Path, data) -> None:

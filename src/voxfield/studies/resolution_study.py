@@ -20,7 +20,6 @@ from voxfield.render.camera import top_down_camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_reference
 from voxfield.studies.figures import view_sheet
-from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import (
     StudyFolder,
     costs,
@@ -106,7 +105,7 @@ def run_resolution_study(
     folder.write_figure("view.png", view_sheet(
         {f"{size}², 4×4 reference": ref for size, ref in zip(sizes, references, strict=True)},
         title=f"The view measured at each size — {scene_name}"))
-    write_html_report(folder.root)
+    folder.publish_report()
     return report
 
 

@@ -24,7 +24,6 @@ from voxfield.render.camera import top_down_camera
 from voxfield.render.direct_light import light_on_surface, render_direct_light
 from voxfield.scene.shadow_box import shadow_box_layout
 from voxfield.scene.voxel_scene import linear_to_srgb
-from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import StudyFolder, fmt, fmt_psnr, markdown_table
 
 #: Bump when the shadow kernels' results change, so cached renders are not reused.
@@ -135,7 +134,7 @@ def run_shadow_study(
     written = _write_pictures(folder, results, top_maps, beam, octree.depth, report)
     written.append(folder.write_json("results.json", report))
     written.append(folder.write_text("results.md", results_markdown(report)))
-    written.append(write_html_report(folder.root))
+    written.append(folder.publish_report())
     return {**report, "folder": str(folder.root), "written": [str(p) for p in written],
             "computed": folder.computed, "reused": folder.reused}
 

@@ -14,7 +14,6 @@ from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_reference
 from voxfield.studies.figures import view_sheet
-from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import (
     StudyFolder,
     costs_and_quality,
@@ -77,7 +76,7 @@ def run_sweep(
     folder.write_figure("sweep.png", _figure(report, decays, thresholds))
     folder.write_figure("view.png", view_sheet({"4×4 reference": reference},
                                                title=f"The view measured — {scene_name}"))
-    write_html_report(folder.root)
+    folder.publish_report()
     return report
 
 

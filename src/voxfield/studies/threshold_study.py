@@ -13,7 +13,6 @@ from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_reference
 from voxfield.studies.figures import view_sheet
-from voxfield.studies.html_report import write_html_report
 from voxfield.studies.report import (
     StudyFolder,
     costs,
@@ -72,7 +71,7 @@ def run_threshold_study(
     folder.write_figure("thresholds.png", _figure(report))
     folder.write_figure("view.png", view_sheet({"4×4 reference": reference},
                                                title=f"The view measured — {scene_name}"))
-    write_html_report(folder.root)
+    folder.publish_report()
     return report
 
 
