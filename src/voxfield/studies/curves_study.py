@@ -45,6 +45,7 @@ from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.studies.bjontegaard import bd_cost, bd_quality
 from voxfield.studies.figures import view_sheet
+from voxfield.studies.psnr_axis import finish_psnr_axis, plot_psnr
 from voxfield.studies.report import (
     StudyFolder,
     costs,
@@ -391,8 +392,12 @@ def curves_figure(report: dict):
                 points = _sharpest_for_cost(points)
                 style = {"linestyle": "--", "color": "0.3", "marker": "."}
             for ax, (x, y, _, _) in zip(row, panels, strict=True):
-                ax.plot([p[x] for p in points], [plot_value(p.get(y)) for p in points],
-                        label=name, **style)
+                if y == "psnr":
+                    plot_psnr(ax, [p[x] for p in points], [p.get(y) for p in points],
+                              label=name, **style)
+                else:
+                    ax.plot([p[x] for p in points], [plot_value(p.get(y)) for p in points],
+                            label=name, **style)
         for ax, (_, _, x_label, y_label) in zip(row, panels, strict=True):
             ax.set_xscale("log")
             ax.xaxis.set_minor_formatter(NullFormatter())
@@ -400,6 +405,7 @@ def curves_figure(report: dict):
             ax.set_ylabel(y_label)
             ax.set_title(f"{cam_name} ({cam['kind']})")
             ax.grid(alpha=0.3)
+            finish_psnr_axis(ax)
         row[0].legend(fontsize=8)
     fig.suptitle(f"cost–quality curves — {report['scene']}")
     fig.tight_layout()

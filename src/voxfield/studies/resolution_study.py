@@ -20,6 +20,7 @@ from voxfield.render.camera import top_down_camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_reference
 from voxfield.studies.figures import view_sheet
+from voxfield.studies.psnr_axis import finish_psnr_axis, plot_psnr
 from voxfield.studies.report import (
     StudyFolder,
     costs,
@@ -194,8 +195,13 @@ def _figure(report):
     for ax, (key, label, log) in zip(axes, PANELS, strict=True):
         names = RENDERERS if key in ("rays", "steps") else RENDERERS[1:]
         for name in names:
-            ax.plot(x, [plot_value(r[name][key]) for r in rows], marker="o",
-                    color=_COLOURS[name], label=name.replace("_", "-"))
+            style = {"marker": "o", "color": _COLOURS[name], "label": name.replace("_", "-")}
+            if key == "psnr":
+                plot_psnr(ax, x, [r[name][key] for r in rows], **style)
+            else:
+                ax.plot(x, [plot_value(r[name][key]) for r in rows], **style)
+        if key == "psnr":
+            finish_psnr_axis(ax)
         ax.set_xscale("log", base=2)
         ax.set_xticks(x, [str(s) for s in x])
         ax.minorticks_off()

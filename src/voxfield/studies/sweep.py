@@ -14,6 +14,7 @@ from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_reference
 from voxfield.studies.figures import view_sheet
+from voxfield.studies.psnr_axis import finish_psnr_axis, plot_psnr
 from voxfield.studies.report import (
     StudyFolder,
     costs_and_quality,
@@ -152,11 +153,15 @@ def _figure(report, decays, thresholds):
     ax0.set_title("rays (incl. discarded)")
     fig.colorbar(image, ax=ax0)
     for d in decays:
-        row = sorted((cells[d, t]["rays"], cells[d, t]["psnr"]) for t in thresholds)
-        ax1.plot([r for r, _ in row], [p for _, p in row], marker="o", label=f"d = {d}")
+        # by rays alone: a tie went on to compare the PSNRs, and an infinite one (None)
+        # with a number raised TypeError
+        row = sorted((cells[d, t] for t in thresholds), key=lambda cell: cell["rays"])
+        plot_psnr(ax1, [c["rays"] for c in row], [c["psnr"] for c in row], marker="o",
+                  label=f"d = {d}")
     adaptive = report["adaptive"]
-    ax1.scatter([adaptive["rays"]], [adaptive["psnr"]], marker="*", s=160, color="black",
-                label="adaptive", zorder=5)
+    plot_psnr(ax1, [adaptive["rays"]], [adaptive["psnr"]], marker="*", markersize=14,
+              linestyle="none", color="black", label="adaptive", zorder=5)
+    finish_psnr_axis(ax1)
     ax1.set_xlabel("rays")
     ax1.set_ylabel("PSNR vs reference (dB)")
     ax1.set_title("quality per cost")

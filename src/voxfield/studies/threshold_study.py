@@ -13,6 +13,7 @@ from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
 from voxfield.render.primary import render_reference
 from voxfield.studies.figures import view_sheet
+from voxfield.studies.psnr_axis import finish_psnr_axis, plot_psnr, psnr_hline
 from voxfield.studies.report import (
     StudyFolder,
     costs,
@@ -140,13 +141,22 @@ def _figure(report):
     x, labels = threshold_axis(r["threshold"] for r in rows)
     fig, axes = plt.subplots(1, len(PANELS), figsize=(17, 3.4))
     for ax, (key, label, log) in zip(axes, PANELS, strict=True):
-        ax.plot(x, [plot_value(r["error_aware"][key]) for r in rows], marker="o",
-                label="error-aware" + (" (all cast)" if key == "rays" else ""))
+        label_ea = "error-aware" + (" (all cast)" if key == "rays" else "")
+        if key == "psnr":
+            plot_psnr(ax, x, [r["error_aware"][key] for r in rows], marker="o", label=label_ea)
+        else:
+            ax.plot(x, [plot_value(r["error_aware"][key]) for r in rows], marker="o",
+                    label=label_ea)
         if key == "rays":
             ax.plot(x, [r["error_aware"]["rays_hit_pixels"] for r in rows], marker=".",
                     linestyle=":", label="error-aware (hit pixels)")
-        ax.axhline(plot_value(report["adaptive"][key]), color="black", linestyle="--",
-                   label="adaptive")
+        if key == "psnr":
+            psnr_hline(ax, report["adaptive"][key], color="black", linestyle="--",
+                       label="adaptive")
+            finish_psnr_axis(ax)
+        else:
+            ax.axhline(plot_value(report["adaptive"][key]), color="black", linestyle="--",
+                       label="adaptive")
         if log:
             ax.set_yscale("log")
         if labels is not None:
