@@ -4,6 +4,7 @@ and one run of each: ``test_every_command``)."""
 from __future__ import annotations
 
 import json
+import math
 import subprocess
 import sys
 
@@ -50,6 +51,25 @@ def test_calibrate_writes_its_trail(tmp_path, capsys):
     data = json.loads(out.read_text(), parse_constant=_not_json)
     assert data["rays"] <= 2000 and len(data["trail"]) >= 4
     assert "threshold" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("psnr", "shown"), [(math.inf, ", PSNR ∞ dB"), (31.234, ", PSNR 31.23 dB"),
+                                              (math.nan, "")])
+def test_calibrate_prints_the_psnr_it_reached(monkeypatch, capsys, psnr, shown):
+    """An image equal to the reference meets every PSNR target (its PSNR is infinite, as the
+    sphere's at 32² and threshold 0.125): the summary left it out as for a ray budget (NaN,
+    nothing measured)."""
+    from voxfield.cli import cmd_calibrate
+    from voxfield.studies.calibrate import Calibration
+
+    monkeypatch.setattr(cmd_calibrate, "open_octree", lambda args: None)
+    monkeypatch.setattr(cmd_calibrate, "study_camera", lambda args, octree: None)
+    monkeypatch.setattr(cmd_calibrate, "calibrate_threshold", lambda *a, **k: Calibration(
+        0.125, 5712, 29464, psnr, {"psnr": 30.0}, [{}]))
+    assert main(["calibrate", "builtin:sphere", "--target-psnr", "30"]) == 0
+    assert capsys.readouterr().out == (
+        f"threshold 0.1250 (decay 0.2): 5,712 rays, 29,464 steps{shown}; "
+        "1 renders\n")
 
 
 def _not_json(constant: str):

@@ -19,6 +19,7 @@ from voxfield.cli.options import (
     study_camera,
 )
 from voxfield.json_output import json_text
+from voxfield.metrics import psnr_text
 from voxfield.studies.calibrate import calibrate_threshold
 
 
@@ -58,7 +59,9 @@ def run(args) -> int:
             # is written as null, as the studies write it.
             tmp.write_text(json_text(cal.as_dict()))
     if not args.quiet:
-        quality = f", PSNR {cal.psnr:.2f} dB" if np.isfinite(cal.psnr) else ""
+        # NaN: a ray budget measures no PSNR; an infinite one (an image equal to the
+        # reference) is the best there is, and was left out as if unmeasured
+        quality = "" if np.isnan(cal.psnr) else f", PSNR {psnr_text(cal.psnr)} dB"
         print(f"threshold {cal.threshold:.4f} (decay {args.decay}): {cal.rays:,} rays, "
               f"{cal.steps:,} steps{quality}; {len(cal.trail)} renders")
     return 0
