@@ -15,6 +15,7 @@ from voxfield.cli.options import (
     add_study_folder,
     add_threshold_options,
     add_view_options,
+    check_base_lod,
     default_output,
     distinct,
     finite_float,
@@ -242,6 +243,7 @@ def run_curves(args) -> int:
         if any(not math.isfinite(v) or v < 0 for v in values):
             raise VoxfieldError(f"{name} must be finite and not negative")
     octree = open_octree(args)
+    check_base_lod(args, octree)
     lo, hi = octree.voxel_bounds
     cameras = {name: preset_camera(name, lo, hi, size=args.size) for name in args.cameras}
     for view in cameras.values():

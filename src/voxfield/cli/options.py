@@ -504,9 +504,20 @@ def study_camera(args, octree) -> Camera:
     """``scene_camera`` for a command that measures from the view (studies, ``compare``,
     ``sweep``, ``calibrate``): refused, before the renders, where it stands inside or under
     the scene or sees nothing of it, as its figures would describe no view."""
+    check_base_lod(args, octree)
     view = scene_camera(args, octree)
     check_camera_placement(octree, view)
     return view
+
+
+def check_base_lod(args, octree) -> None:
+    """Refuse a ``--base-lod`` the octree has no level for before any render: the renderer
+    refused it only after the reference (minutes on a large view) had been rendered."""
+    base_lod = getattr(args, "base_lod", None)
+    if base_lod is not None and base_lod > octree.depth:
+        raise VoxfieldError(f"--base-lod {base_lod} is coarser than the scene "
+                            f"{octree.name!r} goes: its octree's LODs run 0..{octree.depth}; "
+                            f"give one of those or 'cone'")
 
 
 def default_output(prefix: str, scene: str, suffix: str = "") -> Path:
