@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from voxfield.cli.main import main
+from voxfield.errors import VoxfieldError
 from voxfield.metrics import flip_available
 from voxfield.render import Camera
 from voxfield.scene.builtin import pillars
@@ -139,3 +140,15 @@ def test_curves_on_a_cluster_equal_the_loop(octree, tmp_path, dask_client):
     cluster = run_curves_study(octree, view, tmp_path / "cluster", scheduler=dask_client,
                                **knobs)
     assert cluster["cameras"] == loop["cameras"]
+
+
+def test_lods_past_the_octree_are_named_when_left_out(tmp_path):
+    """--lods 9,1 on a depth-2 octree: LOD 9 was dropped from the curve without a word, and
+    the one level left was refused as if the user had given one value."""
+    import types
+
+    shallow = types.SimpleNamespace(depth=2, name="s")
+    with pytest.warns(UserWarning, match=r"LOD 9, 5 left out .* levels run 0\.\.2"), \
+            pytest.raises(VoxfieldError, match="at least two"):
+        run_curves_study(shallow, {"top": None}, tmp_path / "c", lods=(9, 5, 1))
+    assert not (tmp_path / "c").exists()

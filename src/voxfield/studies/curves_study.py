@@ -27,6 +27,7 @@ equal steps and its step saving at equal PSNR, per camera (perspective and ortho
 from __future__ import annotations
 
 import math
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -111,6 +112,10 @@ def run_curves_study(
     results.json, results.md and curves.png into ``out_dir``."""
     if not cameras:
         raise VoxfieldError("the curves study needs at least one camera")
+    beyond = [lod for lod in lods if not 0 <= lod <= octree.depth]
+    if beyond:  # dropped without a word, a LOD asked for was simply missing from the curve
+        warnings.warn(f"LOD {', '.join(map(str, beyond))} left out of the LOD curve: the "
+                      f"octree's levels run 0..{octree.depth}", UserWarning, stacklevel=2)
     lods = [lod for lod in lods if 0 <= lod <= octree.depth]
     if min(len(thresholds), len(normalisations), len(lods)) < 2 or not decays:
         raise VoxfieldError("each curve needs at least two knob values (and one decay)")
