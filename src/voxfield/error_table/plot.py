@@ -56,6 +56,18 @@ def _child_boxes(ax, mask: int) -> None:
     ax.set_title(f"children of mask {mask} (0b{mask:08b})", fontsize=9)
 
 
+def _threshold_on_bar(bar, threshold: float) -> str:
+    """Mark the threshold on the colour bar, which spans the errors' 0..1, and say where it
+    is: a threshold off the bar has no line there, which the title promised all the same."""
+    low, high = bar.mappable.get_clim()
+    if threshold < low:
+        return f"below the bar's {low:g}: every direction"
+    if threshold > high:
+        return f"above the bar's {high:g}: no direction"
+    bar.ax.axhline(threshold, color="red", linewidth=1.5)
+    return "the red line on the bar"
+
+
 def plot_mask_error(
     table: ErrorTable, mask: int, path: str | Path, *, threshold: float = THESIS_THRESHOLD,
     encoding: str | None = None,
@@ -95,10 +107,9 @@ def plot_mask_error(
             ax.set_title(f"viewer at {name}: {share:.0%} > {threshold:g}", fontsize=9)
             ax.axis("off")
         bar = fig.colorbar(image, ax=fig.axes[1:], fraction=0.02, pad=0.02, label="error")
-        bar.ax.axhline(threshold, color="red", linewidth=1.5)
         fig.suptitle(f"sampling error of a node instead of its children ({encoding} encoding); "
-                     f"hatched red: above the threshold {threshold:g} (the red line on the bar)",
-                     fontsize=10)
+                     f"hatched red: above the threshold {threshold:g} "
+                     f"({_threshold_on_bar(bar, threshold)})", fontsize=10)
 
         try:
             return save_figure(fig, path)
