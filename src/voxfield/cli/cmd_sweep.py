@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from voxfield.cli.commands import add_command
 from voxfield.cli.options import (
     add_channel_option,
@@ -11,6 +9,7 @@ from voxfield.cli.options import (
     add_scene_options,
     add_study_folder,
     add_view_options,
+    default_output,
     float_list,
     non_negative_float_list,
     open_octree,
@@ -40,7 +39,7 @@ def register(subparsers) -> None:
 def run(args) -> int:
     octree = open_octree(args)
     view = study_camera(args, octree)
-    out = args.out or f"out/sweep_{Path(args.scene).stem.replace(':', '_')}"
+    out = args.out or default_output("sweep", args.scene)
     report = run_sweep(octree, view, out, decays=args.decays, thresholds=args.thresholds,
                        base_lod=args.base_lod, seed=args.seed, channel=args.channel,
                        scene_name=args.scene, progress=not args.quiet, fresh=args.fresh,
