@@ -221,8 +221,12 @@ def _register_normalisation(actions) -> None:
 def run_normalisation(args) -> int:
     if not 0.0 < args.quantile <= 1.0:
         raise VoxfieldError(f"--quantile must be in (0, 1], got {args.quantile}")
+    specs = (args.scene, *args.more_scenes)
+    twice = sorted({spec for spec in specs if specs.count(spec) > 1})
+    if twice:  # kept by name, a scene given twice was measured once, the count said so
+        raise VoxfieldError(f"{', '.join(twice)} given twice: each scene counts once")
     scenes = {}
-    for spec in (args.scene, *args.more_scenes):
+    for spec in specs:
         octree = open_octree(argparse.Namespace(**{**vars(args), "scene": spec}),
                              note_unread=False)
         scenes[spec] = (octree, study_camera(args, octree))
