@@ -50,3 +50,21 @@ def test_the_command_line_refuses_a_second_study_before_its_renders(tmp_path, ca
     assert sorted(p.name for p in out.iterdir()) == before
     assert main(["study", "normalisation", "builtin:pillars", "--size", "16", "--quiet",
                  "--out", str(out)]) == 0
+
+
+def test_a_folder_that_cannot_be_written_is_refused_before_the_work(tmp_path, capsys,
+                                                                     monkeypatch):
+    """A study into a path under a file rendered everything, then failed at its first
+    output; it is refused as its folder is opened, and nothing is left behind."""
+    (tmp_path / "notes.txt").write_text("a file, not a folder")
+    out = tmp_path / "notes.txt" / "sweep"
+    with pytest.raises(NotADirectoryError):
+        StudyFolder(out, study="sweep")
+
+    def never(*args, **kwargs):
+        raise AssertionError("the sweep began its renders in a folder it cannot write")
+
+    monkeypatch.setattr("voxfield.studies.sweep.render_reference", never)
+    assert main(["sweep", "builtin:pillars", "--size", "8", "--quiet", "--out", str(out)]) == 2
+    assert str(out) in one_error_line(capsys)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["notes.txt"]

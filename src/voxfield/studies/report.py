@@ -28,7 +28,7 @@ import numpy as np
 
 import voxfield
 from voxfield.array_files import load_arrays
-from voxfield.atomic import atomic_path, save_figure
+from voxfield.atomic import atomic_path, check_writable, save_figure
 from voxfield.errors import VoxfieldError
 from voxfield.json_output import json_text, to_json
 from voxfield.metrics import compare_images, psnr_text
@@ -137,6 +137,8 @@ class StudyFolder:
         self.study = study
         #: The study the folder's mark names (None: none yet); claimed at the first output.
         self._held = self._held_study()
+        # A folder that cannot be written fails now, not at the first output after the work.
+        check_writable(self.root / STUDY_MARK)
         if self._held is not None and self._held != study:
             raise VoxfieldError(f"{self.root} holds the results of `voxfield {self._held}`; "
                                 f"give `voxfield {study}` another --out (one study per folder)")
