@@ -502,8 +502,9 @@ def scene_camera(args, octree) -> Camera:
 
 def study_camera(args, octree) -> Camera:
     """``scene_camera`` for a command that measures from the view (studies, ``compare``,
-    ``sweep``, ``calibrate``): refused, before the renders, where it stands inside or under
-    the scene or sees nothing of it, as its figures would describe no view."""
+    ``sweep``, ``calibrate``), with the checks such a command makes before its first render:
+    a ``--base-lod`` the octree has no level for, and a camera inside or under the scene or
+    seeing nothing of it, as its figures would describe no view."""
     check_base_lod(args, octree)
     view = scene_camera(args, octree)
     check_camera_placement(octree, view)

@@ -154,13 +154,7 @@ def _note_stretch(heightmap) -> None:
 def is_heightmap(spec: str) -> bool:
     """Whether ``spec`` names a terrain: a recipe, a DEM file or a DEM ``.npz``: scenes seen
     from above, where an object or a room is seen from the side."""
-    if spec.startswith(("terrain:", "dem:")):
-        return True
-    path = Path(spec)
-    suffix = path.suffix.lower()
-    if suffix in DEM_SUFFIXES:
-        return True
-    return suffix == ".npz" and path.is_file() and npz_kind(path) == "dem"
+    return scene_kind(spec) in ("recipe", "dem")
 
 
 #: What each kind of scene description is called in a note.
@@ -202,12 +196,8 @@ def block_source(spec: str, options: SceneOptions | None = None):
         return recipe_layout(spec.split(":", 1)[1], footprint=options.terrain_footprint)
     if spec.startswith("dem:"):
         return _terrain_layout(spec.split(":", 1)[1], options)
-    path = Path(spec)
-    suffix = path.suffix.lower()
-    if spec.strip() and path.exists():
-        path = _scene_file(spec)
-    if suffix in DEM_SUFFIXES and path.exists():
-        return _terrain_layout(str(path), options)
-    if suffix == ".npz" and path.is_file() and npz_kind(path) == "dem":
-        return _terrain_layout(str(path), options)
+    if spec.strip() and Path(spec).exists():
+        _scene_file(spec)  # a folder or a pipe is refused before its kind is read
+    if scene_kind(spec) == "dem":
+        return _terrain_layout(spec, options)
     return None
