@@ -51,6 +51,9 @@ def test_calibrate_writes_its_trail(tmp_path, capsys):
     data = json.loads(out.read_text(), parse_constant=_not_json)
     assert data["rays"] <= 2000 and len(data["trail"]) >= 4
     assert "threshold" in capsys.readouterr().out
+    # A ray budget renders no reference: no PSNR is written, where a null one would read as
+    # an image equal to the reference (what null means in every study's results).
+    assert "psnr" not in data and not any("psnr" in entry for entry in data["trail"])
 
 
 @pytest.mark.parametrize(("psnr", "shown"), [(math.inf, ", PSNR ∞ dB"), (31.234, ", PSNR 31.23 dB"),

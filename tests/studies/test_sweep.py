@@ -3,12 +3,13 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
 from voxfield.render import Camera
 from voxfield.scene.builtin import pillars
-from voxfield.studies.sweep import run_sweep
+from voxfield.studies.sweep import _closest_to_adaptive, _figure, _markdown, run_sweep
 from voxfield.svo import build_octree
 
 
@@ -50,3 +51,19 @@ def test_a_pick_at_the_grid_s_edge_says_so(scene, tmp_path):
     both = run_sweep(octree, camera, tmp_path / "both", decays=(0.2,), thresholds=(1e6, 1e-6))
     assert both["closest_to_adaptive"][0]["within_grid"]
     assert "(edge)" not in (tmp_path / "both" / "results.md").read_text()
+
+
+def test_threshold_headers_read_as_the_picks_table_does():
+    """The grid's headers and the figure's ticks printed ``inf`` and ``-1.0`` for the
+    thresholds that the picks table, below them, prints as ``∞`` and ``-1``."""
+    thresholds, decays = (math.inf, -1.0), (0.2,)
+    cells = [{"decay": 0.2, "threshold": t, "rays": rays, "steps": 3 * rays, "psnr": 30.0,
+              "ssim": 0.9} for t, rays in zip(thresholds, (64, 256), strict=True)]
+    report = {"scene": "s", "width": 8, "height": 8, "base_lod": 2,
+              "adaptive": {"rays": 100, "steps": 300, "psnr": 28.0, "ssim": 0.8},
+              "cells": cells, "closest_to_adaptive": _closest_to_adaptive(cells, 100, decays)}
+    text = _markdown(report, decays, thresholds)
+    assert "| decay \\ threshold | ∞ | -1 |" in text
+    assert "inf" not in text and "-1.0" not in text
+    grid_panel = _figure(report, decays, thresholds).axes[0]
+    assert [tick.get_text() for tick in grid_panel.get_xticklabels()] == ["∞", "-1"]

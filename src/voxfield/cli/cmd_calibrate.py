@@ -55,8 +55,8 @@ def run(args) -> int:
     )
     if args.out:
         with atomic_path(args.out) as tmp:
-            # Strict JSON: a PSNR that is NaN (no render yet) or infinite (equal images)
-            # is written as null, as the studies write it.
+            # Strict JSON: an infinite PSNR (an image equal to the reference) is written
+            # as null, as the studies write it; a ray budget measures none and writes none.
             tmp.write_text(json_text(cal.as_dict()))
     if not args.quiet:
         # NaN: a ray budget measures no PSNR; an infinite one (an image equal to the

@@ -8,6 +8,7 @@ and the search returns the largest threshold whose PSNR still meets the target.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 from voxfield.error_table.table import THESIS_DECAY
@@ -22,7 +23,8 @@ from voxfield.svo.octree import Octree
 
 @dataclass
 class Calibration:
-    """The chosen threshold and every evaluation made on the way."""
+    """The chosen threshold and every evaluation made on the way; ``psnr`` is NaN where
+    the target was a ray budget (no reference is rendered then)."""
 
     threshold: float
     rays: int
@@ -32,8 +34,13 @@ class Calibration:
     trail: list[dict] = field(default_factory=list)
 
     def as_dict(self) -> dict:
-        return {"threshold": self.threshold, "rays": self.rays, "steps": self.steps,
-                "psnr": self.psnr, "target": self.target, "trail": self.trail}
+        """The record a study writes: no ``psnr`` key where none was measured, so that a
+        ``null`` PSNR in JSON means only what it means elsewhere, an image equal to the
+        reference."""
+        record = {"threshold": self.threshold, "rays": self.rays, "steps": self.steps}
+        if not math.isnan(self.psnr):
+            record["psnr"] = self.psnr
+        return {**record, "target": self.target, "trail": self.trail}
 
 
 def calibrate_threshold(
@@ -57,7 +64,8 @@ def calibrate_threshold(
         result = render_error_aware(octree, camera, table, threshold=threshold, decay=decay,
                                     base_lod=base_lod, seed=seed, channel=channel)
         entry = {"threshold": threshold, "rays": result.total_rays, "steps": result.total_steps}
-        entry["psnr"] = psnr(reference.image, result.image) if reference is not None else None
+        if reference is not None:
+            entry["psnr"] = psnr(reference.image, result.image)
         trail.append(entry)
         return entry
 
@@ -92,9 +100,7 @@ def calibrate_threshold(
                 f"({'rays' if want_high else 'PSNR'}: best {edge['rays' if want_high else 'psnr']})"
             )
         best = edge
-    final_psnr = best["psnr"]
-    if final_psnr is None:
-        final_psnr = float("nan")
+    final_psnr = best.get("psnr", math.nan)
     target = {"rays": target_rays} if want_high else {"psnr": target_psnr}
     return Calibration(float(best["threshold"]), int(best["rays"]), int(best["steps"]),
                        float(final_psnr), target, trail)

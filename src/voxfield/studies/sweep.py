@@ -104,7 +104,7 @@ def _markdown(report, decays, thresholds) -> str:
     cells = {(c["decay"], c["threshold"]): c for c in report["cells"]}
     rays = [[f"d = {d}"] + [fmt(cells[d, t]["rays"]) for t in thresholds] for d in decays]
     psnr = [[f"d = {d}"] + [fmt_psnr(cells[d, t], ".2f") for t in thresholds] for d in decays]
-    headers = ["decay \\ threshold", *[str(t) for t in thresholds]]
+    headers = ["decay \\ threshold", *[fmt(t, "g") for t in thresholds]]
     adaptive = report["adaptive"]
     picks = [[fmt(p["decay"], ".2f"),
               fmt(p["threshold"], ".3f") + ("" if p.get("within_grid", True) else " (edge)"),
@@ -146,7 +146,7 @@ def _figure(report, decays, thresholds):
     grid = np.array([[cells[d, t]["rays"] for t in thresholds] for d in decays], dtype=float)
     fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 4.2))
     image = ax0.imshow(grid, cmap="magma", aspect="auto")
-    ax0.set_xticks(range(len(thresholds)), [str(t) for t in thresholds])
+    ax0.set_xticks(range(len(thresholds)), [fmt(t, "g") for t in thresholds])
     ax0.set_yticks(range(len(decays)), [str(d) for d in decays])
     ax0.set_xlabel("error threshold")
     ax0.set_ylabel("decay d")
