@@ -16,6 +16,7 @@ from voxfield.render.placement import (
     check_camera_placement,
     could_be_buried,
     empty_view_problem,
+    one_colour_view_note,
     view_note,
 )
 from voxfield.render.ray_query import trace
@@ -143,3 +144,50 @@ def test_a_render_notes_every_problem_the_full_test_finds(hollow_terrain):
         found += full is not None and "meets nothing" not in full
         skipped += not could_be_buried(hollow_terrain, view)
     assert found >= 10 and skipped >= 50, (found, skipped)
+
+
+def _two_colour_terrain(second_colour):
+    """The hollow terrain with its half x >= 32 in ``second_colour``."""
+    x, z = np.meshgrid(np.arange(64), np.arange(64), indexing="ij")
+    y = (20 + 6 * np.sin(x / 9.0) * np.cos(z / 7.0)).astype(np.int64)
+    coords = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    colours = np.full((len(coords), 3), 0.5, np.float32)
+    colours[coords[:, 0] >= 32] = second_colour
+    return build_octree(VoxelScene(coords, colours))
+
+
+@pytest.mark.parametrize(("target_x", "one_colour"), [(8.0, True), (56.0, True), (32.0, False)])
+def test_a_view_of_one_colour_is_noted_and_one_of_two_is_not(target_x, one_colour):
+    """A narrow view of either half sees one colour, one over the seam sees both; the
+    one-colour note reads the colours the rays hit, not the scene's."""
+    octree = _two_colour_terrain((0.1, 0.6, 0.2))
+    shift = np.asarray(octree.scene_origin, np.float64)
+    view = Camera.look_at(np.array([target_x, 60.0, 32.0]) - shift,
+                          np.array([target_x, 20.0, 32.5]) - shift, fov_deg=8.0, width=48)
+    origins, dirs = view.rays()
+    hits = trace(octree, origins, dirs, lod=0)
+    points = origins[hits.hit] + hits.t[hits.hit, None] * dirs[hits.hit]
+    halves = np.unique(points[:, 0] + octree.scene_origin[0] >= 32)
+    assert len(halves) == (1 if one_colour else 2)  # what the view sees, found independently
+    note = one_colour_view_note(octree, view)
+    assert (note is not None) == one_colour
+    if one_colour:
+        assert "one colour in 'albedo'" in note
+
+
+def test_measuring_commands_say_so_where_lighting_and_shadows_do_not(hollow_terrain):
+    """``study_camera`` notes a one-colour view in the channel a command measures; the
+    lighting and shadow studies, which measure their own light (no ``--channel``), are not
+    told about their albedo."""
+    import argparse
+
+    from voxfield.cli.options import study_camera
+
+    args = argparse.Namespace(scene="x", camera="top", eye=None, target=None, fov=None,
+                              size=32, base_lod=2, channel="albedo")
+    with pytest.warns(UserWarning, match="one colour in 'albedo'"):
+        study_camera(args, hollow_terrain)
+    del args.channel
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        study_camera(args, hollow_terrain)

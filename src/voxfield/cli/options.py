@@ -29,7 +29,7 @@ from voxfield.render.camera import (
     preset_camera,
 )
 from voxfield.render.framing import content_box
-from voxfield.render.placement import check_camera_placement
+from voxfield.render.placement import check_camera_placement, one_colour_view_note
 from voxfield.render.registry import RENDERERS
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
 from voxfield.scene.loaders import SCENE_KINDS, SceneOptions, is_heightmap, scene_kind
@@ -504,10 +504,15 @@ def study_camera(args, octree) -> Camera:
     """``scene_camera`` for a command that measures from the view (studies, ``compare``,
     ``sweep``, ``calibrate``), with the checks such a command makes before its first render:
     a ``--base-lod`` the octree has no level for, and a camera inside or under the scene or
-    seeing nothing of it, as its figures would describe no view."""
+    seeing nothing of it, as its figures would describe no view; a view of one colour in the
+    measured ``--channel`` is noted, as its figures describe outlines alone."""
     check_base_lod(args, octree)
     view = scene_camera(args, octree)
     check_camera_placement(octree, view)
+    channel = getattr(args, "channel", None)  # lighting and shadows measure their own light
+    note = one_colour_view_note(octree, view, channel) if channel else None
+    if note:
+        warnings.warn(note, UserWarning, stacklevel=2)
     return view
 
 

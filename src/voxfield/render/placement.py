@@ -12,6 +12,7 @@ import numpy as np
 from voxfield.error_table.directions import fibonacci_directions
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.camera_rays import ORTHOGRAPHIC, PINHOLE
+from voxfield.kernels.colour import decode_channel
 from voxfield.render.camera import Camera
 from voxfield.render.ray_query import trace
 from voxfield.svo.octree import Octree
@@ -76,6 +77,31 @@ def camera_placement_problem(octree: Octree, camera: Camera) -> str | None:
                 f"of the sky above it is blocked while {100 * open_below:.0f} % of the rays "
                 "below it escape")
     return None
+
+
+#: The one-colour test's rays: a grid of at most this many a side over the image.
+COLOUR_SAMPLES = 64
+
+
+def one_colour_view_note(octree: Octree, camera: Camera, channel: str = "albedo") -> str | None:
+    """That every voxel ``camera`` sees has one colour in ``channel`` (one sentence), or
+    None. Every LOD of such a view averages that colour, so the renderers a study compares
+    differ in outlines alone (PSNR ∞ where those match too): the top view of a room's roof,
+    any view of a one-colour model. A grid of at most ``COLOUR_SAMPLES``² rays decides."""
+    if camera.kind not in (PINHOLE, ORTHOGRAPHIC):
+        return None
+    stored = octree.channel(channel)
+    sampled = dataclasses.replace(camera, width=min(camera.width, COLOUR_SAMPLES),
+                                  height=min(camera.height, COLOUR_SAMPLES))
+    origins, dirs = sampled.rays()
+    hits = trace(octree, origins, dirs, lod=0)
+    seen = stored[hits.node[hits.hit]]
+    if len(seen) == 0 or np.any(seen != seen[0]):
+        return None
+    rgb = ", ".join(f"{v:.3g}" for v in decode_channel(seen[:1])[0])
+    return (f"every voxel the view sees has one colour in {channel!r} (linear RGB {rgb}), so "
+            "the renderers measured differ in outlines alone; a view of more of the scene "
+            "(--camera, --eye/--target) or another --channel measures more")
 
 
 def could_be_buried(octree: Octree, camera: Camera) -> bool:
