@@ -86,3 +86,22 @@ def test_running_out_of_memory_is_one_line(monkeypatch, capsys):
     assert main(["render", "builtin:sphere", "--out", "unused.png"]) == 2
     line = _last_line(capsys)
     assert line.startswith("voxfield: error: out of memory (Unable to allocate 2.00 GiB")
+
+
+def test_ctrl_c_while_a_finished_command_exits_changes_nothing(tmp_path):
+    """A Ctrl-C in the tenths of a second the interpreter takes to shut down after a command
+    has finished killed the process without a word, status 130, over complete outputs; here
+    it lands in an exit handler, as it would in the interpreter's own shutdown."""
+    import subprocess
+    import sys
+
+    script = tmp_path / "finished_then_ctrl_c.py"
+    script.write_text(
+        "import atexit, importlib, os, signal, time\n"
+        "cli = importlib.import_module('voxfield.cli.main')  # the module, not its main\n"
+        "cli.main = lambda argv=None: 3  # a command that finished with status 3\n"
+        "atexit.register(lambda: (os.kill(os.getpid(), signal.SIGINT), time.sleep(0.2)))\n"
+        "cli.program()\n")
+    done = subprocess.run([sys.executable, str(script)], capture_output=True, text=True,
+                          timeout=120)
+    assert (done.returncode, done.stderr) == (3, "")

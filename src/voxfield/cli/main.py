@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import re
+import signal
 import sys
 import warnings
 
@@ -98,6 +99,16 @@ def join_negative_values(argv: list[str]) -> list[str]:
         out.append(token)
         i += 1
     return out
+
+
+def program() -> None:
+    """The ``voxfield`` program: ``main``'s status as the process's. Once the command has
+    finished, Ctrl-C is ignored: in the tenths of a second the interpreter then takes to shut
+    down, it killed the process without a word and with status 130, over a command whose
+    outputs were all written. SIGTERM still ends an exit that hangs."""
+    status = main()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    sys.exit(status)
 
 
 def main(argv: list[str] | None = None) -> int:
