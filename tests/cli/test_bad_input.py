@@ -703,13 +703,13 @@ def test_a_study_of_several_scenes_notes_the_build_options_none_of_them_reads(tm
                                                                               capsys):
     np.save(tmp_path / "hills.npy", np.add.outer(np.arange(16.0), np.arange(16.0)))
     hills = str(tmp_path / "hills.npy")
-    study = ["study", "normalisation", "builtin:sphere", hills, "--size", "8", "--quiet",
+    study = ["study", "normalisation", "builtin:pillars", hills, "--size", "8", "--quiet",
              "--footprint", "16"]
     assert main([*study, "--out", str(tmp_path / "a")]) == 0
-    assert capsys.readouterr().err == ""  # the DEM reads the footprint the sphere does not
+    assert capsys.readouterr().err == ""  # the DEM reads the footprint the pillars do not
     assert main([*study, "--mesh-resolution", "64", "--out", str(tmp_path / "b")]) == 0
     assert capsys.readouterr().err == (
-        f"voxfield: note: none of the scenes builtin:sphere, {hills} takes --mesh-resolution "
+        f"voxfield: note: none of the scenes builtin:pillars, {hills} takes --mesh-resolution "
         "(for meshes); ignored\n")
 
 

@@ -110,7 +110,7 @@ def test_a_render_item_of_another_shape_is_recomputed(tmp_path, text):
 
 @pytest.mark.parametrize("item, text", [("quality_adaptive", "[]"), ("reference", "null")])
 def test_compare_resumes_past_an_item_of_another_shape(tmp_path, capsys, item, text):
-    command = ["compare", "builtin:sphere", "--size", "8", "--quiet", "--out", str(tmp_path)]
+    command = ["compare", "builtin:pillars", "--size", "8", "--quiet", "--out", str(tmp_path)]
     assert main(command) == 0
     (path,) = (tmp_path / "items").glob(f"{item}-*.json")
     path.write_text(text + "\n")

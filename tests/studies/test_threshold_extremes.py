@@ -38,7 +38,7 @@ def test_any_threshold_gives_the_figure_and_the_report(scene, tmp_path, threshol
 
 
 def test_the_cli_study_with_a_huge_threshold_finishes(tmp_path, capsys):
-    assert main(["study", "thresholds", "builtin:sphere", "--size", "8", "--quiet",
+    assert main(["study", "thresholds", "builtin:pillars", "--size", "8", "--quiet",
                  "--thresholds", "1e308", "--out", str(tmp_path)]) == 0
     assert capsys.readouterr().err == ""
     assert (tmp_path / "thresholds.png").is_file() and (tmp_path / "report.html").is_file()
