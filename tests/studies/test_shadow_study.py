@@ -1,6 +1,9 @@
-"""The shadow study on a scene without light: the error says what the study needs."""
+"""The shadow study where its view cannot measure shadows: a scene without light is refused
+with what the study needs, a view of almost no lit pixel is noted."""
 
 from __future__ import annotations
+
+import warnings
 
 import numpy as np
 import pytest
@@ -20,3 +23,37 @@ def test_a_scene_without_emission_is_refused_with_what_it_needs(tmp_path):
     with pytest.raises(VoxfieldError, match="direct lighting needs emitting voxels"):
         run_shadow_study(octree, camera, tmp_path / "study")
     assert not (tmp_path / "study").exists()
+
+
+@pytest.fixture(scope="module")
+def lamp_over_a_floor():
+    """A 16² floor (top face at y = 1) under one emitting voxel at (8, 5, 8)."""
+    x, z = np.meshgrid(np.arange(16), np.arange(16), indexing="ij")
+    coords = np.concatenate([np.stack([x.ravel(), np.zeros(x.size, int), z.ravel()], axis=1),
+                             [(8, 5, 8)]])
+    emission = np.zeros((len(coords), 3))
+    emission[-1] = 12.0
+    return build_octree(VoxelScene(coords, np.full((len(coords), 3), 0.5),
+                                   emission=emission, name="lamp"))
+
+
+def _study(octree, eye, out):
+    shift = np.asarray(octree.scene_origin, np.float64)
+    camera = Camera.look_at(np.asarray(eye, float) - shift, np.array([8.0, 0.5, 8.5]) - shift,
+                            fov_deg=40.0, width=12)
+    return run_shadow_study(octree, camera, out, light_samples=2, reference_samples=4,
+                            floor_samples=2)
+
+
+def test_a_view_of_the_floor_s_unlit_underside_is_noted(lamp_over_a_floor, tmp_path):
+    """Seen from below, the floor turns its unlit face to the camera: every pixel is black in
+    every render, so the PSNRs are high and say nothing of the shadows."""
+    with pytest.warns(UserWarning, match=r"0\.0 % of the reference's pixels show light"):
+        report = _study(lamp_over_a_floor, (8.0, -20.0, 8.6), tmp_path / "below")
+    assert all(row.get("psnr", np.inf) > 50.0 for row in report["rows"])
+
+
+def test_a_view_of_the_lit_floor_is_not(lamp_over_a_floor, tmp_path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        _study(lamp_over_a_floor, (8.0, 20.0, 8.6), tmp_path / "above")

@@ -11,6 +11,7 @@ folder, so a re-run resumes.
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -33,6 +34,10 @@ ROWS = {"reference": "reference", "full-res": "reference", "distance": "distance
         "error-aware": "error-aware"}
 #: Light samples per pixel of the top-down LOD maps (only the LOD is looked at there).
 TOP_VIEW_SAMPLES = 4
+#: Under this share of pixels that show light (not black in the reference's PNG), the view
+#: sees little of what the lights reach: its PSNRs, high over the black pixels every renderer
+#: agrees on, say little.
+DARK_VIEW_SHARE = 0.05
 #: Depth (voxels) of the floor strip in front of the grid where the light is measured.
 BEAM_LENGTH = 64
 LOD_COLORMAP = "magma"
@@ -90,6 +95,7 @@ def run_shadow_study(
                       enabled=progress and scheduled) as bar:
         rendered = folder.render_batch(specs, shared=(octree, table), bar=bar)
     results = dict(zip(ROWS, rendered[:len(ROWS)], strict=True))
+    _note_a_dark_view(results["reference"].image)
     top_maps = dict(zip(("distance", "error-aware"), rendered[len(ROWS):], strict=True))
     beam = _measure_beam(folder, octree, key, floor_samples=floor_samples,
                          lod_distance=lod_distance, threshold=threshold, decay=decay,
@@ -138,6 +144,19 @@ def run_shadow_study(
     written.append(folder.publish_report())
     return {**report, "folder": str(folder.root), "written": [str(p) for p in written],
             "computed": folder.computed, "reused": folder.reused}
+
+
+def _note_a_dark_view(reference: np.ndarray) -> None:
+    """Say so where the view sees almost nothing the lights reach: the study's default view
+    is made for the shadow box, and another scene's lights may shine elsewhere."""
+    shown = linear_to_srgb(np.clip(reference, 0.0, 1.0)) >= 0.5 / 255.0  # not black in a PNG
+    lit = float(np.mean(np.any(shown, axis=-1)))
+    if lit < DARK_VIEW_SHARE:
+        warnings.warn(f"{100 * lit:.1f} % of the reference's pixels show light: the view "
+                      "sees little of what the lights reach, so its PSNRs (high over the "
+                      "black pixels every renderer agrees on) say little of the shadows; a "
+                      "view of the lit part (--camera, --eye/--target) measures them",
+                      UserWarning, stacklevel=3)
 
 
 def _measure_beam(folder, octree, key, *, floor_samples: int, **options) -> dict | None:
