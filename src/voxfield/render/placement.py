@@ -86,7 +86,7 @@ COLOUR_SAMPLES = 64
 def one_colour_view_note(octree: Octree, camera: Camera, channel: str = "albedo") -> str | None:
     """That every voxel ``camera`` sees has one colour in ``channel`` (one sentence), or
     None. Every LOD of such a view averages that colour, so the renderers a study compares
-    differ in outlines alone (PSNR ∞ where those match too): the top view of a room's roof,
+    differ in outlines alone (PSNR ∞ where those match too): the top view of a one-colour roof,
     any view of a one-colour model. A grid of at most ``COLOUR_SAMPLES``² rays decides."""
     if camera.kind not in (PINHOLE, ORTHOGRAPHIC):
         return None
