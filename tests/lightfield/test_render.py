@@ -440,6 +440,36 @@ def test_command_lights_its_pngs_for_display_not_its_figures(run, cornell_folder
     assert np.mean(lit.sum(-1) < flat.sum(-1) - 6) > 0.5
 
 
+def test_command_notes_a_compared_view_of_one_colour(run, cornell_folder, tmp_path, capsys):
+    """A room of one colour: the light field's false hits show that colour too, so its
+    PSNR against the octree measures outlines alone (a sponge of one colour measured 33 dB
+    and SSIM 0.98 over a trace that hit the wrong surface at 98 % of its pixels, without a
+    word). --compare says so; over the Cornell box's colours it does not."""
+    from voxfield.probes.folder_bake import bake_to_folder
+    from voxfield.svo.io import save_octree
+
+    room = room_scene()
+    grey = np.full_like(room.color, 0.5)
+    octree = build_octree(VoxelScene(room.coords, grey, name="grey"))
+    scene = save_octree(octree, tmp_path / "grey.npz")
+    folder = tmp_path / "grey_probes"
+    bake_to_folder(octree, ProbeGrid.fit(*octree.voxel_bounds, (2, 1, 1)),
+                   BakeOptions(resolution=8, renderer="lod", lod=0), folder, scheduler="serial")
+    view = ["--camera", "room", "--size", "16", "--compare", "--quiet"]
+    assert run(["probe-render", str(folder), "--scene", str(scene), *view, "--out",
+                str(tmp_path / "grey.png")]) == 0
+    err = capsys.readouterr().err
+    assert "every voxel the view sees has one colour in 'albedo'" in err
+    assert len(err.splitlines()) == 1
+    assert run(["probe-render", str(cornell_folder), "--scene", "builtin:cornell", *view,
+                "--out", str(tmp_path / "cornell.png")]) == 0
+    assert "one colour" not in capsys.readouterr().err
+    # Without --compare nothing is measured, and nothing is said.
+    assert run(["probe-render", str(folder), "--scene", str(scene), "--camera", "room",
+                "--size", "16", "--quiet", "--out", str(tmp_path / "plain.png")]) == 0
+    assert "one colour" not in capsys.readouterr().err
+
+
 def test_command_says_when_no_probe_answers_most_pixels(run, cornell_folder, tmp_path,
                                                        capsys):
     """From above the box its probes, inside it, see none of the roof the camera sees: the

@@ -67,7 +67,7 @@ from voxfield.metrics import compare_images, psnr_text
 from voxfield.probes.probe_folder import open_probe_set, owned_file, read_header
 from voxfield.render.device import DEVICES
 from voxfield.render.image_io import check_image_output, save_result_image, shade_for_display
-from voxfield.render.placement import camera_placement_problem
+from voxfield.render.placement import camera_placement_problem, one_colour_view_note
 from voxfield.render.primary import render_lod, render_reference
 from voxfield.scene.terrain.columns import DEM_FITS
 from voxfield.studies.report import fmt, fmt_psnr
@@ -185,6 +185,10 @@ def run(args) -> int:
     if problem is not None:
         print(f"voxfield: note: {problem}; its figures describe no real view",
               file=sys.stderr)
+    elif args.compare:  # PSNRs over one colour measure outlines alone, not the probes' trace
+        one_colour = one_colour_view_note(octree, view, probe_set.options.channel)
+        if one_colour is not None:
+            print(f"voxfield: note: {one_colour}", file=sys.stderr)
     box = None
     if args.method == "box-proxy":
         box = bounds if args.box_min is None else (args.box_min, args.box_max)
