@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+from voxfield.errors import VoxfieldError
 from voxfield.json_output import to_json
 from voxfield.probes import probe_folder
 from voxfield.probes.bake import bake_probe, bake_probes
@@ -189,6 +190,21 @@ def test_other_scene_or_options_refused_unless_fresh(tmp_path, octree, grid):
     fresh = bake_to_folder(octree, grid, other_options, tmp_path, scheduler="serial",
                            fresh=True)
     assert_same(fresh, bake_probes(octree, grid, other_options))
+
+
+def test_options_the_octree_cannot_bake_are_refused_before_the_folder_is_written(
+        tmp_path, octree, grid):
+    """`voxfield bake --lod 99` was refused after it had written the folder's header, whose
+    options then refused the corrected run (--lod 2: "holds probes baked with other bake
+    options (lod)") until --fresh; now nothing is written and the corrected run bakes."""
+    folder = tmp_path / "probes"
+    too_deep = BakeOptions(resolution=8, renderer="lod", lod=octree.depth + 1)
+    with pytest.raises(VoxfieldError, match="deeper than this octree allows"):
+        bake_to_folder(octree, grid, too_deep, folder, scheduler="serial")
+    assert not folder.exists()
+    corrected = BakeOptions(resolution=8, renderer="lod", lod=1)
+    baked = bake_to_folder(octree, grid, corrected, folder, scheduler="serial")
+    assert_same(baked, bake_probes(octree, grid, corrected))
 
 
 def test_bad_folders_give_clear_errors(tmp_path, octree, grid):

@@ -50,7 +50,7 @@ def bake_probe(octree: Octree, position, options: BakeOptions, *,
     """Bake one probe at ``position`` (world units): a pure function of the octree, position
     and options — the same inputs give bit-identical maps and counts on any thread count, so
     it may run in any process (arguments and result pickle) and be retried or resumed."""
-    _check(octree, options)
+    check_bake_options(octree, options)
     _warm_up(octree, position, options, threads)
     camera = Camera.octahedral(position, options.resolution)
     radiance, geometry = _passes(octree, camera, options, threads)
@@ -94,7 +94,7 @@ def bake_probes(octree: Octree, grid, options: BakeOptions, *, progress: bool = 
     """Bake every enabled probe of ``grid`` (anything with ``positions`` (N, 3) and
     ``enabled`` (N,) or None, e.g. ``ProbeGrid``) in grid order; disabled probes hold
     ``ProbeMaps.empty`` and are flagged in ``ProbeSet.enabled``."""
-    _check(octree, options)
+    check_bake_options(octree, options)
     if not hasattr(grid, "positions"):
         raise VoxfieldError(f"bake_probes needs a probe grid (probes.grid.ProbeGrid, or "
                             f"anything with positions (N, 3)), got {type(grid).__name__}")
@@ -129,7 +129,7 @@ def bake_cube_faces(octree: Octree, position, size: int, options: BakeOptions, *
     Traced from the octree rather than resampled from the octahedral map: exact, no second
     filtering, and the pixel cone picks each face's LOD just as the texel cone does for the
     map. Distance is radial (the probe thesis's r_P), not the camera's z-depth."""
-    _check(octree, options)
+    check_bake_options(octree, options)
     size = integer_in(size, "cube face size", 1, MAX_IMAGE_SIDE)
     radiance = np.empty((6, size, size, 3), np.float16)
     distance = np.empty((6, size, size), np.float32)
@@ -154,7 +154,9 @@ def export_cube_faces(probe_set: ProbeSet, octree: Octree, probe: int, size: int
                            threads=threads)
 
 
-def _check(octree: Octree, options: BakeOptions) -> None:
+def check_bake_options(octree: Octree, options: BakeOptions) -> None:
+    """Refuse options this octree cannot bake (a LOD deeper than it goes, a channel it
+    lacks) in one line, before anything is traced or written."""
     if not isinstance(options, BakeOptions):
         raise VoxfieldError(f"bake options must be BakeOptions, got {type(options).__name__}")
     if options.lod is not None and options.lod > octree.depth:

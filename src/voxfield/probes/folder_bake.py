@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.json_output import to_json
+from voxfield.probes.bake import check_bake_options
 from voxfield.probes.distributed import bake_each, check_scheduler
 from voxfield.probes.probe_folder import (
     HEADER_NAME,
@@ -54,6 +55,9 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
 
     started = time.perf_counter()
     check_scheduler(scheduler)
+    # Before the header is written: a refused --lod left a header that refused the next,
+    # corrected run ("holds probes baked with other bake options (lod)") without --fresh.
+    check_bake_options(octree, options)
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise ProbeStorageError(f"{folder} exists and is not a folder; pick another --out")
