@@ -40,6 +40,30 @@ def test_bad_arguments_exit_2(run, tmp_path, capsys):
     assert code == 2 and "no such probe-set folder" in capsys.readouterr().err
 
 
+def test_a_refused_bake_says_one_line(run, tmp_path, capsys):
+    """A probe standing in the Cornell box's wall draws a note; a bake refused for its
+    --out, --lod or --channel said that note first and the refusal second (the scene was
+    built and the grid checked for a bake that never ran); now the refusal alone. (Each
+    run's grid is its own: a note repeated word for word is shown once a process.)"""
+    def in_wall(spacing):
+        return ["--grid", f"origin=0.5,16.5,16.5;spacing={spacing};counts=2,1,1",
+                "--resolution", "8", "--quiet"]
+
+    assert run(["bake", "builtin:cornell", *in_wall(15), "--out", str(tmp_path / "ok")]) == 0
+    assert "stand inside solid voxels" in capsys.readouterr().err
+    a_file = tmp_path / "a_file"
+    a_file.write_text("")
+    refused = ["--out", str(tmp_path / "refused")]
+    for spacing, extra, error in (
+            (14, ["--out", str(a_file)], "is not a folder"),
+            (13, [*refused, "--renderer", "lod", "--lod", "99"], "deeper than this octree"),
+            (12, [*refused, "--channel", "noon"], "no channel 'noon'")):
+        assert run(["bake", "builtin:cornell", *in_wall(spacing), *extra]) == 2
+        lines = capsys.readouterr().err.splitlines()
+        assert len(lines) == 1 and error in lines[0], lines
+    assert not (tmp_path / "refused").exists()
+
+
 def test_bake_and_show_end_to_end(run, tmp_path, capsys):
     out = tmp_path / "cornell"
     argv = ["bake", "builtin:cornell", "--grid", "2x1x1", "--resolution", "8",

@@ -25,7 +25,7 @@ from voxfield.cli.options import (
     warn_ignored,
 )
 from voxfield.errors import VoxfieldError
-from voxfield.probes.bake import RADIANCE_FIELDS, export_cube_faces
+from voxfield.probes.bake import RADIANCE_FIELDS, check_bake_options, export_cube_faces
 from voxfield.probes.folder_bake import bake_to_folder
 from voxfield.probes.grid import check_placement, parse_grid, relocate
 from voxfield.probes.probe_folder import open_probe_set, read_header
@@ -165,7 +165,10 @@ def _source(args) -> dict:
 def run_bake(args) -> int:
     options = _bake_options(args)  # bad options fail before the scene is built
     out = Path(args.out) if args.out else default_output("probes", args.scene)
+    if out.exists() and not out.is_dir():
+        raise VoxfieldError(f"{out} exists and is not a folder; pick another --out")
     octree = open_octree(args)
+    check_bake_options(octree, options)  # before the grid's notes, not after them
     grid = parse_grid(args.grid, octree.voxel_bounds, octree=octree)
     report = None
     if args.relocate:
