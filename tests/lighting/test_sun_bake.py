@@ -74,6 +74,7 @@ def test_a_floor_voxel_open_to_the_sky_is_lit_by_sun_and_sky():
     assert np.allclose(leaf_channel(lit, "test")[centre], expected, rtol=1e-6)
     assert report.surface_voxels == 81 and report.sunlit_fraction["test"] == 1.0
     assert report.shadow_rays > 0 and report.sky_rays > 0 and report.traversal_steps > 0
+    assert report.summary().startswith("sun bake: 1 sun over 81 surface voxels")  # not "1 suns"
 
 
 def test_a_floor_voxel_under_a_roof_gets_no_sun_and_little_sky():

@@ -187,6 +187,13 @@ def test_parse_grid_refuses_bad_text(text, match):
         parse_grid(text, (np.zeros(3), np.full(3, 16)))
 
 
+@pytest.mark.parametrize("text", ["0x2x2", "origin=0,0,0;spacing=1;counts=0,2,2"])
+def test_refused_counts_read_as_they_were_written(text):
+    """They read "got [0.0, 2.0, 2.0]", the floats the counts were parsed as."""
+    with pytest.raises(VoxfieldError, match=r"whole numbers >= 1, got 0x2x2$"):
+        parse_grid(text, (np.zeros(3), np.full(3, 16)))
+
+
 def test_dict_round_trip_is_exact_through_json():
     rng = np.random.default_rng(0)
     grid = ProbeGrid(origin=(0.1, -2 / 3, 1e-17), spacing=(np.pi, 1 / 7, 3.0), counts=(3, 2, 2))

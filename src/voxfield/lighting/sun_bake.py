@@ -102,7 +102,8 @@ class BakeReport:
         rate = self.rays / self.seconds / 1e6 if self.seconds > 0 else float("inf")
         lit = ", ".join(f"{k} {v:.0%}" for k, v in self.sunlit_fraction.items())
         return (
-            f"sun bake: {len(self.suns)} suns over {self.surface_voxels:,} surface voxels "
+            f"sun bake: {len(self.suns)} sun{'' if len(self.suns) == 1 else 's'} over "
+            f"{self.surface_voxels:,} surface voxels "
             f"(of {self.voxels:,}); {self.sky_rays:,} sky + {self.shadow_rays:,} shadow rays, "
             f"{self.traversal_steps:,} steps ({self.traversal_steps / max(self.rays, 1):.1f}"
             f"/ray), {self.seconds:.2f} s on {self.threads} threads ({rate:.2f} Mrays/s); "

@@ -42,6 +42,11 @@ _NUDGE = 1e-4
 _KEY_BITS = 21
 
 
+def counts_text(counts) -> str:
+    """Probe counts as a grid is written (``0x2x2``), not as the floats they were read as."""
+    return "x".join(f"{float(c):g}" for c in counts)
+
+
 def _vector(value, name: str, dtype=np.float64) -> np.ndarray:
     try:
         v = np.array(value, dtype=dtype).reshape(-1)
@@ -87,7 +92,7 @@ class ProbeGrid:
         raw_counts = _vector(self.counts, "counts")
         if np.any(raw_counts != np.round(raw_counts)) or np.any(raw_counts < 1):
             raise VoxfieldError(
-                f"probe counts must be whole numbers >= 1, got {raw_counts.tolist()}"
+                f"probe counts must be whole numbers >= 1, got {counts_text(raw_counts)}"
             )
         counts = raw_counts.astype(np.int64)
         n = math.prod(int(c) for c in counts)
@@ -128,7 +133,7 @@ class ProbeGrid:
             raise VoxfieldError(f"the grid margin must be >= 0 spacings, got {margin}")
         n = _vector(counts, "counts")
         if np.any(n != np.round(n)) or np.any(n < 1):
-            raise VoxfieldError(f"probe counts must be whole numbers >= 1, got {n.tolist()}")
+            raise VoxfieldError(f"probe counts must be whole numbers >= 1, got {counts_text(n)}")
         cells = n - 1 + 2 * margin
         single = cells <= 0  # one probe and no margin: centre it
         spacing = (hi - lo) / np.where(single, 1.0, cells)
