@@ -25,12 +25,17 @@ from voxfield.svo import build_octree
 from voxfield.svo.open import open_octree
 
 
+def _rolling_surface() -> np.ndarray:
+    """Voxel coordinates of a rolling surface one voxel thick over a 64² footprint."""
+    x, z = np.meshgrid(np.arange(64), np.arange(64), indexing="ij")
+    y = (20 + 6 * np.sin(x / 9.0) * np.cos(z / 7.0)).astype(np.int64)
+    return np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+
+
 @pytest.fixture(scope="module")
 def hollow_terrain():
     """A rolling surface one voxel thick: empty space above and below it."""
-    x, z = np.meshgrid(np.arange(64), np.arange(64), indexing="ij")
-    y = (20 + 6 * np.sin(x / 9.0) * np.cos(z / 7.0)).astype(np.int64)
-    coords = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    coords = _rolling_surface()
     return build_octree(VoxelScene(coords, np.full((len(coords), 3), 0.5, np.float32)))
 
 
@@ -148,9 +153,7 @@ def test_a_render_notes_every_problem_the_full_test_finds(hollow_terrain):
 
 def _two_colour_terrain(second_colour):
     """The hollow terrain with its half x >= 32 in ``second_colour``."""
-    x, z = np.meshgrid(np.arange(64), np.arange(64), indexing="ij")
-    y = (20 + 6 * np.sin(x / 9.0) * np.cos(z / 7.0)).astype(np.int64)
-    coords = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    coords = _rolling_surface()
     colours = np.full((len(coords), 3), 0.5, np.float32)
     colours[coords[:, 0] >= 32] = second_colour
     return build_octree(VoxelScene(coords, colours))
