@@ -26,7 +26,7 @@ from voxfield.cli.options import (
 )
 from voxfield.errors import VoxfieldError
 from voxfield.probes.bake import RADIANCE_FIELDS, check_bake_options, export_cube_faces
-from voxfield.probes.folder_bake import bake_to_folder
+from voxfield.probes.folder_bake import bake_to_folder, checked_folder_path
 from voxfield.probes.grid import check_placement, parse_grid, relocate
 from voxfield.probes.probe_folder import open_probe_set, read_header
 from voxfield.probes.probe_set import BAKE_RENDERERS, MAX_RESOLUTION, MIN_RESOLUTION, BakeOptions
@@ -164,9 +164,7 @@ def _source(args) -> dict:
 
 def run_bake(args) -> int:
     options = _bake_options(args)  # bad options fail before the scene is built
-    out = Path(args.out) if args.out else default_output("probes", args.scene)
-    if out.exists() and not out.is_dir():
-        raise VoxfieldError(f"{out} exists and is not a folder; pick another --out")
+    out = checked_folder_path(args.out or default_output("probes", args.scene))
     octree = open_octree(args)
     check_bake_options(octree, options)  # before the grid's notes, not after them
     grid = parse_grid(args.grid, octree.voxel_bounds, octree=octree)

@@ -34,6 +34,14 @@ from voxfield.probes.probe_folder import (
 HEADER_FLUSH_SECONDS = 1.0
 
 
+def checked_folder_path(out) -> Path:
+    """``out`` as a probe folder's path, refused where a file stands there."""
+    folder = Path(out)
+    if folder.exists() and not folder.is_dir():
+        raise ProbeStorageError(f"{folder} exists and is not a folder; pick another --out")
+    return folder
+
+
 def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = False,
                    progress: bool = False, source: dict | None = None, relocation=None,
                    baker=None):
@@ -58,9 +66,7 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
     # Before the header is written: a refused --lod left a header that refused the next,
     # corrected run ("holds probes baked with other bake options (lod)") without --fresh.
     check_bake_options(octree, options)
-    folder = Path(out)
-    if folder.exists() and not folder.is_dir():
-        raise ProbeStorageError(f"{folder} exists and is not a folder; pick another --out")
+    folder = checked_folder_path(out)
     channel = getattr(options, "channel", "albedo")
     header = new_header(grid=grid, options=options,
                         fingerprint=octree.fingerprint(channel), channel=channel,

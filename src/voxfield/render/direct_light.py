@@ -74,19 +74,26 @@ class EmitterFaces:
         return len(self.axis)
 
 
-def emitter_faces(octree: Octree) -> EmitterFaces:
-    """The exposed faces of the voxels whose ``emission`` is non-zero."""
+def check_emitters(octree: Octree) -> np.ndarray:
+    """Refuse a scene without light in one line saying what direct lighting needs; else
+    which leaves emit (a mask over the finest level)."""
     if "emission" not in octree.attributes:
         raise VoxfieldError(
             f"scene {octree.name!r} has no emission channel; direct lighting needs emitting "
             "voxels (e.g. builtin:shadowbox or builtin:cornell)"
         )
-    leaves = octree.level_slice(octree.depth)
-    coords = octree.node_coords(octree.depth)
-    emission = octree.attributes["emission"][leaves].astype(np.float64)
-    lit = (emission @ _LUMINANCE) > 0.0
+    emission = octree.attributes["emission"][octree.level_slice(octree.depth)]
+    lit = (emission.astype(np.float64) @ _LUMINANCE) > 0.0
     if not lit.any():
         raise VoxfieldError(f"scene {octree.name!r} has no voxel with positive emission")
+    return lit
+
+
+def emitter_faces(octree: Octree) -> EmitterFaces:
+    """The exposed faces of the voxels whose ``emission`` is non-zero."""
+    lit = check_emitters(octree)
+    coords = octree.node_coords(octree.depth)
+    emission = octree.attributes["emission"][octree.level_slice(octree.depth)].astype(np.float64)
     side = (1 << octree.depth) + 2  # keys of neighbours one voxel outside the root stay unique
 
     def key(c: np.ndarray) -> np.ndarray:

@@ -22,7 +22,7 @@ from voxfield.fingerprint import array_fingerprint
 from voxfield.metrics import psnr
 from voxfield.progress import progress_bar
 from voxfield.render.camera import top_down_camera
-from voxfield.render.direct_light import emitter_faces, light_on_surface, render_direct_light
+from voxfield.render.direct_light import check_emitters, light_on_surface, render_direct_light
 from voxfield.scene.shadow_box import shadow_box_layout
 from voxfield.scene.voxel_scene import linear_to_srgb
 from voxfield.studies.report import StudyFolder, fmt, fmt_psnr, markdown_table
@@ -58,7 +58,7 @@ def run_shadow_study(
     """Render, measure and write the study into ``out_dir``; returns ``results.json``'s
     content plus ``folder``, ``written``, ``computed`` and ``reused``. The five renders are
     independent items: with a ``scheduler`` (``voxfield.scaleout``) they run as tasks."""
-    emitter_faces(octree)  # a scene without light: what it needs, before any key reads it
+    check_emitters(octree)  # a scene without light: what it needs, before a key reads it
     table = load_error_table()
     folder = StudyFolder(out_dir, study="shadows", fresh=fresh, scheduler=scheduler)
     scheduled = scheduler not in (None, "serial")
