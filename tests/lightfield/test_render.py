@@ -20,7 +20,10 @@ from voxfield.lightfield.baselines import (
     nearest_probe,
 )
 from voxfield.lightfield.probe_render import (
+    LOST_NOTE_SHARE,
     composite_by_depth,
+    lost_rays_note,
+    lost_share,
     probe_set_bounds,
     render_from_probes,
     result_kinds,
@@ -474,15 +477,14 @@ def test_command_says_when_no_probe_answers_most_pixels(run, cornell_folder, tmp
                                                        capsys):
     """From above the box its probes, inside it, see none of the roof the camera sees: the
     light field falls back almost everywhere, and the command says so; from inside, not."""
-    from voxfield.lightfield.probe_render import LOST_NOTE_SHARE
-
     for camera, lost in (("top", True), ("room", False)):
         out = tmp_path / f"{camera}.png"
         assert run(["probe-render", str(cornell_folder), "--camera", camera, "--size", "16",
                     "--counters", "--out", str(out)]) == 0
         err = capsys.readouterr().err
         kinds = json.loads((tmp_path / f"{camera}_summary.json").read_text())["pixels_by_kind"]
-        share = (kinds.get("fallback", 0) + kinds.get("unknown", 0)) / 256
+        seen = 256 - kinds.get("miss", 0)
+        share = (kinds.get("fallback", 0) + kinds.get("unknown", 0)) / max(seen, 1)
         assert (share > LOST_NOTE_SHARE) == lost
         assert ("were answered by no probe of this probe set" in err) == lost
         assert "voxfield: error" not in err
@@ -495,6 +497,35 @@ def test_command_says_when_no_probe_answers_most_pixels(run, cornell_folder, tmp
     assert run(["probe-render", str(cornell_folder), "--camera", "top", "--method",
                 "environment", "--size", "16", "--out", str(tmp_path / "env.png")]) == 0
     assert "answered by no probe" not in capsys.readouterr().err
+
+
+def _kinds_result(counts: dict[str, int], method: str = "light-field") -> RenderResult:
+    """A one-row render whose ``result_kind`` map holds ``counts`` pixels of each kind."""
+    codes = result_kinds()
+    kind = np.concatenate([np.full(n, codes[name], np.int8) for name, n in counts.items()])
+    result = _flat(np.ones((1, kind.size)), 0.5, method)
+    result.maps["result_kind"] = kind.reshape(1, -1)
+    result.params["method"] = method
+    return result
+
+
+def test_the_lost_share_leaves_proven_empty_sky_out():
+    """An object seen against a wide sky: 10 of its 30 pixels fell back. Counted against
+    all 100 pixels that is 10 % and would pass unnoticed; among the 30 the probes did not
+    prove empty it is a third of the picture of the object, and the note speaks."""
+    sky_wide = _kinds_result({"miss": 70, "hit": 20, "fallback": 6, "unknown": 4})
+    assert lost_share(sky_wide) == pytest.approx(10 / 30)
+    note = lost_rays_note(lost_share(sky_wide), "this probe set")
+    assert note is not None and note.startswith("33% of the light field's pixels that no "
+                                                "probe proved empty")
+    # The same object filling the view: 10 of 100 lost, under the note's share.
+    close_up = _kinds_result({"hit": 90, "fallback": 10})
+    assert lost_share(close_up) == pytest.approx(0.1)
+    assert lost_share(close_up) < LOST_NOTE_SHARE
+    assert lost_rays_note(lost_share(close_up), "this probe set") is None
+    # All sky: nothing to judge. A baseline answers every ray.
+    assert lost_share(_kinds_result({"miss": 50})) == 0.0
+    assert lost_share(_kinds_result({"fallback": 50}, method="environment")) == 0.0
 
 
 def test_the_default_view_stands_among_the_probes(run, cornell_folder, tmp_path, capsys):

@@ -14,7 +14,12 @@ from voxfield.errors import VoxfieldError
 from voxfield.render.camera import Camera, room_camera
 from voxfield.render.ray_query import trace
 from voxfield.scene.voxel_scene import VoxelScene
-from voxfield.studies.probe_study import grid_spec, parse_counts, run_probe_study
+from voxfield.studies.probe_study import (
+    grid_spec,
+    parse_counts,
+    run_probe_study,
+    study_lost_note,
+)
 from voxfield.svo import build_octree
 from voxfield.svo.open import open_octree
 
@@ -230,3 +235,17 @@ def test_a_psnr_equal_to_the_reference_reads_as_infinite_not_missing(study):
         assert row.rstrip(" |").endswith("∞ | ∞")
     counted = next(line for line in text.splitlines() if line.startswith("| 2x2x2"))
     assert counted.rstrip(" |").endswith("∞ | ∞")
+
+
+def test_the_study_judges_lost_pixels_among_those_not_proven_empty():
+    """Section 1's note reads its row's shares as probe-render does: 10 % of all pixels lost
+    is a third of the 30 % the probes did not prove empty, and worth a word; the same 10 %
+    of a view the object fills is not. The baselines' rows are not read."""
+    def rows(failures, miss):
+        return [{"method": "environment", "failures": 0.0, "miss": 0.0},
+                {"method": "light-field", "failures": failures, "miss": miss}]
+
+    note = study_lost_note(rows(0.10, 0.70), "2x2x2")
+    assert note is not None and note.startswith("33% of the light field's pixels")
+    assert "of the 2x2x2 grid" in note and "--grid" in note
+    assert study_lost_note(rows(0.10, 0.0), "2x2x2") is None

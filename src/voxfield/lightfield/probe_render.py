@@ -49,8 +49,10 @@ METHODS = ("light-field", "environment", "box-proxy")
 BAND_SECONDS = 0.5
 MAP_NAMES = ("probes_tried", "texel_fetches", "result_kind", "probe")
 #: Above this share of a light-field render's pixels answered by no probe (fallback or
-#: unknown), the render shows the fallback more than the trace: the camera sees what the
-#: probes do not (inside closed space, outside the grid, far above a surface layer).
+#: unknown), among those no probe proved empty, the render shows the fallback more than the
+#: trace: the camera sees what the probes do not (inside closed space, outside the grid, far
+#: above a surface layer). Proven-empty pixels (sky) stay out of the share, so that an object
+#: seen against a wide sky is judged by its own pixels.
 LOST_NOTE_SHARE = 0.25
 
 
@@ -245,22 +247,32 @@ def kind_names() -> dict[int, str]:
 
 def lost_share(result: RenderResult) -> float:
     """The share of a light-field render's pixels no probe answered (``FALLBACK`` or
-    ``UNKNOWN``); 0 for the baselines, which answer every ray."""
+    ``UNKNOWN``) among those no probe proved empty; 0 for the baselines, which answer every
+    ray."""
     kind = result.maps.get("result_kind")
     if result.params.get("method") != "light-field" or kind is None or kind.size == 0:
         return 0.0
     codes = result_kinds()
-    return float(np.mean(np.isin(kind, [codes["fallback"], codes["unknown"]])))
+    lost = np.count_nonzero(np.isin(kind, [codes["fallback"], codes["unknown"]]))
+    return lost_share_of(lost / kind.size, np.count_nonzero(kind == codes["miss"]) / kind.size)
+
+
+def lost_share_of(lost: float, proven_empty: float) -> float:
+    """``lost_share`` from the shares of all pixels that no probe answered (``lost``) and
+    that a probe proved empty (``proven_empty``, the light field's misses)."""
+    seen = 1.0 - proven_empty
+    return 0.0 if seen <= 0.0 else min(1.0, lost / seen)
 
 
 def lost_rays_note(share: float, probes: str) -> str | None:
     """What to say when no probe answered more than ``LOST_NOTE_SHARE`` of a light-field
-    render's pixels (``share``, of ``probes``: "the 3x3x3 grid"), or ``None``."""
+    render's pixels not proven empty (``share``, from ``lost_share``, of ``probes``: "the
+    3x3x3 grid"), or ``None``."""
     if share <= LOST_NOTE_SHARE:
         return None
-    return (f"{100 * share:.0f}% of the light field's pixels were answered by no probe of "
-            f"{probes} (every probe the ray reached lost it): they show the fallback, not the "
-            "trace")
+    return (f"{100 * share:.0f}% of the light field's pixels that no probe proved empty were "
+            f"answered by no probe of {probes} (every probe the ray reached lost it): they "
+            "show the fallback, not the trace")
 
 
 def pixel_angle_of(camera: Camera) -> float:

@@ -39,7 +39,12 @@ from voxfield.checks import is_integer
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.accuracy import depth_agreement, perfect_trace_image
 from voxfield.lightfield.packed import PackedProbes
-from voxfield.lightfield.probe_render import lost_rays_note, render_from_probes, result_kinds
+from voxfield.lightfield.probe_render import (
+    lost_rays_note,
+    lost_share_of,
+    render_from_probes,
+    result_kinds,
+)
 from voxfield.lightfield.trace import MARCHERS as KNOWN_MARCHERS
 from voxfield.lightfield.trace import ORDERINGS as KNOWN_ORDERINGS
 from voxfield.lightfield.trace import checked_options
@@ -195,8 +200,8 @@ def run_probe_study(
 
 def study_lost_note(quality_rows: list[dict], grid: str) -> str | None:
     """``lost_rays_note`` for section 1's light-field render, with what to do about it."""
-    lost = next(q["failures"] for q in quality_rows if q["method"] == "light-field")
-    note = lost_rays_note(lost, f"the {grid} grid")
+    row = next(q for q in quality_rows if q["method"] == "light-field")
+    note = lost_rays_note(lost_share_of(row["failures"], row["miss"]), f"the {grid} grid")
     return None if note is None else (
         f"{note}, and so do section 1's light-field figures; see contact_sheet.png, and place "
         "the camera where the probes see (--eye/--target) or use a denser --grid")
