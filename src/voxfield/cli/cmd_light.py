@@ -30,6 +30,7 @@ from voxfield.render.image_io import png_bytes
 from voxfield.render.primary import render_reference
 from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
 from voxfield.studies.figures import Panel, contact_sheet
+from voxfield.studies.report import scene_title
 from voxfield.svo.io import write_octree_file
 
 
@@ -258,7 +259,8 @@ def preview_sheet(previews: list[tuple[str, np.ndarray]], suns, scene: str):
     panels = [Panel(f"{name}: azimuth {by_name[name].azimuth_deg:g}°, elevation "
                     f"{by_name[name].elevation_deg:g}°", image) for name, image in previews]
     return contact_sheet(panels, columns=min(len(panels), 4),
-                         title=f"{scene}: baked sun and sky light from above, north (-z) up")
+                         title=f"{scene_title(scene)}: baked sun and sky light from above, "
+                               "north (-z) up")
 
 
 def render_previews(octree, channels: list[str], *, size: int,

@@ -54,6 +54,7 @@ from voxfield.studies.report import (
     fmt,
     fmt_psnr,
     markdown_table,
+    scene_title,
 )
 from voxfield.studies.threshold_study import plot_value
 from voxfield.svo.octree import Octree
@@ -172,8 +173,8 @@ def run_curves_study(
     folder.write_json("results.json", report)
     folder.write_text("results.md", results_markdown(report))
     folder.write_figure("curves.png", curves_figure(report))
-    folder.write_figure("view.png", view_sheet(references,
-                                               title=f"The views measured — {scene_name}"))
+    title = f"The views measured — {scene_title(scene_name)}"
+    folder.write_figure("view.png", view_sheet(references, title=title))
     folder.publish_report()
     return report
 
@@ -412,6 +413,6 @@ def curves_figure(report: dict):
             ax.grid(alpha=0.3)
             finish_psnr_axis(ax)
         row[0].legend(fontsize=8)
-    fig.suptitle(f"cost–quality curves — {report['scene']}")
+    fig.suptitle(f"cost–quality curves — {scene_title(report['scene'])}")
     fig.tight_layout()
     return fig

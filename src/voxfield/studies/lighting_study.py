@@ -28,6 +28,7 @@ from voxfield.studies.report import (
     fmt,
     fmt_psnr,
     markdown_table,
+    scene_title,
 )
 from voxfield.svo.octree import Octree
 
@@ -204,7 +205,7 @@ def _figure(report: dict):
         ax.set_title(title)
     # one legend above the panels, where it hides no bar
     fig.legend(loc="upper right", fontsize=8, ncols=len(CONTENDERS))
-    fig.suptitle(f"Lighting — {report['scene']} (∞: equal to the reference)", x=0.3)
+    fig.suptitle(f"Lighting — {scene_title(report['scene'])} (∞: equal to the reference)", x=0.3)
     fig.tight_layout(rect=(0, 0, 1, 0.92))
     return fig
 
@@ -223,4 +224,4 @@ def _sheet(sheet: list, base_lod: int | None, scene_name: str):
             Panel(f"{channel}: EA finest LOD (white = LOD 0)",
                   finest_lod_map(results["error_aware"], base_lod or 0), linear_rgb=False),
         ]
-    return contact_sheet(cells, columns=5, title=f"{Path(scene_name).name}: lighting")
+    return contact_sheet(cells, columns=5, title=f"{scene_title(scene_name)}: lighting")

@@ -12,7 +12,7 @@ import numpy as np
 
 from voxfield.lightfield.probe_render import result_kinds
 from voxfield.studies.figures import Panel, contact_sheet
-from voxfield.studies.report import fmt_psnr
+from voxfield.studies.report import fmt_psnr, scene_title
 
 #: Colours of the result-kind map: hit, miss, unknown, fallback, environment.
 KIND_COLOURS = {"hit": (0.1, 0.75, 0.2), "miss": (0.15, 0.35, 0.95),
@@ -65,7 +65,7 @@ def resolution_figure(report: dict):
     ax.set_title("fetches per pixel (probe thesis §9.1)")
     bx.set_ylabel("PSNR (dB) against the octree")
     bx.set_title("light-field quality")
-    fig.suptitle(f"{report['scene']}: grid {report['grid']}")
+    fig.suptitle(f"{scene_title(report['scene'])}: grid {report['grid']}")
     fig.tight_layout()
     return fig
 
@@ -91,7 +91,7 @@ def count_figure(report: dict):
         ax.set_title(title)
         ax.legend(fontsize=8)
     axes[1].set_yscale("log")
-    fig.suptitle(f"{report['scene']}: probe count, {report['count_resolution']}² maps")
+    fig.suptitle(f"{scene_title(report['scene'])}: probe count, {report['count_resolution']}² maps")
     fig.tight_layout()
     return fig
 
@@ -113,7 +113,7 @@ def ordering_figure(report: dict):
     ax.set_ylabel("first probe answers (% of pixels)")
     ax.set_ylim(0, 100)
     ax.legend(fontsize=8)
-    ax.set_title(f"{report['scene']}: first-probe success per ordering")
+    ax.set_title(f"{scene_title(report['scene'])}: first-probe success per ordering")
     fig.tight_layout()
     return fig
 
@@ -159,5 +159,6 @@ def contact_sheet_figure(report: dict, reference, renders: dict):
                      f"{100 * q['failures']:6.1f}")
     cells.append("\n".join(lines))
     grid = report["grid"]
-    return contact_sheet(cells, columns=4, title=f"{report['scene']}: probes {grid} at "
-                         f"{report['quality_resolution']}² vs the octree")
+    return contact_sheet(cells, columns=4,
+                         title=f"{scene_title(report['scene'])}: probes {grid} at "
+                               f"{report['quality_resolution']}² vs the octree")

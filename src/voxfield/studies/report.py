@@ -401,6 +401,18 @@ def fmt(value, spec: str = ",") -> str:
     return format(value, spec)
 
 
+def scene_title(scene: str) -> str:
+    """A scene description as figure titles name it: a file (or ``dem:`` file) by its name,
+    built-in scenes and terrain recipes as given. A full path says nothing a reader of the
+    figure needs and wraps across it; ``results.json`` keeps the description whole."""
+    prefix, colon, rest = scene.partition(":")
+    if colon and prefix in ("builtin", "terrain"):
+        return scene
+    if colon and prefix == "dem":
+        return f"dem:{Path(rest).name or rest}"
+    return Path(scene).name or scene
+
+
 def fmt_psnr(quality: dict | None, spec: str = ".2f") -> str:
     """A PSNR cell of a measured image: ``∞`` where it equals the reference (JSON keeps that
     infinity as null, which ``fmt`` would show as missing), ``—`` where nothing was

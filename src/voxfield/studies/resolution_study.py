@@ -28,6 +28,7 @@ from voxfield.studies.report import (
     fmt,
     fmt_psnr,
     markdown_table,
+    scene_title,
 )
 from voxfield.studies.threshold_study import PANELS, plot_value
 from voxfield.svo.octree import Octree
@@ -105,7 +106,7 @@ def run_resolution_study(
     folder.write_figure("resolution.png", _figure(report))
     folder.write_figure("view.png", view_sheet(
         {f"{size}², 4×4 reference": ref for size, ref in zip(sizes, references, strict=True)},
-        title=f"The view measured at each size — {scene_name}"))
+        title=f"The view measured at each size — {scene_title(scene_name)}"))
     folder.publish_report()
     return report
 
@@ -210,6 +211,6 @@ def _figure(report):
         ax.set_xlabel("image side (pixels)")
         ax.set_title(label)
         ax.legend(fontsize=7)
-    fig.suptitle(f"resolution — {report['scene']}, threshold {report['threshold']}")
+    fig.suptitle(f"resolution — {scene_title(report['scene'])}, threshold {report['threshold']}")
     fig.tight_layout()
     return fig

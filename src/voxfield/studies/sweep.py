@@ -21,6 +21,7 @@ from voxfield.studies.report import (
     fmt,
     fmt_psnr,
     markdown_table,
+    scene_title,
 )
 from voxfield.svo.octree import Octree
 
@@ -75,8 +76,8 @@ def run_sweep(
     folder.write_json("results.json", report)
     folder.write_text("results.md", _markdown(report, decays, thresholds))
     folder.write_figure("sweep.png", _figure(report, decays, thresholds))
-    folder.write_figure("view.png", view_sheet({"4×4 reference": reference},
-                                               title=f"The view measured — {scene_name}"))
+    title = f"The view measured — {scene_title(scene_name)}"
+    folder.write_figure("view.png", view_sheet({"4×4 reference": reference}, title=title))
     folder.publish_report()
     return report
 
@@ -166,6 +167,6 @@ def _figure(report, decays, thresholds):
     ax1.set_ylabel("PSNR vs reference (dB)")
     ax1.set_title("quality per cost")
     ax1.legend(fontsize=8)
-    fig.suptitle(f"error-aware sweep — {report['scene']}")
+    fig.suptitle(f"error-aware sweep — {scene_title(report['scene'])}")
     fig.tight_layout()
     return fig

@@ -21,6 +21,7 @@ from voxfield.studies.report import (
     fmt,
     fmt_psnr,
     markdown_table,
+    scene_title,
 )
 from voxfield.svo.octree import Octree
 
@@ -70,8 +71,8 @@ def run_threshold_study(
     folder.write_json("results.json", report)
     folder.write_text("results.md", _markdown(report))
     folder.write_figure("thresholds.png", _figure(report))
-    folder.write_figure("view.png", view_sheet({"4×4 reference": reference},
-                                               title=f"The view measured — {scene_name}"))
+    title = f"The view measured — {scene_title(scene_name)}"
+    folder.write_figure("view.png", view_sheet({"4×4 reference": reference}, title=title))
     folder.publish_report()
     return report
 
@@ -167,6 +168,7 @@ def _figure(report):
     # One legend above the panels (the rays panel's lines name them all): inside each panel
     # it covered points.
     fig.legend(*axes[0].get_legend_handles_labels(), loc="upper right", fontsize=8, ncols=3)
-    fig.suptitle(f"error threshold — {report['scene']}, decay {report['decay']}", x=0.3)
+    fig.suptitle(f"error threshold — {scene_title(report['scene'])}, decay {report['decay']}",
+                 x=0.3)
     fig.tight_layout(rect=(0, 0, 1, 0.9))
     return fig
