@@ -25,6 +25,7 @@ from voxfield.lightfield.probe_render import (
     lost_rays_note,
     lost_share,
     probe_set_bounds,
+    probes_seeing,
     render_from_probes,
     result_kinds,
 )
@@ -559,6 +560,62 @@ def test_the_default_view_stands_among_the_probes(run, cornell_folder, tmp_path,
     view = probe_view(args, folder, probes, None, (lo, hi))
     box_lo, box_hi = probe_set_bounds(probes)
     assert np.all(view.position > box_lo) and np.all(view.position < box_hi)
+
+
+def test_the_default_view_of_an_object_s_probes_is_from_around_it(tmp_path):
+    """A solid ball where the room view's eye stands, in a 2x2x2 grid whose probes all lie
+    outside it: no probe sees into the ball, and the default looks from around the grid's
+    box instead (as from inside T-Rex.vox's grid, whose room eye lies in the model). A
+    room's probes keep the room view (the test above)."""
+    import argparse
+
+    from voxfield.cli.cmd_probe_render import probe_view
+    from voxfield.cli.options import camera
+    from voxfield.probes.folder_bake import bake_to_folder
+    from voxfield.probes.probe_folder import open_probe_set
+
+    side = 64
+    eye = np.array([0.57, 0.72, 0.74]) * side  # room_camera's eye in a box of this side
+    grid = np.indices((side,) * 3).reshape(3, -1).T
+    ball = grid[np.linalg.norm(grid + 0.5 - eye, axis=1) < 7.0]
+    corners = np.array([[0, 0, 0], [side - 1] * 3])  # the octree's box is the grid's
+    coords = np.concatenate([ball, corners])
+    octree = build_octree(VoxelScene(coords, np.full((len(coords), 3), 0.5, np.float32)))
+    lo, hi = (np.asarray(b, np.float64) for b in octree.voxel_bounds)
+    folder = tmp_path / "ball"
+    bake_to_folder(octree, ProbeGrid.fit(lo, hi, (2, 2, 2)),
+                   BakeOptions(resolution=16, renderer="lod", lod=0), folder, scheduler="serial")
+    probes = open_probe_set(folder)
+    assert np.all(np.linalg.norm(probes.positions - eye, axis=1) > 10.0)  # none in the ball
+    args = argparse.Namespace(camera="auto", eye=None, target=None, fov=None, size=24,
+                              scene=None)
+    view = probe_view(args, folder, probes, None, (lo, hi))
+    room, orbit = (camera(argparse.Namespace(**{**vars(args), "camera": name}),
+                          probe_set_bounds(probes)) for name in ("room", "orbit"))
+    assert np.linalg.norm(room.position - eye) < 3.0  # the room view stands in the ball
+    assert probes_seeing(probes, room.position) == 0
+    assert np.array_equal(view.position, orbit.position)
+    assert np.array_equal(view.forward, orbit.forward)
+    assert lost_share(render_from_probes(probes, view)) < LOST_NOTE_SHARE
+
+
+def test_a_point_is_seen_by_the_probes_whose_distance_maps_reach_it():
+    """Two probes either side of a solid wall: each sees points on its own side, up to the
+    wall, and none behind it or inside it; a disabled probe sees nothing."""
+    n = 24
+    coords = np.argwhere(np.ones((n, n, 4), bool)) + (0, 0, 10)  # a wall, z in [10, 14)
+    box = np.array([[0, 0, 0], [n - 1, n - 1, n - 1]])  # the octree's box: 24 voxels a side
+    coords = np.concatenate([coords, box])
+    octree = build_octree(VoxelScene(coords, np.full((len(coords), 3), 0.5, np.float32)))
+    grid = SimpleNamespace(positions=np.array([[12.0, 12.0, 4.0], [12.0, 12.0, 20.0]]),
+                           enabled=np.array([True, True]))
+    probes = bake_probes(octree, grid, BakeOptions(resolution=32, renderer="lod", lod=0))
+    assert probes_seeing(probes, (12.0, 12.0, 8.0)) == 1  # in front of the wall, one side
+    assert probes_seeing(probes, (8.0, 15.0, 18.0)) == 1  # the other side
+    assert probes_seeing(probes, (12.0, 12.0, 12.0)) == 0  # in the wall
+    assert probes_seeing(probes, (12.5, 12.5, 9.0)) == 1  # a voxel short of it
+    probes.enabled[0] = False
+    assert probes_seeing(probes, (12.0, 12.0, 8.0)) == 0
 
 
 def test_the_default_view_of_a_terrain_s_probes_is_from_above(run, tmp_path, capsys):

@@ -48,6 +48,7 @@ from voxfield.lightfield.probe_render import (
     lost_rays_note,
     lost_share,
     probe_set_bounds,
+    probes_seeing,
     render_from_probes,
 )
 from voxfield.lightfield.probe_render_figures import (
@@ -282,21 +283,27 @@ def _note_unused_options(args, options: LightFieldOptions) -> None:
 
 #: ``--camera auto`` for a probe render.
 PROBE_AUTO_VIEW = ("top for probes over a terrain or DEM, else room inside the box the probe "
-                   "grid fills, where every ray starts among the probes")
+                   "grid fills where a probe sees its eye, or orbit around that box where "
+                   "none does (an object's probes, whose box the object fills)")
 
 
 def probe_view(args, folder: Path, probe_set, octree, bounds):
     """The camera over ``bounds``; ``--camera auto`` resolved from the baked scene's kind:
-    a terrain's probes are looked down on from above, as ``render`` looks at a terrain, and
-    any other set is looked through from inside its grid (``room`` over the grid's box),
-    so that rays start where probes surround them. (``top`` over a room's box stood above
-    its ceiling, and every ray was lost.)"""
+    a terrain's probes are looked down on from above, as ``render`` looks at a terrain; any
+    other set is looked through from inside its grid (``room`` over the grid's box) where a
+    probe sees that view's eye, else from around the box (``orbit``). ``top`` over a room's
+    box stood above its ceiling, and every ray was lost; ``room`` in the box of a solid
+    model's grid (T-Rex.vox) stood inside the model, where no probe sees."""
     if args.camera != "auto":
         return camera(args, bounds)
     names = (str(read_header(folder)["scene"].get("name") or ""), args.scene or "")
-    terrain = any(auto_preset(name, octree) == "top" for name in names)
-    chosen = argparse.Namespace(**{**vars(args), "camera": "top" if terrain else "room"})
-    return camera(chosen, bounds if terrain else probe_set_bounds(probe_set))
+    if any(auto_preset(name, octree) == "top" for name in names):
+        return camera(argparse.Namespace(**{**vars(args), "camera": "top"}), bounds)
+    box = probe_set_bounds(probe_set)
+    room = camera(argparse.Namespace(**{**vars(args), "camera": "room"}), box)
+    if probes_seeing(probe_set, room.position):
+        return room
+    return camera(argparse.Namespace(**{**vars(args), "camera": "orbit"}), box)
 
 
 def _open_scene(args, probe_set):

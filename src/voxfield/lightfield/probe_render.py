@@ -28,6 +28,7 @@ import numpy as np
 
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.camera_rays import OCTAHEDRAL, ORTHOGRAPHIC
+from voxfield.kernels.octahedral import texel_of_direction
 from voxfield.lightfield.baselines import (
     FETCHES,
     FILTERS,
@@ -262,6 +263,29 @@ def lost_share_of(lost: float, proven_empty: float) -> float:
     that a probe proved empty (``proven_empty``, the light field's misses)."""
     seen = 1.0 - proven_empty
     return 0.0 if seen <= 0.0 else min(1.0, lost / seen)
+
+
+def probes_seeing(probe_set, point) -> int:
+    """How many enabled probes of ``probe_set`` see ``point``: every texel of the distance
+    map within one of the point's direction reaches the point (less half a voxel). One
+    texel's ray can pass beside a small solid that a far probe sees the point inside; the
+    ring around it cannot. A camera no probe sees stands in solid, or in space no probe
+    looked into: every ray it casts starts where the probes know nothing."""
+    point = np.asarray(point, np.float64)
+    positions = np.asarray(probe_set.positions, np.float64)
+    distance = np.asarray(probe_set.distance)
+    resolution = distance.shape[-1]
+    seeing = 0
+    for index in np.flatnonzero(np.asarray(probe_set.enabled, bool)):
+        offset = point - positions[index]
+        length = float(np.linalg.norm(offset))
+        if length == 0.0:
+            seeing += 1
+            continue
+        row, col = texel_of_direction(*(offset / length), resolution)
+        around = distance[index, max(row - 1, 0):row + 2, max(col - 1, 0):col + 2]
+        seeing += int(around.min() >= length - 0.5)
+    return seeing
 
 
 def lost_rays_note(share: float, probes: str) -> str | None:
