@@ -47,6 +47,14 @@ def counts_text(counts) -> str:
     return "x".join(f"{float(c):g}" for c in counts)
 
 
+def _whole_counts(counts) -> np.ndarray:
+    """Probe counts per axis as floats, refused unless whole numbers >= 1."""
+    values = _vector(counts, "counts")
+    if np.any(values != np.round(values)) or np.any(values < 1):
+        raise VoxfieldError(f"probe counts must be whole numbers >= 1, got {counts_text(values)}")
+    return values
+
+
 def _vector(value, name: str, dtype=np.float64) -> np.ndarray:
     try:
         v = np.array(value, dtype=dtype).reshape(-1)
@@ -89,12 +97,7 @@ class ProbeGrid:
         spacing = _vector(self.spacing, "spacing")
         if np.any(spacing <= 0):
             raise VoxfieldError(f"probe spacing must be positive on every axis, got {spacing}")
-        raw_counts = _vector(self.counts, "counts")
-        if np.any(raw_counts != np.round(raw_counts)) or np.any(raw_counts < 1):
-            raise VoxfieldError(
-                f"probe counts must be whole numbers >= 1, got {counts_text(raw_counts)}"
-            )
-        counts = raw_counts.astype(np.int64)
+        counts = _whole_counts(self.counts).astype(np.int64)
         n = math.prod(int(c) for c in counts)
         if n > MAX_PROBES:
             raise VoxfieldError(f"{n:,} probes ({counts.tolist()}) is more than the "
@@ -131,9 +134,7 @@ class ProbeGrid:
                                 f"{hi.tolist()}")
         if not (math.isfinite(margin) and margin >= 0):
             raise VoxfieldError(f"the grid margin must be >= 0 spacings, got {margin}")
-        n = _vector(counts, "counts")
-        if np.any(n != np.round(n)) or np.any(n < 1):
-            raise VoxfieldError(f"probe counts must be whole numbers >= 1, got {counts_text(n)}")
+        n = _whole_counts(counts)
         cells = n - 1 + 2 * margin
         single = cells <= 0  # one probe and no margin: centre it
         spacing = (hi - lo) / np.where(single, 1.0, cells)
