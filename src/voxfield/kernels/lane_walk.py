@@ -63,7 +63,9 @@ def compiles_wide_vectors(features: str) -> bool:
 #: Numba compiles for AVX-512, as on the machine of the figures above. Compiled for AVX2 on
 #: that machine (``NUMBA_CPU_FEATURES`` without the AVX-512 features) the pass is half as
 #: wide and LLVM loads the cells one by one instead of gathering them: renders took 1.4-1.6×
-#: the one-ray walk's time, so other targets keep that walk.
+#: the one-ray walk's time, so other targets keep that walk. On a Zen 2 AMD EPYC (AVX2
+#: hardware, 2048² mountain terrain, 512² images) the lanes compiled for it rendered at
+#: 0.53-0.62× the one-ray walk's speed, top and 45° views, one and 16 rays a pixel.
 LANE_WALK_PAYS = compiles_wide_vectors(
     config.CPU_FEATURES if config.CPU_FEATURES is not None else get_host_cpu_features())
 
