@@ -3,6 +3,7 @@ the thesis predicts that already hold at 16² and 32² maps."""
 
 from __future__ import annotations
 
+import argparse
 import copy
 import json
 import math
@@ -182,6 +183,9 @@ def test_command_line_runs_the_study(tmp_path, capsys):
                  "--repeats", "1", "--size", "16", "--out", str(out), "--quiet"])
     assert code == 0
     report = json.loads((out / "results.json").read_text())
+    cornell = open_octree("builtin:cornell")
+    # The default view of a room is the thesis's, from among the probes inside its box.
+    assert report["camera"] == room_camera(*cornell.voxel_bounds, size=16).params.tolist()
     assert [row["resolution"] for row in report["resolution"]] == [8, 16]
     assert {row["method"] for row in report["quality"]} >= {"light-field", "environment"}
     assert (out / "results.md").is_file()
@@ -251,3 +255,55 @@ def test_the_study_judges_lost_pixels_among_those_not_proven_empty():
     assert note is not None and note.startswith("33% of the light field's pixels")
     assert "of the 2x2x2 grid" in note and "--grid" in note
     assert study_lost_note(rows(0.10, 0.0), "2x2x2") is None
+
+
+def _solid_block(path):
+    """A solid 16³ block in the middle of a 32³ box (marked by four corner voxels): the
+    room view's eye, 30 % in from the box's +z face, lies inside the block."""
+    from voxfield.svo.io import save_octree
+
+    axis = np.arange(8, 24)
+    block = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
+    corners = np.array([[0, 0, 0], [31, 31, 31], [0, 31, 0], [31, 0, 31]])
+    coords = np.concatenate([block, corners])
+    colours = np.random.default_rng(0).random((len(coords), 3)).astype(np.float32)
+    save_octree(build_octree(VoxelScene(coords, colours, name="block")), path)
+    return path
+
+
+def test_the_default_view_of_a_solid_model_looks_from_around_it(tmp_path, capsys):
+    """A solid model filling its box (T-Rex.vox) put the default room view's eye inside a
+    voxel, and the study refused to run without another --camera; the default now looks
+    from around it (orbit), and an explicit room view is still refused."""
+    from voxfield.cli import main
+    from voxfield.render.camera import preset_camera
+    from voxfield.render.framing import content_box
+
+    scene = str(_solid_block(tmp_path / "block.npz"))
+    common = ["--resolutions", "8,16", "--probe-counts", "1x1x1", "--marchers", "dda",
+              "--orderings", "nearest", "--repeats", "1", "--size", "16", "--quiet"]
+    assert main(["study", "probes", scene, "--camera", "room", "--out",
+                 str(tmp_path / "room"), *common]) == 2
+    assert "is inside a voxel" in capsys.readouterr().err
+    assert main(["study", "probes", scene, "--out", str(tmp_path / "auto"), *common]) == 0
+    report = json.loads((tmp_path / "auto" / "results.json").read_text())
+    block = open_octree(scene)
+    orbit = preset_camera("orbit", *(np.asarray(b, np.float64) for b in content_box(block)),
+                          size=16)
+    assert report["camera"] == orbit.params.tolist()
+
+
+def test_the_default_view_of_a_terrain_looks_down_on_it():
+    """As ``probe-render`` and ``render`` look at a terrain: from above (the room view's eye
+    over a terrain's box stood under its hills)."""
+    from voxfield.cli.cmd_study import probe_study_view
+    from voxfield.cli.main import build_parser
+    from voxfield.cli.options import open_octree as open_scene
+    from voxfield.cli.options import scene_camera
+
+    args = build_parser("study").parse_args(["study", "probes", "terrain:desert",
+                                             "--footprint", "64", "--size", "16"])
+    octree = open_scene(args)
+    top = scene_camera(argparse.Namespace(**{**vars(args), "camera": "top"}), octree)
+    assert args.camera == "auto"
+    assert probe_study_view(args, octree).params.tolist() == top.params.tolist()

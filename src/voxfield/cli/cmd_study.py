@@ -15,6 +15,7 @@ from voxfield.cli.options import (
     add_study_folder,
     add_threshold_options,
     add_view_options,
+    auto_preset,
     check_base_lod,
     default_output,
     distinct,
@@ -28,6 +29,7 @@ from voxfield.cli.options import (
     note_unread_scene_options,
     open_octree,
     positive_int_list,
+    scene_camera,
     scheduler_name,
     study_camera,
 )
@@ -36,7 +38,7 @@ from voxfield.lightfield.trace import LightFieldOptions
 from voxfield.lighting import bake_sun_lighting, parse_suns
 from voxfield.probes.grid import check_placement, parse_grid, relocate
 from voxfield.render.camera import preset_camera
-from voxfield.render.placement import check_camera_placement
+from voxfield.render.placement import camera_placement_problem, check_camera_placement
 from voxfield.scaleout import SCHEDULER_HELP
 from voxfield.studies.adaptive_normalisation import run_normalisation_study
 from voxfield.studies.curves_study import (
@@ -366,9 +368,11 @@ def _register_probes(actions) -> argparse.ArgumentParser:
         "the growth exponent against the thesis's O(sqrt r) and O(log r)); failures and "
         "fetches per probe count; first-probe success per ordering; wall time against direct "
         "octree tracing. Writes results.json, results.md, plots and a contact sheet. "
-        "Resumable. The default camera, room, looks from inside the scene box, 30% in from "
-        "its +z face and off the probe lattice planes, towards its -z face; --camera top, "
-        "oblique, ... or --eye/--target choose another.",
+        "Resumable. The default camera (auto) looks down on a terrain or DEM; any other "
+        "scene it looks through from inside its box (room: 30% in from the +z face and off "
+        "the probe lattice planes, towards the -z face) where that eye is in open space, and "
+        "from around the scene (orbit) where the eye is inside or under it (a solid model "
+        "filling its box); --camera room, top, oblique, ... or --eye/--target choose another.",
     )
     add_scene_options(p)
     p.add_argument("--grid", default="1x1x1", metavar="GRID",
@@ -395,7 +399,7 @@ def _register_probes(actions) -> argparse.ArgumentParser:
                    help="timed runs per renderer in the wall-time section (default 3)")
     add_study_folder(p, "probe_study", scheduled=True)
     add_channel_option(p)
-    add_view_options(p, size=256, camera="room")
+    add_view_options(p, size=256, camera="auto", auto_view=PROBE_STUDY_AUTO_VIEW)
     p.set_defaults(func=run_probes)
     return p
 
@@ -411,10 +415,29 @@ def grid_list(text: str) -> tuple[str, ...]:
 
 
 
+#: ``--camera auto`` for ``study probes``.
+PROBE_STUDY_AUTO_VIEW = ("top for a terrain or DEM, else room inside the scene box where its "
+                         "eye is in open space, or orbit around the scene where it is not")
+
+
+def probe_study_view(args, octree):
+    """``study_camera`` with ``--camera auto`` resolved for probes: a terrain is looked down
+    on (``auto_preset``); any other scene through its box (``room``, the thesis's view from
+    among the probes) unless that eye is inside or under the scene, as in a solid model
+    filling its box (T-Rex.vox), which the study refused; then from around it (``orbit``)."""
+    if args.camera == "auto" and args.eye is None and args.target is None:
+        preset = auto_preset(args.scene, octree)
+        if preset != "top":
+            room = scene_camera(argparse.Namespace(**{**vars(args), "camera": "room"}), octree)
+            preset = "room" if camera_placement_problem(octree, room) is None else "orbit"
+        args = argparse.Namespace(**{**vars(args), "camera": preset})
+    return study_camera(args, octree)
+
+
 def run_probes(args) -> int:
     quiet = getattr(args, "quiet", False)
     octree = open_octree(args)
-    view = study_camera(args, octree)
+    view = probe_study_view(args, octree)
     options = LightFieldOptions(**hit_options(args))
     out = args.out or default_output("probe_study", args.scene)
     report = run_probe_study(
