@@ -93,7 +93,9 @@ def emitter_faces(octree: Octree) -> EmitterFaces:
     """The exposed faces of the voxels whose ``emission`` is non-zero."""
     lit = check_emitters(octree)
     coords = octree.node_coords(octree.depth)
-    emission = octree.attributes["emission"][octree.level_slice(octree.depth)].astype(np.float64)
+    # Only the emitting voxels' values, converted once.
+    emission = octree.attributes["emission"][octree.level_slice(octree.depth)][lit].astype(
+        np.float64)
     side = (1 << octree.depth) + 2  # keys of neighbours one voxel outside the root stay unique
 
     def key(c: np.ndarray) -> np.ndarray:
@@ -109,7 +111,7 @@ def emitter_faces(octree: Octree) -> EmitterFaces:
         corner.append(lights[exposed])
         axis.append(np.full(int(exposed.sum()), k // 2))
         sign.append(np.full(int(exposed.sum()), 1.0 if k % 2 else -1.0))
-        radiance.append(emission[lit][exposed])
+        radiance.append(emission[exposed])
     corner = np.concatenate(corner).astype(np.float64)
     if len(corner) == 0:
         raise VoxfieldError(f"every emitting voxel of {octree.name!r} is enclosed; no light")
