@@ -424,7 +424,8 @@ def probe_study_view(args, octree):
     """``study_camera`` with ``--camera auto`` resolved for probes: a terrain is looked down
     on (``auto_preset``); any other scene through its box (``room``, the thesis's view from
     among the probes) unless that eye is inside or under the scene, as in a solid model
-    filling its box (T-Rex.vox), which the study refused; then from around it (``orbit``)."""
+    filling its box (T-Rex.vox), where ``study_camera`` refuses it; then from around the
+    scene (``orbit``)."""
     if args.camera == "auto" and args.eye is None and args.target is None:
         preset = auto_preset(args.scene, octree)
         if preset != "top":
