@@ -36,6 +36,7 @@ from voxfield.cli.options import (
     scene_options,
     vector_arg,
     warn_ignored,
+    with_camera,
 )
 from voxfield.errors import VoxfieldError
 from voxfield.json_output import json_text
@@ -298,12 +299,12 @@ def probe_view(args, folder: Path, probe_set, octree, bounds):
         return camera(args, bounds)
     names = (str(read_header(folder)["scene"].get("name") or ""), args.scene or "")
     if any(auto_preset(name, octree) == "top" for name in names):
-        return camera(argparse.Namespace(**{**vars(args), "camera": "top"}), bounds)
+        return camera(with_camera(args, "top"), bounds)
     box = probe_set_bounds(probe_set)
-    room = camera(argparse.Namespace(**{**vars(args), "camera": "room"}), box)
+    room = camera(with_camera(args, "room"), box)
     if probes_seeing(probe_set, room.position):
         return room
-    return camera(argparse.Namespace(**{**vars(args), "camera": "orbit"}), box)
+    return camera(with_camera(args, "orbit"), box)
 
 
 def _open_scene(args, probe_set):

@@ -32,6 +32,7 @@ from voxfield.cli.options import (
     scene_camera,
     scheduler_name,
     study_camera,
+    with_camera,
 )
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import LightFieldOptions
@@ -429,9 +430,9 @@ def probe_study_view(args, octree):
     if args.camera == "auto" and args.eye is None and args.target is None:
         preset = auto_preset(args.scene, octree)
         if preset != "top":
-            room = scene_camera(argparse.Namespace(**{**vars(args), "camera": "room"}), octree)
+            room = scene_camera(with_camera(args, "room"), octree)
             preset = "room" if camera_placement_problem(octree, room) is None else "orbit"
-        args = argparse.Namespace(**{**vars(args), "camera": preset})
+        args = with_camera(args, preset)
     return study_camera(args, octree)
 
 

@@ -489,12 +489,18 @@ def camera(args, bounds) -> Camera:
     return preset_camera(args.camera, lo, hi, size=args.size, fov_deg=args.fov)
 
 
+def with_camera(args, preset: str) -> argparse.Namespace:
+    """``args`` with ``--camera preset`` in place of the one given: how a command resolves
+    ``auto`` to the view it settles on."""
+    return argparse.Namespace(**{**vars(args), "camera": preset})
+
+
 def scene_camera(args, octree) -> Camera:
     """``camera`` over an octree: the orbit view frames its content (``content_box``), not a
     ground plane that dominates its voxel box; every other view keeps the voxel box.
     ``--camera auto`` is resolved from the scene's kind (``auto_preset``)."""
     if args.camera == "auto":
-        args = argparse.Namespace(**{**vars(args), "camera": auto_preset(args.scene, octree)})
+        args = with_camera(args, auto_preset(args.scene, octree))
     if args.camera == "orbit" and args.eye is None and args.target is None:
         return camera(args, content_box(octree))
     return camera(args, octree.voxel_bounds)
