@@ -81,9 +81,10 @@ def _not_json(constant: str):
 
 
 def test_sweep_prints_a_cell_equal_to_the_reference(tmp_path, capsys):
-    """Its PSNR is infinite (null in results.json); printing it ended in a traceback."""
+    """Its PSNR is infinite (null in results.json); printing it ended in a traceback. (The
+    sphere from above, where every LOD's colour is the reference's.)"""
     assert main(["sweep", "builtin:sphere", "--size", "32", "--decays", "0.1", "--thresholds",
-                 "0.1", "--out", str(tmp_path / "sweep")]) == 0
+                 "0.1", "--camera", "top", "--out", str(tmp_path / "sweep")]) == 0
     report = json.loads((tmp_path / "sweep" / "results.json").read_text())
     assert report["closest_to_adaptive"][0]["psnr"] is None
     assert "t=0.1 → " in (out := capsys.readouterr().out) and "equal to the reference" in out

@@ -13,6 +13,7 @@ from voxfield.cli.options import (
     default_output,
     open_octree,
     positive_int,
+    settled_view,
     study_camera,
 )
 from voxfield.studies.compare import run_compare
@@ -45,6 +46,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     octree = open_octree(args)
+    args = settled_view(args, octree)
     view = study_camera(args, octree)
     label = "custom" if args.eye is not None else args.camera
     report = run_compare(

@@ -33,7 +33,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--renderer", choices=tuple(RENDERERS), default="reference",
                    help="; ".join(f"{name}: {entry.summary}" for name, entry in RENDERERS.items())
                    + " (default reference)")
-    add_view_options(p, camera="auto")
+    add_view_options(p)
     add_renderer_options(p, ("reference", "lod", "error-aware", "adaptive"))
     p.add_argument("--channel", default="albedo", help="colour channel to show (default albedo)")
     p.add_argument("--threads", type=positive_int, default=None, help="kernel threads")

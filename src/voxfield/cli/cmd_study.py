@@ -230,9 +230,10 @@ def run_normalisation(args) -> int:
         raise VoxfieldError(f"{', '.join(twice)} given twice: each scene counts once")
     scenes = {}
     for spec in specs:
-        octree = open_octree(argparse.Namespace(**{**vars(args), "scene": spec}),
-                             note_unread=False)
-        scenes[spec] = (octree, study_camera(args, octree))
+        scene_args = argparse.Namespace(**{**vars(args), "scene": spec})
+        octree = open_octree(scene_args, note_unread=False)
+        # (``--camera auto`` is each scene's own: top over a terrain, orbit round a model.)
+        scenes[spec] = (octree, study_camera(scene_args, octree))
     note_unread_scene_options(args, *scenes)
     out = args.out or default_output("normalisation", next(iter(scenes)))
     report = run_normalisation_study(scenes, out, base_lod=args.base_lod,

@@ -278,7 +278,7 @@ def display_shaded(args, out: Path, channel: str) -> bool:
                           and channel == "albedo")
 
 
-def add_view_options(p: argparse.ArgumentParser, size: int = 512, camera: str = "top",
+def add_view_options(p: argparse.ArgumentParser, size: int = 512, camera: str = "auto",
                      auto_view: str | None = None) -> None:
     """Camera and image options shared by every command that renders, plus --quiet; the
     command's own default view is said in the help it prints (``auto_view``: what ``auto``
@@ -495,12 +495,17 @@ def with_camera(args, preset: str) -> argparse.Namespace:
     return argparse.Namespace(**{**vars(args), "camera": preset})
 
 
+def settled_view(args, octree) -> argparse.Namespace:
+    """``args`` with ``--camera auto`` replaced by the preset it means for the scene
+    (``auto_preset``), so that what a command prints or records names the view it used."""
+    return with_camera(args, auto_preset(args.scene, octree)) if args.camera == "auto" else args
+
+
 def scene_camera(args, octree) -> Camera:
     """``camera`` over an octree: the orbit view frames its content (``content_box``), not a
     ground plane that dominates its voxel box; every other view keeps the voxel box.
-    ``--camera auto`` is resolved from the scene's kind (``auto_preset``)."""
-    if args.camera == "auto":
-        args = with_camera(args, auto_preset(args.scene, octree))
+    ``--camera auto`` is resolved from the scene's kind (``settled_view``)."""
+    args = settled_view(args, octree)
     if args.camera == "orbit" and args.eye is None and args.target is None:
         return camera(args, content_box(octree))
     return camera(args, octree.voxel_bounds)
