@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import warnings
 from types import SimpleNamespace
 
 import numpy as np
@@ -80,3 +81,20 @@ def test_an_empty_or_inconsistent_image_is_refused_in_one_line(tmp_path):
     with pytest.raises(VoxfieldError, match=r"RGB \(2, 2, 3\), Z \(3, 2\)"):
         save_exr({"RGB": np.zeros((2, 2, 3)), "Z": np.zeros((3, 2))}, tmp_path / "odd.exr")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_png_says_how_many_pixels_were_not_a_number(tmp_path):
+    """NaN is written black, as a miss would be; the warning tells the two apart. Infinite
+    values clamp as any bright or dark value does, without a word."""
+    image = np.full((4, 5, 3), 0.5, np.float32)
+    image[1, 2, 0] = np.nan
+    image[3, 4] = np.nan
+    image[0, 0] = np.inf
+    with pytest.warns(UserWarning, match=r"^2 of 20 pixels are not a number \(NaN\)"):
+        save_png(image, tmp_path / "nan.png")
+    written = np.asarray(Image.open(tmp_path / "nan.png"))
+    assert written[1, 2, 0] == 0 and np.all(written[3, 4] == 0)
+    assert np.all(written[0, 0] == 255) and written[1, 2, 1] == written[2, 2, 1] > 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        save_png(np.nan_to_num(image, nan=0.25), tmp_path / "finite.png")

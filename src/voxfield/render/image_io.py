@@ -5,6 +5,7 @@ from __future__ import annotations
 import errno
 import io
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,12 @@ def png_pixels(image: np.ndarray, *, encode_srgb: bool = True) -> np.ndarray:
     if (data.ndim not in (2, 3) or (data.ndim == 3 and data.shape[2] not in (3, 4))
             or 0 in data.shape[:2]):
         raise VoxfieldError(f"cannot write an image of shape {data.shape} as PNG")
+    not_a_number = np.isnan(data).reshape(data.shape[0], data.shape[1], -1).any(axis=2)
+    if not_a_number.any():
+        # A renderer never writes NaN; an array that holds some is broken upstream, and a
+        # black pixel alone would pass for a miss or a shadow.
+        warnings.warn(f"{int(not_a_number.sum()):,} of {not_a_number.size:,} pixels are "
+                      "not a number (NaN) and are written black", UserWarning, stacklevel=3)
     data = np.nan_to_num(data, nan=0.0, posinf=1.0, neginf=0.0)
     data = linear_to_srgb(data) if encode_srgb else np.clip(data, 0.0, 1.0)
     return np.round(data * 255.0).astype(np.uint8)
