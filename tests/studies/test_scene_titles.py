@@ -3,6 +3,8 @@ told its reader nothing, while ``results.json`` keeps the description whole."""
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 
@@ -43,3 +45,23 @@ def test_the_sun_bake_preview_names_the_file_not_its_path():
                            "/srv/dem/USGS/N40W074.hgt")
     title = " ".join(figure._suptitle.get_text().split())  # the sheet wraps long titles
     assert title.startswith("N40W074.hgt: baked sun and sky light")
+
+
+def test_the_comparison_names_the_file_it_was_opened_from(tmp_path):
+    """``compare`` titled its sheet and tables with the octree's name (``sphere``, whatever the
+    file was called); now with the file's name, and ``results.json`` keeps the path."""
+    from voxfield.cli import main
+    from voxfield.studies.compare import _sheet_title
+
+    deep = tmp_path / "scenes" / "2026" / "ball.npz"
+    deep.parent.mkdir(parents=True)
+    assert main(["--quiet", "build", "builtin:sphere", "--out", str(deep)]) == 0
+    out = tmp_path / "compare"
+    assert main(["--quiet", "compare", str(deep), "--size", "12", "--out", str(out)]) == 0
+    report = json.loads((out / "results.json").read_text())
+    assert report["scene"]["name"] == "sphere" and report["scene"]["description"] == str(deep)
+    assert (out / "results.md").read_text(encoding="utf-8").startswith(
+        "# Renderer comparison: ball.npz\n")
+    assert _sheet_title(report) == "ball.npz: 12×12, camera orbit"
+    page = (out / "report.html").read_text(encoding="utf-8")
+    assert "<title>Renderer comparison: ball.npz</title>" in page  # results.md's heading

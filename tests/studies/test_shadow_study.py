@@ -37,12 +37,12 @@ def lamp_over_a_floor():
                                    emission=emission, name="lamp"))
 
 
-def _study(octree, eye, out):
+def _study(octree, eye, out, **options):
     shift = np.asarray(octree.scene_origin, np.float64)
     camera = Camera.look_at(np.asarray(eye, float) - shift, np.array([8.0, 0.5, 8.5]) - shift,
                             fov_deg=40.0, width=12)
     return run_shadow_study(octree, camera, out, light_samples=2, reference_samples=4,
-                            floor_samples=2)
+                            floor_samples=2, **options)
 
 
 def test_a_view_of_the_floor_s_unlit_underside_is_noted(lamp_over_a_floor, tmp_path):
@@ -57,3 +57,17 @@ def test_a_view_of_the_lit_floor_is_not(lamp_over_a_floor, tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         _study(lamp_over_a_floor, (8.0, 20.0, 8.6), tmp_path / "above")
+
+
+def test_the_study_is_titled_by_the_file_it_was_opened_from(lamp_over_a_floor, tmp_path):
+    """As the other studies title theirs: the file's name, not the octree's (``lamp``) nor
+    the whole path, which ``results.json`` keeps; from the library, the octree's name."""
+    deep = "/srv/scenes/2026/lighting/lamp_over_floor.npz"
+    report = _study(lamp_over_a_floor, (8.0, 20.0, 8.6), tmp_path / "named", scene_name=deep)
+    assert report["scene"]["description"] == deep
+    markdown = (tmp_path / "named" / "results.md").read_text(encoding="utf-8")
+    assert markdown.startswith("# Shadow rays by LOD — lamp_over_floor.npz\n")
+    unnamed = _study(lamp_over_a_floor, (8.0, 20.0, 8.6), tmp_path / "unnamed")
+    assert "description" not in unnamed["scene"]
+    assert (tmp_path / "unnamed" / "results.md").read_text(encoding="utf-8").startswith(
+        "# Shadow rays by LOD — lamp\n")

@@ -54,7 +54,7 @@ def run(args) -> int:
         threshold=args.threshold, decay=args.decay, base_lod=args.base_lod, seed=args.seed,
         channel=args.channel, reuse_parent=args.reuse_parent,
         camera_label=label, threads=args.threads, fresh=args.fresh, progress=not args.quiet,
-        scheduler=args.scheduler,
+        scheduler=args.scheduler, scene_name=args.scene,
     )
     if not args.quiet:
         print(summary_text(report))

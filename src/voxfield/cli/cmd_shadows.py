@@ -66,7 +66,7 @@ def run(args) -> int:
         threshold=args.threshold, decay=args.decay, max_refinements=args.refinements,
         encoding=args.encoding, seed=args.seed, threads=args.threads, fresh=args.fresh,
         camera_label="custom" if args.eye is not None else args.camera,
-        progress=not args.quiet, scheduler=args.scheduler,
+        progress=not args.quiet, scheduler=args.scheduler, scene_name=args.scene,
     )
     if not args.quiet:
         print(summary_text(report))

@@ -32,7 +32,13 @@ from voxfield.studies.figures import (
     refinement_map,
     variance_map,
 )
-from voxfield.studies.report import StudyFolder, fmt, fmt_psnr, markdown_table
+from voxfield.studies.report import (
+    StudyFolder,
+    fmt,
+    fmt_psnr,
+    markdown_table,
+    scene_record_title,
+)
 from voxfield.svo.octree import Octree
 
 #: The thesis's reference: 4×4 CMJ rays per pixel, all at LOD 0 (§5.1.1).
@@ -49,11 +55,13 @@ def run_compare(
     octree: Octree, camera: Camera, out_dir: str | Path, *, threshold: float = THESIS_THRESHOLD,
     decay: float = THESIS_DECAY, base_lod: int | None = 2, seed: int = 0, channel: str = "albedo",
     reuse_parent: bool = False, camera_label: str = "", threads: int | None = None,
-    fresh: bool = False, progress: bool = False, scheduler=None,
+    fresh: bool = False, progress: bool = False, scheduler=None, scene_name: str | None = None,
 ) -> dict:
     """Render, measure and write the comparison into ``out_dir``; returns the results as in
     ``results.json`` plus ``written`` (paths) and ``computed`` / ``reused`` (item names).
 
+    ``scene_name`` is the description the scene was opened from (a file, ``builtin:…``),
+    which the record keeps and the titles name (``scene_record_title``).
     ``base_lod=None`` lets both cheap renderers pick the first ray's LOD from the pixel cone.
     ``reuse_parent`` adds a row for the error-aware renderer with parent-ray reuse. With a
     ``scheduler`` (``voxfield.scaleout``) the renders run as tasks, with the same results.
@@ -62,7 +70,8 @@ def run_compare(
         raise VoxfieldError(f"base LOD must be between 0 and {octree.depth}, got {base_lod}")
     folder = StudyFolder(out_dir, study="compare", fresh=fresh, scheduler=scheduler)
     scene = {"name": octree.name, "depth": octree.depth, "voxels": octree.voxel_count,
-             "fingerprint": octree.fingerprint(channel)}
+             "fingerprint": octree.fingerprint(channel),
+             **({"description": scene_name} if scene_name else {})}
     common = {"scene": scene["fingerprint"], "camera": array_fingerprint(camera.params),
               "width": camera.width, "height": camera.height, "seed": seed, "channel": channel}
     options = {"seed": seed, "channel": channel, "threads": threads, "progress": progress}
@@ -223,10 +232,13 @@ def _sheet(report: dict, results: dict[str, RenderResult], base_lod: int | None)
             cells.append(Panel(title, make(), linear_rgb=False))
         except VoxfieldError:
             continue
-    scene, camera = report["scene"], report["camera"]
+    return contact_sheet(cells, columns=4, title=_sheet_title(report))
+
+
+def _sheet_title(report: dict) -> str:
+    camera = report["camera"]
     view = f", camera {camera['label']}" if camera["label"] else ""
-    title = f"{scene['name']}: {camera['width']}×{camera['height']}{view}"
-    return contact_sheet(cells, columns=4, title=title)
+    return f"{scene_record_title(report['scene'])}: {camera['width']}×{camera['height']}{view}"
 
 
 def _summary_text(report: dict) -> str:
@@ -259,7 +271,7 @@ def results_markdown(report: dict) -> str:
     view = f", camera `{camera['label']}`" if camera["label"] else ""
     rows = report["rows"]
     out = [
-        f"# Renderer comparison: {scene['name']}\n",
+        f"# Renderer comparison: {scene_record_title(scene)}\n",
         f"{camera['width']}×{camera['height']}{view}; {scene['voxels']:,} voxels, "
         f"octree depth {scene['depth']}.\n",
         f"- reference: {settings['reference']['side']}×{settings['reference']['side']} CMJ rays "

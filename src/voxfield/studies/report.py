@@ -413,6 +413,13 @@ def scene_title(scene: str) -> str:
     return Path(scene).name or scene
 
 
+def scene_record_title(scene: dict) -> str:
+    """``scene_title`` of a study's scene record (``compare``, ``shadows``): of the
+    description the scene was opened from where the record keeps it, else of the octree's
+    name (a study run from the library on an octree it was handed)."""
+    return scene_title(scene.get("description") or scene["name"])
+
+
 def fmt_psnr(quality: dict | None, spec: str = ".2f") -> str:
     """A PSNR cell of a measured image: ``∞`` where it equals the reference (JSON keeps that
     infinity as null, which ``fmt`` would show as missing), ``—`` where nothing was

@@ -25,7 +25,13 @@ from voxfield.render.camera import top_down_camera
 from voxfield.render.direct_light import check_emitters, light_on_surface, render_direct_light
 from voxfield.scene.shadow_box import shadow_box_layout
 from voxfield.scene.voxel_scene import linear_to_srgb
-from voxfield.studies.report import StudyFolder, fmt, fmt_psnr, markdown_table
+from voxfield.studies.report import (
+    StudyFolder,
+    fmt,
+    fmt_psnr,
+    markdown_table,
+    scene_record_title,
+)
 
 #: Bump when the shadow kernels' results change, so cached renders are not reused.
 STUDY_VERSION = 1
@@ -54,10 +60,12 @@ def run_shadow_study(
     max_refinements: int | None = None,
     encoding: str | None = None, seed: int = 0, camera_label: str = "",
     threads: int | None = None, fresh: bool = False, progress: bool = False, scheduler=None,
+    scene_name: str | None = None,
 ) -> dict:
     """Render, measure and write the study into ``out_dir``; returns ``results.json``'s
     content plus ``folder``, ``written``, ``computed`` and ``reused``. The five renders are
-    independent items: with a ``scheduler`` (``voxfield.scaleout``) they run as tasks."""
+    independent items: with a ``scheduler`` (``voxfield.scaleout``) they run as tasks.
+    ``scene_name``: the description the scene was opened from, for the record and titles."""
     check_emitters(octree)  # a scene without light: what it needs, before a key reads it
     table = load_error_table()
     folder = StudyFolder(out_dir, study="shadows", fresh=fresh, scheduler=scheduler)
@@ -125,7 +133,8 @@ def run_shadow_study(
             row["far_floor_light"] = beam["far_floor_light"][mode]
         rows.append(row)
     report = {
-        "scene": {"name": octree.name, "depth": octree.depth, "voxels": octree.voxel_count},
+        "scene": {"name": octree.name, "depth": octree.depth, "voxels": octree.voxel_count,
+                  **({"description": scene_name} if scene_name else {})},
         "camera": {"label": camera_label, "width": camera.width, "height": camera.height},
         "settings": {**shadow, "light_samples": light_samples,
                      "reference_samples": reference_samples, "floor_samples": floor_samples,
@@ -316,7 +325,8 @@ def _sheet(results: dict, top_maps: dict, beam: dict | None, max_lod: int, repor
     else:
         axes[1, 3].set_axis_off()
     scene, camera = report["scene"], report["camera"]
-    fig.suptitle(f"{scene['name']}: shadow rays by LOD, {camera['width']}×{camera['height']}"
+    fig.suptitle(f"{scene_record_title(scene)}: shadow rays by LOD, "
+                 f"{camera['width']}×{camera['height']}"
                  f"{', camera ' + camera['label'] if camera['label'] else ''}", fontsize=12)
     return fig
 
@@ -341,7 +351,7 @@ def results_markdown(report: dict) -> str:
         table.append(line)
     scene = report["scene"]
     lines = [
-        f"# Shadow rays by LOD — {scene['name']}", "",
+        f"# Shadow rays by LOD — {scene_record_title(scene)}", "",
         f"Scene depth {scene['depth']}, {scene['voxels']:,} voxels; image "
         f"{report['camera']['width']}×{report['camera']['height']}"
         f"{', camera ' + report['camera']['label'] if report['camera']['label'] else ''}.",
