@@ -707,3 +707,35 @@ def test_command_notes_nothing_for_options_its_render_reads(run, cornell_folder,
         assert run(["probe-render", str(cornell_folder), "--camera", "room", "--size", "8",
                     "--quiet", *extra, "--out", str(tmp_path / "x.png")]) == 0
         assert capsys.readouterr().err == "", extra
+
+
+def test_command_notes_an_eye_no_probe_sees(run, tmp_path, capsys):
+    """The light field answers rays from an eye inside a solid block as if it stood in the
+    open (a picture of surfaces it cannot see, or every ray lost with no word of why):
+    probe-render without --scene says that no probe sees the eye, in one note; an eye in
+    the open beside the block, or outside the grid's box where its rays enter the box, gets
+    no such note."""
+    from voxfield.probes.folder_bake import bake_to_folder
+
+    axis = np.arange(8, 24)
+    block = np.stack(np.meshgrid(axis, axis, axis, indexing="ij"), -1).reshape(-1, 3)
+    corners = np.array([[0, 0, 0], [31, 31, 31], [0, 31, 0], [31, 0, 31]])
+    coords = np.concatenate([block, corners])
+    colours = np.random.default_rng(3).random((len(coords), 3)).astype(np.float32)
+    octree = build_octree(VoxelScene(coords, colours, name="block"))
+    folder = tmp_path / "block_probes"
+    bake_to_folder(octree, ProbeGrid.fit(*octree.voxel_bounds, (2, 2, 2)),
+                   BakeOptions(resolution=16, renderer="lod", lod=0), folder, scheduler="serial")
+    notes = {}
+    for name, eye in (("inside", "13,13,14"), ("open", "3,28,4"), ("outside", "-20,40,-20")):
+        assert run(["probe-render", str(folder), "--eye", eye, "--target", "16,16,16",
+                    "--size", "8", "--quiet", "--out", str(tmp_path / f"{name}.png")]) == 0
+        notes[name] = capsys.readouterr().err
+    assert notes["inside"].startswith("voxfield: note: no probe of this set sees the camera's "
+                                      "eye at (13, 13, 14)")
+    assert len(notes["inside"].splitlines()) == 1  # not the lost-pixels note as well
+    assert "camera's eye" not in notes["open"] + notes["outside"]
+    assert run(["probe-render", str(folder), "--eye", "13,13,14", "--target", "16,16,16",
+                "--method", "environment", "--size", "8", "--quiet", "--out",
+                str(tmp_path / "environment.png")]) == 0
+    assert "camera's eye" not in capsys.readouterr().err  # a baseline reads no depth

@@ -46,6 +46,7 @@ from voxfield.lightfield.packed import PackedProbes
 from voxfield.lightfield.probe_render import (
     METHODS,
     check_probe_device,
+    hidden_eye_note,
     lost_rays_note,
     lost_share,
     probe_set_bounds,
@@ -184,9 +185,14 @@ def run(args) -> int:
     bounds = octree.voxel_bounds if octree is not None else probe_set_bounds(probe_set)
     view = probe_view(args, folder, probe_set, octree, bounds)
     problem = None if octree is None else camera_placement_problem(octree, view)
+    light_field = args.method == "light-field"
+    hidden = hidden_eye_note(probe_set, view) if problem is None and light_field else None
     if problem is not None:
         print(f"voxfield: note: {problem}; its figures describe no real view",
               file=sys.stderr)
+    elif hidden is not None:
+        print(f"voxfield: note: {hidden}; place the camera where the probes see "
+              "(--eye/--target)", file=sys.stderr)
     elif args.compare:  # PSNRs over one colour measure outlines alone, not the probes' trace
         one_colour = one_colour_view_note(octree, view, probe_set.options.channel)
         if one_colour is not None:
@@ -201,7 +207,7 @@ def run(args) -> int:
     shaded = display_shaded(args, out, probe_set.options.channel)
     save_result_image(_displayed(result, shaded), out)
     lost = lost_rays_note(lost_share(result), "this probe set")
-    if lost is not None:
+    if lost is not None and hidden is None:  # (the eye's note names the cause already)
         print(f"voxfield: note: {lost}; place the camera where the probes see "
               "(--eye/--target) or bake a denser grid", file=sys.stderr)
     written = [out]

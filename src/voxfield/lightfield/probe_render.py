@@ -27,7 +27,7 @@ from dataclasses import asdict, is_dataclass
 import numpy as np
 
 from voxfield.errors import VoxfieldError
-from voxfield.kernels.camera_rays import OCTAHEDRAL, ORTHOGRAPHIC
+from voxfield.kernels.camera_rays import OCTAHEDRAL, ORTHOGRAPHIC, PINHOLE
 from voxfield.kernels.octahedral import texel_of_direction
 from voxfield.lightfield.baselines import (
     FETCHES,
@@ -286,6 +286,25 @@ def probes_seeing(probe_set, point) -> int:
         around = distance[index, max(row - 1, 0):row + 2, max(col - 1, 0):col + 2]
         seeing += int(around.min() >= length - 0.5)
     return seeing
+
+
+def hidden_eye_note(probe_set, view: Camera) -> str | None:
+    """What to say when a pinhole camera's eye stands inside the probe grid's box where no
+    probe sees it (``probes_seeing``), or ``None``. The light field answers a ray from
+    there as if it started in open space: inside menger.vox's 3x3x3 grid it read a picture
+    of surfaces the eye cannot see, its rays "hits" (no lost-pixels note); elsewhere the
+    probes lose every ray, and the lost-pixels note gives a share but not the cause. An eye
+    outside the box is where its rays enter it, not a point the probes must see."""
+    if view.kind != PINHOLE:
+        return None
+    eye = np.asarray(view.position, np.float64)
+    lo, hi = probe_set_bounds(probe_set)
+    if not (np.all(lo <= eye) and np.all(eye <= hi)) or probes_seeing(probe_set, eye):
+        return None
+    where = ", ".join(f"{v:.4g}" for v in eye)
+    return (f"no probe of this set sees the camera's eye at ({where}): it stands in solid or "
+            "where no probe looked, and the light field answers its rays as if it stood in "
+            "open space")
 
 
 def lost_rays_note(share: float, probes: str) -> str | None:
