@@ -20,7 +20,9 @@ class RayHits:
     """Per-ray results; ``node`` is -1 and ``t`` is inf where a ray hits nothing.
 
     ``normal_code`` is 0..5 for the -x, +x, -y, +y, -z, +z face entered, -1 when the ray
-    starts inside the node it hits; ``steps`` counts the octree nodes visited.
+    starts inside the node it hits; ``steps`` counts the octree nodes visited. ``level``
+    counts the hit node's level down from the root (0), as the kernels do; ``lod`` counts up
+    from the voxels (0), as ``trace(lod=...)`` and the renderers do, -1 where nothing is hit.
     """
 
     node: np.ndarray
@@ -28,6 +30,7 @@ class RayHits:
     t: np.ndarray
     normal_code: np.ndarray
     steps: np.ndarray
+    lod: np.ndarray
 
     @property
     def hit(self) -> np.ndarray:
@@ -53,6 +56,7 @@ def trace(
     hits = RayHits(
         node=np.empty(n, np.int64), level=np.empty(n, np.int64), t=np.empty(n),
         normal_code=np.empty(n, np.int64), steps=np.empty(n, np.int64),
+        lod=np.empty(n, np.int64),
     )
     with thread_count(threads_for(n, threads)):
         trace_rays(
@@ -60,6 +64,8 @@ def trace(
             hits.node, hits.level, hits.t, hits.normal_code, hits.steps,
             octree_column_tops(octree) if columns else None, numba.get_num_threads(),
         )
+    np.subtract(octree.depth, hits.level, out=hits.lod)
+    hits.lod[hits.node < 0] = -1
     return hits
 
 
