@@ -182,3 +182,15 @@ def test_every_command_s_help_names_the_camera_it_uses_by_default():
                 seen += 1
                 assert f"(default {action.default}:" in action.help, name
     assert seen >= 10
+
+
+@pytest.mark.parametrize(("argv", "prefix"), [
+    (["study", "resolution", "builtin:sphere", "--sizes", "8,16", "--size", "32"], "--size"),
+    (["sweep", "builtin:sphere", "--threshold", "0.1"], "--threshold"),
+    (["render", "builtin:sphere", "--siz", "16", "--out", "unused.png"], "--siz"),
+])
+def test_an_option_is_never_taken_for_another_it_begins(argv, prefix, capsys):
+    """argparse's abbreviations took ``--size 32`` for ``--sizes 32``: the resolution study
+    measured one size of those asked for and exited 0. A prefix of an option is refused."""
+    message = _refused_by_the_parser(argv, capsys)
+    assert f"unrecognized arguments: {prefix}" in message

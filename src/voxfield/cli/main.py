@@ -30,7 +30,14 @@ __all__ = ["EXIT_INTERRUPTED", "EXIT_USAGE", "build_parser", "main"]
 class CommandLineParser(argparse.ArgumentParser):
     """argparse with the command line's one-line errors: a mistyped option gets the same
     single ``voxfield: error: …`` line (and status 2) as any other bad input, naming the
-    command's ``--help`` instead of printing its usage block. Sub-commands inherit it."""
+    command's ``--help`` instead of printing its usage block. Sub-commands inherit it.
+
+    Options are never abbreviated: argparse took ``--size 32`` for ``--sizes 32`` in ``study
+    resolution``, which then measured one size of the four asked for, without a word."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):
         self.exit(2, f"voxfield: error: {message} (see `{self.prog} --help`)\n")
