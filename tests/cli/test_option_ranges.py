@@ -194,3 +194,30 @@ def test_an_option_is_never_taken_for_another_it_begins(argv, prefix, capsys):
     measured one size of those asked for and exited 0. A prefix of an option is refused."""
     message = _refused_by_the_parser(argv, capsys)
     assert f"unrecognized arguments: {prefix}" in message
+
+
+@pytest.mark.parametrize(("argv", "option"), [
+    (["compare", "builtin:sphere", "--size", "6"], "--size 6"),
+    (["sweep", "builtin:sphere", "--size", "6"], "--size 6"),
+    (["calibrate", "builtin:sphere", "--target-psnr", "20", "--size", "6"], "--size 6"),
+    (["study", "thresholds", "builtin:sphere", "--size", "6"], "--size 6"),
+    (["study", "lighting", "builtin:sphere", "--size", "6"], "--size 6"),
+    (["study", "probes", "builtin:sphere", "--size", "5"], "--size 5"),
+    (["study", "resolution", "builtin:sphere", "--sizes", "4,8,2"], "--sizes 2,4"),
+    (["study", "probe-resolution", "builtin:sphere", "--resolutions", "4,8"],
+     "--resolutions 4"),
+])
+def test_a_side_too_small_for_ssim_is_refused_before_any_work(argv, option, tmp_path, capsys):
+    """SSIM's 7×7 window: these commands rendered (a probe study baked and cached) at the
+    sizes asked for, then stopped at the first measurement with a message naming no option."""
+    out = tmp_path / "out"
+    assert main([*argv, "--out", str(out)]) == 2
+    message = one_error_line(capsys)
+    assert message.startswith(f"voxfield: error: {option}: ") and "7×7" in message
+    assert not out.exists()
+
+
+def test_a_ray_count_target_needs_no_ssim(tmp_path, capsys):
+    """``calibrate --target-rays`` measures no image: a 6² view is calibrated."""
+    assert main(["calibrate", "builtin:sphere", "--target-rays", "60", "--size", "6",
+                 "--iterations", "2", "--quiet", "--out", str(tmp_path / "c.json")]) == 0

@@ -45,7 +45,7 @@ def test_the_command_line_refuses_a_second_study_before_its_renders(tmp_path, ca
 
     monkeypatch.setattr("voxfield.cli.cmd_study.probe_resolution_study", never)
     assert main(["study", "probe-resolution", "builtin:pillars", "--grid", "1x1x1",
-                 "--resolutions", "4", "--quiet", "--out", str(out)]) == 2
+                 "--resolutions", "8", "--quiet", "--out", str(out)]) == 2
     assert "voxfield study normalisation" in one_error_line(capsys)
     assert sorted(p.name for p in out.iterdir()) == before
     assert main(["study", "normalisation", "builtin:pillars", "--size", "16", "--quiet",

@@ -11,6 +11,7 @@ from voxfield.cli.options import (
     add_renderer_options,
     add_scene_options,
     add_view_options,
+    check_measured_sides,
     int_between,
     open_octree,
     output_named,
@@ -44,6 +45,8 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    if args.target_psnr is not None:  # (a ray count is reached without measuring images)
+        check_measured_sides([args.size])
     if args.out:
         output_named(args.out, ".json", "the calibration trail")  # before the renders
     octree = open_octree(args)

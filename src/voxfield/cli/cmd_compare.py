@@ -10,6 +10,7 @@ from voxfield.cli.options import (
     add_scene_options,
     add_study_folder,
     add_view_options,
+    check_measured_sides,
     default_output,
     open_octree,
     positive_int,
@@ -45,6 +46,7 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 
 def run(args) -> int:
+    check_measured_sides([args.size])
     octree = open_octree(args)
     args = settled_view(args, octree)
     view = study_camera(args, octree)

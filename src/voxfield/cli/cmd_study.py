@@ -17,6 +17,7 @@ from voxfield.cli.options import (
     add_view_options,
     auto_preset,
     check_base_lod,
+    check_measured_sides,
     default_output,
     distinct,
     finite_float,
@@ -273,6 +274,7 @@ def run_curves(args) -> int:
 
 
 def run_thresholds(args) -> int:
+    check_measured_sides([args.size])
     octree = open_octree(args)
     view = study_camera(args, octree)
     out = args.out or default_output("thresholds", args.scene)
@@ -293,6 +295,7 @@ def run_thresholds(args) -> int:
 
 
 def run_resolution(args) -> int:
+    check_measured_sides(args.sizes, "--sizes")
     octree = open_octree(args)
     out = args.out or default_output("resolution", args.scene)
     report = run_resolution_study(
@@ -311,6 +314,7 @@ def run_resolution(args) -> int:
 
 
 def run_lighting(args) -> int:
+    check_measured_sides([args.size])
     octree = open_octree(args)
     view = study_camera(args, octree)  # before a bake: the geometry is the same after it
     if len(lighting_channels(octree)) < 2:
@@ -335,6 +339,7 @@ def run_lighting(args) -> int:
 
 
 def run_probe_resolution(args) -> int:
+    check_measured_sides(args.resolutions, "--resolutions")
     folder = StudyFolder(args.out or default_output("probe_resolution", args.scene),
                          study="study probe-resolution", fresh=args.fresh)
     octree = open_octree(args)
@@ -438,6 +443,7 @@ def probe_study_view(args, octree):
 
 
 def run_probes(args) -> int:
+    check_measured_sides([args.size])
     quiet = getattr(args, "quiet", False)
     octree = open_octree(args)
     view = probe_study_view(args, octree)

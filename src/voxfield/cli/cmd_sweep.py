@@ -9,6 +9,7 @@ from voxfield.cli.options import (
     add_scene_options,
     add_study_folder,
     add_view_options,
+    check_measured_sides,
     default_output,
     float_list,
     non_negative_float_list,
@@ -37,6 +38,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    check_measured_sides([args.size])
     octree = open_octree(args)
     view = study_camera(args, octree)
     out = args.out or default_output("sweep", args.scene)

@@ -21,6 +21,7 @@ from voxfield.checks import MAX_SEED
 from voxfield.cli.commands import add_quiet
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import COLOUR_PROBES, EPSILON_MODES, LightFieldOptions
+from voxfield.metrics import SSIM_WINDOW
 from voxfield.render.camera import (
     CAMERA_PRESETS,
     MAX_IMAGE_SIDE,
@@ -525,6 +526,16 @@ def study_camera(args, octree) -> Camera:
     if note:
         warnings.warn(note, UserWarning, stacklevel=2)
     return view
+
+
+def check_measured_sides(sides, option: str = "--size") -> None:
+    """Refuse image sides too small for SSIM before any work: a comparison at ``--size 6``
+    rendered (or baked and cached) everything, then stopped at the first measurement."""
+    small = sorted({int(side) for side in sides if side < SSIM_WINDOW})
+    if small:
+        raise VoxfieldError(f"{option} {','.join(map(str, small))}: the comparison measures "
+                            f"SSIM, whose {SSIM_WINDOW}×{SSIM_WINDOW} window needs images of "
+                            f"at least {SSIM_WINDOW} pixels a side")
 
 
 def check_base_lod(args, octree) -> None:
