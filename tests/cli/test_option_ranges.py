@@ -221,3 +221,13 @@ def test_a_ray_count_target_needs_no_ssim(tmp_path, capsys):
     """``calibrate --target-rays`` measures no image: a 6² view is calibrated."""
     assert main(["calibrate", "builtin:sphere", "--target-rays", "60", "--size", "6",
                  "--iterations", "2", "--quiet", "--out", str(tmp_path / "c.json")]) == 0
+
+
+@pytest.mark.parametrize("vector", ["1e308,1e308,1e308", "0,2e12,0", "nan,1,1"])
+def test_a_camera_beyond_any_scene_is_refused_by_the_parser(vector, capsys):
+    """``--eye 1e308,...`` printed NumPy's overflow warnings as notes and wrote an empty
+    image, exit 0; a coordinate must be finite and within ``MAX_COORDINATE``."""
+    message = _refused_by_the_parser(["render", "builtin:sphere", "--eye", vector, "--target",
+                                      "0,0,0", "--out", "unused.png"], capsys)
+    assert "argument --eye: expected finite coordinates within ±1e+12 voxels" in message
+    assert "overflow" not in message

@@ -41,14 +41,23 @@ from voxfield.svo.open import open_octree as open_octree_from_spec
 # --------------------------------------------------------------------------- argument types
 
 
+#: The largest coordinate ``--eye``/``--target``/``--box-min`` take, in voxels: a billion
+#: times a 1,024-voxel scene's side. Beyond some such bound the camera's vectors overflow
+#: (``--eye 1e308,1e308,1e308`` printed NumPy's overflow warnings and wrote an empty image).
+MAX_COORDINATE = 1e12
+
+
 def vector_arg(text: str) -> tuple[float, float, float]:
-    """Three comma-separated numbers, ``1,2,3``."""
+    """Three comma-separated finite numbers, ``1,2,3``, each within ``MAX_COORDINATE``."""
     try:
         values = tuple(float(v) for v in text.split(","))
     except ValueError:
         values = ()
     if len(values) != 3:
         raise argparse.ArgumentTypeError(f"expected three numbers like 1,2,3, got {text!r}")
+    if not all(math.isfinite(v) and abs(v) <= MAX_COORDINATE for v in values):
+        raise argparse.ArgumentTypeError(f"expected finite coordinates within ±{MAX_COORDINATE:g} "
+                                         f"voxels, got {text!r}")
     return values
 
 
