@@ -231,3 +231,19 @@ def test_a_camera_beyond_any_scene_is_refused_by_the_parser(vector, capsys):
                                       "0,0,0", "--out", "unused.png"], capsys)
     assert "argument --eye: expected finite coordinates within ±1e+12 voxels" in message
     assert "overflow" not in message
+
+
+def test_an_image_the_machine_cannot_hold_is_refused_before_it_renders(tmp_path, capsys,
+                                                                       monkeypatch):
+    """``render --size 16384`` (within the option's range) ran for minutes on a 23 GiB
+    machine and was killed for memory, exit 137 without a word. On a machine said to hold
+    2 GiB a 4096² render (about 3 GiB) is refused, and a 512² one (48 MiB) renders."""
+    import voxfield.cli.options as options
+
+    monkeypatch.setattr(options, "physical_memory", lambda: 2 * 2**30)
+    out = tmp_path / "big.png"
+    assert main(["render", "builtin:sphere", "--size", "4096", "--out", str(out)]) == 2
+    message = one_error_line(capsys)
+    assert "--size 4096: a 4096×4096 render needs about 3.0 GiB" in message
+    assert "this machine's 2.0 GiB" in message and not out.exists()
+    assert main(["render", "builtin:sphere", "--size", "512", "--quiet", "--out", str(out)]) == 0
