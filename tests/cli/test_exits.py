@@ -80,7 +80,8 @@ def test_a_big_world_too_small_for_its_recipe_is_refused_first(shared_data):
         capture_output=True, text=True, timeout=600)
     assert proc.returncode == EXIT_USAGE
     assert "Traceback" not in proc.stderr
-    assert proc.stderr.splitlines()[-1].startswith("bench_traversal: error: no room for")
+    assert proc.stderr.splitlines()[-1].startswith(
+        "bench_traversal: error: footprint 3 is too small for this terrain")
     assert "building mountain at 64²" not in proc.stderr
 
 

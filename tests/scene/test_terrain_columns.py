@@ -192,8 +192,10 @@ def test_bad_parameters_are_rejected():
         terrain_columns(hm, 4, vertical_scale=0)
     with pytest.raises(VoxfieldError, match="max_height"):
         terrain_columns(hm, 4, max_height=4)
-    with pytest.raises(VoxfieldError, match="no room"):
+    with pytest.raises(VoxfieldError, match="footprint 4 is too small for this terrain"):
         terrain_scene(hm, 4, assets=[tree(height=6)])
+    with pytest.raises(VoxfieldError, match="no room"):  # a cap the caller chose
+        terrain_columns(hm, 8, max_height=3, fill_depth=4)
     with pytest.raises(VoxfieldError, match="recipe"):
         recipe_scene("tundra", 64)
 
@@ -229,3 +231,19 @@ def test_ground_laid_out_in_bands_equals_one_go(monkeypatch, shared_data):
     np.testing.assert_array_equal(banded.coords, whole.coords)
     np.testing.assert_array_equal(banded.color, whole.color)
     assert len(whole) > 48 * 48
+
+
+@pytest.mark.parametrize(("fill_depth", "reserve"), [(4, 0), (3, 1), (0, 0)])
+def test_a_footprint_too_small_for_the_fill_says_the_smallest_that_fits(fill_depth, reserve):
+    """``--footprint 2`` (within its 2.. range) said "leaves 1 voxels of height after 0
+    reserved for assets, less than fill_depth 4". The smallest footprint that fits is the
+    fill, the voxels kept for assets and the surface voxel: it builds, one less is refused
+    by that number."""
+    hm = Heightmap(np.arange(64, dtype=float).reshape(8, 8), spacing=(1, 1))
+    smallest = fill_depth + reserve + 1
+    cols = terrain_columns(hm, max(smallest, 2), fill_depth=fill_depth, reserve=reserve)
+    assert cols.footprint == max(smallest, 2)
+    if smallest > 2:
+        with pytest.raises(VoxfieldError, match=f"^footprint {smallest - 1} is too small for "
+                           f"this terrain: it needs at least {smallest} columns a side"):
+            terrain_columns(hm, smallest - 1, fill_depth=fill_depth, reserve=reserve)

@@ -133,6 +133,14 @@ def terrain_columns(
         hm = square_crop(hm)
     if max_height is None:
         max_height = footprint - 1 - int(reserve)
+        smallest = int(fill_depth) + int(reserve) + 1
+        if footprint < smallest:  # (the cube's height is the footprint: no room for the fill)
+            voxels = "voxel" if reserve == 1 else "voxels"
+            kept = f" under {reserve} {voxels} kept for its assets" if reserve else ""
+            raise VoxfieldError(
+                f"footprint {footprint} is too small for this terrain: it needs at least "
+                f"{smallest} columns a side, as its ground is filled {fill_depth} voxels deep"
+                f"{kept}")
     elif not 0 <= max_height <= footprint - 1:
         raise VoxfieldError(
             f"max_height must be in 0..{footprint - 1} so the terrain fits a {footprint}³ cube, "
