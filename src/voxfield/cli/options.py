@@ -594,7 +594,8 @@ def add_hit_options(p: argparse.ArgumentParser, prefix: str = "") -> None:
                    "behind a surface by the depth one texel spans; adaptive is the probe "
                    "thesis's §7.1 as printed, adaptive-text the form its text derives)")
     p.add_argument("--epsilon-value", type=float, default=defaults.epsilon_value, metavar="E",
-                   help=f"{prefix}constant epsilon: thickness in voxels "
+                   help=f"{prefix}constant epsilon: thickness in voxels; the slope and "
+                   "footprint epsilons add it to the thickness they derive behind a surface "
                    f"(default {defaults.epsilon_value})")
     p.add_argument("--epsilon-k", type=float, default=defaults.epsilon_k, metavar="K",
                    help=f"{prefix}adaptive/angular epsilon: scale k "
