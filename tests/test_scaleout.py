@@ -215,8 +215,16 @@ def lone_worker():
     """A cluster in this process with a single worker: closing it loses the job's scattered
     shared argument, as killing the last worker of a real cluster does."""
     distributed = pytest.importorskip("distributed", reason="needs Dask's distributed")
-    with local_cluster(1, processes=False) as cluster, distributed.Client(cluster) as client:
-        yield cluster, client
+    with local_cluster(1, processes=False) as cluster:
+        client = distributed.Client(cluster)
+        try:
+            yield cluster, client
+        finally:
+            # A test that broke the client's connection on purpose leaves it reconnecting, and
+            # Dask's reconnection can race its close (an AssertionError inside distributed,
+            # once in a CI run): what the test asserted is settled by then.
+            with contextlib.suppress(Exception):
+                client.close()
 
 
 def _run_until(client, arguments, when_first_lands: Callable[[], None], **options) -> dict:
