@@ -112,7 +112,8 @@ def test_curves_from_the_command_line(tmp_path, capsys):
 
 
 @pytest.mark.parametrize("bad", [["--thresholds", "inf,0.1"], ["--decays", "-1"],
-                                 ["--cameras", "nowhere"]])
+                                 ["--cameras", "nowhere"], ["--normalisations", "0,1"],
+                                 ["--normalisations", "0"]])
 def test_bad_curve_values_are_one_line_and_exit_2(bad, tmp_path, capsys):
     try:
         code = main(["--quiet", "study", "curves", "builtin:pillars", "--size", "16",
@@ -120,8 +121,11 @@ def test_bad_curve_values_are_one_line_and_exit_2(bad, tmp_path, capsys):
     except SystemExit as refused:  # the parser's own refusal
         code = refused.code
     assert code == 2
-    assert len(capsys.readouterr().err.strip().splitlines()) == 1
-    assert not (tmp_path / "c").exists()
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and not (tmp_path / "c").exists()
+    if bad[0] == "--normalisations":  # (a variance normalisation of 0 was refused late, or
+        # hidden behind "each curve needs at least two knob values")
+        assert err[0] == "voxfield: error: --normalisations must be finite and positive"
 
 
 def test_a_lod_list_that_is_not_numbers_is_an_argument_error(tmp_path):

@@ -247,10 +247,11 @@ def run_normalisation(args) -> int:
 
 
 def run_curves(args) -> int:
-    for name, values in (("--thresholds", args.thresholds),
-                         ("--normalisations", args.normalisations)):
-        if any(not math.isfinite(v) or v < 0 for v in values):
-            raise VoxfieldError(f"{name} must be finite and not negative")
+    if any(not math.isfinite(v) or v < 0 for v in args.thresholds):
+        raise VoxfieldError("--thresholds must be finite and not negative")
+    # (A variance normalisation divides: 0 was refused by the study after its first renders.)
+    if any(not math.isfinite(v) or v <= 0 for v in args.normalisations):
+        raise VoxfieldError("--normalisations must be finite and positive")
     octree = open_octree(args)
     check_base_lod(args, octree)
     lo, hi = octree.voxel_bounds
