@@ -308,7 +308,7 @@ def probe_view(args, folder: Path, probe_set, octree, bounds):
         return camera(with_camera(args, "top"), bounds)
     box = probe_set_bounds(probe_set)
     room = camera(with_camera(args, "room"), box)
-    if probes_seeing(probe_set, room.position):
+    if probes_seeing(probe_set, room.position, 1):
         return room
     return camera(with_camera(args, "orbit"), box)
 

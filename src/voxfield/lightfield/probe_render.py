@@ -265,12 +265,14 @@ def lost_share_of(lost: float, proven_empty: float) -> float:
     return 0.0 if seen <= 0.0 else min(1.0, lost / seen)
 
 
-def probes_seeing(probe_set, point) -> int:
+def probes_seeing(probe_set, point, enough: int | None = None) -> int:
     """How many enabled probes of ``probe_set`` see ``point``: every texel of the distance
     map within one of the point's direction reaches the point (less half a voxel). One
     texel's ray can pass beside a small solid that a far probe sees the point inside; the
     ring around it cannot. A camera no probe sees stands in solid, or in space no probe
-    looked into: every ray it casts starts where the probes know nothing."""
+    looked into: every ray it casts starts where the probes know nothing. With ``enough``
+    the count stops there: whether any probe sees a point needs one, not a loop over a
+    grid of thousands."""
     point = np.asarray(point, np.float64)
     positions = np.asarray(probe_set.positions, np.float64)
     distance = np.asarray(probe_set.distance)
@@ -281,10 +283,12 @@ def probes_seeing(probe_set, point) -> int:
         length = float(np.linalg.norm(offset))
         if length == 0.0:
             seeing += 1
-            continue
-        row, col = texel_of_direction(*(offset / length), resolution)
-        around = distance[index, max(row - 1, 0):row + 2, max(col - 1, 0):col + 2]
-        seeing += int(around.min() >= length - 0.5)
+        else:
+            row, col = texel_of_direction(*(offset / length), resolution)
+            around = distance[index, max(row - 1, 0):row + 2, max(col - 1, 0):col + 2]
+            seeing += int(around.min() >= length - 0.5)
+        if enough is not None and seeing >= enough:
+            break
     return seeing
 
 
@@ -299,7 +303,7 @@ def hidden_eye_note(probe_set, view: Camera) -> str | None:
         return None
     eye = np.asarray(view.position, np.float64)
     lo, hi = probe_set_bounds(probe_set)
-    if not (np.all(lo <= eye) and np.all(eye <= hi)) or probes_seeing(probe_set, eye):
+    if not (np.all(lo <= eye) and np.all(eye <= hi)) or probes_seeing(probe_set, eye, 1):
         return None
     where = ", ".join(f"{v:.4g}" for v in eye)
     return (f"no probe of this set sees the camera's eye at ({where}): it stands in solid or "
