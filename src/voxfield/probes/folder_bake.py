@@ -35,11 +35,29 @@ HEADER_FLUSH_SECONDS = 1.0
 
 
 def checked_folder_path(out) -> Path:
-    """``out`` as a probe folder's path, refused where a file stands there."""
+    """``out`` as a probe folder's path, refused where a file stands there or where a
+    folder holds other files (``check_bake_folder``)."""
     folder = Path(out)
     if folder.exists() and not folder.is_dir():
         raise ProbeStorageError(f"{folder} exists and is not a folder; pick another --out")
+    check_bake_folder(folder)
     return folder
+
+
+def check_bake_folder(folder: Path) -> None:
+    """Refuse a folder that holds files but no probe-set header: a study's results, or a
+    user's own files, which a bake would mix its files into (or, with ``--fresh``, delete
+    those named like its own). A bake goes into a new or empty folder, or a probe set."""
+    if not folder.is_dir() or (folder / HEADER_NAME).exists():
+        return
+    # Dot files are skipped: a write stopped part-way leaves its hidden temporary file.
+    others = sorted(p.name for p in folder.iterdir() if not p.name.startswith("."))
+    if others:
+        shown = ", ".join(others[:3]) + (f" and {len(others) - 3} more" if len(others) > 3
+                                         else "")
+        raise ProbeStorageError(
+            f"{folder} holds {shown} but no {HEADER_NAME}: it is not a probe set; give the "
+            "bake a new or empty folder as --out")
 
 
 def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = False,

@@ -33,6 +33,7 @@ from voxfield.errors import VoxfieldError
 from voxfield.json_output import json_text, to_json
 from voxfield.metrics import compare_images, psnr_text
 from voxfield.parallel import thread_count
+from voxfield.probes.probe_folder import HEADER_NAME as PROBE_SET_HEADER
 from voxfield.render.image_io import save_png
 from voxfield.render.result import RenderResult
 from voxfield.scaleout import check_scheduler, run_tasks
@@ -135,6 +136,9 @@ class StudyFolder:
         if self.root.exists() and not self.root.is_dir():
             raise VoxfieldError(f"study output {self.root} exists and is not a folder")
         self.study = study
+        if (self.root / PROBE_SET_HEADER).exists():
+            raise VoxfieldError(f"{self.root} holds a probe set ({PROBE_SET_HEADER}); give "
+                                f"`voxfield {study}` another --out")
         #: The study the folder's mark names (None: none yet); claimed at the first output.
         self._held = self._held_study()
         # A folder that cannot be written fails now, not at the first output after the work.
