@@ -88,7 +88,8 @@ def register(subparsers) -> None:
     p.add_argument("--out", default=None,
                    help="probe-set folder (default out/probes_NAME, NAME from the scene)")
     p.add_argument("--fresh", action="store_true",
-                   help="discard what the folder holds (even from another scene) and start over")
+                   help="discard the probe set the folder holds (even from another scene) "
+                        "and start over; a folder of other files is refused, not emptied")
     add_quiet(p)
     p.set_defaults(func=run_bake)
 
