@@ -8,6 +8,7 @@ the nearest solid voxel (point-to-box distance over every voxel of a small scene
 from __future__ import annotations
 
 import json
+import warnings
 
 import numpy as np
 import pytest
@@ -456,3 +457,35 @@ def test_placement_notes_a_grid_partly_inside_or_wholly_outside(block):
     assert "less than a voxel apart along x" in problem
     for beside in ((20.0, 8.0, 8.0), (24.0, 24.0, 24.0)):  # around an object: welcome
         assert placement_problem(_single_probe(beside), block) == (None, False)
+
+
+@pytest.mark.parametrize("height", ["1e308", "1e16", "0", "-3"])
+def test_a_surface_layer_height_out_of_reach_is_refused_before_any_ray(height):
+    """``surface:2x2@1e308`` overflowed to infinity (NumPy's warning leaked as a note) and
+    was then blamed on the grid's origin, printed as a NumPy repr; the height is now
+    refused by name, as explicit grids' positions are, before any ray is cast."""
+    text = f"surface:2x2@{height}"
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no overflow warning on the way
+        with pytest.raises(VoxfieldError, match="layer height must be a distance above 0 "
+                           "and within 1.1259e\\+15 voxels") as refused:
+            parse_grid(text, octree=_NO_RAYS)
+    assert "array(" not in str(refused.value) and text in str(refused.value)
+    with pytest.warns(UserWarning, match="above the scene.s box"):  # a slab: its top is the box
+        layer = parse_grid("surface:1x1@1e12", octree=_flat_ground())
+    assert layer.positions[0, 1] == pytest.approx(1e12 + 1)
+
+
+class _NoRays:
+    """An octree stand-in that fails if a ray is ever cast against it."""
+
+    @property
+    def voxel_bounds(self):
+        raise AssertionError("the scene was touched before the height was checked")
+
+
+_NO_RAYS = _NoRays()
+
+
+def _flat_ground():
+    return _octree(((0, 0, 0), (4, 1, 4)))

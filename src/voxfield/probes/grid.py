@@ -63,7 +63,7 @@ def _vector(value, name: str, dtype=np.float64) -> np.ndarray:
     if v.shape != (3,):
         raise VoxfieldError(f"probe grid {name} must be three numbers, got {value!r}")
     if not np.isfinite(v).all():
-        raise VoxfieldError(f"probe grid {name} holds NaN or infinity: {value!r}")
+        raise VoxfieldError(f"probe grid {name} holds NaN or infinity: {v.tolist()}")
     return v
 
 
@@ -299,8 +299,9 @@ def surface_layer(octree, counts_xz, height: float) -> ProbeGrid:
     (found by a ray cast straight down): for terrains, whose relief a flat layer would cut
     through or float far above. The lattice is one probe high; each probe's vertical offset
     follows the ground, so the cell spans the whole relief."""
-    if not (math.isfinite(height) and height > 0):
-        raise VoxfieldError(f"the layer height must be a distance above 0, got {height}")
+    if not (math.isfinite(height) and 0 < height <= MAX_COORDINATE):
+        raise VoxfieldError(f"the layer height must be a distance above 0 and within "
+                            f"{MAX_COORDINATE:.6g} voxels, got {height}")
     lo, hi = (np.asarray(b, np.float64) for b in octree.voxel_bounds)
     nx, nz = (int(c) for c in counts_xz)
     flat = ProbeGrid.fit(lo, hi, (nx, 1, nz))
@@ -334,8 +335,9 @@ def surface_spec(text: str) -> tuple[tuple[int, int], float] | None:
         height = float(surface.group(3))
     except ValueError:
         raise VoxfieldError(f"the layer height in {text!r} must be a number") from None
-    if not (math.isfinite(height) and height > 0):
-        raise VoxfieldError(f"the layer height must be a distance above 0, got {text!r}")
+    if not (math.isfinite(height) and 0 < height <= MAX_COORDINATE):
+        raise VoxfieldError(f"the layer height must be a distance above 0 and within "
+                            f"{MAX_COORDINATE:.6g} voxels, got {text!r}")
     counts = (int(surface.group(1)), int(surface.group(2)))
     if min(counts) < 1:
         raise VoxfieldError(f"probe counts must be 1 or more, got {text!r}")
