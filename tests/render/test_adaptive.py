@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -78,6 +80,20 @@ def test_iterations_past_the_last_change_change_nothing():
         assert np.array_equal(getattr(few, name), getattr(many, name)), name
     for name in ("variance", "refinement_class"):
         assert np.array_equal(few.maps[name], many.maps[name]), name
+
+
+def test_a_subnormal_normalisation_refines_every_varied_pixel_without_a_warning():
+    """Dividing by 1e-320 overflows to infinity, which is over every cut-off: the render is
+    the one a merely tiny normalisation gives, and NumPy's overflow warning (shown on the
+    command line as a note) is not raised."""
+    octree, cam = _stripes()
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        subnormal = render_adaptive(octree, cam, base_lod=0, variance_normalisation=1e-320)
+    tiny = render_adaptive(octree, cam, base_lod=0, variance_normalisation=1e-30)
+    assert np.array_equal(subnormal.maps["refinement_class"], tiny.maps["refinement_class"])
+    assert np.array_equal(subnormal.image, tiny.image)
+    assert (tiny.maps["refinement_class"] == 2).any() and (tiny.maps["refinement_class"] == 0).any()
 
 
 @pytest.mark.parametrize(("options", "message"), [

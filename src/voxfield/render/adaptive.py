@@ -167,7 +167,9 @@ def render_adaptive(
     refinement = PixelRefinement(octree, camera, result, seed, octree.kernel_colours(channel),
                                  threads, device, channel, columns)
     for _ in range(iterations):
-        variance = window_variance(luminance(result.image), valid) / variance_normalisation
+        # A tiny normalisation overflows to infinity: far over the cut-offs, which it is.
+        with np.errstate(over="ignore"):
+            variance = window_variance(luminance(result.image), valid) / variance_normalisation
         wanted = refinement_classes(variance, valid)
         todo = {cls: np.flatnonzero((wanted == cls) & (current < cls)) for cls in (1, 2)}
         refinement.refine_round([(pixels, CLASS_SIDE[cls]) for cls, pixels in todo.items()])
