@@ -138,6 +138,36 @@ def test_errors_build_small_table_then_info_and_show(tmp_path, capsys):
     assert Image.open(png).size[0] > 500
 
 
+def test_errors_info_describes_a_lighting_table_and_each_command_names_the_other_kind(
+        tmp_path, capsys):
+    """``errors info --table`` on a lighting table said it "is not an error table; make one
+    with `voxfield errors build`"; it now describes it. ``errors show``, which pictures an
+    error table's masks, names the kind it was given; a folder is said to be a folder."""
+    lighting = tmp_path / "lighting.npz"
+    assert main(["errors", "build-lighting", "--resolution", "4", "--oct-resolution", "4",
+                 "--seed", "3", "--out", str(lighting), "--quiet"]) == 0
+    assert main(["errors", "info", "--table", str(lighting)]) == 0
+    out = capsys.readouterr().out.strip()
+    # 6,050 configurations: each mask's non-empty bright subsets but the whole mask
+    # (sum over masks of 2^popcount - 2, masks of one child having none)
+    assert out == ("lighting error table: 6,050 bright-flag configurations in 224 symmetry "
+                   "classes, octahedral maps 4², 4² rays per texel, seed 3")
+    assert main(["errors", "info", "--table", str(lighting), "--report"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "is a lighting error table" in err
+    assert main(["errors", "show", "7", "--table", str(lighting),
+                 "--out", str(tmp_path / "m.png")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith("is a lighting error table, not an error table")
+    assert not (tmp_path / "m.png").exists()
+    folder = tmp_path / "tables.npz"
+    folder.mkdir()
+    for command in (["errors", "info"], ["errors", "show", "7"]):
+        assert main([*command, "--table", str(folder)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert err.endswith("is a folder, not an error table file"), err
+
+
 def test_errors_commands_reject_bad_input(tmp_path, capsys):
     assert main(["errors", "info", "--table", str(tmp_path / "none.npz")]) == 2
     assert "voxfield errors build" in capsys.readouterr().err

@@ -6,12 +6,15 @@ import argparse
 import time
 from pathlib import Path
 
+import numpy as np
+
 from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import finite_float, int_between, output_named, seed_arg
 from voxfield.error_table import build_error_table, fit_report, load_error_table, save_error_table
 from voxfield.error_table.lighting_table import (
     DEFAULT_LIGHTING_TABLE,
     build_lighting_error_table,
+    load_lighting_error_table,
     save_lighting_error_table,
 )
 from voxfield.error_table.plot import plot_mask_error
@@ -19,10 +22,13 @@ from voxfield.error_table.symmetry import distinct_mask_count
 from voxfield.error_table.table import (
     DEFAULT_TABLE,
     ENCODINGS,
+    LIGHTING_FORMAT,
     MAX_RESOLUTION,
     MIN_RESOLUTION,
     THESIS_THRESHOLD,
+    table_format,
 )
+from voxfield.errors import VoxfieldError
 
 
 def mask_arg(text: str) -> int:
@@ -81,9 +87,11 @@ def register(subparsers) -> None:
     p.set_defaults(func=run_build_lighting)
 
     p = actions.add_parser("info", help="parameters of a table, symmetry classes, fit quality",
-                           description="Describe an error table.")
-    p.add_argument("--table", default=None, help="table file (default: the packaged one)")
-    p.add_argument("--report", action="store_true", help="measure both encodings' fit")
+                           description="Describe an error table or a lighting error table.")
+    p.add_argument("--table", default=None, help="error table or lighting error table file "
+                   "(default: the packaged error table)")
+    p.add_argument("--report", action="store_true",
+                   help="measure both encodings' fit (error tables)")
     add_quiet(p)
     p.set_defaults(func=run_info)
 
@@ -151,6 +159,8 @@ def _print_fit_report(report: dict) -> None:
 
 
 def run_info(args) -> int:
+    if args.table is not None and table_format(args.table) == LIGHTING_FORMAT:
+        return _lighting_info(args)
     table = load_error_table(args.table)
     p = table.params
     print(f"error table: {p.get('n_directions')} Fibonacci directions, {p.get('resolution')}² "
@@ -159,6 +169,20 @@ def run_info(args) -> int:
     print(f"child masks distinct under the 48 cube symmetries: {distinct_mask_count()} of 256")
     if args.report:
         _print_fit_report(fit_report(table))
+    return 0
+
+
+def _lighting_info(args) -> int:
+    """``errors info`` on a lighting table: what built it (its one encoding is octahedral)."""
+    if args.report:
+        raise VoxfieldError(f"--report measures an error table's two encodings; {args.table} "
+                            "is a lighting error table, which has one (octahedral maps)")
+    table = load_lighting_error_table(args.table)  # checksummed, as an error table is
+    p = table.params
+    configurations = int(np.count_nonzero(table.class_of >= 0))  # from the checksummed arrays
+    print(f"lighting error table: {configurations:,} bright-flag configurations in "
+          f"{table.class_count} symmetry classes, octahedral maps {p.get('oct_resolution')}², "
+          f"{p.get('resolution')}² rays per texel, seed {p.get('seed')}")
     return 0
 
 

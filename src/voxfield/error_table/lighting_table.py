@@ -22,9 +22,11 @@ import numpy as np
 from voxfield.atomic import atomic_path
 from voxfield.error_table.symmetry import cube_symmetries, octant_permutation
 from voxfield.error_table.table import (
+    LIGHTING_FORMAT,
     ErrorTableError,
     _checksum,
     check_resolution,
+    check_table_file,
     read_table_file,
 )
 from voxfield.errors import VoxfieldError
@@ -34,7 +36,7 @@ from voxfield.kernels.lighting_error import configuration_colour_errors
 from voxfield.kernels.octahedral import add_border, texel_directions
 from voxfield.progress import progress_bar
 
-FORMAT = "voxfield-lighting-error-table"
+FORMAT = LIGHTING_FORMAT
 FORMAT_VERSION = 1
 DEFAULT_LIGHTING_TABLE = Path(__file__).parent / "data" / "lighting_error_table.npz"
 REBUILD_COMMAND = ("voxfield errors build-lighting --out "
@@ -184,8 +186,7 @@ def _packaged_lighting_table() -> LightingErrorTable:
 def _read_lighting_table(path: Path) -> LightingErrorTable:
     hint = f"rebuild it with `{REBUILD_COMMAND}`" if path == DEFAULT_LIGHTING_TABLE else (
         f"rebuild it with `voxfield errors build-lighting --out {path}`")
-    if not path.is_file():
-        raise ErrorTableError(f"lighting error table {path} is missing; {hint}")
+    check_table_file(path, "lighting error table", hint)
     header, arrays = read_table_file(
         path, ("oct_map", "class_of", "symmetry_of", "symmetries"), FORMAT, FORMAT_VERSION,
         "lighting error table", hint, "voxfield errors build-lighting")

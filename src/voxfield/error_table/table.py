@@ -34,6 +34,9 @@ THESIS_THRESHOLD = 0.154
 THESIS_DECAY = 0.2
 FORMAT = "voxfield-error-table"
 FORMAT_VERSION = 1
+LIGHTING_FORMAT = "voxfield-lighting-error-table"
+#: Each table file's kind by its format, so a file of one kind given for the other says so.
+TABLE_KINDS = {FORMAT: "error table", LIGHTING_FORMAT: "lighting error table"}
 DEFAULT_TABLE = Path(__file__).parent / "data" / "error_table.npz"
 REBUILD_COMMAND = "voxfield errors build --out " + "src/voxfield/error_table/data/error_table.npz"
 
@@ -206,9 +209,9 @@ def read_table_file(path: Path, keys: tuple[str, ...], fmt: str, version: int, w
     except Exception as exc:  # noqa: BLE001 - zip/zlib/json can fail many ways on a bad file
         if isinstance(header, dict) and header.get("format") == fmt:  # a damaged table
             raise ErrorTableError(f"{what} {path} is unreadable ({exc!r}); {hint}") from exc
-        raise ErrorTableError(_not_a_table(path, what, maker)) from exc
+        raise ErrorTableError(_not_a_table(path, what, maker, header)) from exc
     if not isinstance(header, dict) or header.get("format") != fmt:
-        raise ErrorTableError(_not_a_table(path, what, maker))
+        raise ErrorTableError(_not_a_table(path, what, maker, header))
     if header.get("version") != version:
         raise ErrorTableError(f"{path} is not a version-{version} {what}; {hint}")
     if _checksum(arrays) != header.get("sha256"):
@@ -228,9 +231,34 @@ def read_table_file(path: Path, keys: tuple[str, ...], fmt: str, version: int, w
     return header, arrays
 
 
-def _not_a_table(path: Path, what: str, maker: str) -> str:
-    article = "an" if what[0] in "aeiou" else "a"
-    return f"{path} is not {article} {what}; make one with `{maker}`"
+def _not_a_table(path: Path, what: str, maker: str, header=None) -> str:
+    kind = TABLE_KINDS.get(header.get("format")) if isinstance(header, dict) else None
+    if kind is not None:  # the other kind of table
+        return f"{path} is {_article(kind)} {kind}, not {_article(what)} {what}"
+    return f"{path} is not {_article(what)} {what}; make one with `{maker}`"
+
+
+def _article(noun: str) -> str:
+    return "an" if noun[0] in "aeiou" else "a"
+
+
+def table_format(path: str | Path) -> str | None:
+    """The format a table file's header names; None where it has no readable header."""
+    try:
+        with load_arrays(Path(path)) as data:
+            header = json.loads(bytes(data["header"]).decode())
+    except Exception:  # noqa: BLE001 - any unreadable file is simply no table's
+        return None
+    return header.get("format") if isinstance(header, dict) else None
+
+
+def check_table_file(path: Path, what: str, hint: str) -> None:
+    """A table path that names no file: a folder is said to be one, a missing file gets
+    the rebuild ``hint``."""
+    if path.is_dir():
+        raise ErrorTableError(f"{path} is a folder, not {_article(what)} {what} file")
+    if not path.is_file():
+        raise ErrorTableError(f"{what} {path} is missing; {hint}")
 
 
 def load_error_table(path: str | Path | None = None) -> ErrorTable:
@@ -250,8 +278,7 @@ def _read_error_table(path: Path) -> ErrorTable:
     hint = f"rebuild it with `{REBUILD_COMMAND}`" if path == DEFAULT_TABLE else (
         f"rebuild it with `voxfield errors build --out {path}`"
     )
-    if not path.is_file():
-        raise ErrorTableError(f"error table {path} is missing; {hint}")
+    check_table_file(path, "error table", hint)
     header, arrays = read_table_file(path, ("directions", "raw", "sh", "oct_map"), FORMAT,
                                      FORMAT_VERSION, "error table", hint,
                                      "voxfield errors build")
