@@ -21,7 +21,7 @@ from voxfield.lightfield import (
     trace_light_field,
     trace_single,
 )
-from voxfield.lightfield.trace import _rays
+from voxfield.lightfield.trace import EPSILON_MODES, EPSILON_READERS, _rays
 from voxfield.probes.bake import bake_probes
 from voxfield.probes.probe_set import BakeOptions
 from voxfield.render.ray_query import trace
@@ -270,6 +270,33 @@ def test_slope_epsilon_gives_up_less_and_is_never_wrong(cornell, cornell_probe64
         assert np.array_equal(kind[known], expected[known]), epsilon
         unknown[epsilon] = np.count_nonzero(~known)
     assert unknown["slope"] <= unknown["constant"]
+
+
+#: A value far from each epsilon parameter's default, so that where it is read it shows.
+_FAR = {"epsilon_value": 3.0, "epsilon_k": 40.0, "epsilon_front": 0.0}
+
+
+@pytest.mark.parametrize("epsilon", sorted(EPSILON_MODES))
+def test_each_epsilon_reads_the_parameters_the_command_line_says_it_reads(
+        cornell_probe64, epsilon):
+    """``EPSILON_READERS`` decides which epsilon options the command line notes as ignored;
+    here the trace decides: a parameter the table says this mode ignores leaves every ray's
+    answer as it was, one it says the mode reads changes some."""
+    rng = np.random.default_rng(5)
+    origins = rng.uniform(3.0, 28.0, (3000, 3))
+    dirs = _unit(rng.normal(size=(3000, 3)))
+
+    def answers(**change):
+        options = LightFieldOptions(marcher="hierarchical", epsilon=epsilon, **change)
+        hits = trace_single(cornell_probe64, 0, origins, dirs, options,
+                            pixel_angle=math.radians(0.5))
+        return hits.kind, np.nan_to_num(hits.t, posinf=-1.0)
+
+    kind, t = answers()
+    for name, readers in EPSILON_READERS.items():
+        other_kind, other_t = answers(**{name: _FAR[name]})
+        same = np.array_equal(kind, other_kind) and np.array_equal(t, other_t)
+        assert same == (epsilon not in readers), (name, epsilon)
 
 
 @pytest.mark.parametrize("front", [0.0, 0.25, 1e6, float("inf")])

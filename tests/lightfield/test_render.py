@@ -690,6 +690,11 @@ def test_command_writes_strict_json_and_words_a_depth_never_found(run, cornell_f
      "the environment render takes no --no-fallback (for light-field)"),
     (["--method", "box-proxy", "--step", "0.5"],
      "the box-proxy render takes no --step (for light-field)"),
+    (["--epsilon-k", "4"],
+     "the footprint epsilon takes no --epsilon-k (for adaptive/adaptive-text/angular)"),
+    (["--epsilon", "angular", "--epsilon-value", "2", "--epsilon-front", "1"],
+     "the angular epsilon takes no --epsilon-value (for constant/slope/footprint), "
+     "--epsilon-front (for footprint)"),
 ])
 def test_command_notes_options_its_render_does_not_read(run, cornell_folder, tmp_path, capsys,
                                                        extra, note):
@@ -703,7 +708,10 @@ def test_command_notes_nothing_for_options_its_render_reads(run, cornell_folder,
                                                            capsys):
     for extra in (["--marcher", "march3d", "--step", "0.25"], ["--method", "environment",
                   "--filter", "nearest"], ["--method", "box-proxy", "--box-min", "0,0,0",
-                  "--box-max", "32,32,32"], []):
+                  "--box-max", "32,32,32"], [],
+                  ["--epsilon-value", "2", "--epsilon-front", "1"],
+                  ["--epsilon", "adaptive", "--epsilon-k", "4"],
+                  ["--epsilon", "slope", "--epsilon-value", "2"]):
         assert run(["probe-render", str(cornell_folder), "--camera", "room", "--size", "8",
                     "--quiet", *extra, "--out", str(tmp_path / "x.png")]) == 0
         assert capsys.readouterr().err == "", extra

@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from numba import njit
+from PIL import Image
 
 from random_scenes import overhanging_terrain, pillar_field, random_scene
 from ray_oracle import first_hits
@@ -505,8 +506,9 @@ def test_previews_a_bake_leaves_behind_are_named_not_removed(tmp_path):
     """``--no-preview`` over an earlier bake's outputs left its previews beside the new
     octree without a word, though they showed channels it no longer has (or has anew)."""
     out = tmp_path / "o.npz"
-    quick = ["--sky-rays", "0", "--preview-size", "8", "--quiet", "--out", str(out)]
-    assert _notes_of(["builtin:sphere", "--times", "noon;dawn=90,5", *quick]) == []
+    quick = ["--sky-rays", "0", "--quiet", "--out", str(out)]
+    small = ["--preview-size", "8"]
+    assert _notes_of(["builtin:sphere", "--times", "noon;dawn=90,5", *small, *quick]) == []
     assert json.loads(out.with_suffix(".json").read_text())["previews"] == {
         "o_noon.png": ["noon"], "o_dawn.png": ["dawn"], "o.png": ["noon", "dawn"]}
     (tmp_path / "o_notes.png").write_bytes(b"the user's own")  # named by no record
@@ -518,7 +520,7 @@ def test_previews_a_bake_leaves_behind_are_named_not_removed(tmp_path):
     assert {p.name: p.read_bytes() for p in tmp_path.glob("o*.png")} == before
     # Written again, they are fresh; lit again in place, the kept channels' previews stay
     # true, and only the re-baked channel's preview and the sheet that shows it go stale.
-    assert _notes_of(["builtin:sphere", "--times", "noon;dawn=90,5", *quick]) == []
+    assert _notes_of(["builtin:sphere", "--times", "noon;dawn=90,5", *small, *quick]) == []
     relit = [str(out), "--no-preview", *quick]
     assert _notes_of([*relit, "--times", "east=90,45"]) == []
     assert _notes_of([*relit, "--times", "dawn=90,8"]) == [
@@ -537,8 +539,8 @@ def test_previews_a_bake_leaves_behind_are_named_not_removed(tmp_path):
     # Another octree lit from this one: this one's previews are not its to judge, on its
     # first bake or any later one (they were carried over and named stale).
     other = tmp_path / "p.npz"
-    again = ["--sky-rays", "0", "--preview-size", "8", "--quiet", "--out", str(other)]
-    assert _notes_of([str(out), "--times", "evening=270,20", *again]) == []
+    again = ["--sky-rays", "0", "--quiet", "--out", str(other)]
+    assert _notes_of([str(out), "--times", "evening=270,20", *small, *again]) == []
     assert _notes_of([str(other), "--times", "noon", "--no-preview", *again]) == [
         f"{other} already has channel noon; this bake replaces it"]  # p's still show evening
 
@@ -574,3 +576,21 @@ def test_chunks_shrink_with_the_rays_a_voxel_casts():
     heavy = bake_module.chunk_voxels(1024, 1024, 4)
     assert heavy == bake_module.MIN_CHUNK_VOXELS
     assert heavy * (1024 + 1024 * 4) <= 8 * bake_module.CHUNK_VOXELS * 32  # bounded work
+
+
+def test_a_preview_size_with_no_previews_is_noted_and_the_default_is_not(tmp_path):
+    """``--no-preview --preview-size 8`` ran without a word about the size it dropped, where
+    every other command notes an option its work does not read."""
+    out = tmp_path / "lit.npz"
+    quick = ["builtin:sphere", "--times", "noon", "--sky-rays", "0", "--shadow-rays", "1",
+             "--quiet", "--out", str(out)]
+    assert _notes_of([*quick, "--no-preview", "--preview-size", "8"]) == [
+        "a bake with --no-preview takes no --preview-size (for the previews); ignored"]
+    assert not (tmp_path / "lit_noon.png").exists()
+    assert _notes_of([*quick, "--no-preview"]) == []
+    assert _notes_of([*quick, "--preview-size", "8"]) == []
+    with Image.open(tmp_path / "lit_noon.png") as preview:
+        assert preview.size == (8, 8)
+    assert _notes_of(quick) == []  # the default size, unsaid
+    with Image.open(tmp_path / "lit_noon.png") as preview:
+        assert preview.size == (256, 256)

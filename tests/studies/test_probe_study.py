@@ -180,8 +180,12 @@ def test_command_line_runs_the_study(tmp_path, capsys):
     out = tmp_path / "cli"
     code = main(["study", "probes", "builtin:cornell", "--resolutions", "8,16", "--probe-counts",
                  "1x1x1", "--marchers", "dda,hierarchical", "--orderings", "nearest",
-                 "--repeats", "1", "--size", "16", "--out", str(out), "--quiet"])
+                 "--repeats", "1", "--size", "16", "--epsilon-k", "4", "--out", str(out),
+                 "--quiet"])
     assert code == 0
+    # The default footprint epsilon reads no k: said, not silently dropped.
+    assert ("the footprint epsilon takes no --epsilon-k (for adaptive/adaptive-text/angular)"
+            in capsys.readouterr().err)
     report = json.loads((out / "results.json").read_text())
     cornell = open_octree("builtin:cornell")
     # The default view of a room is the thesis's, from among the probes inside its box.

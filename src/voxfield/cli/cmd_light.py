@@ -21,6 +21,7 @@ from voxfield.cli.options import (
     output_named,
     positive_int,
     scheduler_name,
+    warn_ignored,
 )
 from voxfield.json_output import json_text
 from voxfield.lighting.sun import parse_suns
@@ -32,6 +33,9 @@ from voxfield.scaleout import SCHEDULER_HELP, check_scheduler
 from voxfield.studies.figures import Panel, contact_sheet
 from voxfield.studies.report import scene_title
 from voxfield.svo.io import write_octree_file
+
+#: Side of each sun's top-down preview PNG unless ``--preview-size`` says.
+PREVIEW_SIZE = 256
 
 
 def register(subparsers) -> argparse.ArgumentParser:
@@ -66,8 +70,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--out", default=None,
                    help="output octree file (default out/lit_NAME.npz, NAME from the scene)")
     p.add_argument("--preview-size", type=int_between(1, 4096, "pixels per side"),
-                   default=256, metavar="N",
-                   help="side of the top-down preview PNG per sun, 1..4096 (default 256)")
+                   default=None, metavar="N",  # None: not given (noted under --no-preview)
+                   help=f"side of the top-down preview PNG per sun, 1..4096 (default "
+                   f"{PREVIEW_SIZE})")
     p.add_argument("--no-preview", action="store_true", help="write no preview images")
     add_quiet(p)
     p.set_defaults(func=run)
@@ -80,6 +85,9 @@ def run(args) -> int:
     out = output_named(args.out or default_output("lit", args.scene, ".npz"), ".npz",
                        "a lit octree", source=_replaceable(args.scene))
     args.quiet = quiet = getattr(args, "quiet", False)  # as ``voxfield.cli.main`` sets it
+    if args.no_preview and args.preview_size is not None:
+        warn_ignored({"--preview-size": ["the previews"]}, "a bake with --no-preview")
+    preview_size = args.preview_size or PREVIEW_SIZE
     octree = open_octree(args)
     names = [s.name for s in suns]
     replaced = [name for name in names if name in octree.attributes]
@@ -125,7 +133,7 @@ def run(args) -> int:
         saving = writer.submit(write_octree_file, lit, staged[0])
         staged[1].write_text(json_text(details))
         if channels:
-            previews = render_previews(lit, channels, size=args.preview_size,
+            previews = render_previews(lit, channels, size=preview_size,
                                        threads=args.threads)
             for tmp, (_, image) in zip(staged[2:], previews, strict=False):
                 tmp.write_bytes(png_bytes(image))

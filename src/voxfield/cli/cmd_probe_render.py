@@ -32,6 +32,7 @@ from voxfield.cli.options import (
     hit_options,
     int_between,
     note_unread_scene_options,
+    note_unused_epsilon_options,
     positive_int,
     scene_options,
     vector_arg,
@@ -274,8 +275,10 @@ def _note_unused_options(args, options: LightFieldOptions) -> None:
                 flag = f.name.replace("_", "-")
                 flag = f"--{'no-' if value is False else ''}{flag}"
                 ignored[flag] = ["light-field"]
-    elif options.marcher != "march3d" and options.step != defaults.step:
-        ignored["--step"] = ["the march3d marcher"]
+    else:
+        note_unused_epsilon_options(options)
+        if options.marcher != "march3d" and options.step != defaults.step:
+            ignored["--step"] = ["the march3d marcher"]
     if args.method == "light-field" and args.filter != "bilinear":
         ignored["--filter"] = ["environment", "box-proxy"]
     if args.method != "box-proxy" and args.box_min is not None:

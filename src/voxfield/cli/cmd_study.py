@@ -28,6 +28,7 @@ from voxfield.cli.options import (
     name_list,
     non_negative_float_list,
     note_unread_scene_options,
+    note_unused_epsilon_options,
     open_octree,
     positive_int_list,
     scene_camera,
@@ -449,6 +450,7 @@ def run_probes(args) -> int:
     octree = open_octree(args)
     view = probe_study_view(args, octree)
     options = LightFieldOptions(**hit_options(args))
+    note_unused_epsilon_options(options)
     out = args.out or default_output("probe_study", args.scene)
     report = run_probe_study(
         octree, out, scene_name=args.scene, camera=view, grid_counts=args.grid,

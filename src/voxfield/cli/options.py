@@ -20,7 +20,12 @@ from voxfield.atomic import check_writable
 from voxfield.checks import MAX_SEED
 from voxfield.cli.commands import add_quiet
 from voxfield.errors import VoxfieldError
-from voxfield.lightfield.trace import COLOUR_PROBES, EPSILON_MODES, LightFieldOptions
+from voxfield.lightfield.trace import (
+    COLOUR_PROBES,
+    EPSILON_MODES,
+    EPSILON_READERS,
+    LightFieldOptions,
+)
 from voxfield.metrics import SSIM_WINDOW
 from voxfield.render.camera import (
     CAMERA_PRESETS,
@@ -629,6 +634,19 @@ def add_hit_options(p: argparse.ArgumentParser, prefix: str = "") -> None:
                    "footprint (its texel is smallest there; for the view-independent "
                    "radiance bakes store) or parallel (it sees the hit most nearly along the "
                    f"ray) (default {defaults.colour_probe})")
+
+
+def note_unused_epsilon_options(options: LightFieldOptions) -> None:
+    """A note naming the epsilon parameters given (away from their defaults) that the chosen
+    ``--epsilon`` does not read: ``--epsilon-k 4`` under the footprint epsilon changed
+    nothing, without a word."""
+    defaults = LightFieldOptions()
+    ignored = {f"--{name.replace('_', '-')}": list(readers)
+               for name, readers in EPSILON_READERS.items()
+               if options.epsilon not in readers
+               and getattr(options, name) != getattr(defaults, name)}
+    if ignored:
+        warn_ignored(ignored, f"the {options.epsilon} epsilon")
 
 
 def hit_options(args) -> dict:

@@ -44,6 +44,11 @@ MARCHERS = {"march3d": pm.MARCH3D, "dda": pm.DDA, "hierarchical": pm.HIERARCHICA
 EPSILON_MODES = {"footprint": pm.EPS_FOOTPRINT, "constant": pm.EPS_CONSTANT,
                  "adaptive": pm.EPS_ADAPTIVE, "adaptive-text": pm.EPS_ADAPTIVE_TEXT,
                  "angular": pm.EPS_ANGULAR, "slope": pm.EPS_SLOPE}
+#: The epsilon modes that read each of ``LightFieldOptions``' epsilon parameters
+#: (``kernels.probe_march.epsilon_at``, ``texel_event``); the others ignore it.
+EPSILON_READERS = {"epsilon_value": ("constant", "slope", "footprint"),
+                   "epsilon_k": ("adaptive", "adaptive-text", "angular"),
+                   "epsilon_front": ("footprint",)}
 COLOUR_FILTERS = ("bilinear", "nearest")
 #: Which probe answers a hit's colour (``kernels.probe_multi.COLOUR_*``).
 COLOUR_PROBES = {"footprint": mk.COLOUR_FOOTPRINT, "parallel": mk.COLOUR_PARALLEL}
