@@ -100,10 +100,18 @@ def test_bad_images_are_refused(image, bad, message):
             function(image, bad)
 
 
-def test_images_smaller_than_the_ssim_window_are_refused():
+def test_images_smaller_than_the_ssim_window_are_refused_by_ssim_alone():
+    """PSNR and RMSE have no window: a 1×1 or 5×5 image has them (``shadows --size 4``,
+    which measures PSNR alone, rendered everything and then failed 'for SSIM')."""
     small = np.zeros((5, 5, 3), np.float32)
-    with pytest.raises(VoxfieldError, match="at least 7"):
-        compare_images(small, small)
+    for function in (compare_images, ssim):
+        with pytest.raises(VoxfieldError, match="at least 7"):
+            function(small, small)
+    for side in (1, 5):
+        reference = np.zeros((side, side, 3), np.float32)
+        test = np.full((side, side, 3), 0.1, np.float32)
+        assert rmse(reference, test) == pytest.approx(0.1)
+        assert psnr(reference, test) == pytest.approx(20.0, abs=1e-4)  # 10 log10(1 / 0.01)
 
 
 def _result(rays, hits, lod, steps=None, **maps):

@@ -31,8 +31,9 @@ RANGE_TOLERANCE = 1e-4
 SSIM_WINDOW = 7
 
 
-def _check_pair(reference, test) -> tuple[np.ndarray, np.ndarray]:
-    """Both images as float32 H×W×3 in [0, 1], or a VoxfieldError that says what is wrong."""
+def _check_pair(reference, test, *, ssim_window: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """Both images as float32 H×W×3 in [0, 1], or a VoxfieldError that says what is wrong;
+    ``ssim_window``: also too small for SSIM's window (PSNR and RMSE take any size)."""
     images = []
     for name, image in (("reference", reference), ("test", test)):
         if isinstance(image, RenderResult):  # what a renderer returns: its colour image
@@ -58,7 +59,7 @@ def _check_pair(reference, test) -> tuple[np.ndarray, np.ndarray]:
         raise VoxfieldError(
             f"images differ in size: reference {images[0].shape}, test {images[1].shape}"
         )
-    if min(images[0].shape[:2]) < SSIM_WINDOW:
+    if ssim_window and min(images[0].shape[:2]) < SSIM_WINDOW:
         raise VoxfieldError(
             f"images must be at least {SSIM_WINDOW}×{SSIM_WINDOW} pixels for SSIM, "
             f"got {images[0].shape[1]}×{images[0].shape[0]}"
@@ -88,7 +89,7 @@ def psnr_text(value, spec: str = ".2f") -> str:
 
 def ssim(reference, test) -> float:
     """Mean structural similarity over RGB (scikit-image, 7×7 window); 1 for identical images."""
-    return _ssim(*_check_pair(reference, test))
+    return _ssim(*_check_pair(reference, test, ssim_window=True))
 
 
 def flip(reference, test) -> float | None:
@@ -111,7 +112,7 @@ def flip_available() -> bool:
 
 def compare_images(reference, test) -> dict:
     """``psnr`` (dB), ``rmse``, ``ssim`` on linear RGB and ``flip`` (None when not installed)."""
-    ref, img = _check_pair(reference, test)
+    ref, img = _check_pair(reference, test, ssim_window=True)
     return {"psnr": _psnr(ref, img), "rmse": _rmse(ref, img), "ssim": _ssim(ref, img),
             "flip": _flip(ref, img)}
 

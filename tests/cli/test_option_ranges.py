@@ -217,6 +217,21 @@ def test_a_side_too_small_for_ssim_is_refused_before_any_work(argv, option, tmp_
     assert not out.exists()
 
 
+def test_probe_render_compare_refuses_a_side_too_small_for_ssim_before_any_work(tmp_path,
+                                                                              capsys):
+    """``probe-render --compare --size 6`` wrote its image, then stopped at the comparison;
+    without --compare nothing is measured and the size is the user's to choose."""
+    out = tmp_path / "p.png"
+    assert main(["probe-render", str(tmp_path / "probes"), "--scene", "builtin:sphere",
+                 "--compare", "--size", "6", "--out", str(out)]) == 2
+    message = one_error_line(capsys)
+    assert message.startswith("voxfield: error: --size 6: ") and "7×7" in message
+    assert not out.exists()
+    assert main(["probe-render", str(tmp_path / "probes"), "--size", "6",
+                 "--out", str(out)]) == 2
+    assert "--size" not in one_error_line(capsys)  # refused for the missing folder alone
+
+
 def test_a_ray_count_target_needs_no_ssim(tmp_path, capsys):
     """``calibrate --target-rays`` measures no image: a 6² view is calibrated."""
     assert main(["calibrate", "builtin:sphere", "--target-rays", "60", "--size", "6",

@@ -283,3 +283,15 @@ def test_shadows_command_writes_the_study(tmp_path):
                  "lod_top_distance.png", "beam_profile.png", "contact_sheet.png", "results.md"):
         assert (out / name).is_file(), name
     assert "PSNR" in (out / "results.md").read_text()
+
+
+def test_the_shadows_study_measures_a_view_too_small_for_ssim(tmp_path):
+    """It measures PSNR alone, which has no window: at ``--size 4`` it rendered every row and
+    then failed with 'images must be at least 7×7 pixels for SSIM'."""
+    from voxfield.cli import main
+
+    out = tmp_path / "small"
+    assert main(["shadows", "--size", "4", "--light-samples", "1", "--reference-samples",
+                 "4", "--floor-samples", "1", "--quiet", "--out", str(out)]) == 0
+    rows = json.loads((out / "results.json").read_text())["rows"]
+    assert len(rows) == 4 and all("psnr" in row for row in rows if row["renderer"] != "reference")

@@ -27,6 +27,7 @@ from voxfield.cli.options import (
     add_view_options,
     auto_preset,
     camera,
+    check_measured_sides,
     default_output,
     display_shaded,
     hit_options,
@@ -169,6 +170,8 @@ def run(args) -> int:
     check_image_output(out)  # the format save_result_image writes, and a usable path
     if args.compare and args.scene is None:
         raise VoxfieldError("--compare renders the scene itself: name it with --scene")
+    if args.compare:
+        check_measured_sides([args.size])
     if (args.box_min is None) != (args.box_max is None):
         raise VoxfieldError("--box-min and --box-max must be given together")
     options = _trace_options(args)  # checked for every method: a baseline notes it unused
