@@ -125,7 +125,14 @@ def test_export_cubes_refuses_another_scene_or_no_probe_in_one_line(run, tmp_pat
     assert run(["probes", "export-cubes", str(out), "--scene", "builtin:sphere"]) == 2
     assert "not the scene these probes were baked from" in one_error_line(capsys)
     assert run(["probes", "export-cubes", str(out), "--scene", "builtin:nope"]) == 2
-    assert "cannot open the baked scene" in one_error_line(capsys)
+    assert one_error_line(capsys).startswith("voxfield: error: --scene builtin:nope: ")
+    # probes show draws without a recorded scene that has gone, but a --scene the user
+    # named and mistyped was a note and a lesser picture, exit 0
+    picture = tmp_path / "show.png"
+    assert run(["probes", "show", str(out), "--scene", "nope.vox", "--size", "16",
+                "--out", str(picture)]) == 2
+    assert one_error_line(capsys).startswith("voxfield: error: --scene nope.vox: ")
+    assert not picture.exists()
 
     def all_disabled(folder):
         probe_set = open_probe_set(folder)

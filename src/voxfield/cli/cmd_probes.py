@@ -296,8 +296,9 @@ def run_export_cubes(args) -> int:
 
 def _reopen_scene(header: dict, scene: str | None, quiet: bool, *, exact: bool = False):
     """The baked scene for the overview: ``scene`` if given, else the recorded source; None
-    (probes drawn without the render) when it cannot be opened or is not the baked one.
-    ``exact`` (cube faces, traced from the scene itself): either is an error instead."""
+    (probes drawn without the render) when the recorded one cannot be opened or is not the
+    baked one. A ``scene`` given that cannot be opened is an error, and so is either case
+    under ``exact`` (cube faces, traced from the scene itself)."""
 
     def unusable(problem: str, instead: str) -> None:
         """``problem`` as the error (``exact``), or as a note saying what is drawn instead."""
@@ -322,6 +323,8 @@ def _reopen_scene(header: dict, scene: str | None, quiet: bool, *, exact: bool =
         octree = open_octree_from_spec(spec, options, progress=not quiet,
                                        lod_colour=source.get("lod_colour", "mean"))
     except VoxfieldError as exc:
+        if scene:  # named on the command line: a typo is the user's to correct, not to skip
+            raise VoxfieldError(f"--scene {scene}: {exc}") from exc
         unusable(f"cannot open the baked scene {spec!r} ({exc})", "drawing probes without it")
         return None
     channel = header["scene"].get("channel", "albedo")
