@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -145,6 +146,10 @@ def _bake_options(args):
                if args.renderer not in users and getattr(args, name) != getattr(defaults, name)}
     if ignored:  # --samples with the default error-aware renderer did nothing unsaid
         warn_ignored(ignored, f"the {args.renderer} radiance renderer")
+    if (args.renderer in takers["cone_scale"] and args.lod is not None
+            and args.cone_scale != defaults.cone_scale):
+        warnings.warn(f"the {args.renderer} radiance renderer reads --cone-scale only with "
+                      "--lod cone; ignored", stacklevel=2)
     return BakeOptions(
         resolution=args.resolution, renderer=args.renderer, channel=args.channel,
         samples=args.samples, lod=args.lod, cone_scale=args.cone_scale,

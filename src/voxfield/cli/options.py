@@ -412,7 +412,9 @@ def renderer_options_from(args, renderer: str):
     the options given that only other renderers take (``--reuse-parent`` with the
     reference renderer did nothing without a word)."""
     options_type = RENDERERS[renderer].options_type
-    own = {f.name for f in dataclasses.fields(options_type)}
+    # A field the command line does not set (the LOD renderer's CMJ side) is not its own.
+    own = {f.name for f in dataclasses.fields(options_type)
+           if f.metadata.get("cli", True) is not False}
     ignored: dict[str, list[str]] = {}
     for other, spec in RENDERERS.items():
         for f in dataclasses.fields(spec.options_type):
@@ -424,7 +426,22 @@ def renderer_options_from(args, renderer: str):
         warn_ignored(ignored, f"the {renderer} renderer")
     values = {f.name: getattr(args, f.name) for f in dataclasses.fields(options_type)
               if f.metadata.get("cli", True) is not False and hasattr(args, f.name)}
-    return options_type(**values)
+    options = options_type(**values)
+    _note_options_read_only_with_others(options, renderer)
+    return options
+
+
+def _note_options_read_only_with_others(options, renderer: str) -> None:
+    """A note naming options given that this renderer reads only with another setting
+    (``read_when`` in the field's metadata): ``--bright-ratio`` without
+    ``--lighting-aware`` changed nothing, without a word."""
+    unread = [f"{_flag(f)} only with {f.metadata['read_when'][1]}"
+              for f in dataclasses.fields(options)
+              if "read_when" in f.metadata and getattr(options, f.name) != f.default
+              and not f.metadata["read_when"][0](options)]
+    if unread:
+        warnings.warn(f"the {renderer} renderer reads {', '.join(unread)}; ignored",
+                      stacklevel=3)
 
 
 # --------------------------------------------------------------------------- arguments → objects

@@ -57,7 +57,8 @@ class ErrorAwareOptions:
         "help": "LOD of the first ray, or 'cone' (default 2, the thesis's setup)",
         "type": "lod"})
     cone_scale: float = field(default=1.0, metadata={
-        "help": "cone mode: node size accepted per pixel footprint (default 1)"})
+        "help": "cone mode: node size accepted per pixel footprint (default 1)",
+        "read_when": (lambda options: options.base_lod is None, "--base-lod cone")})
     max_refinements: int = field(default=2, metadata={
         "help": "maximum 2×2 refinements per pixel (default 2 → ≤ 21 rays)",
         "flag": "--refinements"})
@@ -69,7 +70,8 @@ class ErrorAwareOptions:
         "help": "add the bright-flag colour error (EA §6.1)"})
     bright_ratio: float = field(default=0.25, metadata={
         "help": "lighting-aware: a child is bright above (1 + R) × its parent's luminance "
-        "(default 0.25)"})
+        "(default 0.25)",
+        "read_when": (lambda options: options.lighting_aware, "--lighting-aware")})
     context_aware: bool = field(default=False, metadata={
         "help": "no geometric error inside a surface of same-shaped same-level nodes "
         "(flat ground and terrace interiors stop refining)"})
@@ -79,7 +81,8 @@ class ErrorAwareOptions:
         "(default 0: the thesis's geometric error alone)"})
     colour_to_voxels: bool = field(default=False, metadata={
         "help": "colour term: where colour alone exceeds the threshold, the 2×2 sub-rays "
-        "go straight to LOD 0 instead of one LOD finer"})
+        "go straight to LOD 0 instead of one LOD finer",
+        "read_when": (lambda options: options.colour_term != 0, "a --colour-term above 0")})
     colour_variance: float | None = field(default=None, metadata={
         "help": "hybrid: afterwards also refine, at LOD 0, the pixels whose 3×3 luminance "
         "variance divided by this asks for more rays (the adaptive renderer's cut-offs; "

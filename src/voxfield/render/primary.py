@@ -38,7 +38,8 @@ class LodOptions:
         "help": "a fixed LOD (0 = voxels) or 'cone' (default: chosen from the pixel footprint)",
         "type": "lod"})
     cone_scale: float = field(default=1.0, metadata={
-        "help": "cone mode: node size accepted per pixel footprint (default 1)"})
+        "help": "cone mode: node size accepted per pixel footprint (default 1)",
+        "read_when": (lambda options: options.lod is None, "--lod cone")})
     side: int = field(default=1, metadata={
         "help": "side of the CMJ sample grid per pixel (default 1)", "cli": False})
 
