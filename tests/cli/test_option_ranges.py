@@ -55,6 +55,30 @@ def test_probe_render_takes_exactly_the_steps_the_library_takes(tmp_path, capsys
         assert not out.exists()
 
 
+@pytest.mark.parametrize("flag", ["--epsilon-value", "--epsilon-k", "--epsilon-front",
+                                  "--refine-window"])
+def test_hit_options_take_exactly_the_values_the_library_takes(flag, tmp_path, capsys):
+    """A value the library refuses was refused after the probes were opened, in its own
+    field's name ("epsilon_value must be a distance >= 0"); now by the parser, by flag."""
+    field = flag[2:].replace("-", "_")
+    for value in ["0", "0.5", "1e6", "-1", "nan", "inf", "-inf"]:
+        try:
+            LightFieldOptions(**{field: float(value)})
+            takes = True
+        except VoxfieldError:
+            takes = False
+        argv = ["probe-render", str(tmp_path / "none"), flag, value,
+                "--out", str(tmp_path / "p.png")]
+        if flag == "--epsilon-k":  # an epsilon that reads it: no note before the error
+            argv += ["--epsilon", "angular"]
+        if takes:
+            assert main(argv) == 2
+            assert "no such probe-set folder" in one_error_line(capsys), value
+        else:
+            err = _refused_by_the_parser(argv, capsys)
+            assert f"argument {flag}:" in err and field not in err, err
+
+
 def test_probe_render_help_states_the_step_range(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["probe-render", "--help"])

@@ -138,6 +138,18 @@ def non_negative_float(text: str) -> float:
     return value
 
 
+def non_negative_or_inf(text: str) -> float:
+    """A number of at least zero, or ``inf`` (a cap that is off)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value >= 0.0:  # NaN too
+        raise argparse.ArgumentTypeError(f"expected a number of at least 0 or inf, got "
+                                         f"{text!r}")
+    return value
+
+
 def threshold_arg(text: str) -> float:
     """An error-aware threshold: any number but NaN (inf never refines, a negative one
     refines everywhere, as 0 does where a node's error is not zero)."""
@@ -615,17 +627,19 @@ def add_hit_options(p: argparse.ArgumentParser, prefix: str = "") -> None:
                    help=f"{prefix}hit acceptance rule (default {defaults.epsilon}: thick "
                    "behind a surface by the depth one texel spans; adaptive is the probe "
                    "thesis's §7.1 as printed, adaptive-text the form its text derives)")
-    p.add_argument("--epsilon-value", type=float, default=defaults.epsilon_value, metavar="E",
+    p.add_argument("--epsilon-value", type=non_negative_float, default=defaults.epsilon_value,
+                   metavar="E",
                    help=f"{prefix}constant epsilon: thickness in voxels; the slope and "
                    "footprint epsilons add it to the thickness they derive behind a surface "
                    f"(default {defaults.epsilon_value})")
-    p.add_argument("--epsilon-k", type=float, default=defaults.epsilon_k, metavar="K",
+    p.add_argument("--epsilon-k", type=non_negative_float, default=defaults.epsilon_k, metavar="K",
                    help=f"{prefix}adaptive/angular epsilon: scale k "
                    f"(default {defaults.epsilon_k})")
-    p.add_argument("--epsilon-front", type=float, default=defaults.epsilon_front, metavar="T",
+    p.add_argument("--epsilon-front", type=non_negative_or_inf, default=defaults.epsilon_front,
+                   metavar="T",
                    help=f"{prefix}footprint epsilon: at most T texel widths in front of "
                    f"a surface, inf for no cap (default {defaults.epsilon_front})")
-    p.add_argument("--refine-window", type=float, default=defaults.refine_window,
+    p.add_argument("--refine-window", type=non_negative_float, default=defaults.refine_window,
                    metavar="W", help=f"{prefix}check a hit against the probes that may see "
                    "a surface in front of it and trace it again against its colour probe, "
                    f"over W of their texel widths; 0 for off (default "
