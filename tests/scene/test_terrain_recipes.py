@@ -63,3 +63,15 @@ def test_thesis_regime_coarse_renders_are_closer_to_the_reference(shared_data):
         reference = render_reference(octree, camera, side=4)
         scores[name] = psnr(reference.image, render_lod(octree, camera, lod=1).image)
     assert scores["mountain-smooth"] > scores["mountain"] + 3.0
+
+
+def test_a_missing_data_folder_is_named_with_the_variable_that_moves_it(tmp_path, monkeypatch,
+                                                                        capsys):
+    """The message told command-line users to "pass data_root", a Python parameter."""
+    from voxfield.cli import main
+
+    monkeypatch.setenv("VOXFIELD_DATA", str(tmp_path / "nowhere"))
+    assert main(["info", "terrain:desert", "--footprint", "16"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith(f"voxfield: error: {tmp_path / 'nowhere'}")
+    assert "point VOXFIELD_DATA at it" in err and "data_root" not in err

@@ -230,8 +230,8 @@ def _data_file(root: Path, *parts: str) -> Path:
     path = root.joinpath(*parts)
     if not path.exists():
         raise DataNotFoundError(
-            f"{path} does not exist; set VOXFIELD_DATA (or pass data_root) to the shared data "
-            "folder"
+            f"{path} does not exist: this recipe's assets come from the shared data "
+            "folder; point VOXFIELD_DATA at it"
         )
     return path
 
