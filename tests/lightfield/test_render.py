@@ -519,6 +519,10 @@ def test_the_lost_share_leaves_proven_empty_sky_out():
     note = lost_rays_note(lost_share(sky_wide), "this probe set")
     assert note is not None and note.startswith("33% of the light field's pixels that no "
                                                 "probe proved empty")
+    assert note.endswith("they show the fallback, not the trace")
+    # With the fallback off those pixels are black, as the note then says.
+    assert lost_rays_note(lost_share(sky_wide), "this probe set", fallback=False).endswith(
+        "they are left unknown (black; --no-fallback), not the trace")
     # The same object filling the view: 10 of 100 lost, under the note's share.
     close_up = _kinds_result({"hit": 90, "fallback": 10})
     assert lost_share(close_up) == pytest.approx(0.1)

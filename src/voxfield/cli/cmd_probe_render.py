@@ -210,7 +210,8 @@ def run(args) -> int:
                                 progress=not args.quiet, packed=packed, device=args.device)
     shaded = display_shaded(args, out, probe_set.options.channel)
     save_result_image(_displayed(result, shaded), out)
-    lost = lost_rays_note(lost_share(result), "this probe set")
+    lost = lost_rays_note(lost_share(result), "this probe set",
+                          fallback=options is None or options.fallback)
     if lost is not None and hidden is None:  # (the eye's note names the cause already)
         print(f"voxfield: note: {lost}; place the camera where the probes see "
               "(--eye/--target) or bake a denser grid", file=sys.stderr)

@@ -311,15 +311,17 @@ def hidden_eye_note(probe_set, view: Camera) -> str | None:
             "open space")
 
 
-def lost_rays_note(share: float, probes: str) -> str | None:
+def lost_rays_note(share: float, probes: str, *, fallback: bool = True) -> str | None:
     """What to say when no probe answered more than ``LOST_NOTE_SHARE`` of a light-field
     render's pixels not proven empty (``share``, from ``lost_share``, of ``probes``: "the
-    3x3x3 grid"), or ``None``."""
+    3x3x3 grid"), or ``None``. ``fallback``: whether those pixels show the fallback (off,
+    they are left unknown, black)."""
     if share <= LOST_NOTE_SHARE:
         return None
+    shown = "show the fallback" if fallback else "are left unknown (black; --no-fallback)"
     return (f"{100 * share:.0f}% of the light field's pixels that no probe proved empty were "
             f"answered by no probe of {probes} (every probe the ray reached lost it): they "
-            "show the fallback, not the trace")
+            f"{shown}, not the trace")
 
 
 def pixel_angle_of(camera: Camera) -> float:

@@ -168,7 +168,7 @@ def run_probe_study(
                 bar.update(1)
             count_rows.append(row)
     study.drop_bake()
-    lost_note = study_lost_note(quality_rows, main)
+    lost_note = study_lost_note(quality_rows, main, fallback=options.fallback)
     notes = [] if lost_note is None else [lost_note]
     for note in notes:
         warnings.warn(note, UserWarning, stacklevel=2)
@@ -198,10 +198,12 @@ def run_probe_study(
     return report
 
 
-def study_lost_note(quality_rows: list[dict], grid: str) -> str | None:
+def study_lost_note(quality_rows: list[dict], grid: str, *,
+                    fallback: bool = True) -> str | None:
     """``lost_rays_note`` for section 1's light-field render, with what to do about it."""
     row = next(q for q in quality_rows if q["method"] == "light-field")
-    note = lost_rays_note(lost_share_of(row["failures"], row["miss"]), f"the {grid} grid")
+    note = lost_rays_note(lost_share_of(row["failures"], row["miss"]), f"the {grid} grid",
+                          fallback=fallback)
     return None if note is None else (
         f"{note}, and so do section 1's light-field figures; see contact_sheet.png, and place "
         "the camera where the probes see (--eye/--target) or use a denser --grid")
