@@ -48,9 +48,22 @@ def _study(octree, eye, out, **options):
 def test_a_view_of_the_floor_s_unlit_underside_is_noted(lamp_over_a_floor, tmp_path):
     """Seen from below, the floor turns its unlit face to the camera: every pixel is black in
     every render, so the PSNRs are high and say nothing of the shadows."""
-    with pytest.warns(UserWarning, match=r"0\.0 % of the reference's pixels show light"):
+    with pytest.warns(UserWarning, match=r"0\.0 % of the reference's pixels show a lit surface"):
         report = _study(lamp_over_a_floor, (8.0, -20.0, 8.6), tmp_path / "below")
     assert all(row.get("psnr", np.inf) > 50.0 for row in report["rows"])
+
+
+def test_a_view_of_an_emitter_alone_is_noted(tmp_path, capsys):
+    """The Cornell box from the top: its roof faces away from the lamp (no shadow ray, every
+    row PSNR ∞) and the lamp shows through it, 6 % of the pixels; counted as light, they
+    kept the note from speaking."""
+    from voxfield.cli import main
+
+    assert main(["shadows", "builtin:cornell", "--camera", "top", "--size", "32",
+                 "--reference-samples", "4", "--light-samples", "1", "--floor-samples", "1",
+                 "--quiet", "--out", str(tmp_path / "top")]) == 0
+    assert ("voxfield: note: 0.0 % of the reference's pixels show a lit surface"
+            in capsys.readouterr().err)
 
 
 def test_a_view_of_the_lit_floor_is_not(lamp_over_a_floor, tmp_path):

@@ -103,7 +103,7 @@ def run_shadow_study(
                       enabled=progress and scheduled) as bar:
         rendered = folder.render_batch(specs, shared=(octree, table), bar=bar)
     results = dict(zip(ROWS, rendered[:len(ROWS)], strict=True))
-    _note_a_dark_view(results["reference"].image)
+    _note_a_dark_view(results["reference"])
     top_maps = dict(zip(("distance", "error-aware"), rendered[len(ROWS):], strict=True))
     beam = _measure_beam(folder, octree, key, floor_samples=floor_samples,
                          lod_distance=lod_distance, threshold=threshold, decay=decay,
@@ -155,13 +155,16 @@ def run_shadow_study(
             "computed": folder.computed, "reused": folder.reused}
 
 
-def _note_a_dark_view(reference: np.ndarray) -> None:
+def _note_a_dark_view(reference) -> None:
     """Say so where the view sees almost nothing the lights reach: the study's default view
-    is made for the shadow box, and another scene's lights may shine elsewhere."""
-    shown = linear_to_srgb(np.clip(reference, 0.0, 1.0)) >= 0.5 / 255.0  # not black in a PNG
-    lit = float(np.mean(np.any(shown, axis=-1)))
+    is made for the shadow box, and another scene's lights may shine elsewhere. A pixel
+    counts as lit where it shows light and cast shadow rays: an emitter seen head-on shows
+    light but casts none (the Cornell box's lamp through its roof, every row at PSNR ∞)."""
+    image = reference.image
+    shown = linear_to_srgb(np.clip(image, 0.0, 1.0)) >= 0.5 / 255.0  # not black in a PNG
+    lit = float(np.mean(np.any(shown, axis=-1) & (reference.maps["shadow_rays"] > 0)))
     if lit < DARK_VIEW_SHARE:
-        warnings.warn(f"{100 * lit:.1f} % of the reference's pixels show light: the view "
+        warnings.warn(f"{100 * lit:.1f} % of the reference's pixels show a lit surface: the view "
                       "sees little of what the lights reach, so its PSNRs (high over the "
                       "black pixels every renderer agrees on) say little of the shadows; a "
                       "view of the lit part (--camera, --eye/--target) measures them",
