@@ -84,3 +84,8 @@ def _writable(array: np.ndarray) -> np.ndarray:
 def seed_value(value) -> int:
     """A sampling seed: an integer in ``0..MAX_SEED``."""
     return integer_in(value, "seed", 0, MAX_SEED)
+
+
+def spoken_list(phrases: list[str]) -> str:
+    """``a``, ``a and b``, ``a, b and c``: a list as a message says it."""
+    return phrases[0] if len(phrases) == 1 else ", ".join(phrases[:-1]) + " and " + phrases[-1]

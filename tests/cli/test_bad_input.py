@@ -666,6 +666,10 @@ def test_options_another_renderer_takes_are_noted_not_silently_dropped(renderer,
     ("error-aware", [], ["--bright-ratio", "3", "--colour-to-voxels"],
      "the error-aware renderer reads --bright-ratio only with --lighting-aware, "
      "--colour-to-voxels only with a --colour-term above 0"),
+    ("error-aware", ["--base-lod", "0"], ["--threshold", "-1", "--decay", "3",
+                                         "--refinements", "1"],
+     "the error-aware renderer reads --threshold, --decay and --refinements only with a "
+     "--base-lod other than 0"),
 ])
 def test_options_the_renderer_reads_only_with_another_setting_are_noted(
         renderer, enabling, unread, note, tmp_path, capsys):
@@ -692,6 +696,27 @@ def test_options_read_with_their_setting_are_not_noted(tmp_path, capsys):
         assert capsys.readouterr().err == "", argv
 
 
+@pytest.mark.parametrize("argv, varies", [
+    (["calibrate", "builtin:pillars", "--target-rays", "2000", "--iterations", "4"],
+     "--threshold"),
+    (["sweep", "builtin:pillars", "--thresholds", "0.5,0.2", "--decays", "0.2"],
+     "--thresholds/--decays cell"),
+    (["study", "thresholds", "builtin:pillars", "--thresholds", "0.5,0.2"],
+     "--thresholds value"),
+])
+def test_varying_the_refinement_from_base_lod_0_is_refused_before_any_work(argv, varies,
+                                                                           tmp_path, capsys):
+    """From LOD 0 there is nothing finer: calibrate reported the threshold its bisection
+    stopped at, and the studies' rows came out identical, without a word."""
+    out = tmp_path / "out"
+    assert main([*argv, "--size", "32", "--base-lod", "0", "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (f"voxfield: error: --base-lod 0: the error-aware renderer has nothing "
+                   f"finer than LOD 0 to refine into, so every {varies} renders the same "
+                   "image; give a base LOD of 1 or more, or cone")
+    assert not out.exists()
+
+
 def test_a_bake_notes_a_cone_scale_its_fixed_lod_does_not_read(tmp_path, capsys):
     common = ["bake", "builtin:sphere", "--grid", "1x1x1", "--resolution", "4", "--quiet",
               "--renderer", "lod"]
@@ -700,6 +725,11 @@ def test_a_bake_notes_a_cone_scale_its_fixed_lod_does_not_read(tmp_path, capsys)
                                        "--cone-scale only with --lod cone; ignored\n")
     assert main([*common, "--cone-scale", "4", "--out", str(tmp_path / "b")]) == 0
     assert capsys.readouterr().err == ""
+    assert main([*common[:-1], "error-aware", "--lod", "0", "--threshold", "0.3", "--decay",
+                 "1", "--out", str(tmp_path / "c")]) == 0
+    assert capsys.readouterr().err == ("voxfield: note: the error-aware radiance renderer "
+                                       "reads --threshold and --decay only with a --lod other "
+                                       "than 0; ignored\n")
 
 
 @pytest.mark.parametrize("command", [

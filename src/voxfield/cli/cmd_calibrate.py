@@ -12,6 +12,7 @@ from voxfield.cli.options import (
     add_scene_options,
     add_view_options,
     check_measured_sides,
+    check_refinable_base_lod,
     int_between,
     open_octree,
     output_named,
@@ -45,6 +46,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    check_refinable_base_lod(args, "--threshold")
     if args.target_psnr is not None:  # (a ray count is reached without measuring images)
         check_measured_sides([args.size])
     if args.out:

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.checks import spoken_list
 from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_channel_option,
@@ -146,10 +147,18 @@ def _bake_options(args):
                if args.renderer not in users and getattr(args, name) != getattr(defaults, name)}
     if ignored:  # --samples with the default error-aware renderer did nothing unsaid
         warn_ignored(ignored, f"the {args.renderer} radiance renderer")
+    unread = []
     if (args.renderer in takers["cone_scale"] and args.lod is not None
             and args.cone_scale != defaults.cone_scale):
-        warnings.warn(f"the {args.renderer} radiance renderer reads --cone-scale only with "
-                      "--lod cone; ignored", stacklevel=2)
+        unread.append("--cone-scale only with --lod cone")
+    if args.renderer == "error-aware" and args.lod == 0:  # nothing finer to refine into
+        given = [f"--{name}" for name in ("threshold", "decay")
+                 if getattr(args, name) != getattr(defaults, name)]
+        if given:
+            unread.append(f"{spoken_list(given)} only with a --lod other than 0")
+    if unread:
+        warnings.warn(f"the {args.renderer} radiance renderer reads {', '.join(unread)}; "
+                      "ignored", stacklevel=2)
     return BakeOptions(
         resolution=args.resolution, renderer=args.renderer, channel=args.channel,
         samples=args.samples, lod=args.lod, cone_scale=args.cone_scale,

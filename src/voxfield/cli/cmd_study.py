@@ -18,6 +18,7 @@ from voxfield.cli.options import (
     auto_preset,
     check_base_lod,
     check_measured_sides,
+    check_refinable_base_lod,
     default_output,
     distinct,
     finite_float,
@@ -276,6 +277,7 @@ def run_curves(args) -> int:
 
 
 def run_thresholds(args) -> int:
+    check_refinable_base_lod(args, "--thresholds value")
     check_measured_sides([args.size])
     octree = open_octree(args)
     view = study_camera(args, octree)

@@ -10,6 +10,7 @@ from voxfield.cli.options import (
     add_study_folder,
     add_view_options,
     check_measured_sides,
+    check_refinable_base_lod,
     default_output,
     float_list,
     non_negative_float_list,
@@ -38,6 +39,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    check_refinable_base_lod(args, "--thresholds/--decays cell")
     check_measured_sides([args.size])
     octree = open_octree(args)
     view = study_camera(args, octree)

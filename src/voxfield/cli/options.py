@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.atomic import check_writable
-from voxfield.checks import MAX_SEED
+from voxfield.checks import MAX_SEED, spoken_list
 from voxfield.cli.commands import add_quiet
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import (
@@ -447,11 +447,15 @@ def _note_options_read_only_with_others(options, renderer: str) -> None:
     """A note naming options given that this renderer reads only with another setting
     (``read_when`` in the field's metadata): ``--bright-ratio`` without
     ``--lighting-aware`` changed nothing, without a word."""
-    unread = [f"{_flag(f)} only with {f.metadata['read_when'][1]}"
-              for f in dataclasses.fields(options)
-              if "read_when" in f.metadata and getattr(options, f.name) != f.default
-              and not f.metadata["read_when"][0](options)]
-    if unread:
+    flags_by_setting: dict[str, list[str]] = {}
+    for f in dataclasses.fields(options):
+        read_when = f.metadata.get("read_when")
+        if (read_when is not None and getattr(options, f.name) != f.default
+                and not read_when[0](options)):
+            flags_by_setting.setdefault(read_when[1], []).append(_flag(f))
+    if flags_by_setting:
+        unread = [f"{spoken_list(flags)} only with {setting}"
+                  for setting, flags in flags_by_setting.items()]
         warnings.warn(f"the {renderer} renderer reads {', '.join(unread)}; ignored",
                       stacklevel=3)
 
@@ -598,6 +602,16 @@ def check_measured_sides(sides, option: str = "--size") -> None:
         raise VoxfieldError(f"{option} {','.join(map(str, small))}: the comparison measures "
                             f"SSIM, whose {SSIM_WINDOW}×{SSIM_WINDOW} window needs images of "
                             f"at least {SSIM_WINDOW} pixels a side")
+
+
+def check_refinable_base_lod(args, varies: str) -> None:
+    """Refuse ``--base-lod 0`` where a command varies the error-aware refinement: from LOD 0
+    there is nothing finer to refine into, so every value of it renders the same image
+    (``calibrate`` reported whichever threshold its bisection stopped at)."""
+    if getattr(args, "base_lod", None) == 0:
+        raise VoxfieldError(f"--base-lod 0: the error-aware renderer has nothing finer than "
+                            f"LOD 0 to refine into, so every {varies} renders the same "
+                            "image; give a base LOD of 1 or more, or cone")
 
 
 def check_base_lod(args, octree) -> None:

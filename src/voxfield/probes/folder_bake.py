@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from voxfield.checks import spoken_list
 from voxfield.json_output import to_json
 from voxfield.probes.bake import check_bake_options
 from voxfield.probes.distributed import bake_each, check_scheduler
@@ -102,7 +103,7 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
         differs = differences(identity(old), identity(header))
         if differs:
             raise ProbeSetMismatchError(
-                f"{folder} holds probes baked {_listing(differs)}; use another --out, or "
+                f"{folder} holds probes baked {spoken_list(differs)}; use another --out, or "
                 "--fresh to discard them"
             )
         header["probes"] = old["probes"]
@@ -152,8 +153,3 @@ def _scheduler_name(scheduler) -> str:
         return scheduler or "threads"
     address = getattr(getattr(scheduler, "scheduler", None), "address", None)
     return str(address or type(scheduler).__name__)
-
-
-def _listing(phrases: list[str]) -> str:
-    """``a``, ``a and b``, ``a, b and c``."""
-    return phrases[0] if len(phrases) == 1 else ", ".join(phrases[:-1]) + " and " + phrases[-1]

@@ -42,6 +42,10 @@ from voxfield.svo.column_tops import no_column_tops, octree_column_tops
 from voxfield.svo.lod_colours import exposed_face_weights
 from voxfield.svo.octree import Octree
 
+#: When the refinement options are read: a ray that starts at LOD 0 has nothing finer to
+#: be refined into.
+_REFINABLE = "a --base-lod other than 0"
+
 
 @dataclass(frozen=True)
 class ErrorAwareOptions:
@@ -50,9 +54,11 @@ class ErrorAwareOptions:
 
     threshold: float = field(default=THESIS_THRESHOLD, metadata={
         "help": "refinement threshold (the thesis's calibration, EA §5.1.4); inf never "
-                "refines, a negative one refines everywhere", "type": "threshold"})
+                "refines, a negative one refines everywhere", "type": "threshold",
+        "read_when": (lambda options: options.base_lod != 0, _REFINABLE)})
     decay: float = field(default=THESIS_DECAY, metadata={
-        "help": "weight of the children's error, at least 0", "type": "non_negative_float"})
+        "help": "weight of the children's error, at least 0", "type": "non_negative_float",
+        "read_when": (lambda options: options.base_lod != 0, _REFINABLE)})
     base_lod: int | None = field(default=2, metadata={
         "help": "LOD of the first ray, or 'cone' (default 2, the thesis's setup)",
         "type": "lod"})
@@ -61,7 +67,8 @@ class ErrorAwareOptions:
         "read_when": (lambda options: options.base_lod is None, "--base-lod cone")})
     max_refinements: int = field(default=2, metadata={
         "help": "maximum 2×2 refinements per pixel (default 2 → ≤ 21 rays)",
-        "flag": "--refinements"})
+        "flag": "--refinements",
+        "read_when": (lambda options: options.base_lod != 0, _REFINABLE)})
     encoding: str | None = field(default=None, metadata={
         "help": "error-table encoding (default: the table's)", "choices": ENCODINGS})
     reuse_parent: bool = field(default=False, metadata={
