@@ -44,5 +44,17 @@ def test_impossible_or_ambiguous_targets_raise(setup):
     octree, camera, table = setup
     with pytest.raises(VoxfieldError, match="exactly one"):
         calibrate_threshold(octree, camera, table=table)
-    with pytest.raises(VoxfieldError, match="no threshold"):
+    # The message says the range searched and the closest the renders came, as numbers a
+    # person reads: the fewest rays at the range's top, the best PSNR at its bottom.
+    fewest = render_error_aware(octree, camera, table, threshold=1.0).total_rays
+    with pytest.raises(VoxfieldError) as refused:
         calibrate_threshold(octree, camera, target_rays=1, table=table, iterations=3)
+    assert str(refused.value) == (f"no threshold in 0..1 meets the budget of 1 rays: the "
+                                  f"fewest, {fewest:,}, come at threshold 1")
+    with pytest.raises(VoxfieldError) as refused:
+        calibrate_threshold(octree, camera, target_psnr=1000.0, table=table, iterations=3)
+    message = str(refused.value)
+    assert message.startswith("no threshold in 0..1 meets the target of 1000 dB: the best, ")
+    assert message.endswith(" dB, comes at threshold 0")
+    best = message.split("the best, ")[1].split(" dB")[0]
+    assert len(best.split(".")[1]) == 2  # 29.96, not 29.962130326265637

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field
 
 from voxfield.error_table.table import THESIS_DECAY
 from voxfield.errors import VoxfieldError
-from voxfield.metrics import psnr
+from voxfield.metrics import psnr, psnr_text
 from voxfield.progress import progress_bar
 from voxfield.render.camera import Camera
 from voxfield.render.error_aware import render_error_aware
@@ -56,6 +56,7 @@ def calibrate_threshold(
         raise VoxfieldError("give exactly one of a ray budget or a PSNR target")
     if not low < high or iterations < 1:
         raise VoxfieldError("the threshold search needs low < high and at least one step")
+    search_low, search_high = low, high
     reference = (render_reference(octree, camera, side=4, seed=seed, channel=channel)
                  if target_psnr else None)
     trail: list[dict] = []
@@ -93,12 +94,17 @@ def calibrate_threshold(
                 high = mid
             bar.update(1)
     if best is None:
+        # Nothing met it: the bracket end left is the search's own end, the closest one.
         edge = evaluate(high if want_high else low)
         if not meets(edge):
-            raise VoxfieldError(
-                "no threshold in the search range meets the target "
-                f"({'rays' if want_high else 'PSNR'}: best {edge['rays' if want_high else 'psnr']})"
-            )
+            searched = f"no threshold in {search_low:g}..{search_high:g} meets"
+            if want_high:
+                raise VoxfieldError(f"{searched} the budget of {target_rays:,} rays: the "
+                                    f"fewest, {edge['rays']:,}, come at threshold "
+                                    f"{edge['threshold']:g}")
+            raise VoxfieldError(f"{searched} the target of {target_psnr:g} dB: the best, "
+                                f"{psnr_text(edge['psnr'])} dB, comes at threshold "
+                                f"{edge['threshold']:g}")
         best = edge
     final_psnr = best.get("psnr", math.nan)
     target = {"rays": target_rays} if want_high else {"psnr": target_psnr}
