@@ -227,6 +227,9 @@ def _register_normalisation(actions) -> None:
 def run_normalisation(args) -> int:
     if not 0.0 < args.quantile <= 1.0:
         raise VoxfieldError(f"--quantile must be in (0, 1], got {args.quantile}")
+    if args.size < 2:  # (blamed on flat images after every scene's first pass)
+        raise VoxfieldError(f"--size {args.size}: the variance is measured over each pixel's "
+                            "3×3 neighbourhood, which a one-pixel image does not have")
     specs = (args.scene, *args.more_scenes)
     twice = sorted({spec for spec in specs if specs.count(spec) > 1})
     if twice:  # kept by name, a scene given twice was measured once, the count said so
