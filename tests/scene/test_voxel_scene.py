@@ -137,3 +137,24 @@ def test_coordinates_too_far_to_subtract_are_refused():
     assert len(edge.dedupe()) == 2
     with pytest.raises(VoxfieldError, match="at most"):
         build_octree(edge.dedupe())
+
+
+@pytest.mark.parametrize("offset, words", [
+    ((-1.7, 0, 0), "moves whole voxels"), ((0.5, 0, 0), "moves whole voxels"),
+    ((np.nan, 0, 0), "finite"), ((1e20, 0, 0), r"within ±2\^61"), (("3", 0, 0), "three whole"),
+    ((1, 2), "three whole"),
+])
+def test_an_offset_that_is_not_whole_voxels_is_refused(offset, words):
+    """A fraction was truncated toward zero (-1.7 moved by -1, 0.5 not at all), a NaN or a
+    huge offset raised NumPy's or Python's own errors, and a string was taken."""
+    scene = VoxelScene(np.array([[1, 2, 3]]), np.full((1, 3), 0.5))
+    with pytest.raises(VoxfieldError, match=words):
+        scene.translated(offset)
+    with pytest.raises(VoxfieldError, match=words):
+        compose([(scene, offset)])
+
+
+def test_a_whole_offset_of_any_number_type_moves_the_voxels():
+    scene = VoxelScene(np.array([[1, 2, 3]]), np.full((1, 3), 0.5))
+    for offset in ((2, 0, -3), (2.0, 0.0, -3.0), np.array([2, 0, -3], np.int16)):
+        assert scene.translated(offset).coords.tolist() == [[3, 2, 0]]

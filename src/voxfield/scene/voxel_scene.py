@@ -84,9 +84,9 @@ class VoxelScene:
         return hi - lo
 
     def translated(self, offset: Sequence[int]) -> VoxelScene:
-        """The same voxels moved by an integer offset."""
-        off = np.asarray(offset, dtype=np.int64).reshape(3)
-        return self._with(coords=self.coords + off)
+        """The same voxels moved by a whole-voxel offset (a fraction is refused: casting
+        it to integers moved -1.7 by -1 without a word)."""
+        return self._with(coords=self.coords + whole_offset(offset))
 
     def normalized(self) -> VoxelScene:
         """Moved so that the minimum corner is at the origin (what the octree expects)."""
@@ -191,3 +191,20 @@ def linear_to_srgb(linear: np.ndarray) -> np.ndarray:
     """Encode linear values in [0, 1] (any shape) as sRGB in [0, 1]."""
     c = np.clip(np.asarray(linear, dtype=np.float32), 0.0, 1.0)
     return np.where(c <= 0.0031308, c * 12.92, 1.055 * c ** (1 / 2.4) - 0.055).astype(np.float32)
+
+
+def whole_offset(offset) -> np.ndarray:
+    """``offset`` as three int64 voxel counts within ±2^61, or a VoxfieldError saying why."""
+    try:
+        values = np.asarray(offset)
+        if values.dtype.kind not in "iuf" or values.size != 3:
+            raise ValueError
+        values = values.reshape(3)
+    except ValueError:
+        raise VoxfieldError(f"an offset must be three whole numbers, got {offset!r}") from None
+    if not (np.all(np.isfinite(values)) and np.all(np.abs(values) <= MAX_COORDINATE)):
+        raise VoxfieldError(f"an offset must be finite and within ±2^61 voxels, got "
+                            f"{values.tolist()}")
+    if values.dtype.kind == "f" and not np.array_equal(values, np.round(values)):
+        raise VoxfieldError(f"an offset moves whole voxels, got {values.tolist()}")
+    return values.astype(np.int64)
