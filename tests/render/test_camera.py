@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import warnings
 
 import numpy as np
 import pytest
@@ -99,6 +100,20 @@ def test_a_far_eye_keeps_its_direction():
     an up vector parallel to it."""
     camera = Camera.look_at((1e308, 1.0, 1.0), (0.0, 0.0, 0.0), width=4)
     assert np.allclose(camera.forward, (-1.0, 0.0, 0.0))
+
+
+@pytest.mark.parametrize("make, words", [
+    (lambda: Camera.look_at((1e308, 0, 0), (-1e308, 0, 0)), "too far apart"),
+    (lambda: orbit_camera((0, 0, 0), (1e308,) * 3), "too large to frame"),
+    (lambda: top_down_camera((-1e308, 0, 0), (1e308, 1, 1)), "too large to frame"),
+])
+def test_points_too_far_apart_for_float64_are_refused_without_numpy_s_warning(make, words):
+    """NumPy's overflow warnings (in subtract, in dot) reached the caller before the
+    CameraError that named a direction or an eye of infinity."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(CameraError, match=words):
+            make()
 
 
 @pytest.mark.parametrize(

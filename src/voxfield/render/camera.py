@@ -43,6 +43,11 @@ def _box(bounds_min, bounds_max) -> tuple[np.ndarray, np.ndarray]:
     hi = _vector(bounds_max, "box maximum")
     if np.any(lo > hi):
         raise CameraError(f"the box's minimum {lo.tolist()} exceeds its maximum {hi.tolist()}")
+    with np.errstate(over="ignore"):  # the presets frame it by its diagonal: checked here
+        diagonal = float(np.linalg.norm(hi - lo))
+    if not np.isfinite(diagonal):
+        raise CameraError(f"the box {lo.tolist()}..{hi.tolist()} is too large to frame: its "
+                          "diagonal overflows float64")
     return lo, hi
 
 
@@ -156,7 +161,12 @@ class Camera:
         width, height = _image_size(width, height)
         _check_fov(fov_deg)
         eye = _vector(eye, "eye")
-        f, r, u = _basis(_vector(target, "target") - eye, up)
+        with np.errstate(over="ignore"):  # checked next, in the caller's terms
+            forward = _vector(target, "target") - eye
+        if not np.isfinite(forward).all():
+            raise CameraError(f"the camera's eye {eye.tolist()} and target are too far apart: "
+                              "their difference overflows float64")
+        f, r, u = _basis(forward, up)
         half_h = float(np.tan(np.radians(fov_deg) / 2.0))
         return cls(PINHOLE, eye, f, r, u, half_h * width / height, half_h, width, height)
 
