@@ -54,6 +54,14 @@ def real_number(value, what: str, *, finite: bool = True) -> float:
     return x
 
 
+def flag(value, what: str) -> bool:
+    """``value`` as a ``bool`` when it is one (Python's or NumPy's): any object is truthy,
+    so ``reuse_parent="no"`` turned the option on."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise VoxfieldError(f"{what} must be True or False, got {value!r}")
+    return bool(value)
+
+
 def ray_arrays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
     """Rays as two contiguous, writable float64 N×3 arrays, every component finite and no
     direction the zero vector (it has no crossing times). A read-only array is copied: to

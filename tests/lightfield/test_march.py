@@ -299,6 +299,13 @@ def test_each_epsilon_reads_the_parameters_the_command_line_says_it_reads(
         assert same == (epsilon not in readers), (name, epsilon)
 
 
+@pytest.mark.parametrize("name", ["consensus", "ring", "backface", "fallback"])
+def test_a_light_field_switch_takes_a_bool_not_any_truthy_object(name):
+    with pytest.raises(VoxfieldError, match=f"{name} must be True or False"):
+        LightFieldOptions(**{name: "no"})
+    assert getattr(LightFieldOptions(**{name: np.bool_(True)}), name)
+
+
 @pytest.mark.parametrize("front", [0.0, 0.25, 1e6, float("inf")])
 def test_hierarchical_and_dda_agree_whatever_the_front_epsilon(cornell, cornell_probe64, front):
     """The hierarchical skip bound reads the capped front ε: it must stay conservative for

@@ -119,6 +119,19 @@ def test_bad_options_raise(table, terrain):
         render_error_aware(terrain, cam, table, lighting_aware=True, lighting_table=table)
 
 
+@pytest.mark.parametrize("name", ["reuse_parent", "lighting_aware", "context_aware",
+                                  "colour_to_voxels"])
+def test_a_switch_takes_a_bool_not_any_truthy_object(table, terrain, name):
+    """``reuse_parent="no"`` turned reuse on (a non-empty string is true)."""
+    cam = _top(terrain, 8)
+    for value in ("no", 1, None):
+        with pytest.raises(VoxfieldError, match=f"{name} must be True or False"):
+            render_error_aware(terrain, cam, table, **{name: value})
+    as_numpy = render_error_aware(terrain, cam, table, threads=1, **{name: np.bool_(False)})
+    plain = render_error_aware(terrain, cam, table, threads=1, **{name: False})
+    assert np.array_equal(as_numpy.image, plain.image)
+
+
 def test_a_table_can_be_named_by_its_path(table, terrain, tmp_path):
     path = save_error_table(table, tmp_path / "table.npz")
     cam = _top(terrain, 8)

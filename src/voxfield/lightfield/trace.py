@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from voxfield.checks import is_integer, is_real, ray_arrays
+from voxfield.checks import flag, is_integer, is_real, ray_arrays
 from voxfield.errors import VoxfieldError
 from voxfield.kernels import probe_march as pm
 from voxfield.kernels import probe_multi as mk
@@ -159,6 +159,8 @@ class LightFieldOptions:
         problem = march_step_problem(self.step, self.max_steps)
         if problem is not None:
             raise VoxfieldError(problem)
+        for name in ("consensus", "ring", "backface", "fallback"):
+            flag(getattr(self, name), name)
         if not (_finite(self.epsilon_value) and self.epsilon_value >= 0):
             raise VoxfieldError(f"epsilon_value must be a distance >= 0, got "
                                 f"{self.epsilon_value!r}")

@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from voxfield.checks import integer_in, real_number, seed_value
+from voxfield.checks import flag, integer_in, real_number, seed_value
 from voxfield.error_table.lighting_table import LightingErrorTable, load_lighting_error_table
 from voxfield.error_table.table import (
     ENCODINGS,
@@ -151,6 +151,10 @@ def render_error_aware(
     if base_lod is not None:
         base_lod = integer_in(base_lod, "base LOD", 0, octree.depth)
     seed = seed_value(seed)
+    reuse_parent, lighting_aware, context_aware, colour_to_voxels = (
+        flag(value, name) for value, name in (
+            (reuse_parent, "reuse_parent"), (lighting_aware, "lighting_aware"),
+            (context_aware, "context_aware"), (colour_to_voxels, "colour_to_voxels")))
     threshold = real_number(threshold, "threshold (inf: never refine)", finite=False)
     decay = real_number(decay, "decay")
     if decay < 0:
