@@ -133,6 +133,10 @@ def test_export_cubes_refuses_another_scene_or_no_probe_in_one_line(run, tmp_pat
                 "--out", str(picture)]) == 2
     assert one_error_line(capsys).startswith("voxfield: error: --scene nope.vox: ")
     assert not picture.exists()
+    # A side past every camera's limit is refused as --size, not as an "image width".
+    with pytest.raises(SystemExit):
+        run(["probes", "show", str(out), "--size", "100000", "--out", str(picture)])
+    assert "argument --size: " in capsys.readouterr().err
 
     def all_disabled(folder):
         probe_set = open_probe_set(folder)

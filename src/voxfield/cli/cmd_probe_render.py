@@ -79,6 +79,10 @@ from voxfield.studies.report import fmt, fmt_psnr
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree
 
+#: The options that build ``--scene``, and their defaults.
+_SCENE_OPTION_DEFAULTS = {"mesh_resolution": 256, "footprint": 512, "vertical_scale": None,
+                          "dem_fit": None, "lod_colour": DEFAULT_LOD_COLOUR, "seed": 0}
+
 
 def march_step(text: str) -> float:
     """An argparse type: the 3D march's step in voxels, in the range ``LightFieldOptions``
@@ -131,9 +135,11 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--scene", default=None,
                    help="the baked scene (file, builtin:NAME, ...): its bounds frame the "
                    "camera and proxy box, and --compare renders it")
-    p.add_argument("--mesh-resolution", type=positive_int, default=256, metavar="N",
+    p.add_argument("--mesh-resolution", type=positive_int,
+                   default=_SCENE_OPTION_DEFAULTS["mesh_resolution"], metavar="N",
                    help="--scene mesh: voxels along the longest side (default 256)")
-    p.add_argument("--footprint", type=positive_int, default=512, metavar="N",
+    p.add_argument("--footprint", type=positive_int,
+                   default=_SCENE_OPTION_DEFAULTS["footprint"], metavar="N",
                    help="--scene terrain: footprint in voxels per side (default 512)")
     p.add_argument("--vertical-scale", type=float, default=None, metavar="S",
                    help="--scene terrain: height multiplier (default: true scale)")
@@ -142,7 +148,8 @@ def register(subparsers) -> argparse.ArgumentParser:
                    "its centred square")
     p.add_argument("--lod-colour", choices=LOD_COLOURS, default=DEFAULT_LOD_COLOUR,
                    help=f"--scene: inner-node colour rule (default {DEFAULT_LOD_COLOUR})")
-    p.add_argument("--seed", type=int, default=0, help="scene seed (rays use pixel centres)")
+    p.add_argument("--seed", type=int, default=_SCENE_OPTION_DEFAULTS["seed"],
+                   help="--scene: scene seed (rays use pixel centres)")
     p.add_argument("--compare", action="store_true",
                    help="with --scene: also render the view from the octree, print PSNR and "
                    "SSIM, and write a side-by-side PNG")
@@ -289,6 +296,10 @@ def _note_unused_options(args, options: LightFieldOptions) -> None:
         ignored["--box-min/--box-max"] = ["box-proxy"]
     if not args.compare and args.spp_side != 1:
         ignored["--spp-side"] = ["--compare"]
+    if args.scene is None:  # each builds the --scene; without one they changed nothing
+        for name, default in _SCENE_OPTION_DEFAULTS.items():
+            if getattr(args, name) != default:
+                ignored[f"--{name.replace('_', '-')}"] = ["--scene"]
     if ignored:
         marcher = args.method == "light-field" and "--step" in ignored
         warn_ignored(ignored, f"the {args.method} render"

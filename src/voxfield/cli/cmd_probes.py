@@ -34,7 +34,7 @@ from voxfield.probes.probe_folder import open_probe_set, read_header
 from voxfield.probes.probe_set import BAKE_RENDERERS, MAX_RESOLUTION, MIN_RESOLUTION, BakeOptions
 from voxfield.probes.show import write_show
 from voxfield.progress import progress_bar
-from voxfield.render.camera import CUBE_FACES
+from voxfield.render.camera import CUBE_FACES, MAX_IMAGE_SIDE
 from voxfield.render.image_io import save_exr
 from voxfield.scene.loaders import SceneOptions
 from voxfield.studies.html_report import write_page
@@ -116,8 +116,9 @@ def register(subparsers) -> None:
         help="scene for the overview render (default: the one the bake recorded)")
     which_scene.add_argument("--no-scene", action="store_true",
                              help="draw the probe positions without rendering the scene")
-    s.add_argument("--size", type=positive_int, default=512,
-                   help="overview render size in pixels (default 512)")
+    s.add_argument("--size", type=int_between(1, MAX_IMAGE_SIDE, "pixels per side"),
+                   default=512, metavar="N",
+                   help=f"overview render size in pixels, 1..{MAX_IMAGE_SIDE} (default 512)")
     add_quiet(s)
     s.set_defaults(func=run_show)
 
