@@ -22,6 +22,7 @@ import numpy as np
 from voxfield.atomic import atomic_path
 from voxfield.cli.commands import add_command
 from voxfield.cli.options import (
+    BUILD_OPTIONS,
     add_display_options,
     add_hit_options,
     add_view_options,
@@ -79,10 +80,6 @@ from voxfield.studies.report import fmt, fmt_psnr
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree
 
-#: The options that build ``--scene``, and their defaults.
-_SCENE_OPTION_DEFAULTS = {"mesh_resolution": 256, "footprint": 512, "vertical_scale": None,
-                          "dem_fit": None, "lod_colour": DEFAULT_LOD_COLOUR, "seed": 0}
-
 
 def march_step(text: str) -> float:
     """An argparse type: the 3D march's step in voxels, in the range ``LightFieldOptions``
@@ -135,11 +132,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     p.add_argument("--scene", default=None,
                    help="the baked scene (file, builtin:NAME, ...): its bounds frame the "
                    "camera and proxy box, and --compare renders it")
-    p.add_argument("--mesh-resolution", type=positive_int,
-                   default=_SCENE_OPTION_DEFAULTS["mesh_resolution"], metavar="N",
+    p.add_argument("--mesh-resolution", type=positive_int, default=256, metavar="N",
                    help="--scene mesh: voxels along the longest side (default 256)")
-    p.add_argument("--footprint", type=positive_int,
-                   default=_SCENE_OPTION_DEFAULTS["footprint"], metavar="N",
+    p.add_argument("--footprint", type=positive_int, default=512, metavar="N",
                    help="--scene terrain: footprint in voxels per side (default 512)")
     p.add_argument("--vertical-scale", type=float, default=None, metavar="S",
                    help="--scene terrain: height multiplier (default: true scale)")
@@ -148,7 +143,7 @@ def register(subparsers) -> argparse.ArgumentParser:
                    "its centred square")
     p.add_argument("--lod-colour", choices=LOD_COLOURS, default=DEFAULT_LOD_COLOUR,
                    help=f"--scene: inner-node colour rule (default {DEFAULT_LOD_COLOUR})")
-    p.add_argument("--seed", type=int, default=_SCENE_OPTION_DEFAULTS["seed"],
+    p.add_argument("--seed", type=int, default=0,
                    help="--scene: scene seed (rays use pixel centres)")
     p.add_argument("--compare", action="store_true",
                    help="with --scene: also render the view from the octree, print PSNR and "
@@ -297,9 +292,11 @@ def _note_unused_options(args, options: LightFieldOptions) -> None:
     if not args.compare and args.spp_side != 1:
         ignored["--spp-side"] = ["--compare"]
     if args.scene is None:  # each builds the --scene; without one they changed nothing
-        for name, default in _SCENE_OPTION_DEFAULTS.items():
-            if getattr(args, name) != default:
-                ignored[f"--{name.replace('_', '-')}"] = ["--scene"]
+        for dest, (flag, default, *_) in BUILD_OPTIONS.items():
+            if getattr(args, dest, default) != default:
+                ignored[flag] = ["--scene"]
+        if args.seed != 0:
+            ignored["--seed"] = ["--scene"]
     if ignored:
         marcher = args.method == "light-field" and "--step" in ignored
         warn_ignored(ignored, f"the {args.method} render"
