@@ -670,6 +670,13 @@ def test_options_another_renderer_takes_are_noted_not_silently_dropped(renderer,
                                          "--refinements", "1"],
      "the error-aware renderer reads --threshold, --decay and --refinements only with a "
      "--base-lod other than 0"),
+    ("error-aware", ["--base-lod", "0"], ["--encoding", "sh", "--reuse-parent",
+                                         "--lighting-aware", "--bright-ratio", "3",
+                                         "--context-aware", "--colour-term", "1",
+                                         "--colour-to-voxels"],
+     "the error-aware renderer reads --encoding, --reuse-parent, --lighting-aware, "
+     "--bright-ratio, --context-aware, --colour-term and --colour-to-voxels only with a "
+     "--base-lod other than 0"),
 ])
 def test_options_the_renderer_reads_only_with_another_setting_are_noted(
         renderer, enabling, unread, note, tmp_path, capsys):
@@ -696,24 +703,27 @@ def test_options_read_with_their_setting_are_not_noted(tmp_path, capsys):
         assert capsys.readouterr().err == "", argv
 
 
-@pytest.mark.parametrize("argv, varies", [
+@pytest.mark.parametrize("argv, same_image", [
     (["calibrate", "builtin:pillars", "--target-rays", "2000", "--iterations", "4"],
-     "--threshold"),
+     "every --threshold renders the same image"),
     (["sweep", "builtin:pillars", "--thresholds", "0.5,0.2", "--decays", "0.2"],
-     "--thresholds/--decays cell"),
+     "every --thresholds/--decays cell renders the same image"),
     (["study", "thresholds", "builtin:pillars", "--thresholds", "0.5,0.2"],
-     "--thresholds value"),
+     "every --thresholds value renders the same image"),
+    (["study", "lighting", "builtin:pillars", "--times", "noon"],
+     "the lighting-aware renders are the error-aware ones"),
 ])
-def test_varying_the_refinement_from_base_lod_0_is_refused_before_any_work(argv, varies,
+def test_varying_the_refinement_from_base_lod_0_is_refused_before_any_work(argv, same_image,
                                                                            tmp_path, capsys):
     """From LOD 0 there is nothing finer: calibrate reported the threshold its bisection
-    stopped at, and the studies' rows came out identical, without a word."""
+    stopped at, and the studies' rows came out identical, without a word (the lighting
+    study's error-aware and lighting-aware rows alike, after a sun bake)."""
     out = tmp_path / "out"
     assert main([*argv, "--size", "32", "--base-lod", "0", "--out", str(out)]) == 2
     err = capsys.readouterr().err.strip()
     assert err == (f"voxfield: error: --base-lod 0: the error-aware renderer has nothing "
-                   f"finer than LOD 0 to refine into, so every {varies} renders the same "
-                   "image; give a base LOD of 1 or more, or cone")
+                   f"finer than LOD 0 to refine into, so {same_image}; give a base LOD of 1 "
+                   "or more, or cone")
     assert not out.exists()
 
 

@@ -177,6 +177,23 @@ def test_parent_reuse_is_thread_count_independent(table, terrain, small_jobs_in_
     assert np.array_equal(a.image, b.image) and np.array_equal(a.steps, b.steps)
 
 
+def test_from_base_lod_0_parent_reuse_changes_nothing(table, terrain):
+    """From LOD 0 no ray is refined, so there is no parent to reuse: the rays went through
+    hashed cells' samples instead of the pixel centres, a jittered image (741 of 4,096
+    pixels of builtin:pillars changed) from a switch that had nothing to do."""
+    cam = _top(terrain)
+    plain = render_error_aware(terrain, cam, table, base_lod=0, seed=3)
+    reused = render_error_aware(terrain, cam, table, base_lod=0, reuse_parent=True, seed=3)
+    for name in ("image", "depth", "normal", "ray_count", "steps"):
+        assert np.array_equal(getattr(reused, name), getattr(plain, name)), name
+    assert reused.params["reuse_parent"] is False
+    # From LOD 1 the reused cells still place the first rays off the pixel centres.
+    one = [render_error_aware(terrain, cam, table, base_lod=1, threshold=np.inf,
+                              reuse_parent=reuse, seed=3) for reuse in (False, True)]
+    assert not np.array_equal(one[0].depth, one[1].depth)
+    assert one[1].params["reuse_parent"] is True
+
+
 def _lit_block():
     """A solid 16³ block (no geometric error anywhere) whose top layer is bright, coloured
     as the EA thesis colours LODs (children's mean: the dark interior shows at LOD 1)."""

@@ -46,7 +46,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    check_refinable_base_lod(args, "--threshold")
+    check_refinable_base_lod(args, "every --threshold renders the same image")
     if args.target_psnr is not None:  # (a ray count is reached without measuring images)
         check_measured_sides([args.size])
     if args.out:

@@ -280,7 +280,7 @@ def run_curves(args) -> int:
 
 
 def run_thresholds(args) -> int:
-    check_refinable_base_lod(args, "--thresholds value")
+    check_refinable_base_lod(args, "every --thresholds value renders the same image")
     check_measured_sides([args.size])
     octree = open_octree(args)
     view = study_camera(args, octree)
@@ -321,6 +321,7 @@ def run_resolution(args) -> int:
 
 
 def run_lighting(args) -> int:
+    check_refinable_base_lod(args, "the lighting-aware renders are the error-aware ones")
     check_measured_sides([args.size])
     octree = open_octree(args)
     view = study_camera(args, octree)  # before a bake: the geometry is the same after it

@@ -39,7 +39,7 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
-    check_refinable_base_lod(args, "--thresholds/--decays cell")
+    check_refinable_base_lod(args, "every --thresholds/--decays cell renders the same image")
     check_measured_sides([args.size])
     octree = open_octree(args)
     view = study_camera(args, octree)

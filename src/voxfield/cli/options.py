@@ -445,14 +445,19 @@ def renderer_options_from(args, renderer: str):
 
 def _note_options_read_only_with_others(options, renderer: str) -> None:
     """A note naming options given that this renderer reads only with another setting
-    (``read_when`` in the field's metadata): ``--bright-ratio`` without
+    (``read_when`` in the field's metadata: a ``(condition, setting)`` pair, or a tuple of
+    them all of which must hold, the first unmet one named): ``--bright-ratio`` without
     ``--lighting-aware`` changed nothing, without a word."""
     flags_by_setting: dict[str, list[str]] = {}
     for f in dataclasses.fields(options):
         read_when = f.metadata.get("read_when")
-        if (read_when is not None and getattr(options, f.name) != f.default
-                and not read_when[0](options)):
-            flags_by_setting.setdefault(read_when[1], []).append(_flag(f))
+        if read_when is None or getattr(options, f.name) == f.default:
+            continue
+        conditions = (read_when,) if callable(read_when[0]) else read_when
+        unmet = next((setting for condition, setting in conditions
+                      if not condition(options)), None)
+        if unmet is not None:
+            flags_by_setting.setdefault(unmet, []).append(_flag(f))
     if flags_by_setting:
         unread = [f"{spoken_list(flags)} only with {setting}"
                   for setting, flags in flags_by_setting.items()]
@@ -604,14 +609,15 @@ def check_measured_sides(sides, option: str = "--size") -> None:
                             f"at least {SSIM_WINDOW} pixels a side")
 
 
-def check_refinable_base_lod(args, varies: str) -> None:
+def check_refinable_base_lod(args, same_image: str) -> None:
     """Refuse ``--base-lod 0`` where a command varies the error-aware refinement: from LOD 0
     there is nothing finer to refine into, so every value of it renders the same image
-    (``calibrate`` reported whichever threshold its bisection stopped at)."""
+    (``calibrate`` reported whichever threshold its bisection stopped at). ``same_image``
+    says which renders come out alike."""
     if getattr(args, "base_lod", None) == 0:
         raise VoxfieldError(f"--base-lod 0: the error-aware renderer has nothing finer than "
-                            f"LOD 0 to refine into, so every {varies} renders the same "
-                            "image; give a base LOD of 1 or more, or cone")
+                            f"LOD 0 to refine into, so {same_image}; give a base LOD of 1 "
+                            "or more, or cone")
 
 
 def check_base_lod(args, octree) -> None:

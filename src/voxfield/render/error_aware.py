@@ -45,6 +45,8 @@ from voxfield.svo.octree import Octree
 #: When the refinement options are read: a ray that starts at LOD 0 has nothing finer to
 #: be refined into.
 _REFINABLE = "a --base-lod other than 0"
+#: ``read_when`` (``cli.options``) of the options that act only through refinement.
+_REFINABLE_WHEN = (lambda options: options.base_lod != 0, _REFINABLE)
 
 
 @dataclass(frozen=True)
@@ -55,10 +57,10 @@ class ErrorAwareOptions:
     threshold: float = field(default=THESIS_THRESHOLD, metadata={
         "help": "refinement threshold (the thesis's calibration, EA §5.1.4); inf never "
                 "refines, a negative one refines everywhere", "type": "threshold",
-        "read_when": (lambda options: options.base_lod != 0, _REFINABLE)})
+        "read_when": _REFINABLE_WHEN})
     decay: float = field(default=THESIS_DECAY, metadata={
         "help": "weight of the children's error, at least 0", "type": "non_negative_float",
-        "read_when": (lambda options: options.base_lod != 0, _REFINABLE)})
+        "read_when": _REFINABLE_WHEN})
     base_lod: int | None = field(default=2, metadata={
         "help": "LOD of the first ray, or 'cone' (default 2, the thesis's setup)",
         "type": "lod"})
@@ -68,28 +70,32 @@ class ErrorAwareOptions:
     max_refinements: int = field(default=2, metadata={
         "help": "maximum 2×2 refinements per pixel (default 2 → ≤ 21 rays)",
         "flag": "--refinements",
-        "read_when": (lambda options: options.base_lod != 0, _REFINABLE)})
+        "read_when": _REFINABLE_WHEN})
     encoding: str | None = field(default=None, metadata={
-        "help": "error-table encoding (default: the table's)", "choices": ENCODINGS})
+        "help": "error-table encoding (default: the table's)", "choices": ENCODINGS,
+        "read_when": _REFINABLE_WHEN})
     reuse_parent: bool = field(default=False, metadata={
-        "help": "continue a refined ray as one of its 4 sub-rays (EA §6.2)"})
+        "help": "continue a refined ray as one of its 4 sub-rays (EA §6.2)",
+        "read_when": _REFINABLE_WHEN})
     lighting_aware: bool = field(default=False, metadata={
-        "help": "add the bright-flag colour error (EA §6.1)"})
+        "help": "add the bright-flag colour error (EA §6.1)", "read_when": _REFINABLE_WHEN})
     bright_ratio: float = field(default=0.25, metadata={
         "help": "lighting-aware: a child is bright above (1 + R) × its parent's luminance "
         "(default 0.25)",
-        "read_when": (lambda options: options.lighting_aware, "--lighting-aware")})
+        "read_when": (_REFINABLE_WHEN,
+                      (lambda options: options.lighting_aware, "--lighting-aware"))})
     context_aware: bool = field(default=False, metadata={
         "help": "no geometric error inside a surface of same-shaped same-level nodes "
-        "(flat ground and terrace interiors stop refining)"})
+        "(flat ground and terrace interiors stop refining)", "read_when": _REFINABLE_WHEN})
     colour_term: float = field(default=0.0, metadata={
         "help": "weight of the colour term: the spread (std) of the luminance of a node's "
         "children as rays see them, plus decay × its children's, added to the error "
-        "(default 0: the thesis's geometric error alone)"})
+        "(default 0: the thesis's geometric error alone)", "read_when": _REFINABLE_WHEN})
     colour_to_voxels: bool = field(default=False, metadata={
         "help": "colour term: where colour alone exceeds the threshold, the 2×2 sub-rays "
         "go straight to LOD 0 instead of one LOD finer",
-        "read_when": (lambda options: options.colour_term != 0, "a --colour-term above 0")})
+        "read_when": (_REFINABLE_WHEN,
+                      (lambda options: options.colour_term != 0, "a --colour-term above 0"))})
     colour_variance: float | None = field(default=None, metadata={
         "help": "hybrid: afterwards also refine, at LOD 0, the pixels whose 3×3 luminance "
         "variance divided by this asks for more rays (the adaptive renderer's cut-offs; "
@@ -122,7 +128,8 @@ def render_error_aware(
     ``E_N(r) = e(r, N) + decay · mean_c e(r, c)`` exceeds ``threshold``.
 
     With ``reuse_parent`` (thesis §6.2) a refined ray is continued one LOD finer as one of
-    its four sub-rays, so refining costs 3 new rays instead of 4.
+    its four sub-rays, so refining costs 3 new rays instead of 4; from ``base_lod`` 0,
+    where nothing is refined, it changes nothing.
     ``lighting_aware`` (EA §6.1) adds a colour error: children of the hit node brighter than
     ``1 + bright_ratio`` times its luminance (in ``channel``) are flagged bright, and the
     lighting table's error for that configuration joins ``E_N(r)``, decayed alike.
@@ -177,8 +184,10 @@ def render_error_aware(
     discarded = np.empty((h, w), np.int32)
     stop_level = octree.depth - (0 if base_lod is None else base_lod)
     view = octree_view(octree.inner_nodes, octree.depth, colors, facing)
+    # From LOD 0 no ray is refined, so none is reused: the rays go through the pixel
+    # centres, as without reuse, where the reused cells' samples only jittered them.
     refinement = Refinement(stop_level, cone_scale if base_lod is None else 0.0,
-                            max_refinements, bool(reuse_parent))
+                            max_refinements, bool(reuse_parent) and base_lod != 0)
     model = ErrorModel(
         float(threshold), float(decay), ENCODING_SH if encoding == "sh" else ENCODING_OCT,
         *table.kernel_maps,
@@ -215,7 +224,7 @@ def render_error_aware(
     result.params = {
         "threshold": float(threshold), "decay": float(decay),
         "base_lod": "cone" if base_lod is None else base_lod, "max_refinements": max_refinements,
-        "encoding": encoding, "reuse_parent": bool(reuse_parent),
+        "encoding": encoding, "reuse_parent": refinement.reuse_parent,
         "lighting_aware": bool(lighting_aware), "seed": seed, "channel": channel,
     }
     if lighting_aware:
