@@ -149,6 +149,15 @@ def test_ray_query_rejects_bad_rays():
         ray_query.trace(octree, np.zeros((2, 2)), np.ones((2, 2)))
     with pytest.raises(VoxfieldError, match="zero vector"):
         ray_query.trace(octree, np.zeros((1, 3)), np.zeros((1, 3)))
+    # Along a direction whose components are all subnormal every hit time overflows: the
+    # ray was reported as a miss. Normal components are enough.
+    down = np.array([[-1e-310, -1e-320, -1e-310], [-1e-300, -1e-300, -1e-300]])
+    for query in (ray_query.trace, ray_query.occluded):
+        with pytest.raises(VoxfieldError, match=r"ray 0's direction \[-1e-310, -1e-320, "
+                                                r"-1e-310\] is too short to measure times"):
+            query(octree, np.full((2, 3), 3.0), down)
+    assert ray_query.trace(octree, np.full((1, 3), 3.0), down[1:]).hit[0]
+    assert ray_query.occluded(octree, np.full((1, 3), 3.0), down[1:]).blocked[0]
     with pytest.raises(VoxfieldError, match="NaN"):
         ray_query.trace(octree, np.full((1, 3), np.nan), np.ones((1, 3)))
 

@@ -9,6 +9,7 @@ import numba
 import numpy as np
 
 from voxfield.checks import integer_in, ray_arrays, real_number
+from voxfield.errors import VoxfieldError
 from voxfield.kernels.ray_batch import occlude_rays, trace_rays
 from voxfield.parallel import thread_count, threads_for
 from voxfield.svo.column_tops import no_column_tops, octree_column_tops
@@ -49,7 +50,7 @@ def trace(
     the steps then count the pyramid's cells.
     """
     check_octree(octree, "trace")
-    o, d = ray_arrays(origins, directions)
+    o, d = _rays_with_times(origins, directions)
     lod = integer_in(lod, "LOD", 0, octree.depth)
     tmin, tmax = _checked_interval(tmin, tmax)
     n = len(o)
@@ -91,7 +92,7 @@ def occluded(
     the same verdicts, usually far fewer steps, and the steps then count pyramid cells too.
     """
     check_octree(octree, "occluded")
-    o, d = ray_arrays(origins, directions)
+    o, d = _rays_with_times(origins, directions)
     tmin, tmax = _checked_interval(tmin, tmax)
     n = len(o)
     result = Occlusions(blocked=np.empty(n, bool), steps=np.empty(n, np.int64))
@@ -100,6 +101,21 @@ def occluded(
         occlude_rays(o, d, tmin, tmax, octree.inner_nodes, octree.depth,
                      pyramid, result.blocked, result.steps, numba.get_num_threads())
     return result
+
+
+def _rays_with_times(origins, directions) -> tuple[np.ndarray, np.ndarray]:
+    """``checks.ray_arrays``, and no direction whose components are all subnormal: times
+    here are in units of the direction's length, so along such a one every hit lies past
+    the largest float (the traversal flushed the components it cannot invert and reported
+    a miss, without a word). One normal component is enough."""
+    o, d = ray_arrays(origins, directions)
+    tiny = np.finfo(np.float64).tiny
+    short = np.flatnonzero(np.abs(d).max(axis=1) < tiny)
+    if short.size:
+        raise VoxfieldError(f"ray {short[0]}'s direction {d[short[0]].tolist()} is too short "
+                            f"to measure times along (every component under {tiny:.4g}); "
+                            "scale it up")
+    return o, d
 
 
 def _checked_interval(tmin, tmax) -> tuple[float, float]:
