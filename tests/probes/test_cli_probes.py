@@ -116,7 +116,7 @@ def test_export_cubes_refuses_another_scene_or_no_probe_in_one_line(run, tmp_pat
     """Another scene printed a note that it was "drawing it anyway" before the error, and a
     set with every probe disabled "wrote 0 faces of 0 probes"."""
     from cli_output import one_error_line
-    from voxfield.cli import cmd_probes
+    from voxfield.cli import cmd_probes, options
 
     out = tmp_path / "probes"
     assert run(["bake", "builtin:cornell", "--grid", "2x1x1", "--resolution", "8",
@@ -137,6 +137,22 @@ def test_export_cubes_refuses_another_scene_or_no_probe_in_one_line(run, tmp_pat
     with pytest.raises(SystemExit):
         run(["probes", "show", str(out), "--size", "100000", "--out", str(picture)])
     assert "argument --size: " in capsys.readouterr().err
+
+    # A face side past every camera's limit is refused by the parser too, and one the
+    # machine cannot hold (six faces and a render: 4.1 GiB at 4096² against the 2 GiB a
+    # machine is said to have here) before the scene opens or a folder is made; 16384²
+    # faces began to render and were killed for memory.
+    with pytest.raises(SystemExit):
+        run(["probes", "export-cubes", str(out), "--size", "100000"])
+    assert "argument --size: " in capsys.readouterr().err
+    monkeypatch.setattr(options, "physical_memory", lambda: 2 * 2**30)
+    monkeypatch.setattr(cmd_probes, "_reopen_scene", None)  # must not be reached
+    assert run(["probes", "export-cubes", str(out), "--size", "4096", "--quiet"]) == 2
+    assert one_error_line(capsys) == (
+        "voxfield: error: --size 4096: exporting a probe's six 4096×4096 cube faces needs "
+        "about 4.1 GiB, over 80% of this machine's 2.0 GiB; give a smaller --size")
+    assert not (out / "cubes").exists()
+    monkeypatch.undo()
 
     def all_disabled(folder):
         probe_set = open_probe_set(folder)

@@ -15,6 +15,7 @@ from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_channel_option,
     add_scene_options,
+    check_render_memory,
     default_output,
     int_between,
     lod_arg,
@@ -22,7 +23,6 @@ from voxfield.cli.options import (
     open_octree,
     output_named,
     positive_float,
-    positive_int,
     threshold_arg,
     warn_ignored,
 )
@@ -129,8 +129,9 @@ def register(subparsers) -> None:
         "per face with linear RGB radiance and Z = radial distance.",
     )
     c.add_argument("folder", help="probe-set folder written by voxfield bake")
-    c.add_argument("--size", type=positive_int, default=None,
-                   help="face side in pixels (default half the octahedral resolution)")
+    c.add_argument("--size", type=int_between(1, MAX_IMAGE_SIDE, "pixels per side"),
+                   default=None, help=f"face side in pixels, 1..{MAX_IMAGE_SIDE} (default "
+                   "half the octahedral resolution)")
     c.add_argument("--out", default=None, help="output folder (default FOLDER/cubes)")
     c.add_argument("--scene", default=None,
                    help="the baked scene (default: the one the bake recorded)")
@@ -285,6 +286,11 @@ def probe_set_markdown(probe_set, header: dict) -> str:
     return "\n".join(lines)
 
 
+#: Bytes a pixel of a probe's six held cube faces costs: per face float16 RGB and float32
+#: distance, and the float32 copy of one face's RGB the EXR writer takes.
+CUBE_FACE_BYTES_PER_PIXEL = 6 * (3 * 2 + 4) + 3 * 4
+
+
 def run_export_cubes(args) -> int:
     folder = Path(args.folder)
     probe_set = open_probe_set(folder)
@@ -292,13 +298,17 @@ def run_export_cubes(args) -> int:
     if not probes:
         raise VoxfieldError(f"{folder}: every probe is disabled (no free space found for "
                             "it); there is nothing to export")
+    size = max(1, probe_set.resolution // 2) if args.size is None else args.size
+    # The six faces are held (float16 RGB, float32 distance) while each is rendered.
+    check_render_memory(size, held_bytes_per_pixel=CUBE_FACE_BYTES_PER_PIXEL,
+                        work=f"exporting a probe's six {size}×{size} cube faces")
     octree = _reopen_scene(read_header(folder), args.scene, args.quiet, exact=True)
     out = Path(args.out) if args.out else folder / "cubes"
     out.mkdir(parents=True, exist_ok=True)
     with progress_bar(total=len(probes), desc="cube faces", unit="probe",
                       enabled=not args.quiet) as bar:
         for i in probes:
-            radiance, distance = export_cube_faces(probe_set, octree, i, args.size)
+            radiance, distance = export_cube_faces(probe_set, octree, i, size)
             for f, (name, _, _) in enumerate(CUBE_FACES):
                 save_exr({"RGB": radiance[f].astype(np.float32), "Z": distance[f]},
                          out / f"probe_{i:05d}_{name.replace('+', 'pos').replace('-', 'neg')}"

@@ -532,13 +532,17 @@ def is_saved_octree(scene: str) -> bool:
 RENDER_BYTES_PER_PIXEL = 192
 
 
-def check_render_memory(size: int) -> None:
+def check_render_memory(size: int, *, held_bytes_per_pixel: int = 0,
+                        work: str | None = None) -> None:
     """Refuse an image the machine cannot hold: ``render --size 16384`` (within the option's
-    range) ran for four minutes and was killed for memory, exit 137 and not a word."""
+    range) ran for four minutes and was killed for memory, exit 137 and not a word.
+    ``held_bytes_per_pixel``: what the ``work`` keeps beside the render (a probe's six cube
+    faces)."""
     memory = physical_memory()
-    need = size * size * RENDER_BYTES_PER_PIXEL
+    need = size * size * (RENDER_BYTES_PER_PIXEL + held_bytes_per_pixel)
+    work = work or f"a {size}×{size} render"
     if memory is not None and need > 0.8 * memory:
-        raise VoxfieldError(f"--size {size}: a {size}×{size} render needs about "
+        raise VoxfieldError(f"--size {size}: {work} needs about "
                             f"{need / 2**30:.1f} GiB, over 80% of this machine's "
                             f"{memory / 2**30:.1f} GiB; give a smaller --size")
 
