@@ -8,6 +8,7 @@ import pytest
 from PIL import Image
 
 from voxfield import cli
+from voxfield.errors import VoxfieldError
 from voxfield.probes.probe_folder import open_probe_set
 
 
@@ -170,6 +171,37 @@ def test_probes_show_takes_a_scene_or_none_not_both(run, capsys):
         run(["probes", "show", "folder", "--no-scene", "--scene", "builtin:sphere"])
     assert exc.value.code == 2
     assert "not allowed with argument" in capsys.readouterr().err
+
+
+def test_a_bake_the_machine_cannot_finish_is_refused_before_any_probe(tmp_path, capsys,
+                                                                      monkeypatch):
+    """A finished bake assembles its whole set and writes the atlases from it (about 48
+    bytes a texel at its peak): a 64×64×64 grid of 64² maps baked for over an hour and then
+    needed some 48 GiB. On a machine said to hold 2 GiB, 27,000 probes of 64² (about 4.9
+    GiB) are refused before the grid's notes, any probe or any folder; 8 probes bake."""
+    from cli_output import one_error_line
+    from voxfield.probes import folder_bake
+    from voxfield.probes.bake import BakeOptions
+    from voxfield.probes.grid import ProbeGrid
+    from voxfield.svo.open import open_octree
+
+    monkeypatch.setattr(folder_bake, "physical_memory", lambda: 2 * 2**30)
+    out = tmp_path / "probes"
+    assert cli.main(["bake", "builtin:sphere", "--grid", "30x30x30", "--resolution", "64",
+                     "--out", str(out)]) == 2
+    assert one_error_line(capsys) == (
+        "voxfield: error: 27,000 probes of 64² texels: assembling the finished set and its "
+        "atlases needs about 4.9 GiB, over 80% of this machine's 2.0 GiB; bake fewer probes "
+        "or a lower resolution")
+    assert not out.exists()
+    # The library's bake checks alike.
+    octree = open_octree("builtin:sphere")
+    grid = ProbeGrid((1.0, 1.0, 1.0), (1.0, 1.0, 1.0), (30, 30, 30))
+    with pytest.raises(VoxfieldError, match="27,000 probes of 64² texels"):
+        folder_bake.bake_to_folder(octree, grid, BakeOptions(resolution=64), out)
+    assert not out.exists()
+    assert cli.main(["bake", "builtin:sphere", "--grid", "2x2x2", "--resolution", "64",
+                     "--renderer", "lod", "--quiet", "--out", str(out)]) == 0
 
 
 def test_a_bake_whose_probes_all_stand_in_the_ground_is_refused(tmp_path, capsys):

@@ -28,7 +28,7 @@ from voxfield.cli.options import (
 )
 from voxfield.errors import VoxfieldError
 from voxfield.probes.bake import RADIANCE_FIELDS, check_bake_options, export_cube_faces
-from voxfield.probes.folder_bake import bake_to_folder, checked_folder_path
+from voxfield.probes.folder_bake import bake_to_folder, check_finish_memory, checked_folder_path
 from voxfield.probes.grid import check_placement, parse_grid, relocate
 from voxfield.probes.probe_folder import open_probe_set, read_header
 from voxfield.probes.probe_set import BAKE_RENDERERS, MAX_RESOLUTION, MIN_RESOLUTION, BakeOptions
@@ -185,6 +185,7 @@ def run_bake(args) -> int:
     octree = open_octree(args)
     check_bake_options(octree, options)  # before the grid's notes, not after them
     grid = parse_grid(args.grid, octree.voxel_bounds, octree=octree)
+    check_finish_memory(grid.count, options.resolution)  # before relocating and notes
     report = None
     if args.relocate:
         grid, report = relocate(grid, octree, seed=args.seed)
