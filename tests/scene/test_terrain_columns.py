@@ -107,6 +107,30 @@ def test_a_vertical_scale_asked_for_but_cut_to_fit_is_a_note(tmp_path, scale, ca
     assert scene.bounds[1][1] <= 32
 
 
+@pytest.mark.parametrize("scale, flat", [(1e-300, True), (1e-3, True), (0.1, False),
+                                         (None, False)])
+def test_a_relief_scaled_to_under_a_voxel_is_a_note(tmp_path, scale, flat):
+    """Without spacing a 500 m ramp spans 8 voxels of a 32-voxel cube times the scale: under
+    half a voxel at 1e-3, and every column rounds to the same top. A vertical scale of 1e-300
+    built such a flat slab without a word; 0.1 keeps a voxel of slope."""
+    path = tmp_path / "ramp.npy"
+    np.save(path, np.tile(np.linspace(0.0, 500.0, 32), (32, 1)))
+    cols = terrain_columns(Heightmap(np.load(path)), 32, vertical_scale=scale or 1.0)
+    assert cols.flattened == flat and cols.relief_metres == 500.0
+    assert (np.ptp(cols.top) == 0) == flat
+    options = SceneOptions(terrain_footprint=32, vertical_scale=scale)
+    if flat:
+        with pytest.warns(UserWarning, match=rf"ramp: its relief of 500 m is less than a voxel "
+                                             rf"tall at a vertical scale of {scale:g} "):
+            load_scene(str(path), options)
+    else:
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            load_scene(str(path), options)
+    # A DEM with no relief is flat by its own making: no note.
+    assert not terrain_columns(Heightmap(np.full((32, 32), 7.0)), 32).flattened
+
+
 def test_a_dem_stretched_out_of_shape_says_so_and_crop_keeps_its_proportions(tmp_path):
     # 24 rows by 48 columns of unknown spacing: square columns stretch it 2× north to south
     path = tmp_path / "wide.npy"

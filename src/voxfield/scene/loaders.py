@@ -130,6 +130,14 @@ def _terrain_layout(source: str, options: SceneOptions):
         warnings.warn(f"{cols.name}: a vertical scale of {options.vertical_scale:g} would "
                       f"raise the relief above the {cols.footprint}³ cube; it was scaled down "
                       f"to fit ({cols.voxels_per_metre:.3g} voxels per metre)", stacklevel=2)
+    if cols.flattened:
+        # A vertical scale of 1e-300 built a flat slab without a word.
+        scale = ("" if options.vertical_scale is None
+                 else f" at a vertical scale of {options.vertical_scale:g}")
+        warnings.warn(f"{cols.name}: its relief of {cols.relief_metres:.3g} m is less than "
+                      f"a voxel tall{scale} ({cols.voxels_per_metre:.3g} voxels per metre): "
+                      "every column has the same height; a larger --vertical-scale raises "
+                      "it", stacklevel=2)
     return layout
 
 

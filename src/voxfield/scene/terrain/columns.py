@@ -32,7 +32,8 @@ class TerrainColumns:
     resampled, void-filled DEM in metres; ``water`` marks columns below sea level (their top is
     the flat sea surface); ``slope`` is rise per run in voxel units. ``scale_capped``: the
     relief would have risen above the cube at the asked vertical scale and was scaled down to
-    fit (``voxels_per_metre`` is what was used).
+    fit (``voxels_per_metre`` is what was used). ``flattened``: the DEM has relief, but at
+    that scale all of it came to less than a voxel, so every column has the same top.
     """
 
     top: np.ndarray
@@ -45,6 +46,8 @@ class TerrainColumns:
     sea_level: float | None
     name: str = "terrain"
     scale_capped: bool = False
+    flattened: bool = False
+    relief_metres: float = 0.0
 
     @property
     def footprint(self) -> int:
@@ -211,5 +214,7 @@ def terrain_columns(
         sea_level=sea_level,
         name=hm.name,
         scale_capped=bool(scale_capped),
+        flattened=bool(relief > 0 and top.max() == top.min()),
+        relief_metres=relief,
     )
 
