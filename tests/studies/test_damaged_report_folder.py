@@ -33,8 +33,9 @@ def test_a_results_md_that_is_not_utf8_is_one_line(tmp_path, capsys):
     line = _report_error(folder, capsys)
     assert "results.md" in line and "utf-8" in line
     assert not (folder / "report.html").exists()
-    (folder / "results.md").unlink()  # none at all: a page without tables
-    assert "compare" in write_html_report(folder).read_text(encoding="utf-8")
+    (folder / "results.md").unlink()  # none at all, and no figure: nothing to show
+    with pytest.raises(VoxfieldError, match="nothing to report"):
+        write_html_report(folder)
 
 
 @pytest.mark.parametrize("depth", [2_000, 100_000])
@@ -96,3 +97,29 @@ def test_a_figure_that_is_no_png_is_left_out_with_a_note(tmp_path, capsys):
     assert len(err) == 3 and all("left out of the report" in line for line in err), err
     html = (folder / "report.html").read_text(encoding="utf-8")
     assert html.count("data:image/png;base64,") == 1 and ">good<" in html.replace(" ", "")
+
+
+@pytest.mark.parametrize("markdown", [None, b"", b"  \n"])
+def test_a_folder_with_nothing_to_show_is_refused(tmp_path, capsys, markdown):
+    """A results.json of {} beside nothing else made a page of a title alone, exit 0."""
+    folder = _folder(tmp_path, {}, markdown)
+    assert "nothing to report: no comparisons in results.json, no results.md and no PNG " \
+           "figures" in _report_error(folder, capsys)
+    assert not (folder / "report.html").exists()
+
+
+def test_a_figure_results_md_shows_but_the_folder_lost_is_a_note(tmp_path, capsys):
+    """A deleted figure left a broken image in the page without a word; the rest of the
+    page is still written."""
+    folder = _folder(tmp_path, {"study": "thresholds"},
+                     b"# A study\n\n![curve](curve.png)\n\n![gone](gone.png) ![gone](gone.png)\n")
+    import numpy as np
+    from PIL import Image
+
+    Image.fromarray(np.zeros((4, 4, 3), np.uint8)).save(folder / "curve.png")
+    assert main(["report", str(folder), "--quiet"]) == 0
+    err = capsys.readouterr().err.strip()
+    assert err == (f"voxfield: note: {folder / 'results.md'} shows gone.png, missing from the "
+                   "folder; the page shows a broken image there")
+    html = (folder / "report.html").read_text(encoding="utf-8")
+    assert html.count("data:image/png;base64,") == 1

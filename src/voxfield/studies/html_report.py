@@ -52,9 +52,14 @@ def render_report(folder: Path) -> str:
     used = {name for c in comparisons for name in c.pop("files")}
     text, embedded = _embedded_images(folder, _read_markdown(folder / "results.md"))
     used |= embedded
+    figures = [p for p in _figures(folder) if p.name not in used]
+    if not (comparisons or figures or text.strip()):
+        # A results.json of {} beside nothing else made a page of a title alone.
+        raise VoxfieldError(f"{folder}: nothing to report: no comparisons in results.json, no "
+                            "results.md and no PNG figures; run the study (or compare, sweep) "
+                            "into this folder first")
     return render_page(title=_title(results), subtitle=_subtitle(results), markdown_text=text,
-                       figures=[p for p in _figures(folder) if p.name not in used],
-                       comparisons=comparisons)
+                       figures=figures, comparisons=comparisons)
 
 
 #: A Markdown image of a file beside results.md: ``![beam profile](beam_profile.png)``.
@@ -66,15 +71,25 @@ def _embedded_images(folder: Path, text: str) -> tuple[str, set[str]]:
     relative link breaks once the page is mailed), and the names so embedded, which the
     figures after it then leave out."""
     embedded: set[str] = set()
+    missing: list[str] = []
 
     def embed(match: re.Match) -> str:
         path = folder / match.group(2)
-        if not (path.is_file() and _readable_png(path)):
+        if not path.is_file():
+            missing.append(path.name)
+            return match.group(0)
+        if not _readable_png(path):
             return match.group(0)
         embedded.add(path.name)
         return f"![{match.group(1)}]({data_uri(path)})"
 
-    return _LOCAL_IMAGE.sub(embed, text), embedded
+    text = _LOCAL_IMAGE.sub(embed, text)
+    if missing:
+        # Deleted figures left broken images in the page without a word.
+        warnings.warn(f"{folder / 'results.md'} shows {', '.join(sorted(set(missing)))}, "
+                      "missing from the folder; the page shows a broken image there",
+                      stacklevel=3)
+    return text, embedded
 
 
 def render_page(*, title: str, subtitle: str, markdown_text: str, figures: list[Path],
