@@ -69,14 +69,21 @@ def test_hit_options_take_exactly_the_values_the_library_takes(flag, tmp_path, c
             takes = False
         argv = ["probe-render", str(tmp_path / "none"), flag, value,
                 "--out", str(tmp_path / "p.png")]
-        if flag == "--epsilon-k":  # an epsilon that reads it: no note before the error
-            argv += ["--epsilon", "angular"]
         if takes:
             assert main(argv) == 2
             assert "no such probe-set folder" in one_error_line(capsys), value
         else:
             err = _refused_by_the_parser(argv, capsys)
             assert f"argument {flag}:" in err and field not in err, err
+
+
+def test_a_run_refused_for_its_probes_prints_the_error_alone(tmp_path, capsys):
+    """The note on options the render does not read came before the error about the
+    folder: two lines where the run did nothing (``--epsilon-k`` under the default footprint
+    epsilon, ``--step`` under the hierarchical marcher)."""
+    assert main(["probe-render", str(tmp_path / "none"), "--epsilon-k", "4", "--step", "0.5",
+                 "--out", str(tmp_path / "p.png")]) == 2
+    assert "no such probe-set folder" in one_error_line(capsys)
 
 
 def test_probe_render_help_states_the_step_range(capsys):

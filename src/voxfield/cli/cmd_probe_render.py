@@ -177,9 +177,6 @@ def run(args) -> int:
     if (args.box_min is None) != (args.box_max is None):
         raise VoxfieldError("--box-min and --box-max must be given together")
     options = _trace_options(args)  # checked for every method: a baseline notes it unused
-    _note_unused_options(args, options)
-    if args.method != "light-field":
-        options = None
     folder = Path(args.probes)
     if not folder.is_dir():
         raise VoxfieldError(f"{folder}: no such probe-set folder; bake one with voxfield bake")
@@ -187,6 +184,10 @@ def run(args) -> int:
         raise VoxfieldError(f"{out}: --out names a file of the probe set it reads; write the "
                             "render elsewhere")
     probe_set = open_probe_set(folder)
+    # Once the input has opened: a run refused for a missing folder printed the note first.
+    _note_unused_options(args, options)
+    if args.method != "light-field":
+        options = None
     octree = _open_scene(args, probe_set) if args.scene else None
     bounds = octree.voxel_bounds if octree is not None else probe_set_bounds(probe_set)
     view = probe_view(args, folder, probe_set, octree, bounds)
