@@ -692,6 +692,25 @@ def test_options_the_renderer_reads_only_with_another_setting_are_noted(
     assert plain.read_bytes() == given.read_bytes()
 
 
+def test_compare_notes_the_error_aware_options_base_lod_0_does_not_read(tmp_path, capsys):
+    """Its error-aware+reuse row came out as the plain one, without the note render gives."""
+    import json
+
+    common = ["compare", "builtin:sphere", "--size", "16", "--quiet"]
+    assert main([*common, "--base-lod", "0", "--threshold", "0.3", "--reuse-parent",
+                 "--out", str(tmp_path / "a")]) == 0
+    assert capsys.readouterr().err == (
+        "voxfield: note: the error-aware renderer reads --threshold and --reuse-parent only "
+        "with a --base-lod other than 0; ignored\n")
+    rows = json.loads((tmp_path / "a" / "results.json").read_text())["rows"]
+    costs = {row["renderer"]: (row["cost"]["rays"], row["cost"]["traversal_steps"],
+                               row["quality"]) for row in rows}
+    assert costs["error-aware+reuse"] == costs["error-aware"]
+    assert main([*common, "--threshold", "0.3", "--reuse-parent",
+                 "--out", str(tmp_path / "b")]) == 0
+    assert capsys.readouterr().err == ""
+
+
 def test_options_read_with_their_setting_are_not_noted(tmp_path, capsys):
     for argv in (["--renderer", "lod", "--cone-scale", "4"],
                  ["--renderer", "error-aware", "--base-lod", "cone", "--cone-scale", "2"],

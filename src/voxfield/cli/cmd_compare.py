@@ -12,11 +12,13 @@ from voxfield.cli.options import (
     add_view_options,
     check_measured_sides,
     default_output,
+    note_options_read_only_with_others,
     open_octree,
     positive_int,
     settled_view,
     study_camera,
 )
+from voxfield.render.error_aware import ErrorAwareOptions
 from voxfield.studies.compare import run_compare
 from voxfield.studies.report import fmt, fmt_psnr
 
@@ -47,6 +49,11 @@ def register(subparsers) -> argparse.ArgumentParser:
 
 def run(args) -> int:
     check_measured_sides([args.size])
+    # From --base-lod 0 the error-aware rows read no --threshold, --decay or --reuse-parent
+    # (the reuse row came out as the plain one), as render notes.
+    note_options_read_only_with_others(
+        ErrorAwareOptions(threshold=args.threshold, decay=args.decay, base_lod=args.base_lod,
+                          reuse_parent=args.reuse_parent), "error-aware")
     octree = open_octree(args)
     args = settled_view(args, octree)
     view = study_camera(args, octree)

@@ -439,11 +439,11 @@ def renderer_options_from(args, renderer: str):
     values = {f.name: getattr(args, f.name) for f in dataclasses.fields(options_type)
               if f.metadata.get("cli", True) is not False and hasattr(args, f.name)}
     options = options_type(**values)
-    _note_options_read_only_with_others(options, renderer)
+    note_options_read_only_with_others(options, renderer)
     return options
 
 
-def _note_options_read_only_with_others(options, renderer: str) -> None:
+def note_options_read_only_with_others(options, renderer: str) -> None:
     """A note naming options given that this renderer reads only with another setting
     (``read_when`` in the field's metadata: a ``(condition, setting)`` pair, or a tuple of
     them all of which must hold, the first unmet one named): ``--bright-ratio`` without
