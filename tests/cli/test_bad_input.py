@@ -711,6 +711,22 @@ def test_compare_notes_the_error_aware_options_base_lod_0_does_not_read(tmp_path
     assert capsys.readouterr().err == ""
 
 
+@pytest.mark.parametrize("argv", [
+    ["compare", "builtin:cornell", "--channel", "emission"],
+    ["study", "thresholds", "builtin:cornell", "--channel", "emission", "--thresholds", "0.1"],
+    ["calibrate", "builtin:cornell", "--channel", "emission", "--target-rays", "300"],
+])
+def test_a_channel_brighter_than_1_is_refused_before_any_render(argv, tmp_path, capsys):
+    """The metrics take [0, 1]: these failed after every render (their folder written),
+    advising a tone map no option offers. builtin:cornell's lamp voxels emit up to 4."""
+    out = tmp_path / ("out.json" if argv[0] == "calibrate" else "out")
+    assert main([*argv, "--size", "16", "--out", str(out)]) == 2
+    assert one_error_line(capsys) == (
+        "voxfield: error: channel 'emission' holds colours up to 4; PSNR, RMSE and SSIM "
+        "take linear colours in [0, 1]: measure another channel")
+    assert not out.exists()
+
+
 def test_options_read_with_their_setting_are_not_noted(tmp_path, capsys):
     for argv in (["--renderer", "lod", "--cone-scale", "4"],
                  ["--renderer", "error-aware", "--base-lod", "cone", "--cone-scale", "2"],

@@ -118,6 +118,43 @@ def test_a_sun_below_the_horizon_leaves_only_sky_light():
     assert report.shadow_rays == 0
 
 
+def test_a_voxel_lit_past_1_is_kept_at_1_with_a_note():
+    """A sun high over bright albedo lit open ground past 1 (0.85 + 0.25 over white), and
+    every measuring command then failed after its renders: the metrics take [0, 1]."""
+    floor = slab(range(9), 0, range(9))
+    coords = np.unique(np.concatenate([floor, slab(range(4, 5), 1, range(4, 5))]), axis=0)
+    albedo = np.array([1.0, 0.5, 0.25])
+    octree = build_octree(VoxelScene(coords, np.tile(albedo, (len(coords), 1)), name="white"),
+                          colour_storage="float32")
+    sun = SunLight("zen", 0.0, 90.0, (0.85, 0.85, 0.85), (0.25, 0.25, 0.25))
+    vis, _ = sun_visibility(octree, np.array([sun.direction()]), sky_rays=16)
+    light = vis.direct[0] * 0.85 + vis.sky * 0.25
+    unclamped = albedo * light[:, None]
+    over = int(np.count_nonzero(unclamped[:, 0] > 1.0))
+    assert 0 < over < len(coords)  # some voxels, under less sky, stay under 1
+    with pytest.warns(UserWarning, match=rf"sun 'zen' lit {over} of 82 voxels brighter than 1 "
+                                         rf"\(up to {unclamped.max():.3g}\); they are kept at 1"):
+        lit, _ = bake_sun_lighting(octree, [sun], sky_rays=16)
+    # Only what passed 1 changed: red, here; green and blue keep their light.
+    np.testing.assert_allclose(leaf_channel(lit, "zen"), np.minimum(unclamped, 1.0), rtol=1e-6)
+    # Under 1 nothing changes and nothing is said.
+    dim = SunLight("dim", 0.0, 90.0, (0.5, 0.5, 0.5), (0.1, 0.1, 0.1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        lit, _ = bake_sun_lighting(octree, [dim], sky_rays=16)
+    np.testing.assert_allclose(leaf_channel(lit, "dim"),
+                               albedo * (vis.direct[0] * 0.5 + vis.sky * 0.1)[:, None],
+                               rtol=1e-6)
+
+
+def test_a_sun_that_gives_no_light_is_noted():
+    floor = octree_of(slab(range(5), 0, range(5)))
+    with pytest.warns(UserWarning, match=r"sun 'deep' gives no light \(elevation -30°, below "
+                                         r"the horizon\): its channel is black"):
+        lit, _ = bake_sun_lighting(floor, parse_suns("deep=0,-30"), sky_rays=4)
+    assert not leaf_channel(lit, "deep").any()
+
+
 def test_a_zenith_sun_lights_no_wall_whatever_its_azimuth():
     """A sun straight overhead is square to every top face and grazes every wall; its
     direction's horizontal parts are rounding (~1e-16, by azimuth), which lit one side of a

@@ -11,6 +11,7 @@ from voxfield.cli.options import (
     add_renderer_options,
     add_scene_options,
     add_view_options,
+    check_measured_channel,
     check_measured_sides,
     check_refinable_base_lod,
     int_between,
@@ -52,6 +53,7 @@ def run(args) -> int:
     if args.out:
         output_named(args.out, ".json", "the calibration trail")  # before the renders
     octree = open_octree(args)
+    check_measured_channel(octree, args.channel)
     view = study_camera(args, octree)
     cal = calibrate_threshold(
         octree, view, target_rays=args.target_rays, target_psnr=args.target_psnr,

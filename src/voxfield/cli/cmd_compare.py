@@ -10,6 +10,7 @@ from voxfield.cli.options import (
     add_scene_options,
     add_study_folder,
     add_view_options,
+    check_measured_channel,
     check_measured_sides,
     default_output,
     note_options_read_only_with_others,
@@ -55,6 +56,7 @@ def run(args) -> int:
         ErrorAwareOptions(threshold=args.threshold, decay=args.decay, base_lod=args.base_lod,
                           reuse_parent=args.reuse_parent), "error-aware")
     octree = open_octree(args)
+    check_measured_channel(octree, args.channel)
     args = settled_view(args, octree)
     view = study_camera(args, octree)
     label = "custom" if args.eye is not None else args.camera

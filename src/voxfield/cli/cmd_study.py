@@ -17,6 +17,7 @@ from voxfield.cli.options import (
     add_view_options,
     auto_preset,
     check_base_lod,
+    check_measured_channel,
     check_measured_sides,
     check_refinable_base_lod,
     default_output,
@@ -258,6 +259,7 @@ def run_curves(args) -> int:
     if any(not math.isfinite(v) or v <= 0 for v in args.normalisations):
         raise VoxfieldError("--normalisations must be finite and positive")
     octree = open_octree(args)
+    check_measured_channel(octree, args.channel)
     check_base_lod(args, octree)
     lo, hi = octree.voxel_bounds
     cameras = {name: preset_camera(name, lo, hi, size=args.size) for name in args.cameras}
@@ -283,6 +285,7 @@ def run_thresholds(args) -> int:
     check_refinable_base_lod(args, "every --thresholds value renders the same image")
     check_measured_sides([args.size])
     octree = open_octree(args)
+    check_measured_channel(octree, args.channel)
     view = study_camera(args, octree)
     out = args.out or default_output("thresholds", args.scene)
     report = run_threshold_study(
@@ -304,6 +307,7 @@ def run_thresholds(args) -> int:
 def run_resolution(args) -> int:
     check_measured_sides(args.sizes, "--sizes")
     octree = open_octree(args)
+    check_measured_channel(octree, args.channel)
     out = args.out or default_output("resolution", args.scene)
     report = run_resolution_study(
         octree, out, sizes=args.sizes, threshold=args.threshold, decay=args.decay,
@@ -330,6 +334,8 @@ def run_lighting(args) -> int:
         octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet,
                                       scheduler=args.scheduler)
     channels = list(args.channels) if args.channels is not None else None
+    for name in channels or lighting_channels(octree):
+        check_measured_channel(octree, name)
     out = args.out or default_output("lighting", args.scene)
     report = run_lighting_study(
         octree, view, out, channels=channels, threshold=args.threshold, decay=args.decay,
@@ -351,6 +357,7 @@ def run_probe_resolution(args) -> int:
     folder = StudyFolder(args.out or default_output("probe_resolution", args.scene),
                          study="study probe-resolution", fresh=args.fresh)
     octree = open_octree(args)
+    check_measured_channel(octree, args.channel)
     grid = parse_grid(args.grid, octree.voxel_bounds, octree=octree)
     if not args.no_relocate:
         grid, moved = relocate(grid, octree, seed=args.seed)
@@ -454,6 +461,7 @@ def run_probes(args) -> int:
     check_measured_sides([args.size])
     quiet = getattr(args, "quiet", False)
     octree = open_octree(args)
+    check_measured_channel(octree, args.channel)
     view = probe_study_view(args, octree)
     options = LightFieldOptions(**hit_options(args))
     note_unused_epsilon_options(options)

@@ -9,6 +9,7 @@ from voxfield.cli.options import (
     add_scene_options,
     add_study_folder,
     add_view_options,
+    check_measured_channel,
     check_measured_sides,
     check_refinable_base_lod,
     default_output,
@@ -42,6 +43,7 @@ def run(args) -> int:
     check_refinable_base_lod(args, "every --thresholds/--decays cell renders the same image")
     check_measured_sides([args.size])
     octree = open_octree(args)
+    check_measured_channel(octree, args.channel)
     view = study_camera(args, octree)
     out = args.out or default_output("sweep", args.scene)
     report = run_sweep(octree, view, out, decays=args.decays, thresholds=args.thresholds,

@@ -20,6 +20,7 @@ from voxfield.atomic import check_writable
 from voxfield.checks import MAX_SEED, spoken_list
 from voxfield.cli.commands import add_quiet
 from voxfield.errors import VoxfieldError
+from voxfield.kernels.colour import SRGB8, decode_channel, storage_of
 from voxfield.lightfield.trace import (
     COLOUR_PROBES,
     EPSILON_MODES,
@@ -611,6 +612,22 @@ def check_measured_sides(sides, option: str = "--size") -> None:
         raise VoxfieldError(f"{option} {','.join(map(str, small))}: the comparison measures "
                             f"SSIM, whose {SSIM_WINDOW}×{SSIM_WINDOW} window needs images of "
                             f"at least {SSIM_WINDOW} pixels a side")
+
+
+def check_measured_channel(octree, channel: str) -> None:
+    """Refuse, before any render, a channel whose colours pass 1: PSNR, RMSE and SSIM take
+    linear colours in [0, 1], and a measuring command failed after all its renders
+    (``--channel emission`` of builtin:cornell, up to 1.75). A render is an average of its
+    voxels' colours, so the voxels' peak bounds every image's."""
+    stored = octree.channel(channel)[octree.level_slice(octree.depth)]
+    if storage_of(stored) == SRGB8:
+        return  # 8-bit sRGB codes decode to [0, 1]
+    peak = 0.0
+    for first in range(0, len(stored), 1 << 20):  # decoded a million voxels at a time
+        peak = max(peak, float(decode_channel(stored[first:first + (1 << 20)]).max()))
+    if peak > 1.0:
+        raise VoxfieldError(f"channel {channel!r} holds colours up to {peak:.3g}; PSNR, RMSE "
+                            "and SSIM take linear colours in [0, 1]: measure another channel")
 
 
 def check_refinable_base_lod(args, same_image: str) -> None:

@@ -10,6 +10,7 @@ turned to the ground, do not darken the LOD images.
 from __future__ import annotations
 
 import time
+import warnings
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 
@@ -326,8 +327,29 @@ def _with_lit_channels(octree: Octree, suns: list[SunLight], vis: SunVisibility,
         lit_colours(albedo, vis.direct[k:k + 1], vis.sky,
                     np.array([sun.irradiance], np.float64), np.array([sun.sky], np.float64),
                     block[:, voxels])
+        _keep_in_display_range(sun, block[0, voxels])
         lit = with_channel_block(lit, [sun.name], block, vis.weight, storage)
     return lit
+
+
+def _keep_in_display_range(sun: SunLight, rows: np.ndarray) -> None:
+    """Clamp a sun's lit voxel colours to 1, with a note where any was brighter: the
+    presets keep open ground near 1, but a sun set high over bright albedo lit past it, and
+    every measuring command then failed after its renders (the metrics take [0, 1]). A sun
+    that gives no light at all (below the horizon) is noted too: its channel is black."""
+    if not (any(sun.irradiance) or any(sun.sky)):
+        why = (f"elevation {sun.elevation_deg:g}°, below the horizon"
+               if sun.elevation_deg <= 0 else "sun and sky colours of zero")
+        warnings.warn(f"sun {sun.name!r} gives no light ({why}): its channel is black",
+                      stacklevel=3)
+        return
+    peak = float(rows.max()) if rows.size else 0.0
+    if peak > 1.0:
+        over = int(np.count_nonzero((rows > 1.0).any(axis=1)))
+        np.minimum(rows, np.float32(1.0), out=rows)
+        warnings.warn(f"sun {sun.name!r} lit {over:,} of {len(rows):,} voxels brighter than 1 "
+                      f"(up to {peak:.3g}); they are kept at 1, the range images and metrics "
+                      "take", stacklevel=3)
 
 
 def _threads_used(threads: int | None) -> int:
