@@ -75,3 +75,37 @@ def test_baked_channels_are_studied_in_the_day_s_order():
                                sky_rays=0)
     assert lighting_channels(lit) == ["albedo", "morning", "noon", "afternoon", "evening",
                                       "dawn"]
+
+
+def test_the_command_notes_times_a_lit_scene_does_not_bake(tmp_path, capsys):
+    """A scene with baked channels is studied as it is: --times changed nothing, without a
+    word."""
+    from voxfield.cli import main
+
+    lit = tmp_path / "lit.npz"
+    assert main(["light", "builtin:pillars", "--times", "noon", "--sky-rays", "0",
+                 "--no-preview", "--quiet", "--out", str(lit)]) == 0
+    assert main(["study", "lighting", str(lit), "--times", "evening", "--size", "16",
+                 "--quiet", "--out", str(tmp_path / "study")]) == 0
+    assert capsys.readouterr().err == (
+        "voxfield: note: a scene with baked channels (noon) takes no --times (for a scene "
+        "without baked channels); ignored\n")
+
+
+def test_the_command_refuses_a_channel_the_bake_will_not_make_before_baking(
+        tmp_path, capsys, monkeypatch):
+    """`--channels nosuch` was refused after the study's sun bake, minutes in on a terrain."""
+    from cli_output import one_error_line
+    from voxfield.cli import cmd_study, main
+
+    def no_bake(*args, **kwargs):
+        raise AssertionError("baked")
+
+    monkeypatch.setattr(cmd_study, "bake_sun_lighting", no_bake)
+    out = tmp_path / "study"
+    assert main(["study", "lighting", "builtin:pillars", "--times", "noon", "--channels",
+                 "albedo,nosuch", "--size", "16", "--out", str(out)]) == 2
+    assert one_error_line(capsys) == (
+        "voxfield: error: --channels nosuch: the scene has no such channel, nor does the study "
+        "bake one; it will have albedo, noon")
+    assert not out.exists()

@@ -36,6 +36,7 @@ from voxfield.cli.options import (
     scene_camera,
     scheduler_name,
     study_camera,
+    warn_ignored,
     with_camera,
 )
 from voxfield.errors import VoxfieldError
@@ -327,13 +328,25 @@ def run_resolution(args) -> int:
 def run_lighting(args) -> int:
     check_refinable_base_lod(args, "the lighting-aware renders are the error-aware ones")
     check_measured_sides([args.size])
+    suns = parse_suns("all" if args.times is None else args.times)  # before the scene opens
     octree = open_octree(args)
     view = study_camera(args, octree)  # before a bake: the geometry is the same after it
+    channels = list(args.channels) if args.channels is not None else None
     if len(lighting_channels(octree)) < 2:
-        suns = parse_suns("all" if args.times is None else args.times)
+        if channels is not None:  # refused after the bake, minutes in, before
+            baked = sorted({"albedo" if k == "color" else k for k in octree.attributes}
+                           | {sun.name for sun in suns})
+            unknown = [name for name in channels if name not in baked]
+            if unknown:
+                raise VoxfieldError(f"--channels {','.join(unknown)}: the scene has no such "
+                                    f"channel, nor does the study bake one; it will have "
+                                    f"{', '.join(baked)}")
         octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet,
                                       scheduler=args.scheduler)
-    channels = list(args.channels) if args.channels is not None else None
+    elif args.times is not None:
+        # The baked channels are studied: --times changed nothing, without a word.
+        warn_ignored({"--times": ["a scene without baked channels"]}, "a scene with baked "
+                     f"channels ({', '.join(lighting_channels(octree)[1:])})")
     for name in channels or lighting_channels(octree):
         check_measured_channel(octree, name)
     out = args.out or default_output("lighting", args.scene)
