@@ -76,3 +76,14 @@ def test_a_rendering_command_loads_its_kernels_and_no_terrain_filters():
     """SciPy's filters wait for the adaptive renderer or a terrain to need them."""
     assert _loaded_after(["render", "--help"], ("voxfield.kernels", "scipy.ndimage",
                                                 "scipy.sparse")) == [True, False, False]
+
+
+def test_version_prints_the_package_s_own(capsys):
+    """It said "the following arguments are required: COMMAND"."""
+    import voxfield
+    from voxfield.cli import main
+
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out == f"voxfield {voxfield.__version__}\n"

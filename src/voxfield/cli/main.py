@@ -13,6 +13,7 @@ import signal
 import sys
 import warnings
 
+import voxfield
 from voxfield.cli.commands import COMMANDS, QUIET_HELP, chosen_command, command_modules
 from voxfield.cli.exits import (
     EXIT_INTERRUPTED,
@@ -68,6 +69,8 @@ def build_parser(command: str | None = None) -> argparse.ArgumentParser:
         description="Sparse voxel octrees with error-aware LOD, light probes and ray queries.",
     )
     parser.add_argument("--quiet", action="store_true", help=QUIET_HELP)
+    parser.add_argument("--version", action="version",
+                        version=f"%(prog)s {voxfield.__version__}")
     sub = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     loaded = {module: importlib.import_module(f"voxfield.cli.{module}")
               for module in command_modules(command)}
