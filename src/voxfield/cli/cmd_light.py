@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.atomic import atomic_paths, write_figure_png
+from voxfield.atomic import atomic_paths, check_writable, write_figure_png
 from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
     add_scene_options,
@@ -84,6 +84,14 @@ def run(args) -> int:
     check_scheduler(args.scheduler)
     out = output_named(args.out or default_output("lit", args.scene, ".npz"), ".npz",
                        "a lit octree", source=_replaceable(args.scene))
+    # Every output, checked before the scene opens: a folder or a name too long where a
+    # preview or the record goes failed after the bake (20 s on a 2048² terrain).
+    channels = [] if args.no_preview else [s.name for s in suns]
+    written = [out, out.with_suffix(".json"),
+               *(out.with_name(f"{out.stem}_{name}.png") for name in channels),
+               *([out.with_suffix(".png")] if channels else [])]  # no channel's name
+    for path in written[1:]:
+        check_writable(path)
     args.quiet = quiet = getattr(args, "quiet", False)  # as ``voxfield.cli.main`` sets it
     if args.no_preview and args.preview_size is not None:
         warn_ignored({"--preview-size": ["the previews"]}, "a bake with --no-preview")
@@ -117,10 +125,6 @@ def run(args) -> int:
     # previews render in memory (writing is mostly the kernel copying pages, which leaves
     # the GIL free). Every output is staged and all are committed together once all are
     # ready: a failure or Ctrl-C leaves none of them, nor a temporary file.
-    channels = [] if args.no_preview else [s.name for s in suns]
-    written = [out, out.with_suffix(".json"),
-               *(out.with_name(f"{out.stem}_{name}.png") for name in channels),
-               *([out.with_suffix(".png")] if channels else [])]  # no channel's name
     if channels:
         details["previews"] = {**{path.name: [name] for path, name in
                                   zip(written[2:], channels, strict=False)},
