@@ -177,6 +177,18 @@ def test_a_header_without_a_scene_fingerprint_is_a_header_error(tmp_path, scene)
      "unreadable coordinates or spacing"),
     ({"latitude": np.array(["a"] * 10), "longitude": np.arange(10.0)},
      "unreadable coordinates or spacing"),
+    # Dropped without a word, the terrain built as if unplaced (no true scale).
+    ({"latitude": np.linspace(35.0, 36.0, 9), "longitude": np.linspace(139.0, 140.0, 10)},
+     "unreadable coordinates or spacing (latitude has 9 values for 10 rows and longitude "
+     "10 for 10 columns)"),
+    ({"latitude": np.r_[np.nan, np.linspace(35.0, 36.0, 9)],
+      "longitude": np.linspace(139.0, 140.0, 10)}, "latitude or longitude holds NaN"),
+    ({"latitude": np.linspace(85.0, 99.0, 10), "longitude": np.linspace(139.0, 140.0, 10)},
+     "latitudes run 85..99, past ±90°"),
+    ({"dx": 0.0, "dy": 1.0, "xmin": 0.0, "xmax": 9.0, "ymin": 0.0, "ymax": 9.0},
+     "dx and dy must be positive sample spacings, got 0 and 1"),
+    ({"dx": 1.0, "dy": -2.0, "xmin": 0.0, "xmax": 9.0, "ymin": 0.0, "ymax": 9.0},
+     "dx and dy must be positive sample spacings, got 1 and -2"),
     # Metres per voxel that multiply to zero divided by zero in the column builder.
     ({"dx": 1e-300, "dy": 1e-300, "xmin": 0.0, "xmax": 1e-299, "ymin": 0.0, "ymax": 1e-299},
      "spacing must be at least"),

@@ -352,7 +352,15 @@ def _npz_grid(data: Mapping[str, np.ndarray], shape: tuple[int, int]):
     if "latitude" in data and "longitude" in data:
         lat = np.asarray(data["latitude"], float).ravel()
         lon = np.asarray(data["longitude"], float).ravel()
-        if len(lat) == n_r and len(lon) == n_c and n_r > 1 and n_c > 1:
+        # Each was dropped without a word before, and the terrain built as if unplaced.
+        if len(lat) != n_r or len(lon) != n_c:
+            raise ValueError(f"latitude has {len(lat)} values for {n_r} rows and longitude "
+                             f"{len(lon)} for {n_c} columns")
+        if not (np.isfinite(lat).all() and np.isfinite(lon).all()):
+            raise ValueError("latitude or longitude holds NaN or infinity")
+        if np.abs(lat).max() > 90:
+            raise ValueError(f"latitudes run {lat.min():g}..{lat.max():g}, past ±90°")
+        if n_r > 1 and n_c > 1:
             lon = np.where(lon > 180, lon - 360, lon)
             flip = lat[-1] > lat[0]  # rows run south to north: flip so row 0 is north
             north = lat.max()
@@ -365,19 +373,21 @@ def _npz_grid(data: Mapping[str, np.ndarray], shape: tuple[int, int]):
     keys = ("dx", "dy", "xmin", "xmax", "ymin", "ymax")
     if all(k in data for k in keys):
         dx, dy, xmin, xmax, ymin, ymax = (float(np.asarray(data[k])) for k in keys)
-        if dx > 0 and dy > 0:
-            geographic = max(abs(xmin), abs(xmax)) <= 360 and max(abs(ymin), abs(ymax)) <= 90
-            # Bounds are pixel edges when they span n samples, centres when they span n - 1.
-            edges = abs(abs(xmax - xmin) / dx - n_c) < abs(abs(xmax - xmin) / dx - (n_c - 1))
-            half = 0.5 if edges else 0.0
-            grid = GeoGrid(
-                x0=min(xmin, xmax) + half * dx,
-                y0=max(ymin, ymax) - half * dy,
-                dx=dx,
-                dy=dy,
-                geographic=geographic,
-            )
-            return grid, False
+        if not (dx > 0 and dy > 0 and math.isfinite(dx) and math.isfinite(dy)):
+            raise ValueError(f"dx and dy must be positive sample spacings, got {dx:g} and "
+                             f"{dy:g}")
+        geographic = max(abs(xmin), abs(xmax)) <= 360 and max(abs(ymin), abs(ymax)) <= 90
+        # Bounds are pixel edges when they span n samples, centres when they span n - 1.
+        edges = abs(abs(xmax - xmin) / dx - n_c) < abs(abs(xmax - xmin) / dx - (n_c - 1))
+        half = 0.5 if edges else 0.0
+        grid = GeoGrid(
+            x0=min(xmin, xmax) + half * dx,
+            y0=max(ymin, ymax) - half * dy,
+            dx=dx,
+            dy=dy,
+            geographic=geographic,
+        )
+        return grid, False
     return None, False
 
 
