@@ -105,7 +105,15 @@ def test_hgt_reader_on_a_written_tile(tmp_path):
     for name in ("S12E034.SRTMGL3.hgt", "s12e034_v2.hgt"):
         path = path.rename(tmp_path / name)
         assert load_heightmap(path).geo == hm.geo
-    assert load_heightmap(path.rename(tmp_path / "S12E0345.hgt")).geo is None
+    path = path.rename(tmp_path / "S12E0345.hgt")
+    assert load_heightmap(path).geo is None
+    # A position off the globe was refused for its ground spacing, far from why.
+    for name in ("N99W999.hgt", "N90E000.hgt", "S12E180.hgt"):
+        path = path.rename(tmp_path / name)
+        with pytest.raises(SceneFormatError, match=rf"the name places the tile's south-west "
+                                                   rf"corner at {name[:-4]}, outside the globe"):
+            load_heightmap(path)
+    assert load_heightmap(path.rename(tmp_path / "S90W180.hgt")).geo.y0 == -89
 
 
 def test_geotiff_reader_nodata_and_position(tmp_path):

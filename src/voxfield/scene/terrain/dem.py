@@ -191,6 +191,12 @@ def read_hgt(path) -> Heightmap:
     if m:
         lat = int(m.group(2)) * (1 if m.group(1) == "N" else -1)
         lon = int(m.group(4)) * (1 if m.group(3) == "E" else -1)
+        if not (-90 <= lat < 90 and -180 <= lon < 180):
+            # N99W999 was refused for a spacing "at least 1e-09 m", later and far from why.
+            raise SceneFormatError(
+                f"{path}: the name places the tile's south-west corner at {m.group(0)}, "
+                "outside the globe (latitude -90..89, longitude -180..179); rename it, or "
+                "drop the position from the name to build it unplaced")
         step = 1.0 / (n - 1)
         geo = GeoGrid(x0=float(lon), y0=float(lat + 1), dx=step, dy=step)
     return Heightmap(elev, geo=geo, name=path.stem)
