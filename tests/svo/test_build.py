@@ -374,3 +374,28 @@ def test_the_builders_refuse_what_is_not_a_scene_or_an_octree(tmp_path):
     for query in (trace, occluded):
         with pytest.raises(VoxfieldError, match="needs a voxfield Octree"):
             query(None, [[0.0, 0.0, 0.0]], [[1.0, 0.0, 0.0]])
+
+
+def test_the_renderers_refuse_what_is_not_an_octree_or_a_camera():
+    """render_reference(None, camera) raised "'NoneType' object has no attribute 'depth'",
+    and a camera of None "... no attribute 'width'", from inside."""
+    from voxfield.render import (
+        render_adaptive,
+        render_error_aware,
+        render_lod,
+        render_reference,
+        top_down_camera,
+    )
+    from voxfield.svo.open import open_octree
+
+    octree = open_octree("builtin:sphere")
+    camera = top_down_camera(*octree.voxel_bounds, size=8)
+    for render in (render_reference, render_lod, render_error_aware, render_adaptive):
+        for scene in (None, "builtin:sphere"):
+            with pytest.raises(VoxfieldError, match=f"{render.__name__} needs a voxfield "
+                                                    "Octree"):
+                render(scene, camera)
+        with pytest.raises(VoxfieldError, match=f"{render.__name__} needs a voxfield Camera "
+                                                r"\(voxfield.render.Camera and its presets\), "
+                                                "got NoneType"):
+            render(octree, None)

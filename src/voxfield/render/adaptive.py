@@ -21,7 +21,7 @@ from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import thread_count, threads_for
 from voxfield.render.beam import Beam, primary_beam, raster_beam, raster_cells, raster_level
-from voxfield.render.camera import Camera
+from voxfield.render.camera import Camera, check_camera
 from voxfield.render.device import check_device, trace_pixels_cuda
 from voxfield.render.primary import pixel_columns, render_lod
 from voxfield.render.result import RenderResult
@@ -147,6 +147,7 @@ def render_adaptive(
     CPU), with the same image. ``columns``: as ``render_lod``'s."""
     check_device(device)
     check_octree(octree, "render_adaptive")
+    check_camera(camera, "render_adaptive")
     if base_lod is not None:  # named here: render_lod's message would say "LOD"
         base_lod = integer_in(base_lod, "base LOD", 0, octree.depth)
     iterations = integer_in(iterations, "iterations", 0)

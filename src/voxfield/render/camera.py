@@ -347,3 +347,12 @@ def preset_camera(name: str, bounds_min, bounds_max, *, size: int = 512,
     make = {"top": top_down_camera, "oblique": oblique_camera, "orbit": orbit_camera,
             "beam": beam_camera, "room": room_camera}[name]
     return make(lo, hi, size=size, fov_deg=fov)
+
+
+def check_camera(value, user: str) -> None:
+    """A clear error where ``user`` (a function's name) was given something other than a
+    ``Camera``: it failed deep inside, on the first attribute it read (``'NoneType' object
+    has no attribute 'width'``)."""
+    if not isinstance(value, Camera):
+        raise VoxfieldError(f"{user} needs a voxfield Camera (voxfield.render.Camera and its "
+                            f"presets), got {type(value).__name__}")

@@ -35,12 +35,12 @@ from voxfield.kernels.neighbour_context import same_shape_neighbours
 from voxfield.parallel import run_in_bands, thread_count, threads_for
 from voxfield.render.adaptive import luminance, refine_by_variance
 from voxfield.render.beam import pixel_start_bounds
-from voxfield.render.camera import Camera
+from voxfield.render.camera import Camera, check_camera
 from voxfield.render.primary import cone_scale_value, tile_order
 from voxfield.render.result import RenderResult
 from voxfield.svo.column_tops import no_column_tops, octree_column_tops
 from voxfield.svo.lod_colours import exposed_face_weights
-from voxfield.svo.octree import Octree
+from voxfield.svo.octree import Octree, check_octree
 
 #: When the refinement options are read: a ray that starts at LOD 0 has nothing finer to
 #: be refined into.
@@ -150,6 +150,8 @@ def render_error_aware(
     pixels then start at their bound from the pyramid drawn into the image
     (``render.beam.raster_beam``), else at the block beam's.
     """
+    check_octree(octree, "render_error_aware")
+    check_camera(camera, "render_error_aware")
     table = _table_asked(table, ErrorTable, load_error_table)
     encoding = encoding or table.default_encoding
     if encoding not in ENCODINGS:

@@ -14,11 +14,11 @@ from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
 from voxfield.parallel import run_in_bands, thread_count, threads_for
 from voxfield.render.beam import pixel_start_bounds
-from voxfield.render.camera import Camera
+from voxfield.render.camera import Camera, check_camera
 from voxfield.render.device import check_device, trace_image_cuda
 from voxfield.render.result import RenderResult
 from voxfield.svo.column_tops import no_column_tops, octree_column_tops
-from voxfield.svo.octree import Octree
+from voxfield.svo.octree import Octree, check_octree
 
 
 @dataclass(frozen=True)
@@ -167,6 +167,8 @@ def render_reference(
     ``beam=False`` starts every ray at the camera (same image, more steps); ``columns``
     crosses the air in the column-top pyramid first (``trace_image``; same image);
     ``device`` is ``"cpu"`` or ``"cuda"`` (same image)."""
+    check_octree(octree, "render_reference")
+    check_camera(camera, "render_reference")
     result = trace_image(
         octree, camera, side=side, stop_level=octree.depth, cone_scale=0.0, seed=seed,
         channel=channel, threads=threads, progress=progress, label="reference", beam=beam,
@@ -189,6 +191,8 @@ def render_lod(
     ``beam=False`` starts every ray at the camera (same image, more steps); ``columns``
     crosses the air in the column-top pyramid first, at a fixed LOD or as the cone allows
     (``trace_image``; same image); ``device`` is ``"cpu"`` or ``"cuda"`` (same image)."""
+    check_octree(octree, "render_lod")
+    check_camera(camera, "render_lod")
     if lod is not None:
         lod = integer_in(lod, "LOD", 0, octree.depth)
     else:
