@@ -617,8 +617,8 @@ def check_measured_sides(sides, option: str = "--size") -> None:
 def check_measured_channel(octree, channel: str) -> None:
     """Refuse, before any render, a channel whose colours pass 1: PSNR, RMSE and SSIM take
     linear colours in [0, 1], and a measuring command failed after all its renders
-    (``--channel emission`` of builtin:cornell, up to 1.75). A render is an average of its
-    voxels' colours, so the voxels' peak bounds every image's."""
+    (``--channel emission`` of builtin:cornell, whose lamp's voxels emit 4). A render is an
+    average of its voxels' colours, so the voxels' peak bounds every image's."""
     stored = octree.channel(channel)[octree.level_slice(octree.depth)]
     if storage_of(stored) == SRGB8:
         return  # 8-bit sRGB codes decode to [0, 1]
