@@ -66,6 +66,7 @@ def test_calibrate_prints_the_psnr_it_reached(monkeypatch, capsys, psnr, shown):
     from voxfield.studies.calibrate import Calibration
 
     monkeypatch.setattr(cmd_calibrate, "open_octree", lambda args: None)
+    monkeypatch.setattr(cmd_calibrate, "check_measured_channel", lambda *a: None)
     monkeypatch.setattr(cmd_calibrate, "study_camera", lambda args, octree: None)
     monkeypatch.setattr(cmd_calibrate, "calibrate_threshold", lambda *a, **k: Calibration(
         0.125, 5712, 29464, psnr, {"psnr": 30.0}, [{}]))

@@ -22,6 +22,7 @@ def test_sweep_and_compare_pick_the_same_folder_name(monkeypatch, scene, folder)
     octree = types.SimpleNamespace(depth=6, name="s")
     for module, runner in ((cmd_sweep, "run_sweep"), (cmd_compare, "run_compare")):
         monkeypatch.setattr(module, "open_octree", lambda args: octree)
+        monkeypatch.setattr(module, "check_measured_channel", lambda *a: None)
         monkeypatch.setattr(module, "study_camera", lambda args, octree: None)
         monkeypatch.setattr(module, runner, lambda o, v, out, _m=module, **k:
                             written.setdefault(_m.__name__, Path(out)))
