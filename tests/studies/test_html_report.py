@@ -143,7 +143,8 @@ def test_images_named_in_the_results_are_embedded_where_they_stand_once(compare_
     (folder / "results.md").write_text(
         f"# Named\n\nbefore\n\n![the picture]({png.name})\n\nafter\n\n"
         "![outside](../elsewhere.png) ![missing](missing.png)\n")
-    write_html_report(folder)
+    with pytest.warns(UserWarning, match="shows missing.png, missing from the folder"):
+        write_html_report(folder)
     html = (folder / "report.html").read_text(encoding="utf-8")
     sources = re.findall(r'<img[^>]*src="([^"]*)"', html)
     assert f'src="{png.name}"' not in html
