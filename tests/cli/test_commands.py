@@ -87,3 +87,21 @@ def test_version_prints_the_package_s_own(capsys):
         main(["--version"])
     assert exc.value.code == 0
     assert capsys.readouterr().out == f"voxfield {voxfield.__version__}\n"
+
+
+@pytest.mark.parametrize("argv", [
+    ["light", "builtin:sphere", "--out", ""],
+    ["compare", "builtin:sphere", "--out="],
+    ["render", "builtin:sphere", "--out", ""],
+])
+def test_an_empty_out_is_refused_by_the_parser(argv, tmp_path, monkeypatch, capsys):
+    """An empty --out (an unset shell variable) wrote to the default path, ./out/..., without
+    a word."""
+    from voxfield.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as exc:
+        main(argv)
+    assert exc.value.code == 2
+    assert "argument --out: expected a path, got an empty one" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []

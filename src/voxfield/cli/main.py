@@ -144,6 +144,9 @@ def _main(argv: list[str] | None) -> int:
         if token.startswith("--") and token.endswith("=--"):
             parser.error(f"argument {token[:-3]}: expected a value, got '--'")
     args = parser.parse_args(argv)
+    if getattr(args, "out", None) == "":
+        # An empty --out (an unset shell variable) fell back to the default path unseen.
+        parser.error("argument --out: expected a path, got an empty one")
     args.quiet = getattr(args, "quiet", False)
 
     def run() -> int:
