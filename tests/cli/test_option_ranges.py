@@ -284,9 +284,9 @@ def test_an_image_the_machine_cannot_hold_is_refused_before_it_renders(tmp_path,
     """``render --size 16384`` (within the option's range) ran for minutes on a 23 GiB
     machine and was killed for memory, exit 137 without a word. On a machine said to hold
     2 GiB a 4096² render (about 3 GiB) is refused, and a 512² one (48 MiB) renders."""
-    import voxfield.cli.options as options
+    from voxfield import memory
 
-    monkeypatch.setattr(options, "physical_memory", lambda: 2 * 2**30)
+    monkeypatch.setattr(memory, "physical_memory", lambda: 2 * 2**30)
     out = tmp_path / "big.png"
     assert main(["render", "builtin:sphere", "--size", "4096", "--out", str(out)]) == 2
     message = one_error_line(capsys)

@@ -117,7 +117,8 @@ def test_export_cubes_refuses_another_scene_or_no_probe_in_one_line(run, tmp_pat
     """Another scene printed a note that it was "drawing it anyway" before the error, and a
     set with every probe disabled "wrote 0 faces of 0 probes"."""
     from cli_output import one_error_line
-    from voxfield.cli import cmd_probes, options
+    from voxfield import memory
+    from voxfield.cli import cmd_probes
 
     out = tmp_path / "probes"
     assert run(["bake", "builtin:cornell", "--grid", "2x1x1", "--resolution", "8",
@@ -146,7 +147,7 @@ def test_export_cubes_refuses_another_scene_or_no_probe_in_one_line(run, tmp_pat
     with pytest.raises(SystemExit):
         run(["probes", "export-cubes", str(out), "--size", "100000"])
     assert "argument --size: " in capsys.readouterr().err
-    monkeypatch.setattr(options, "physical_memory", lambda: 2 * 2**30)
+    monkeypatch.setattr(memory, "physical_memory", lambda: 2 * 2**30)
     monkeypatch.setattr(cmd_probes, "_reopen_scene", None)  # must not be reached
     assert run(["probes", "export-cubes", str(out), "--size", "4096", "--quiet"]) == 2
     assert one_error_line(capsys) == (
@@ -180,12 +181,13 @@ def test_a_bake_the_machine_cannot_finish_is_refused_before_any_probe(tmp_path, 
     needed some 48 GiB. On a machine said to hold 2 GiB, 27,000 probes of 64² (about 4.9
     GiB) are refused before the grid's notes, any probe or any folder; 8 probes bake."""
     from cli_output import one_error_line
+    from voxfield import memory
     from voxfield.probes import folder_bake
     from voxfield.probes.bake import BakeOptions
     from voxfield.probes.grid import ProbeGrid
     from voxfield.svo.open import open_octree
 
-    monkeypatch.setattr(folder_bake, "physical_memory", lambda: 2 * 2**30)
+    monkeypatch.setattr(memory, "physical_memory", lambda: 2 * 2**30)
     out = tmp_path / "probes"
     assert cli.main(["bake", "builtin:sphere", "--grid", "30x30x30", "--resolution", "64",
                      "--out", str(out)]) == 2

@@ -63,7 +63,7 @@ def run_info(args) -> int:
         "extent": (hi - lo).tolist(),
         "nodes_per_level": octree.nodes_per_level(),
         "bytes_per_node": octree.bytes_per_node(),
-        "channels": sorted("albedo" if k == "color" else k for k in octree.attributes),
+        "channels": octree.channel_names,
         "build_seconds": None if load_note == "loaded" else octree.build_seconds,
     }
     if args.json:

@@ -334,8 +334,7 @@ def run_lighting(args) -> int:
     channels = list(args.channels) if args.channels is not None else None
     if len(lighting_channels(octree)) < 2:
         if channels is not None:  # refused after the bake, minutes in, before
-            baked = sorted({"albedo" if k == "color" else k for k in octree.attributes}
-                           | {sun.name for sun in suns})
+            baked = sorted({*octree.channel_names, *(sun.name for sun in suns)})
             unknown = [name for name in channels if name not in baked]
             if unknown:
                 raise VoxfieldError(f"--channels {','.join(unknown)}: the scene has no such "

@@ -27,6 +27,7 @@ from voxfield.lightfield.trace import (
     EPSILON_READERS,
     LightFieldOptions,
 )
+from voxfield.memory import check_fits_in_memory
 from voxfield.metrics import SSIM_WINDOW
 from voxfield.render.camera import (
     CAMERA_PRESETS,
@@ -43,7 +44,6 @@ from voxfield.scene.loaders import SCENE_KINDS, SceneOptions, is_heightmap, scen
 from voxfield.scene.terrain.columns import DEM_FITS, MAX_FOOTPRINT, MIN_FOOTPRINT
 from voxfield.svo.lod_colours import DEFAULT_LOD_COLOUR, LOD_COLOURS
 from voxfield.svo.open import open_octree as open_octree_from_spec
-from voxfield.svo.streamed_build import physical_memory
 
 # --------------------------------------------------------------------------- argument types
 
@@ -539,13 +539,9 @@ def check_render_memory(size: int, *, held_bytes_per_pixel: int = 0,
     range) ran for four minutes and was killed for memory, exit 137 and not a word.
     ``held_bytes_per_pixel``: what the ``work`` keeps beside the render (a probe's six cube
     faces)."""
-    memory = physical_memory()
-    need = size * size * (RENDER_BYTES_PER_PIXEL + held_bytes_per_pixel)
-    work = work or f"a {size}×{size} render"
-    if memory is not None and need > 0.8 * memory:
-        raise VoxfieldError(f"--size {size}: {work} needs about "
-                            f"{need / 2**30:.1f} GiB, over 80% of this machine's "
-                            f"{memory / 2**30:.1f} GiB; give a smaller --size")
+    check_fits_in_memory(size * size * (RENDER_BYTES_PER_PIXEL + held_bytes_per_pixel),
+                         f"--size {size}: {work or f'a {size}×{size} render'}",
+                         "give a smaller --size")
 
 
 def camera(args, bounds) -> Camera:

@@ -280,6 +280,7 @@ def bake_sun_lighting(
     way.
     """
     suns = _check_suns(suns)
+    _note_dark_suns(suns)
     if storage is None:
         storage = RGB9E5 if storage_of(octree.attributes["color"]) == SRGB8 else FLOAT32
     check_channel_storage(storage)
@@ -332,17 +333,21 @@ def _with_lit_channels(octree: Octree, suns: list[SunLight], vis: SunVisibility,
     return lit
 
 
+def _note_dark_suns(suns: list[SunLight]) -> None:
+    """A note, before the bake, for each sun that gives no light at all (below the
+    horizon): its channel will be black."""
+    for sun in suns:
+        if not (any(sun.irradiance) or any(sun.sky)):
+            why = (f"elevation {sun.elevation_deg:g}°, below the horizon"
+                   if sun.elevation_deg <= 0 else "sun and sky colours of zero")
+            warnings.warn(f"sun {sun.name!r} gives no light ({why}): its channel is black",
+                          stacklevel=3)
+
+
 def _keep_in_display_range(sun: SunLight, rows: np.ndarray) -> None:
     """Clamp a sun's lit voxel colours to 1, with a note where any was brighter: the
     presets keep open ground near 1, but a sun set high over bright albedo lit past it, and
-    every measuring command then failed after its renders (the metrics take [0, 1]). A sun
-    that gives no light at all (below the horizon) is noted too: its channel is black."""
-    if not (any(sun.irradiance) or any(sun.sky)):
-        why = (f"elevation {sun.elevation_deg:g}°, below the horizon"
-               if sun.elevation_deg <= 0 else "sun and sky colours of zero")
-        warnings.warn(f"sun {sun.name!r} gives no light ({why}): its channel is black",
-                      stacklevel=3)
-        return
+    every measuring command then failed after its renders (the metrics take [0, 1])."""
     peak = float(rows.max()) if rows.size else 0.0
     if peak > 1.0:
         over = int(np.count_nonzero((rows > 1.0).any(axis=1)))

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.checks import spoken_list
-from voxfield.errors import VoxfieldError
 from voxfield.json_output import to_json
+from voxfield.memory import check_fits_in_memory
 from voxfield.probes.bake import check_bake_options
 from voxfield.probes.distributed import bake_each, check_scheduler
 from voxfield.probes.probe_folder import (
@@ -30,7 +30,6 @@ from voxfield.probes.probe_folder import (
     write_header,
     write_probe,
 )
-from voxfield.svo.streamed_build import physical_memory
 
 #: Seconds between header rewrites while baking: a probe whose record missed the last
 #: rewrite is simply baked again on resume, so this bounds lost work, not correctness.
@@ -45,13 +44,10 @@ def check_finish_memory(count: int, resolution: int) -> None:
     """Refuse a bake whose finished set this machine cannot assemble, before any probe is
     baked: a 64×64×64 grid of 64² maps baked for over an hour, and would then have needed
     about 48 GiB to write its atlases."""
-    memory = physical_memory()
-    need = count * resolution * resolution * FINISH_BYTES_PER_TEXEL
-    if memory is not None and need > 0.8 * memory:
-        raise VoxfieldError(
-            f"{count:,} probes of {resolution}² texels: assembling the finished set and its "
-            f"atlases needs about {need / 2**30:.1f} GiB, over 80% of this machine's "
-            f"{memory / 2**30:.1f} GiB; bake fewer probes or a lower resolution")
+    check_fits_in_memory(
+        count * resolution * resolution * FINISH_BYTES_PER_TEXEL,
+        f"{count:,} probes of {resolution}² texels: assembling the finished set and its "
+        "atlases", "bake fewer probes or a lower resolution")
 
 
 def checked_folder_path(out) -> Path:

@@ -270,12 +270,18 @@ class Octree:
             return stored, self.facing
         return stored, NO_FACING
 
+    @property
+    def channel_names(self) -> list[str]:
+        """The colour channels by the names commands take (``albedo`` for the stored
+        ``color``), sorted."""
+        return sorted("albedo" if k == "color" else k for k in self.attributes)
+
     def channel(self, name: str) -> np.ndarray:
         """A channel as stored (``kernels.colour``: 8-bit sRGB or float32): what kernels take."""
         if name == "albedo":
             name = "color"
         if name not in self.attributes:
-            known = ", ".join(sorted("albedo" if k == "color" else k for k in self.attributes))
+            known = ", ".join(self.channel_names)
             raise VoxfieldError(f"the octree has no channel {name!r}; it has: {known}")
         return self.attributes[name]
 

@@ -26,6 +26,7 @@ from voxfield.errors import SceneTooLargeError, VoxfieldError
 from voxfield.kernels.colour import SRGB8, STORAGES, encode_channel
 from voxfield.kernels.node_descriptor import pack_descriptors
 from voxfield.kernels.octree_build import has_repeats, sort_codes
+from voxfield.memory import check_fits_in_memory
 from voxfield.progress import progress_bar
 from voxfield.scene.voxel_scene import MAX_EXTENT, VoxelScene
 from voxfield.svo.build import _add_parent_level, morton_encode, octree_depth_for
@@ -39,14 +40,6 @@ DEFAULT_BLOCK = 256
 PEAK_BYTES_PER_VOXEL = 16
 #: Threads that build cubes while the source delivers the next blocks.
 BUILD_THREADS = 2
-
-
-def physical_memory() -> int | None:
-    """Bytes of RAM on this machine, or None where the OS does not say."""
-    try:
-        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
-    except (AttributeError, ValueError, OSError):
-        return None
 
 
 class BlockSource(Protocol):
@@ -130,12 +123,9 @@ def build_octree_streamed(
         raise SceneTooLargeError(
             f"scene {source.name!r} spans {extent.tolist()} voxels; at most {MAX_EXTENT} per axis")
     need = int(source.voxel_count) * PEAK_BYTES_PER_VOXEL
-    memory = physical_memory()
-    if memory is not None and need > 0.8 * memory:
-        raise SceneTooLargeError(
-            f"scene {source.name!r} has {source.voxel_count:,} voxels: building its octree "
-            f"needs about {need / 2**30:.1f} GiB, over 80% of this machine's "
-            f"{memory / 2**30:.1f} GiB; lower the footprint or the fill depth")
+    check_fits_in_memory(
+        need, f"scene {source.name!r} has {source.voxel_count:,} voxels: building its octree",
+        "lower the footprint or the fill depth", SceneTooLargeError)
     depth = octree_depth_for(extent)
     bits = min(int(block).bit_length() - 1, depth)
     size = 1 << bits
