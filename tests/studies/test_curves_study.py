@@ -111,7 +111,23 @@ def test_curves_from_the_command_line(tmp_path, capsys):
     assert set(report["cameras"]) == {"top", "ortho-top"}
 
 
-@pytest.mark.parametrize("bad", [["--thresholds", "inf,0.1"], ["--decays", "-1"],
+def test_thresholds_past_both_ends_give_the_curve_s_ends(tmp_path):
+    """As in ``study thresholds``, ``sweep`` and ``render``: a negative threshold refines
+    every ray down to the voxels (the 4×4 reference's image: 1 + 4 + 16 rays a pixel) and
+    inf none (one ray a pixel); the curves study refused them, alone among the commands."""
+    out = tmp_path / "curves"
+    code = main(["--quiet", "study", "curves", "builtin:pillars", "--size", "16",
+                 "--cameras", "top", "--thresholds", "-1,inf", "--decays", "0.2",
+                 "--normalisations", "0.01,0.3", "--lods", "1,0", "--out", str(out)])
+    assert code == 0
+    report = json.loads((out / "results.json").read_text())  # strict JSON
+    finest, coarsest = report["cameras"]["top"]["curves"]["EA d=0.2"]["points"]
+    assert finest["threshold"] == -1 and coarsest["threshold"] is None  # inf, as JSON has it
+    assert finest["rays_per_pixel"] == 21 and finest["rmse"] == 0.0
+    assert coarsest["rays_per_pixel"] == 1 and coarsest["refined_share"] == 0.0
+
+
+@pytest.mark.parametrize("bad", [["--thresholds", "nan,0.1"], ["--decays", "-1"],
                                  ["--cameras", "nowhere"], ["--normalisations", "0,1"],
                                  ["--normalisations", "0"]])
 def test_bad_curve_values_are_one_line_and_exit_2(bad, tmp_path, capsys):

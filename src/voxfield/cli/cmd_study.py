@@ -73,6 +73,9 @@ from voxfield.studies.report import StudyFolder, fmt, fmt_psnr
 from voxfield.studies.resolution_study import THESIS_SIZES, run_resolution_study
 from voxfield.studies.threshold_study import THESIS_THRESHOLDS, run_threshold_study
 
+#: What the studies' ``--thresholds`` take beyond the thesis's range: the two ends of a curve.
+THRESHOLD_ENDS = "a negative one refines every ray it may, inf none"
+
 
 def register(subparsers) -> argparse.ArgumentParser:
     """Register ``study`` with one action per study."""
@@ -90,7 +93,7 @@ def register(subparsers) -> argparse.ArgumentParser:
     )
     add_scene_options(t)
     t.add_argument("--thresholds", type=float_list, default=THESIS_THRESHOLDS,
-                   help="comma-separated thresholds (default 0.05..0.3)")
+                   help="comma-separated thresholds (default 0.05..0.3; " + THRESHOLD_ENDS + ")")
     add_renderer_options(t, ("error-aware", "adaptive"), only=("decay", "base_lod"))
     add_study_folder(t, "thresholds", "cells", scheduled=True)
     add_channel_option(t)
@@ -183,7 +186,7 @@ def _register_curves(actions) -> None:
                    help="image side in pixels, 16..4096 (default 256)")
     c.add_argument("--thresholds", type=float_list, default=CURVE_THRESHOLDS,
                    help="EA thresholds (default " + ",".join(f"{t:g}" for t in CURVE_THRESHOLDS)
-                   + ")")
+                   + "; " + THRESHOLD_ENDS + ")")
     c.add_argument("--decays", type=non_negative_float_list, default=CURVE_DECAYS,
                    help="EA decays, one curve each (default "
                    + ",".join(f"{d:g}" for d in CURVE_DECAYS) + ")")
@@ -254,8 +257,6 @@ def run_normalisation(args) -> int:
 
 
 def run_curves(args) -> int:
-    if any(not math.isfinite(v) or v < 0 for v in args.thresholds):
-        raise VoxfieldError("--thresholds must be finite and not negative")
     # (A variance normalisation divides: 0 was refused by the study after its first renders.)
     if any(not math.isfinite(v) or v <= 0 for v in args.normalisations):
         raise VoxfieldError("--normalisations must be finite and positive")
