@@ -15,6 +15,8 @@ from voxfield.cli import main
 from voxfield.error_table.table import raycast_errors
 from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import LightFieldOptions
+from voxfield.probes.probe_set import BakeOptions
+from voxfield.render.camera import Camera
 
 BUILDERS = [("build", "build_error_table"), ("build-lighting", "build_lighting_error_table")]
 
@@ -293,3 +295,58 @@ def test_an_image_the_machine_cannot_hold_is_refused_before_it_renders(tmp_path,
     assert "--size 4096: a 4096×4096 render needs about 3.0 GiB" in message
     assert "this machine's 2.0 GiB" in message and not out.exists()
     assert main(["render", "builtin:sphere", "--size", "512", "--quiet", "--out", str(out)]) == 0
+
+
+def _camera_takes_side(side: int) -> bool:
+    try:
+        Camera.look_at((0, 0, 5), (0, 0, 0), width=side)
+    except VoxfieldError:
+        return False
+    return True
+
+
+def _bake_takes_side(side: int) -> bool:
+    try:
+        BakeOptions(resolution=side)
+    except VoxfieldError:
+        return False
+    return True
+
+
+@pytest.mark.parametrize("argv, option, library_takes", [
+    (["study", "resolution"], "--sizes", _camera_takes_side),
+    (["study", "probe-resolution"], "--resolutions", _bake_takes_side),
+    (["study", "probes"], "--resolutions", _bake_takes_side),
+])
+def test_a_study_s_side_list_takes_exactly_the_sides_the_library_takes(
+        argv, option, library_takes, tmp_path, capsys, monkeypatch):
+    """A side no camera or bake takes (``--sizes 99999999``) was refused only after the scene
+    loaded (minutes, where the kernels compiled first); the parser refuses it now, and a side
+    the library takes goes on to the missing scene file. The machine is said to hold 1 TiB,
+    so that no side here meets the memory refusal."""
+    from voxfield import memory
+
+    monkeypatch.setattr(memory, "physical_memory", lambda: 2**40)
+    missing = str(tmp_path / "none.vox")
+    for side in [16, 64, 65, 2048, 2050, 16384, 16385, 99999999]:
+        sides = f"32,{side}" if side != 32 else "16,32"
+        expected = library_takes(side) and library_takes(32)
+        full = [*argv, missing, option, sides, "--out", str(tmp_path / "out")]
+        if expected:
+            assert main(full) == 2
+            assert "none.vox" in one_error_line(capsys), side
+        else:
+            err = _refused_by_the_parser(full, capsys)
+            assert option in err and str(side) in err, err
+        assert not (tmp_path / "out").exists()
+
+
+def test_a_resolution_study_too_large_for_the_machine_is_refused_before_its_scene(
+        tmp_path, capsys, monkeypatch):
+    from voxfield import memory
+
+    monkeypatch.setattr(memory, "physical_memory", lambda: 2 * 2**30)
+    assert main(["study", "resolution", str(tmp_path / "none.vox"), "--sizes", "64,4096",
+                 "--out", str(tmp_path / "out")]) == 2
+    message = one_error_line(capsys)
+    assert message.startswith("voxfield: error: --sizes 4096: a 4096×4096 render needs"), message

@@ -20,11 +20,13 @@ from voxfield.cli.options import (
     check_measured_channel,
     check_measured_sides,
     check_refinable_base_lod,
+    check_render_memory,
     default_output,
     distinct,
     finite_float,
     float_list,
     hit_options,
+    image_side_list,
     int_between,
     lod_arg,
     name_list,
@@ -43,7 +45,8 @@ from voxfield.errors import VoxfieldError
 from voxfield.lightfield.trace import LightFieldOptions
 from voxfield.lighting import bake_sun_lighting, parse_suns
 from voxfield.probes.grid import check_placement, parse_grid, relocate
-from voxfield.render.camera import preset_camera
+from voxfield.probes.probe_set import MAX_RESOLUTION, MIN_RESOLUTION
+from voxfield.render.camera import MAX_IMAGE_SIDE, preset_camera
 from voxfield.render.placement import camera_placement_problem, check_camera_placement
 from voxfield.scaleout import SCHEDULER_HELP
 from voxfield.studies.adaptive_normalisation import run_normalisation_study
@@ -107,8 +110,9 @@ def register(subparsers) -> argparse.ArgumentParser:
         "resolution (one base-LOD node ≈ one pixel). Resumable.",
     )
     add_scene_options(r)
-    r.add_argument("--sizes", type=positive_int_list, default=THESIS_SIZES,
-                   help="comma-separated image sides (default 128,256,512,1024)")
+    r.add_argument("--sizes", type=image_side_list, default=THESIS_SIZES,
+                   help=f"comma-separated image sides, each 1..{MAX_IMAGE_SIDE} (default "
+                   "128,256,512,1024)")
     add_threshold_options(r)
     add_study_folder(r, "resolution", "cells", scheduled=True)
     add_channel_option(r)
@@ -148,8 +152,9 @@ def register(subparsers) -> argparse.ArgumentParser:
     b.add_argument("--no-relocate", action="store_true",
                    help="keep probes where the grid puts them even inside geometry (by "
                    "default they are moved out first, as study probes does)")
-    b.add_argument("--resolutions", type=positive_int_list, default=(64, 128, 256),
-                   help="comma-separated map sides (default 64,128,256)")
+    b.add_argument("--resolutions", type=probe_map_sides, default=(64, 128, 256),
+                   help=f"comma-separated map sides, each even, {MIN_RESOLUTION}..{MAX_RESOLUTION} "
+                   "(default 64,128,256)")
     add_threshold_options(b)
     add_channel_option(b)
     add_study_folder(b, "probe_resolution", "bakes")
@@ -308,6 +313,7 @@ def run_thresholds(args) -> int:
 
 def run_resolution(args) -> int:
     check_measured_sides(args.sizes, "--sizes")
+    check_render_memory(max(args.sizes), option="--sizes")
     octree = open_octree(args)
     check_measured_channel(octree, args.channel)
     out = args.out or default_output("resolution", args.scene)
@@ -414,8 +420,9 @@ def _register_probes(actions) -> argparse.ArgumentParser:
                    help="main probe grid: NXxNYxNZ fitted to the scene (default 1x1x1: one "
                    "probe at the centre, the thesis's Holodeck test) or surface:NXxNZ@H, one "
                    "layer H voxels above a terrain's surface")
-    p.add_argument("--resolutions", type=positive_int_list, default=THESIS_RESOLUTIONS,
-                   help="comma-separated probe map sides (default 64,128,256,512,1024)")
+    p.add_argument("--resolutions", type=probe_map_sides, default=THESIS_RESOLUTIONS,
+                   help=f"comma-separated probe map sides, each even, {MIN_RESOLUTION}.."
+                   f"{MAX_RESOLUTION} (default 64,128,256,512,1024)")
     p.add_argument("--probe-counts", type=grid_list,
                    default=DEFAULT_PROBE_COUNTS, metavar="GRIDS",
                    help="comma-separated grids for the probe-count section, each NXxNYxNZ "
@@ -439,6 +446,19 @@ def _register_probes(actions) -> argparse.ArgumentParser:
     return p
 
 
+
+
+def probe_map_sides(text: str) -> tuple[int, ...]:
+    """``positive_int_list`` of probe map sides, each one a bake takes (even, in
+    ``MIN_RESOLUTION..MAX_RESOLUTION``): a side out of range was refused only once the scene
+    was loaded, minutes in where the kernels had to compile."""
+    values = positive_int_list(text)
+    bad = [r for r in values if r % 2 or not MIN_RESOLUTION <= r <= MAX_RESOLUTION]
+    if bad:
+        raise argparse.ArgumentTypeError(
+            f"probe map sides must be even, {MIN_RESOLUTION}..{MAX_RESOLUTION}, got "
+            f"{','.join(map(str, bad))}")
+    return values
 
 
 def grid_list(text: str) -> tuple[str, ...]:

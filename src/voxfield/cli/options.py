@@ -223,6 +223,16 @@ def positive_int_list(text: str) -> tuple[int, ...]:
     return distinct(values, text)
 
 
+def image_side_list(text: str) -> tuple[int, ...]:
+    """``positive_int_list`` of image sides, each at most ``MAX_IMAGE_SIDE``: a study asked
+    for a side no camera takes loaded its scene before the camera refused it."""
+    values = positive_int_list(text)
+    if max(values) > MAX_IMAGE_SIDE:
+        raise argparse.ArgumentTypeError(
+            f"image sides must be at most {MAX_IMAGE_SIDE:,}, got {text!r}")
+    return values
+
+
 def name_list(text: str) -> tuple[str, ...]:
     """Comma-separated names, at least one, each once; blanks between commas dropped."""
     values = tuple(v.strip() for v in text.split(",") if v.strip())
@@ -534,14 +544,14 @@ RENDER_BYTES_PER_PIXEL = 192
 
 
 def check_render_memory(size: int, *, held_bytes_per_pixel: int = 0,
-                        work: str | None = None) -> None:
+                        work: str | None = None, option: str = "--size") -> None:
     """Refuse an image the machine cannot hold: ``render --size 16384`` (within the option's
     range) ran for four minutes and was killed for memory, exit 137 and not a word.
     ``held_bytes_per_pixel``: what the ``work`` keeps beside the render (a probe's six cube
-    faces)."""
+    faces); ``option`` names the side where it is not ``--size``."""
     check_fits_in_memory(size * size * (RENDER_BYTES_PER_PIXEL + held_bytes_per_pixel),
-                         f"--size {size}: {work or f'a {size}×{size} render'}",
-                         "give a smaller --size")
+                         f"{option} {size}: {work or f'a {size}×{size} render'}",
+                         f"give a smaller {option}")
 
 
 def camera(args, bounds) -> Camera:
