@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import os
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -33,11 +34,39 @@ def load_scene_npz(path: str | os.PathLike) -> VoxelScene:
                 raise SceneFormatError(f"{path}: a voxel-scene .npz needs 'coords' and 'color'")
             emission = data["emission"] if "emission" in data else None
             prefix = "channel_"
-            channels = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
-            return VoxelScene(data["coords"], data["color"], emission, channels, path.stem)
+            channels = {_channel_name(path, k[len(prefix):]): data[k]
+                        for k in data.files if k.startswith(prefix)}
+            scene = VoxelScene(data["coords"], data["color"], emission, channels, path.stem)
     except SceneFormatError:
         raise
     except VoxfieldError as exc:  # the arrays' own checks: say which file they came from
         raise SceneFormatError(f"{path}: {exc}") from exc
     except Exception as exc:  # noqa: BLE001 - zip/zlib fail in many ways on a bad file
         raise SceneFormatError(f"{path}: unreadable voxel-scene file ({exc})") from exc
+    return _one_voxel_per_position(scene, path)
+
+
+def _channel_name(path: Path, name: str) -> str:
+    """``name`` if an octree can keep it as a channel: checked here, so the file is named,
+    where the build found it later and named only the channel."""
+    # Deferred: voxfield.svo imports the scene loaders, and so this module.
+    from voxfield.svo.channels import check_channel_name
+
+    try:
+        return check_channel_name(name)
+    except VoxfieldError as exc:
+        raise SceneFormatError(f"{path}: array 'channel_{name}': {exc}") from None
+
+
+def _one_voxel_per_position(scene: VoxelScene, path: Path) -> VoxelScene:
+    """The scene with repeated positions merged, the last listed kept, as the other readers
+    resolve overlaps (``.vox``, ``compose``); with a note, as ``save_scene`` never writes a
+    repeat: the file came from elsewhere and may not mean what it shows."""
+    unique = scene.dedupe()
+    repeats = len(scene) - len(unique)
+    if repeats:
+        repeat = "repeats a position" if repeats == 1 else "repeat positions"
+        warnings.warn(f"{path}: {repeats:,} of its {len(scene):,} voxels {repeat} listed "
+                      "earlier in the file; the last listed at each position was kept",
+                      stacklevel=3)
+    return unique

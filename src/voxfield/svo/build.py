@@ -86,7 +86,10 @@ def build_octree(
     depth = octree_depth_for(extent)
     codes, order = sort_codes(morton_encode(scene.coords, lo), 3 * depth)
     if has_repeats(codes):
-        raise VoxfieldError(f"scene {scene.name!r} holds duplicate voxels; call .dedupe() first")
+        # Only a scene made in code gets here: the file readers merge repeats themselves.
+        repeats = int(np.count_nonzero(codes[1:] == codes[:-1]))
+        raise VoxfieldError(f"scene {scene.name!r} holds {repeats:,} voxel(s) at positions "
+                            "already taken; its .dedupe() keeps the last at each position")
 
     attributes = {"color": scene.color[order]}
     if scene.emission is not None:

@@ -91,7 +91,7 @@ class Heightmap:
         elev[~np.isfinite(elev)] = np.nan
         if np.isnan(elev).all():
             raise SceneFormatError(
-                f"{self.name}: every sample is a void (no data); nothing to build"
+                f"{self.name}: every sample is a void (no data) or infinite; nothing to build"
             )
         object.__setattr__(self, "elevation", elev)
         spacing = self.spacing
@@ -199,7 +199,38 @@ def read_hgt(path) -> Heightmap:
                 "drop the position from the name to build it unplaced")
         step = 1.0 / (n - 1)
         geo = GeoGrid(x0=float(lon), y0=float(lat + 1), dx=step, dy=step)
-    return Heightmap(elev, geo=geo, name=path.stem)
+    return Heightmap(_checked_heights(elev, path), geo=geo, name=path.stem)
+
+
+#: Share of a DEM's samples without a height past which filling them earns a note: an SRTM
+#: tile holds a few voids (N40W074: 0.07%), filled unremarked; a grid of mostly voids was
+#: filled flat from a handful of heights without a word.
+VOIDS_NOTED = 0.01
+
+
+def _checked_heights(elev: np.ndarray, path: Path) -> np.ndarray:
+    """``elev`` (a file's heights, NaN for its voids), refused where no sample is a finite
+    height, with a note where the voids pass ``VOIDS_NOTED`` or any height is infinite (a
+    damaged value, filled like a void: the terrain there is made up, not measured)."""
+    if elev.ndim != 2 or min(elev.shape) < 2 or elev.dtype.kind != "f":
+        return elev  # Heightmap says what is wrong with it; whole numbers hold no voids
+    voids = int(np.count_nonzero(np.isnan(elev)))
+    infinite = int(np.count_nonzero(np.isinf(elev)))
+    missing = voids + infinite
+    if not missing:
+        return elev
+    kinds = ", ".join(text for count, text in (
+        (voids, f"{voids:,} no-data void" + ("s" if voids != 1 else "")),
+        (infinite, f"{infinite:,} infinite")) if count)
+    if missing == elev.size:
+        raise SceneFormatError(f"{path}: none of its {elev.size:,} samples is a height "
+                               f"({kinds}); nothing to build")
+    share = missing / elev.size
+    if infinite or share > VOIDS_NOTED:
+        warnings.warn(f"{path}: {missing:,} of its {elev.size:,} samples ({100 * share:.3g}%) "
+                      f"have no height ({kinds}); they were filled in smoothly from the "
+                      f"{elev.size - missing:,} that do", stacklevel=3)
+    return elev
 
 
 #: Smallest believable pixel size, in degrees or metres (1e-9° is about 0.1 mm).
@@ -346,10 +377,11 @@ def read_geotiff(path) -> Heightmap:
     if not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
         raise SceneFormatError(f"{path}: unsupported sample type {arr.dtype}")
     elev = arr.astype(np.float64)
-    void = ~np.isfinite(elev) | (elev == _ALWAYS_VOID) | (
-        _nodata_mask(arr, nodata) if nodata is not None else elev == _UNTAGGED_VOID)
-    elev[void] = np.nan
-    return Heightmap(elev, geo=geo, name=path.stem)
+    declared = _nodata_mask(arr, nodata) if nodata is not None else elev == _UNTAGGED_VOID
+    if nodata is not None and math.isinf(nodata):  # an infinity the tag names as no data
+        declared = elev == nodata
+    elev[(elev == _ALWAYS_VOID) | declared] = np.nan  # infinities stay, to be counted
+    return Heightmap(_checked_heights(elev, path), geo=geo, name=path.stem)
 
 
 def _npz_grid(data: Mapping[str, np.ndarray], shape: tuple[int, int]):
@@ -434,7 +466,7 @@ def read_npz(path, name: str | None = None) -> Heightmap:
         raise SceneFormatError(f"{path}: unreadable coordinates or spacing ({exc})") from exc
     if flip:
         elev = elev[::-1]
-    return Heightmap(elev, spacing=spacing, geo=geo, name=name)
+    return Heightmap(_checked_heights(elev, path), spacing=spacing, geo=geo, name=name)
 
 
 def load_heightmap(source) -> Heightmap:
@@ -469,7 +501,7 @@ def load_heightmap(source) -> Heightmap:
             arr = load_arrays(path, kind="npy")
         except Exception as exc:  # noqa: BLE001
             raise SceneFormatError(f"{path}: not a readable .npy array ({exc})") from exc
-        return Heightmap(arr, name=path.stem)
+        return Heightmap(_checked_heights(arr, path), name=path.stem)
     raise SceneFormatError(
         f"{path}: unknown DEM format {suffix!r} (expected .hgt, .tif, .npz, .npy)"
     )
