@@ -112,9 +112,14 @@ def check_writable(path: str | os.PathLike) -> Path:
 def _checked_target(path: Path) -> Path:
     """``path`` (a link's target for a link), refused if it names a folder or anything but a
     plain file (a device, a pipe, a socket: the rename would put a file in its place,
-    ``/dev/null`` included) or a file its owner made read-only."""
+    ``/dev/null`` included) or a file its owner made read-only. A link whose target's folder
+    is missing is refused, as ``open()`` refuses it: writing made that folder, wherever the
+    link pointed."""
     if path.is_symlink():  # written through, as open() would: the link stays a link
-        path = Path(os.path.realpath(path))
+        link, path = path, Path(os.path.realpath(path))
+        if not path.parent.is_dir():
+            raise FileNotFoundError(
+                errno.ENOENT, f"it is a link to {path}, whose folder does not exist", str(link))
     if path.is_dir():
         raise IsADirectoryError(errno.EISDIR, "is a folder, not a file", str(path))
     if path.exists() and not path.is_file():

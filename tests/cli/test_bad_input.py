@@ -614,6 +614,23 @@ def test_an_output_that_is_a_link_is_written_through_it(tmp_path):
     assert link.is_symlink() and target.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+def test_a_link_to_a_missing_folder_is_refused_as_open_refuses_it(tmp_path, capsys):
+    """Writing through such a link made the folders it pointed into, wherever that was;
+    ``open()`` refuses it (ENOENT), and so does every output check, before the work."""
+    from voxfield.atomic import atomic_path, check_writable
+
+    link = tmp_path / "link.png"
+    link.symlink_to(tmp_path / "nowhere" / "deep" / "x.png")
+    with pytest.raises(FileNotFoundError):
+        open(link, "wb")  # noqa: SIM115 - the oracle: what the OS does with the link
+    for write in (check_writable, lambda path: atomic_path(path).__enter__()):
+        with pytest.raises(FileNotFoundError, match="whose folder does not exist"):
+            write(link)
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--out", str(link)]) == 2
+    assert "it is a link to" in one_error_line(capsys)
+    assert not (tmp_path / "nowhere").exists() and link.is_symlink()
+
+
 @pytest.mark.skipif(os.geteuid() == 0, reason="root may write read-only files anyway")
 def test_a_read_only_output_is_one_line_and_kept(tmp_path, capsys):
     kept = tmp_path / "kept.png"
