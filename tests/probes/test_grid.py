@@ -256,6 +256,16 @@ def block():
     return _octree(((0, 0, 0), (16, 16, 16)))
 
 
+@pytest.mark.parametrize("which", ["grid", "octree"])
+def test_relocate_names_what_it_was_given_instead(block, which):
+    """``relocate(grid, None)`` failed on the octree's first attribute (AttributeError)."""
+    grid = _single_probe((30.0, 25.0, 8.0))
+    args = (None, block) if which == "grid" else (grid, None)
+    with pytest.raises(VoxfieldError, match="relocate needs a "
+                       + ("ProbeGrid" if which == "grid" else "voxfield Octree")):
+        relocate(*args)
+
+
 def test_probe_in_open_space_is_untouched(block):
     grid = _single_probe((30.0, 25.0, 8.0))
     out, report = relocate(grid, block)

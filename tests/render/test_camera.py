@@ -217,6 +217,17 @@ def test_a_preset_view_of_an_impossible_box_or_field_is_refused(lo, hi, fov, wor
         preset_camera("top", lo, hi, size=8, fov_deg=fov)
 
 
+@pytest.mark.parametrize("maker", [top_down_camera, oblique_camera, orbit_camera])
+@pytest.mark.parametrize("fov", [0.0, -30.0, 180.0])
+def test_a_framing_view_refuses_its_field_before_it_divides_by_it(maker, fov):
+    """``orbit_camera(fov_deg=0)`` printed NumPy's divide-by-zero warning before the
+    camera's refusal: the makers that place the eye by the field now check it first."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(CameraError, match="field of view"):
+            maker((0.0, 0.0, 0.0), (32.0, 32.0, 32.0), size=8, fov_deg=fov)
+
+
 @pytest.mark.parametrize("side", [-1, 0, 17, 2**31, 1.9, "2"])
 def test_rays_refuse_a_side_the_renderers_do_not_take(side):
     """-1 looped for ever and 2^31 overflowed the ray count and wrote past the arrays."""

@@ -154,6 +154,17 @@ def test_an_offset_that_is_not_whole_voxels_is_refused(offset, words):
         compose([(scene, offset)])
 
 
+@pytest.mark.parametrize("parts", [["scene"], [("scene",)], [("scene", (0, 0, 0), 1)],
+                                   [((0, 0, 0), "scene")]])
+def test_compose_takes_scene_offset_pairs_and_says_so(parts):
+    """``compose([scene])`` raised Python's "cannot unpack non-iterable VoxelScene"."""
+    scene = VoxelScene(np.array([[1, 2, 3]]), np.full((1, 3), 0.5))
+    given = [tuple(scene if item == "scene" else item for item in part)
+             if isinstance(part, tuple) else scene for part in parts]
+    with pytest.raises(VoxfieldError, match=r"compose takes \(scene, offset\) pairs; part 0"):
+        compose(given)
+
+
 def test_a_whole_offset_of_any_number_type_moves_the_voxels():
     scene = VoxelScene(np.array([[1, 2, 3]]), np.full((1, 3), 0.5))
     for offset in ((2, 0, -3), (2.0, 0.0, -3.0), np.array([2, 0, -3], np.int16)):

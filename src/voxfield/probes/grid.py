@@ -18,7 +18,7 @@ import numpy as np
 from voxfield.checks import seed_value
 from voxfield.errors import VoxfieldError
 from voxfield.render.ray_query import trace
-from voxfield.svo.octree import Octree
+from voxfield.svo.octree import Octree, check_octree
 
 #: A probe may move at most this fraction of a cell from its lattice point on each axis: then
 #: probes never pass each other, so a point's cell of eight probes stays well defined.
@@ -660,6 +660,9 @@ def relocate(
     in free space and is not detected. Deterministic for a given ``seed`` (which turns the ray
     directions). Probes already disabled are left alone.
     """
+    if not isinstance(grid, ProbeGrid):
+        raise VoxfieldError(f"relocate needs a ProbeGrid, got {type(grid).__name__}")
+    check_octree(octree, "relocate")  # None failed on its first attribute
     if not (math.isfinite(max_shift) and 0 <= max_shift <= MAX_OFFSET_FRACTION):
         raise VoxfieldError(f"max_shift must be between 0 and {MAX_OFFSET_FRACTION} of a "
                             f"cell, got {max_shift}")

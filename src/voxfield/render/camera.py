@@ -230,6 +230,7 @@ def top_down_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float =
     """The EA thesis's setup (§5.1.1): centred above the map, looking straight down, placed so
     the 90° frustum just spans the map's horizontal extent at the ground. A scene taller than
     that (an object, not a map) is framed at its top instead, so the eye is never inside it."""
+    _check_fov(fov_deg)  # before it divides: fov 0 leaked NumPy's divide warning
     lo, hi = _box(bounds_min, bounds_max)
     c = (lo + hi) / 2.0
     half_extent = max(hi[0] - lo[0], hi[2] - lo[2]) / 2.0
@@ -242,6 +243,7 @@ def top_down_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float =
 def oblique_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 90.0,
                    elevation_deg: float = 45.0) -> Camera:
     """Looking at the map centre from the south at the given elevation (45° by default)."""
+    _check_fov(fov_deg)  # before it divides: fov 0 leaked NumPy's divide warning
     lo, hi = _box(bounds_min, bounds_max)
     c = (lo + hi) / 2.0
     half_extent = max(hi[0] - lo[0], hi[2] - lo[2]) / 2.0
@@ -254,6 +256,7 @@ def oblique_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 
 def orbit_camera(bounds_min, bounds_max, *, size: int = 512, fov_deg: float = 45.0,
                  azimuth_deg: float = 35.0, elevation_deg: float = 30.0) -> Camera:
     """A three-quarter view framing a box, for demos and quick looks."""
+    _check_fov(fov_deg)  # before it divides: fov 0 leaked NumPy's divide warning
     lo, hi = _box(bounds_min, bounds_max)
     center = (lo + hi) / 2.0
     radius = float(np.linalg.norm(hi - lo)) / 2.0

@@ -165,6 +165,11 @@ def compose(
     """
     if not parts:
         raise VoxfieldError("compose needs at least one scene")
+    for index, part in enumerate(parts):  # a bare scene failed to unpack, a TypeError
+        if not (isinstance(part, tuple | list) and len(part) == 2
+                and isinstance(part[0], VoxelScene)):
+            raise VoxfieldError(f"compose takes (scene, offset) pairs; part {index} is "
+                                f"{type(part).__name__}")
     moved = [scene.translated(offset) for scene, offset in parts]
     any_emission = any(s.emission is not None for s in moved)
     shared_channels = set(moved[0].channels)
