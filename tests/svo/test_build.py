@@ -97,10 +97,15 @@ def test_bad_scenes_are_rejected():
     dup = VoxelScene(np.array([[1, 1, 1], [1, 1, 1]]), np.ones((2, 3)))
     with pytest.raises(VoxfieldError, match="duplicate"):
         build_octree(dup)
-    # A channel named for the albedo or the emission replaced it without a word.
+    # A channel named for the albedo or the emission replaced it without a word: the
+    # scene refuses it when made (and the build a scene that slips past that).
     for name, words in (("color", "is the albedo"), ("emission", "is the emission")):
+        with pytest.raises(VoxfieldError, match=words):
+            VoxelScene(np.array([[0, 0, 0]]), np.full((1, 3), 0.5),
+                       emission=np.zeros((1, 3)), channels={name: np.ones((1, 3))})
         scene = VoxelScene(np.array([[0, 0, 0]]), np.full((1, 3), 0.5),
-                           emission=np.zeros((1, 3)), channels={name: np.ones((1, 3))})
+                           emission=np.zeros((1, 3)), channels={"fine": np.ones((1, 3))})
+        object.__setattr__(scene, "channels", {name: scene.channels["fine"]})
         with pytest.raises(VoxfieldError, match=words):
             build_octree(scene)
 

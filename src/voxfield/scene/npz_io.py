@@ -34,8 +34,7 @@ def load_scene_npz(path: str | os.PathLike) -> VoxelScene:
                 raise SceneFormatError(f"{path}: a voxel-scene .npz needs 'coords' and 'color'")
             emission = data["emission"] if "emission" in data else None
             prefix = "channel_"
-            channels = {_channel_name(path, k[len(prefix):]): data[k]
-                        for k in data.files if k.startswith(prefix)}
+            channels = {k[len(prefix):]: data[k] for k in data.files if k.startswith(prefix)}
             scene = VoxelScene(data["coords"], data["color"], emission, channels, path.stem)
     except SceneFormatError:
         raise
@@ -44,18 +43,6 @@ def load_scene_npz(path: str | os.PathLike) -> VoxelScene:
     except Exception as exc:  # noqa: BLE001 - zip/zlib fail in many ways on a bad file
         raise SceneFormatError(f"{path}: unreadable voxel-scene file ({exc})") from exc
     return _one_voxel_per_position(scene, path)
-
-
-def _channel_name(path: Path, name: str) -> str:
-    """``name`` if an octree can keep it as a channel: checked here, so the file is named,
-    where the build found it later and named only the channel."""
-    # Deferred: voxfield.svo imports the scene loaders, and so this module.
-    from voxfield.svo.channels import check_channel_name
-
-    try:
-        return check_channel_name(name)
-    except VoxfieldError as exc:
-        raise SceneFormatError(f"{path}: array 'channel_{name}': {exc}") from None
 
 
 def _one_voxel_per_position(scene: VoxelScene, path: Path) -> VoxelScene:

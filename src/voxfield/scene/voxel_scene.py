@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
@@ -15,6 +16,25 @@ MAX_EXTENT = 1 << 21
 #: Largest voxel coordinate either way: differences and extents of coordinates this far
 #: from the origin still fit int64 (beyond it they wrapped round and built a wrong octree).
 MAX_COORDINATE = 1 << 61
+
+
+#: Channel names become ``attr_NAME`` keys in octree files and file-name parts of previews.
+_CHANNEL_NAME = re.compile(r"[A-Za-z0-9_-]{1,64}")
+#: Names the octree gives its own colours: a channel so named would replace them.
+_RESERVED = {"color": "the albedo", "albedo": "the albedo", "emission": "the emission"}
+
+
+def check_channel_name(name: str) -> str:
+    """``name`` if it can name a channel, of a scene or an octree; VoxfieldError otherwise.
+    A scene checks its channels' names when made, so a scene file's bad name is met, and
+    named, as the file is read (``scene.npz_io``), not at the octree build."""
+    if not isinstance(name, str) or not _CHANNEL_NAME.fullmatch(name):
+        raise VoxfieldError(
+            f"channel name {name!r} must be 1-64 letters, digits, '_' or '-'"
+        )
+    if name in _RESERVED:
+        raise VoxfieldError(f"channel {name!r} is {_RESERVED[name]}; choose another name")
+    return name
 
 
 @dataclass(frozen=True)
@@ -56,7 +76,8 @@ class VoxelScene:
         if not isinstance(self.channels, Mapping):
             raise VoxfieldError(f"channels must map names to N×3 colours, got "
                                 f"{type(self.channels).__name__}")
-        checked = {k: _checked_rgb(v, n, f"channel {k!r}") for k, v in self.channels.items()}
+        checked = {check_channel_name(k): _checked_rgb(v, n, f"channel {k!r}")
+                   for k, v in self.channels.items()}
         object.__setattr__(self, "channels", checked)
 
     def __len__(self) -> int:

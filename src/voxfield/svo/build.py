@@ -88,8 +88,8 @@ def build_octree(
     if has_repeats(codes):
         # Only a scene made in code gets here: the file readers merge repeats themselves.
         repeats = int(np.count_nonzero(codes[1:] == codes[:-1]))
-        raise VoxfieldError(f"scene {scene.name!r} holds {repeats:,} voxel(s) at positions "
-                            "already taken; its .dedupe() keeps the last at each position")
+        raise VoxfieldError(f"scene {scene.name!r} holds {repeats:,} duplicate voxel(s), at "
+                            "positions already taken; its .dedupe() keeps the last at each")
 
     attributes = {"color": scene.color[order]}
     if scene.emission is not None:

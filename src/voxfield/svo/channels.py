@@ -12,7 +12,6 @@ darken the coarse levels: a node's lit colour is then the colour of its visible 
 
 from __future__ import annotations
 
-import re
 from collections.abc import Sequence
 
 import numpy as np
@@ -20,29 +19,13 @@ import numpy as np
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.colour import FLOAT32, HDR_STORAGES, encode_channel
 from voxfield.kernels.octree_levels import average_children
+from voxfield.scene.voxel_scene import check_channel_name  # the scene's rule, kept
 from voxfield.svo.octree import Octree
 
 __all__ = [
     "check_channel_name", "check_channel_storage", "fill_inner_levels", "new_channel_block",
     "propagate_channel", "with_channel", "with_channel_block", "with_channels",
 ]
-
-#: Channel names become ``attr_NAME`` keys in octree files and file-name parts of previews.
-_NAME = re.compile(r"[A-Za-z0-9_-]{1,64}")
-#: Names the octree gives its own colours: a channel so named would replace them.
-_RESERVED = {"color": "the albedo", "albedo": "the albedo", "emission": "the emission"}
-
-
-def check_channel_name(name: str) -> str:
-    """``name`` if it can name a new channel; VoxfieldError otherwise."""
-    if not isinstance(name, str) or not _NAME.fullmatch(name):
-        raise VoxfieldError(
-            f"channel name {name!r} must be 1-64 letters, digits, '_' or '-'"
-        )
-    if name in _RESERVED:
-        raise VoxfieldError(f"channel {name!r} is {_RESERVED[name]}; choose another name")
-    return name
-
 
 def check_channel_storage(storage: str) -> str:
     """``storage`` if channels can be kept in it (``kernels.colour.HDR_STORAGES``);
