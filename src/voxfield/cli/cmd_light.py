@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import json
 import warnings
+from collections.abc import Sequence
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
@@ -119,7 +120,7 @@ def run(args) -> int:
         ],
         "seed": args.seed,
         "cost": report.as_dict(),
-        **kept_record(args.scene, kept, replaced, out),
+        **kept_record(args.scene, kept, replaced, out, written),
     }
     # The octree file (a gigabyte on a 2048² terrain) is written by a thread while the
     # previews render in memory (writing is mostly the kernel copying pages, which leaves
@@ -129,8 +130,7 @@ def run(args) -> int:
         details["previews"] = {**{path.name: [name] for path, name in
                                   zip(written[2:], channels, strict=False)},
                                written[-1].name: channels}
-    in_place = out.is_file() and Path(args.scene).is_file() and out.samefile(args.scene)
-    stale = stale_previews(out, written, kept if in_place else [])
+    stale = stale_previews(out, written, kept if _in_place(args.scene, out) else [])
     if stale:
         details["stale_previews"] = [path.name for path in stale]
     with atomic_paths(written) as staged, ThreadPoolExecutor(1) as writer:
@@ -172,22 +172,34 @@ def read_record(octree_path: Path) -> dict | None:
     return record
 
 
-def _own_previews(bake: dict, out: Path) -> dict:
-    """A bake's ``previews`` entry, kept only where the bake wrote them beside ``out``."""
-    octree = bake.get("octree")
-    if isinstance(octree, str) and Path(octree).name == out.name and "previews" in bake:
-        return {"previews": bake["previews"]}
-    return {}
+def _own_previews(bake: dict, out: Path, kept: list[str], written: Sequence[Path]) -> dict:
+    """A bake's ``previews`` entry, kept only where the bake wrote them beside ``out``, and
+    only the files that still show it: still there, not written again by this bake, and
+    showing only channels of it that ``out`` keeps (``kept``). Kept whole, the entry named
+    files this bake overwrote (the sheet, now of its suns) or that were gone; the dropped
+    files still there are named in ``stale_previews``. Empty: none of its previews is
+    left."""
+    octree, previews = bake.get("octree"), bake.get("previews")
+    if not (isinstance(octree, str) and Path(octree).name == out.name
+            and isinstance(previews, dict)):
+        return {}
+    return {"previews": {
+        name: shows for name, shows in previews.items()
+        if isinstance(name, str) and name and Path(name).name == name
+        and out.with_name(name) not in written and out.with_name(name).is_file()
+        and isinstance(shows, list) and set(shows) <= set(kept)}}
 
 
-def kept_record(scene: str, kept: list[str], replaced: list[str], out: Path) -> dict:
+def kept_record(scene: str, kept: list[str], replaced: list[str], out: Path,
+                written: Sequence[Path] = ()) -> dict:
     """What the record of a bake over a lit octree adds for the channels it keeps: the
     earlier bakes that made them (from the JSON beside the octree, newest first, each
     with only the suns whose channels are kept: its seed and rays made them), the kept
     channels no record names, and the channels this bake replaced. A record that listed
     only the new suns lost the suns behind the kept channels. A note names kept channels
     of a lit octree whose suns are not on record; a voxel scene's own channels, which no
-    sun made, are listed as ``scene_channels``."""
+    sun made, are listed as ``scene_channels``. ``written``: the files this bake writes,
+    whose earlier contents no earlier bake's ``previews`` may name."""
     extra: dict = {"replaced": replaced} if replaced else {}
     if not kept:
         return extra
@@ -195,7 +207,8 @@ def kept_record(scene: str, kept: list[str], replaced: list[str], out: Path) -> 
         return {**extra, "scene_channels": kept}
     record = read_record(Path(scene)) or {}
     # Previews are files beside the octree a bake wrote: those of another octree's bakes
-    # are not this one's to judge (they stay true of that octree).
+    # are not this one's to judge (they stay true of that octree, and lie beside it).
+    here = _in_place(scene, out)
     bakes = [{k: v for k, v in record.items()
               if k not in ("earlier_bakes", "unrecorded_channels", "replaced",
                            "stale_previews")},
@@ -208,7 +221,9 @@ def kept_record(scene: str, kept: list[str], replaced: list[str], out: Path) -> 
         unclaimed -= {s["name"] for s in suns}
         if suns:
             earlier.append({**{k: v for k, v in bake.items() if k != "previews"},
-                            "suns": suns, **_own_previews(bake, out)})
+                            "suns": suns,
+                            **(_own_previews(bake, out, [s["name"] for s in suns], written)
+                               if here else {})})
     if earlier:
         extra["earlier_bakes"] = earlier
     if unclaimed:
@@ -256,6 +271,12 @@ def stale_previews(out: Path, written: list[Path], kept: list[str]) -> list[Path
         if path.is_file() and path not in written:
             stale[path] = None
     return sorted(stale)
+
+
+def _in_place(scene: str, out: Path) -> bool:
+    """Whether ``out`` is the scene's own file: an octree lit again in place, whose record
+    and previews lie beside it."""
+    return out.is_file() and Path(scene).is_file() and out.samefile(scene)
 
 
 def _replaceable(scene: str) -> str | None:

@@ -339,6 +339,7 @@ def run_lighting(args) -> int:
     octree = open_octree(args)
     view = study_camera(args, octree)  # before a bake: the geometry is the same after it
     channels = list(args.channels) if args.channels is not None else None
+    out = args.out or default_output("lighting", args.scene)
     if len(lighting_channels(octree)) < 2:
         if channels is not None:  # refused after the bake, minutes in, before
             baked = sorted({*octree.channel_names, *(sun.name for sun in suns)})
@@ -347,6 +348,8 @@ def run_lighting(args) -> int:
                 raise VoxfieldError(f"--channels {','.join(unknown)}: the scene has no such "
                                     f"channel, nor does the study bake one; it will have "
                                     f"{', '.join(baked)}")
+        # The folder's checks, before the bake: they came after it, in the study.
+        StudyFolder(out, study="study lighting", fresh=args.fresh, scheduler=args.scheduler)
         octree, _ = bake_sun_lighting(octree, suns, seed=args.seed, progress=not args.quiet,
                                       scheduler=args.scheduler)
     elif args.times is not None:
@@ -355,7 +358,6 @@ def run_lighting(args) -> int:
                      f"channels ({', '.join(lighting_channels(octree)[1:])})")
     for name in channels or lighting_channels(octree):
         check_measured_channel(octree, name)
-    out = args.out or default_output("lighting", args.scene)
     report = run_lighting_study(
         octree, view, out, channels=channels, threshold=args.threshold, decay=args.decay,
         base_lod=args.base_lod, bright_ratio=args.bright_ratio, seed=args.seed,

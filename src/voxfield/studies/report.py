@@ -123,6 +123,23 @@ STUDY_MARK = "study.json"
 #: Where a run's report files wait until ``publish_report`` moves them into the folder.
 STAGING = ".report-in-progress"
 
+#: The report files every study writes, whatever it studies.
+REPORT_FILES = ("results.json", "results.md", REPORT_NAME)
+
+#: The figures each study (``StudyFolder``'s ``study``) writes on every run, under names of
+#: its own: a folder in the way of one is refused with the report files.
+STUDY_FIGURES = {
+    "study thresholds": ("thresholds.png", "view.png"),
+    "study resolution": ("resolution.png", "view.png"),
+    "study lighting": ("lighting.png", "contact_sheet.png"),
+    "study curves": ("curves.png", "view.png"),
+    "study probes": ("fetches_vs_resolution.png", "probe_count.png", "orderings.png",
+                     "contact_sheet.png"),
+    "sweep": ("sweep.png", "view.png"),
+    "compare": ("contact_sheet.png",),
+    "shadows": ("contact_sheet.png",),
+}
+
 
 class StudyFolder:
     """The folder a study writes; ``computed`` and ``reused`` name the items of this run.
@@ -146,6 +163,7 @@ class StudyFolder:
         if self._held is not None and self._held != study:
             raise VoxfieldError(f"{self.root} holds the results of `voxfield {self._held}`; "
                                 f"give `voxfield {study}` another --out (one study per folder)")
+        self._check_outputs()
         check_scheduler(scheduler)
         self.items_dir = self.root / "items"
         self.fresh = fresh
@@ -156,6 +174,19 @@ class StudyFolder:
         self.reused: list[str] = []
         self._written: set[Path] = set()  # items this run wrote (trusted even when fresh)
         self._staged: set[str] = set()  # report files of this run, not yet published
+
+    def _check_outputs(self) -> None:
+        """Refuse now, as ``check_writable`` does any output, what met the outputs only
+        after the work: a folder named like a report file or figure, which
+        ``publish_report`` cannot replace (every render ran, then the study failed), or a
+        file where the item cache or the staging folder goes (the first item failed once
+        computed)."""
+        if not self.root.is_dir():
+            return  # made by the first output: nothing in it can be in the way
+        for name in (*REPORT_FILES, *STUDY_FIGURES.get(self.study, ())):
+            check_writable(self.root / name)
+        check_writable(self.root / "items" / "item.json")
+        check_writable(self.root / STAGING / REPORT_NAME)
 
     def path(self, name: str) -> Path:
         """Where report file ``name`` lies once published."""
