@@ -11,13 +11,15 @@ from __future__ import annotations
 
 import math
 import numbers
+import os
+from pathlib import Path
 
 import numpy as np
 
 from voxfield.errors import VoxfieldError
 
-__all__ = ["MAX_SEED", "integer_in", "is_integer", "is_real", "ray_arrays", "real_number",
-           "seed_value"]
+__all__ = ["MAX_SEED", "integer_in", "is_integer", "is_real", "path_value", "ray_arrays",
+           "real_number", "seed_value"]
 
 #: Seeds are hashed as 32-bit words: 0..MAX_SEED.
 MAX_SEED = 2**32 - 1
@@ -87,6 +89,14 @@ def ray_arrays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
 
 def _writable(array: np.ndarray) -> np.ndarray:
     return array if array.flags.writeable else array.copy()
+
+
+def path_value(value, what: str) -> Path:
+    """A file or folder path (``str`` or ``os.PathLike``) as a ``Path``: ``None`` or a number
+    failed inside ``pathlib`` with Python's TypeError."""
+    if not isinstance(value, str | os.PathLike) or value == "":
+        raise VoxfieldError(f"{what} must be a path (str or os.PathLike), got {value!r}")
+    return Path(value)
 
 
 def seed_value(value) -> int:

@@ -248,3 +248,31 @@ def test_render_looks_at_a_terrain_from_above_and_at_anything_else_from_the_side
                          "--renderer", "lod", "--lod", "0", *camera, "--out", str(out)]) == 0
             images.append(np.asarray(Image.open(out)))
         assert np.array_equal(*images), scene
+
+
+def test_errors_build_without_out_says_it_replaces_the_packaged_table(tmp_path, capsys,
+                                                                      monkeypatch):
+    """A trial build without --out replaced the table every error-aware render reads
+    without a word; the packaged table is stood in for by a temporary file here."""
+    from voxfield.cli import cmd_errors
+
+    shipped = tmp_path / "shipped.npz"
+    monkeypatch.setattr(cmd_errors, "DEFAULT_TABLE", shipped)
+    assert main(["errors", "build", "--directions", "16", "--resolution", "16",
+                 "--oct-resolution", "8", "--quiet"]) == 0
+    err = capsys.readouterr().err
+    assert err.startswith(f"voxfield: note: no --out: the table built replaces the one "
+                          f"voxfield ships ({shipped})") and shipped.is_file()
+    assert main(["errors", "build", "--directions", "16", "--resolution", "16",
+                 "--oct-resolution", "8", "--quiet", "--out", str(tmp_path / "t.npz")]) == 0
+    assert capsys.readouterr().err == ""
+
+
+def test_errors_build_quiet_still_prints_the_report_it_was_asked_for(tmp_path, capsys):
+    """``--quiet --report`` printed nothing: the fit report sat under ``not --quiet``."""
+    assert main(["errors", "build", "--directions", "16", "--resolution", "16",
+                 "--oct-resolution", "8", "--quiet", "--report",
+                 "--out", str(tmp_path / "t.npz")]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("fit against ") and "sh" in out and "oct" in out
+    assert "wrote" not in out  # the quiet part stays quiet

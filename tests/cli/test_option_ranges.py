@@ -350,3 +350,22 @@ def test_a_resolution_study_too_large_for_the_machine_is_refused_before_its_scen
                  "--out", str(tmp_path / "out")]) == 2
     message = one_error_line(capsys)
     assert message.startswith("voxfield: error: --sizes 4096: a 4096×4096 render needs"), message
+
+
+def test_a_probe_study_too_large_for_the_machine_is_refused_before_its_bakes(
+        tmp_path, capsys, monkeypatch):
+    """A 200³ probe-count grid baked until the machine killed the study for memory, without
+    a word; ``bake`` refused the same grid in two seconds. On a machine said to hold 2 GiB,
+    40³ probes of 32² texels (about 3 GiB finished) are refused."""
+    from voxfield import memory
+    from voxfield.studies import probe_study
+
+    monkeypatch.setattr(memory, "physical_memory", lambda: 2 * 2**30)
+    monkeypatch.setattr(probe_study, "bake_probes", None)  # must not be reached
+    out = tmp_path / "study"
+    assert main(["study", "probes", "builtin:pillars", "--resolutions", "8,16",
+                 "--probe-counts", "2x2x2,40x40x40", "--count-resolution", "32",
+                 "--size", "16", "--quiet", "--out", str(out)]) == 2
+    assert one_error_line(capsys).startswith(
+        "voxfield: error: 64,000 probes of 32² texels: assembling the finished set")
+    assert not out.exists()

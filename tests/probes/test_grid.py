@@ -266,6 +266,13 @@ def test_relocate_names_what_it_was_given_instead(block, which):
         relocate(*args)
 
 
+@pytest.mark.parametrize("rays", [5, 4097, 10**7, 64.5, "64"])
+def test_relocate_refuses_a_ray_count_it_cannot_hold(block, rays):
+    """Ten million rays a probe were held at once and the process was killed for memory."""
+    with pytest.raises(VoxfieldError, match=r"relocation takes 6\.\.4096 rays per probe"):
+        relocate(_single_probe((30.0, 25.0, 8.0)), block, rays=rays)
+
+
 def test_probe_in_open_space_is_untouched(block):
     grid = _single_probe((30.0, 25.0, 8.0))
     out, report = relocate(grid, block)

@@ -322,3 +322,26 @@ def test_a_position_that_is_not_three_numbers_is_a_header_error(tmp_path, octree
     (tmp_path / "probes.json").write_text(json.dumps(header))
     with pytest.raises(ProbeHeaderError, match="probe 2's position .* is not three finite"):
         open_probe_set(tmp_path)
+
+
+@pytest.mark.parametrize("call", ["open", "bake", "probe"])
+def test_the_entry_points_name_a_path_or_octree_of_the_wrong_kind(call, tmp_path):
+    """``open_probe_set(None)`` and ``bake_to_folder(..., None)`` raised pathlib's
+    TypeError, ``bake_probe(None, ...)`` an AttributeError from inside."""
+    from voxfield.probes import open_probe_set
+    from voxfield.probes.probe_set import BakeOptions
+    from voxfield.scene.builtin import builtin_scene
+    from voxfield.svo import build_octree
+
+    octree = build_octree(builtin_scene("sphere"))
+    options = BakeOptions(resolution=8)
+    grid = ProbeGrid(origin=np.zeros(3), spacing=np.ones(3), counts=(1, 1, 1))
+    attempt, words = {
+        "open": (lambda: open_probe_set(None), "probe-set folder must be a path"),
+        "bake": (lambda: bake_to_folder(octree, grid, options, 3),
+                 "probe-set folder must be a path"),
+        "probe": (lambda: bake_probe(None, (1.0, 1.0, 1.0), options), "needs a voxfield Octree"),
+    }[call]
+    with pytest.raises(VoxfieldError, match=words):
+        attempt()
+    assert list(tmp_path.iterdir()) == []

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -112,7 +113,12 @@ def register(subparsers) -> None:
 
 def _table_output(out: str | None, default: Path) -> Path:
     """Where a built table goes: an ``.npz`` archive, whatever ``--out`` names (checked
-    before the ray casts, which take minutes)."""
+    before the ray casts, which take minutes). Without ``--out`` it is the packaged table,
+    said before the build: a quick trial build replaced, without a word, the table every
+    error-aware render reads."""
+    if not out:
+        warnings.warn(f"no --out: the table built replaces the one voxfield ships ({default}), "
+                      "which every error-aware render reads; give --out to keep it", stacklevel=2)
     return output_named(out if out else default, ".npz", "an error table")
 
 
@@ -129,8 +135,8 @@ def run_build(args) -> int:
         p = table.params
         print(f"256 masks × {p['n_directions']} directions (+ {p['oct_resolution']}² octahedral "
               f"texels) at {p['resolution']}² rays in {seconds:.1f} s; wrote {out}")
-        if args.report:
-            _print_fit_report(fit_report(table))
+    if args.report:  # asked for by name: --quiet silences the progress, not the report
+        _print_fit_report(fit_report(table))
     return 0
 
 

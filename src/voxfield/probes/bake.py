@@ -33,7 +33,7 @@ from voxfield.render.camera import MAX_IMAGE_SIDE, Camera, cube_cameras
 from voxfield.render.primary import render_lod
 from voxfield.render.registry import render, renderer_options
 from voxfield.render.result import RenderResult
-from voxfield.svo.octree import Octree
+from voxfield.svo.octree import Octree, check_octree
 
 
 def warm_up(octree: Octree, position, options: BakeOptions, *,
@@ -157,6 +157,7 @@ def export_cube_faces(probe_set: ProbeSet, octree: Octree, probe: int, size: int
 def check_bake_options(octree: Octree, options: BakeOptions) -> None:
     """Refuse options this octree cannot bake (a LOD deeper than it goes, a channel it
     lacks) in one line, before anything is traced or written."""
+    check_octree(octree, "a probe bake")
     if not isinstance(options, BakeOptions):
         raise VoxfieldError(f"bake options must be BakeOptions, got {type(options).__name__}")
     if options.lod is not None and options.lod > octree.depth:

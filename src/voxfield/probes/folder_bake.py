@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from voxfield.checks import spoken_list
+from voxfield.checks import path_value, spoken_list
 from voxfield.json_output import to_json
 from voxfield.memory import check_fits_in_memory
 from voxfield.probes.bake import check_bake_options
@@ -53,7 +53,7 @@ def check_finish_memory(count: int, resolution: int) -> None:
 def checked_folder_path(out) -> Path:
     """``out`` as a probe folder's path, refused where a file stands there or where a
     folder holds other files (``check_bake_folder``)."""
-    folder = Path(out)
+    folder = path_value(out, "a probe-set folder")
     if folder.exists() and not folder.is_dir():
         raise ProbeStorageError(f"{folder} exists and is not a folder; pick another --out")
     check_bake_folder(folder)

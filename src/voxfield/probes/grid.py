@@ -15,7 +15,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from voxfield.checks import seed_value
+from voxfield.checks import is_integer, seed_value
 from voxfield.errors import VoxfieldError
 from voxfield.render.ray_query import trace
 from voxfield.svo.octree import Octree, check_octree
@@ -644,6 +644,11 @@ def _clearance_moves(octree: Octree, occupancy: _VoxelOccupancy, points: np.ndar
     return per_face @ _FACE_NORMALS, hit.any(axis=1)
 
 
+#: Most directions ``relocate`` casts from a probe: DDGI uses tens to a few hundred; ten
+#: million held every probe's rays at once and was killed for memory.
+MAX_RELOCATION_RAYS = 4096
+
+
 def relocate(
     grid: ProbeGrid, octree: Octree, *, max_shift: float = 0.45, clearance: float | None = None,
     rays: int = 64, iterations: int = 6, seed: int = 0,
@@ -670,8 +675,9 @@ def relocate(
         clearance = DEFAULT_CLEARANCE_FRACTION * float(grid.spacing.min())
     if not (math.isfinite(clearance) and clearance >= 0):
         raise VoxfieldError(f"clearance must be a distance >= 0 in voxels, got {clearance}")
-    if int(rays) != rays or rays < 6:
-        raise VoxfieldError(f"relocation needs at least 6 rays per probe, got {rays}")
+    if not is_integer(rays) or not 6 <= rays <= MAX_RELOCATION_RAYS:
+        raise VoxfieldError(f"relocation takes 6..{MAX_RELOCATION_RAYS} rays per probe, got "
+                            f"{rays!r}")
     if int(iterations) != iterations or iterations < 1:
         raise VoxfieldError(f"relocation needs at least one iteration, got {iterations}")
     occupancy = voxel_occupancy(octree)

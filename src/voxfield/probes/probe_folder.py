@@ -59,6 +59,7 @@ import numpy as np
 
 from voxfield.array_files import load_arrays
 from voxfield.atomic import atomic_path
+from voxfield.checks import path_value
 from voxfield.errors import VoxfieldError
 from voxfield.fingerprint import array_fingerprint
 from voxfield.json_output import to_json
@@ -370,7 +371,7 @@ def open_probe_set(path: str | os.PathLike):
     missing, corrupt or mismatched probe file, each saying how to recover.
     """
 
-    folder = Path(path)
+    folder = path_value(path, "a probe-set folder")
     header = read_header(folder)
     grid = header_grid(folder, header)
     try:

@@ -51,6 +51,7 @@ from voxfield.lightfield.trace import checked_options
 from voxfield.metrics import compare_images
 from voxfield.probes.bake import bake_probes, warm_up
 from voxfield.probes.distributed import bake_probes_dask
+from voxfield.probes.folder_bake import check_finish_memory
 from voxfield.probes.grid import (
     DEFAULT_CLEARANCE_FRACTION,
     ProbeGrid,
@@ -246,9 +247,24 @@ def _checked_plan(camera, grid_counts, resolutions, probe_counts, orderings, mar
                 raise VoxfieldError(f"unknown {name} {v!r}; choose from {', '.join(known)}")
     if not is_integer(timing_repeats) or timing_repeats < 1:
         raise VoxfieldError(f"timing repeats must be an integer >= 1, got {timing_repeats!r}")
-    return {"grid": grid_spec(grid_counts), "resolutions": resolutions,
+    grid = grid_spec(grid_counts)
+    # Before any bake, as ``bake`` refuses it: a 200³ probe-count grid baked until the
+    # machine killed the study for memory, without a word.
+    check_finish_memory(_probes_in(grid), max(resolutions))
+    for spec in specs:
+        check_finish_memory(_probes_in(spec), int(count_resolution))
+    return {"grid": grid, "resolutions": resolutions,
             "probe_counts": tuple(dict.fromkeys(specs)), "orderings": tuple(orderings),
             "marchers": tuple(marchers), "count_resolution": int(count_resolution)}
+
+
+def _probes_in(spec: str) -> int:
+    """How many probes the grid ``grid_spec`` names: NX·NY·NZ, or NX·NZ in one layer."""
+    surface = surface_spec(spec)
+    if surface is not None:
+        (nx, nz), _ = surface
+        return nx * nz
+    return math.prod(_grid_counts(spec))
 
 
 def _positive_ints(values, what: str) -> list[int]:
