@@ -369,3 +369,12 @@ def test_a_probe_study_too_large_for_the_machine_is_refused_before_its_bakes(
     assert one_error_line(capsys).startswith(
         "voxfield: error: 64,000 probes of 32² texels: assembling the finished set")
     assert not out.exists()
+
+
+@pytest.mark.parametrize("side", ["7", "1", "4096", "8,16"])
+def test_a_probe_study_s_count_resolution_is_checked_by_the_parser(side, tmp_path, capsys):
+    """``--count-resolution 7`` was refused once the scene had loaded; ``--resolutions 7``
+    by the parser, with the bake's rule, which both now share."""
+    err = _refused_by_the_parser(["study", "probes", str(tmp_path / "none.vox"),
+                                  "--count-resolution", side], capsys)
+    assert "--count-resolution" in err and (side in err or "one map side" in err), err

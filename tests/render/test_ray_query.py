@@ -26,3 +26,17 @@ def test_a_hit_s_lod_is_the_one_asked_for_and_its_level_counts_from_the_root(lod
     assert np.all((offsets[level] <= node) & (node < offsets[level + 1]))
     assert np.all(hits.level[hits.hit] == level)
     assert np.all(hits.lod[hits.hit] == lod) and np.all(hits.lod[~hits.hit] == -1)
+
+
+@pytest.mark.parametrize("columns", ["yes", "no", 1, None])
+def test_the_column_switch_takes_true_or_false_alone(columns):
+    """``columns="no"`` walked the pyramid: any non-empty string is true to Python."""
+    from voxfield.errors import VoxfieldError
+    from voxfield.render.ray_query import occluded
+
+    octree = build_octree(pillars(16))
+    rays = (np.array([[3.0, 20.0, 3.0]]), np.array([[0.0, -1.0, 0.0]]))
+    for query in (trace, occluded):
+        with pytest.raises(VoxfieldError, match="columns must be True or False"):
+            query(octree, *rays, columns=columns)
+    assert trace(octree, *rays, columns=np.bool_(True)).node[0] >= 0  # NumPy's bool is one

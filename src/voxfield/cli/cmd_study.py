@@ -429,9 +429,10 @@ def _register_probes(actions) -> argparse.ArgumentParser:
                    default=DEFAULT_PROBE_COUNTS, metavar="GRIDS",
                    help="comma-separated grids for the probe-count section, each NXxNYxNZ "
                    "or surface:NXxNZ@H (default 1x1x1,2x2x2,3x3x3,4x4x4)")
-    p.add_argument("--count-resolution", type=int, default=None, metavar="R",
-                   help="probe map side of the probe-count and ordering sections (default "
-                   "the largest resolution up to 256)")
+    p.add_argument("--count-resolution", type=probe_map_side, default=None, metavar="R",
+                   help="probe map side of the probe-count and ordering sections, even, "
+                   f"{MIN_RESOLUTION}..{MAX_RESOLUTION} (default the largest resolution up to "
+                   "256)")
     p.add_argument("--marchers", type=name_list, default=MARCHERS,
                    help="comma-separated marchers (default march3d,dda,hierarchical)")
     p.add_argument("--orderings", type=name_list, default=ORDERINGS,
@@ -461,6 +462,15 @@ def probe_map_sides(text: str) -> tuple[int, ...]:
             f"probe map sides must be even, {MIN_RESOLUTION}..{MAX_RESOLUTION}, got "
             f"{','.join(map(str, bad))}")
     return values
+
+
+def probe_map_side(text: str) -> int:
+    """One probe map side, as ``probe_map_sides`` takes them: a side out of range was
+    refused once the scene had loaded."""
+    values = probe_map_sides(text)
+    if len(values) != 1:
+        raise argparse.ArgumentTypeError(f"expected one map side, got {text!r}")
+    return values[0]
 
 
 def grid_list(text: str) -> tuple[str, ...]:
