@@ -163,9 +163,9 @@ class StudyFolder:
         if self._held is not None and self._held != study:
             raise VoxfieldError(f"{self.root} holds the results of `voxfield {self._held}`; "
                                 f"give `voxfield {study}` another --out (one study per folder)")
+        self.items_dir = self.root / "items"
         self._check_outputs()
         check_scheduler(scheduler)
-        self.items_dir = self.root / "items"
         self.fresh = fresh
         #: Where ``batch`` runs independent items (``voxfield.scaleout``; None: one after
         #: another here, each on every core).
@@ -185,7 +185,7 @@ class StudyFolder:
             return  # made by the first output: nothing in it can be in the way
         for name in (*REPORT_FILES, *STUDY_FIGURES.get(self.study, ())):
             check_writable(self.root / name)
-        check_writable(self.root / "items" / "item.json")
+        check_writable(self.items_dir / "item.json")
         check_writable(self.root / STAGING / REPORT_NAME)
 
     def path(self, name: str) -> Path:
