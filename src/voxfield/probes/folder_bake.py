@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from voxfield.checks import path_value, spoken_list
+from voxfield.folder_lock import FolderLock
 from voxfield.json_output import to_json
 from voxfield.memory import check_fits_in_memory
 from voxfield.probes.bake import check_bake_options
@@ -102,66 +103,69 @@ def bake_to_folder(octree, grid, options, out, *, scheduler=None, fresh: bool = 
     check_bake_options(octree, options)
     check_finish_memory(grid.count, options.resolution)
     folder = checked_folder_path(out)
-    channel = getattr(options, "channel", "albedo")
-    header = new_header(grid=grid, options=options,
-                        fingerprint=octree.fingerprint(channel), channel=channel,
-                        scene_name=getattr(octree, "name", "scene"))
-    if source is not None:
-        header["scene"]["source"] = to_json(source, finite=False)
-    if relocation is not None:
-        report = relocation.to_dict() if hasattr(relocation, "to_dict") else dict(relocation)
-        report.pop("offsets", None)  # the grid holds them
-        header["relocation"] = to_json(report, finite=False)
-    if fresh:
-        clear_folder(folder)
-    elif (folder / HEADER_NAME).exists():
-        old = read_header(folder)
-        differs = differences(identity(old), identity(header))
-        if differs:
-            raise ProbeSetMismatchError(
-                f"{folder} holds probes baked {spoken_list(differs)}; use another --out, or "
-                "--fresh to discard them"
-            )
-        header["probes"] = old["probes"]
-    folder.mkdir(parents=True, exist_ok=True)
+    # One bake writes a folder at a time: another one's --fresh or header would undo it.
+    with FolderLock(folder, "probe bake") as claim:
+        claim.take()  # a folder that exists is claimed before it is read or cleared
+        channel = getattr(options, "channel", "albedo")
+        header = new_header(grid=grid, options=options,
+                            fingerprint=octree.fingerprint(channel), channel=channel,
+                            scene_name=getattr(octree, "name", "scene"))
+        if source is not None:
+            header["scene"]["source"] = to_json(source, finite=False)
+        if relocation is not None:
+            report = relocation.to_dict() if hasattr(relocation, "to_dict") else dict(relocation)
+            report.pop("offsets", None)  # the grid holds them
+            header["relocation"] = to_json(report, finite=False)
+        if fresh:
+            clear_folder(folder)
+        elif (folder / HEADER_NAME).exists():
+            old = read_header(folder)
+            differs = differences(identity(old), identity(header))
+            if differs:
+                raise ProbeSetMismatchError(
+                    f"{folder} holds probes baked {spoken_list(differs)}; use another --out, or "
+                    "--fresh to discard them"
+                )
+            header["probes"] = old["probes"]
+        claim.take(make=True)  # a new folder is claimed as it is made
 
-    positions = grid.positions
-    reconcile_probes(folder, header, positions)
-    done = verified_probes(folder, header, positions)
-    header["probes"] = {str(i): header["probes"][str(i)] for i in sorted(done)}
-    enabled = np.asarray(grid.enabled, bool).reshape(-1)
-    todo = [i for i in range(grid.count) if enabled[i] and i not in done]
-    header["complete"] = False
-    header.pop("atlas", None)
-    header["last_run"] = {"baked": 0, "reused": len(done),  # counted up as probes are stored
-                          "scheduler": _scheduler_name(scheduler)}
-    write_header(folder, header)
-
-    last_flush = time.monotonic()
-
-    def store(index: int, maps) -> None:
-        nonlocal last_flush
-        header["probes"][str(index)] = write_probe(folder, index, maps, positions[index])
-        # what the run did so far, not what it set out to do: a killed run's header says so
-        header["last_run"]["baked"] = len(header["probes"]) - len(done)
-        if time.monotonic() - last_flush >= HEADER_FLUSH_SECONDS:
-            write_header(folder, header)
-            last_flush = time.monotonic()
-
-    try:
-        bake_each(octree, grid, options, todo, store, scheduler=scheduler, progress=progress,
-                  baker=baker, resumes=True)
-    finally:
-        # Whatever finished before an error or Ctrl-C is kept for the next run.
+        positions = grid.positions
+        reconcile_probes(folder, header, positions)
+        done = verified_probes(folder, header, positions)
+        header["probes"] = {str(i): header["probes"][str(i)] for i in sorted(done)}
+        enabled = np.asarray(grid.enabled, bool).reshape(-1)
+        todo = [i for i in range(grid.count) if enabled[i] and i not in done]
+        header["complete"] = False
+        header.pop("atlas", None)
+        header["last_run"] = {"baked": 0, "reused": len(done),  # counted up as probes are stored
+                              "scheduler": _scheduler_name(scheduler)}
         write_header(folder, header)
 
-    probe_set = open_probe_set(folder)
-    header["atlas"] = write_atlases(folder, probe_set.radiance, probe_set.distance,
-                                    probe_set.normal)
-    header["complete"] = True
-    header["last_run"]["wall_seconds"] = time.perf_counter() - started
-    write_header(folder, header)
-    return probe_set
+        last_flush = time.monotonic()
+
+        def store(index: int, maps) -> None:
+            nonlocal last_flush
+            header["probes"][str(index)] = write_probe(folder, index, maps, positions[index])
+            # what the run did so far, not what it set out to do: a killed run's header says so
+            header["last_run"]["baked"] = len(header["probes"]) - len(done)
+            if time.monotonic() - last_flush >= HEADER_FLUSH_SECONDS:
+                write_header(folder, header)
+                last_flush = time.monotonic()
+
+        try:
+            bake_each(octree, grid, options, todo, store, scheduler=scheduler, progress=progress,
+                      baker=baker, resumes=True)
+        finally:
+            # Whatever finished before an error or Ctrl-C is kept for the next run.
+            write_header(folder, header)
+
+        probe_set = open_probe_set(folder)
+        header["atlas"] = write_atlases(folder, probe_set.radiance, probe_set.distance,
+                                        probe_set.normal)
+        header["complete"] = True
+        header["last_run"]["wall_seconds"] = time.perf_counter() - started
+        write_header(folder, header)
+        return probe_set
 
 
 def _scheduler_name(scheduler) -> str:
