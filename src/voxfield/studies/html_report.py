@@ -15,7 +15,9 @@ import io
 import json
 import re
 import warnings
+from collections.abc import Iterable, Sequence
 from pathlib import Path
+from urllib.parse import quote
 
 import numpy as np
 from PIL import Image
@@ -29,19 +31,24 @@ REPORT_NAME = "report.html"
 DIFFERENCE_GAIN = 16
 
 
-def write_html_report(folder: str | Path) -> Path:
-    """Write ``FOLDER/report.html`` from the folder's results; returns its path."""
+def write_html_report(folder: str | Path, *, expected: Iterable[str] = ()) -> Path:
+    """Write ``FOLDER/report.html`` from the folder's results; returns its path.
+
+    ``expected`` names figures the folder should hold (those its study always draws, or its
+    last report showed): one that is missing is a note, and a card on the page that says
+    so, where it was left out without a word."""
     folder = Path(folder)
-    html = render_report(folder)
+    html = render_report(folder, expected=expected)
     path = folder / REPORT_NAME
     with atomic_path(path) as tmp:
         tmp.write_text(html, encoding="utf-8")
     return path
 
 
-def render_report(folder: Path) -> str:
-    """The page's HTML text for a study folder."""
+def render_report(folder: Path, *, expected: Iterable[str] = ()) -> str:
+    """The page's HTML text for a study folder (``expected``: as ``write_html_report``)."""
     results = _read_results(folder)
+    _check_fields(folder / "results.json", results)
     entries = results.get("comparisons")
     if entries is None:
         entries = []
@@ -50,26 +57,82 @@ def render_report(folder: Path) -> str:
                             f"{_kind(entries)}, not a list of comparisons")
     comparisons = [_comparison(folder, entry) for entry in entries]
     used = {name for c in comparisons for name in c.pop("files")}
-    text, embedded = _embedded_images(folder, _read_markdown(folder / "results.md"))
+    markdown = _read_markdown(folder / "results.md")
+    text, embedded, shown_missing = _embedded_images(folder, markdown)
     used |= embedded
     figures = [p for p in _figures(folder) if p.name not in used]
+    named = {*_named_images(folder, results), *expected} - used - set(shown_missing)
+    missing = _missing_figures(folder, named)
     if not (comparisons or figures or text.strip()):
         # A results.json of {} beside nothing else made a page of a title alone.
+        lost = f" ({', '.join(missing)} missing)" if missing else ""
         raise VoxfieldError(f"{folder}: nothing to report: no comparisons in results.json, no "
-                            "results.md and no PNG figures; run the study (or compare, sweep) "
-                            "into this folder first")
+                            f"results.md and no PNG figures{lost}; run the study (or compare, "
+                            "sweep) into this folder first")
+    _note_left_out(folder, markdown_found=(folder / "results.md").exists(),
+                   shown_missing=shown_missing, missing=missing,
+                   maps=[m for c in comparisons for m in c["missing_maps"]])
     return render_page(title=_title(results), subtitle=_subtitle(results), markdown_text=text,
-                       figures=figures, comparisons=comparisons)
+                       figures=figures, comparisons=comparisons, missing_figures=missing)
+
+
+def _named_images(folder: Path, results: dict) -> list[str]:
+    """The files ``results.json``'s ``images`` names (compare lists every PNG it wrote):
+    the page should show each, so one gone from the folder is missing, not merely absent."""
+    images = results.get("images")
+    if images is None:
+        return []
+    where = folder / "results.json"
+    if not isinstance(images, dict):
+        raise VoxfieldError(f"{where}: \"images\" is {_kind(images)}, not an object of "
+                            "file names")
+    for label, name in images.items():
+        if not isinstance(name, str):
+            raise VoxfieldError(f"{where}: image {label!r} is {_kind(name)}, not a file name")
+    return [_inside(folder, name).name for name in images.values()]
+
+
+def _missing_figures(folder: Path, names: Iterable[str]) -> list[str]:
+    """Of the PNGs the page should show, those the folder lacks, in the figures' order.
+    Only plain names count: an expectation never reads a path outside the folder."""
+    plain = {n for n in names if isinstance(n, str) and n == Path(n).name
+             and n.endswith(".png") and n not in ("", ".", "..")}
+    return sorted((n for n in plain if not (folder / n).is_file()), key=_figure_order)
+
+
+def _note_left_out(folder: Path, *, markdown_found: bool, shown_missing: Sequence[str],
+                   missing: Sequence[str], maps: Sequence[str]) -> None:
+    """One note for each thing the page cannot show, once it is certain to be written: a
+    figure, cost map or the tables gone from the folder made a page that simply lacked
+    them, and nobody could tell a damaged folder from a study that drew less."""
+    if not markdown_found:
+        warnings.warn(f"{folder}: no results.md; the page has no tables", stacklevel=3)
+    if shown_missing:
+        # Deleted figures left broken images in the page without a word.
+        warnings.warn(f"{folder / 'results.md'} shows {', '.join(shown_missing)}, "
+                      "missing from the folder; the page shows a broken image there",
+                      stacklevel=3)
+    if missing:
+        warnings.warn(f"{folder}: {_are_missing(missing)}", stacklevel=3)
+    if maps:
+        warnings.warn(f"{folder}: cost map{'s' if len(maps) > 1 else ''} "
+                      f"{_are_missing(maps)}", stacklevel=3)
+
+
+def _are_missing(names: Sequence[str]) -> str:
+    one = len(names) == 1
+    return (f"{', '.join(names)} {'is' if one else 'are'} missing from the folder; the page "
+            f"marks {'it' if one else 'each'} as missing")
 
 
 #: A Markdown image of a file beside results.md: ``![beam profile](beam_profile.png)``.
 _LOCAL_IMAGE = re.compile(r"!\[([^\]]*)\]\(([\w.-]+\.png)\)")
 
 
-def _embedded_images(folder: Path, text: str) -> tuple[str, set[str]]:
+def _embedded_images(folder: Path, text: str) -> tuple[str, set[str], list[str]]:
     """``text`` with its images of the folder's PNGs as data URIs, where they stand (a
-    relative link breaks once the page is mailed), and the names so embedded, which the
-    figures after it then leave out."""
+    relative link breaks once the page is mailed), the names so embedded, which the
+    figures after it then leave out, and those it shows that the folder lacks."""
     embedded: set[str] = set()
     missing: list[str] = []
 
@@ -84,24 +147,23 @@ def _embedded_images(folder: Path, text: str) -> tuple[str, set[str]]:
         return f"![{match.group(1)}]({data_uri(path)})"
 
     text = _LOCAL_IMAGE.sub(embed, text)
-    if missing:
-        # Deleted figures left broken images in the page without a word.
-        warnings.warn(f"{folder / 'results.md'} shows {', '.join(sorted(set(missing)))}, "
-                      "missing from the folder; the page shows a broken image there",
-                      stacklevel=3)
-    return text, embedded
+    return text, embedded, sorted(set(missing))
 
 
 def render_page(*, title: str, subtitle: str, markdown_text: str, figures: list[Path],
-                comparisons: list[dict] = ()) -> str:
+                comparisons: list[dict] = (), missing_figures: Sequence[str] = ()) -> str:
     """One page: comparisons, figures, then the Markdown's tables and notes. A leading
-    ``# heading`` in the Markdown becomes the page title."""
+    ``# heading`` in the Markdown becomes the page title. Each of ``missing_figures`` (file
+    names) stands among the figures as a card that says it is missing."""
     first, _, rest = markdown_text.partition("\n")
     if first.startswith("# "):
         title, markdown_text = first[2:].strip(), rest
+    cards = [(p.name, {"label": _label(p.stem), "src": data_uri(p)}) for p in figures]
+    cards += [(name, _missing_card(_label(Path(name).stem), name)) for name in missing_figures]
+    cards.sort(key=lambda card: _figure_order(card[0]))
     return _template().render(
         title=title, subtitle=subtitle, comparisons=list(comparisons),
-        figures=[{"label": _label(p.stem), "src": data_uri(p)} for p in figures],
+        figures=[card for _, card in cards],
         body=markdown_to_html(markdown_text) if markdown_text.strip() else "",
         difference_gain=DIFFERENCE_GAIN, version=voxfield.__version__,
     )
@@ -119,6 +181,8 @@ def _read_results(folder: Path) -> dict:
     path = folder / "results.json"
     if not folder.is_dir():
         raise VoxfieldError(f"{folder}: no such study folder")
+    if path.exists() and not path.is_file():
+        raise VoxfieldError(f"{path}: a folder, not a voxfield results file")
     if not path.is_file():
         raise VoxfieldError(f"{folder}: no results.json; run the study (or compare, sweep) "
                             "into this folder first")
@@ -134,9 +198,12 @@ def _read_results(folder: Path) -> dict:
 
 
 def _read_markdown(path: Path) -> str:
-    """``results.md``'s text; a folder without one has no tables."""
-    if not path.is_file():
+    """``results.md``'s text; a folder without one has no tables (a folder of that name is
+    refused: it was taken for none, and the page lost its tables without a word)."""
+    if not path.exists():
         return ""
+    if path.is_dir():
+        raise VoxfieldError(f"{path}: a folder, not the study's tables")
     try:
         return path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as exc:
@@ -166,6 +233,43 @@ def _template():
     return env.get_template("report.html.j2")
 
 
+def _check_fields(where: Path, results: dict) -> None:
+    """Refuse the values the title and subtitle show that are of the wrong kind: a scene of
+    ``[1, 2]`` or a study of ``{"a": 1}`` made a page titled with Python's repr of them,
+    and a camera width of ``[1]`` a subtitle of "[1]×?"."""
+    _optional(where, results, "study", str, "a string")
+    scene = results.get("scene")
+    if isinstance(scene, dict):
+        _optional(where, scene, "name", str, "a string", owner="the scene's ")
+        voxels = scene.get("voxels")
+        if voxels is not None and not (_whole(voxels) or isinstance(voxels, str)):
+            raise VoxfieldError(f"{where}: the scene's \"voxels\" is {_kind(voxels)}, not a "
+                                "whole number")
+    elif scene is not None and not isinstance(scene, str):
+        raise VoxfieldError(f"{where}: \"scene\" is {_kind(scene)}, not a name or an object")
+    camera = results.get("camera")
+    if isinstance(camera, dict):
+        for key in ("width", "height"):
+            value = camera.get(key)
+            if value is not None and not (_whole(value) and value > 0):
+                raise VoxfieldError(f"{where}: the camera's \"{key}\" is {_kind(value)}, not "
+                                    "a number of pixels")
+        _optional(where, camera, "label", str, "a string", owner="the camera's ")
+
+
+def _optional(where: Path, record: dict, key: str, kind: type, says: str, *,
+              owner: str = "") -> None:
+    """``record[key]`` is absent, null or of ``kind``; anything else is refused, naming it
+    (``owner``: whose key it is, "the scene's ")."""
+    value = record.get(key)
+    if value is not None and not isinstance(value, kind):
+        raise VoxfieldError(f"{where}: {owner}\"{key}\" is {_kind(value)}, not {says}")
+
+
+def _whole(value) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool)
+
+
 def _title(results: dict) -> str:
     study = str(results.get("study", "study")).replace("_", " ")
     scene = results.get("scene")
@@ -182,9 +286,9 @@ def _subtitle(results: dict) -> str:
         count = f"{voxels:,}" if whole else str(voxels)
         parts.append(f"{count} voxels")
     camera = results.get("camera")
-    if isinstance(camera, dict) and "width" in camera:
-        parts.append(f"{camera['width']}×{camera.get('height', '?')}, camera "
-                     f"{camera.get('label', '')}")
+    if isinstance(camera, dict) and camera.get("width") is not None:
+        parts.append(f"{camera['width']}×{camera.get('height') or '?'}, camera "
+                     f"{camera.get('label') or ''}")
     parts.append(f"voxfield {voxfield.__version__}")
     return " · ".join(parts)
 
@@ -194,7 +298,29 @@ def _figures(folder: Path) -> list[Path]:
     the view measured; one that is not (truncated, or not a PNG at all) is left out with a
     warning, not embedded as a broken image."""
     pngs = [p for p in sorted(folder.glob("*.png")) if _readable_png(p)]
-    return sorted(pngs, key=lambda p: (p.stem != "contact_sheet", p.stem != "view", p.name))
+    return sorted(pngs, key=lambda p: _figure_order(p.name))
+
+
+def _figure_order(name: str) -> tuple:
+    """The figures' order on the page: the contact sheet, the view measured, then by name."""
+    stem = Path(name).stem
+    return stem != "contact_sheet", stem != "view", name
+
+
+def _missing_card(label: str, name: str) -> dict:
+    """A card in place of an image the folder lacks: a grey box that says which file is
+    missing, so the page shows the gap rather than closing over it."""
+    text = f"missing: {name}"
+    svg = ('<svg xmlns="http://www.w3.org/2000/svg" width="320" height="120" '
+           'viewBox="0 0 320 120"><rect width="320" height="120" fill="#eee" '
+           'stroke="#999" stroke-dasharray="6 4"/><text x="160" y="64" font-family="sans-serif" '
+           f'font-size="14" text-anchor="middle" fill="#555">{_svg_text(text)}</text></svg>')
+    return {"label": f"{label} (missing: {name} is not in the folder)",
+            "src": "data:image/svg+xml," + quote(svg), "missing": name}
+
+
+def _svg_text(text: str) -> str:
+    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
 
 def _readable_png(path: Path) -> bool:
@@ -222,28 +348,57 @@ def _comparison(folder: Path, entry: dict) -> dict:
     missing = [key for key in ("name", "image", "reference") if key not in entry]
     if missing:
         raise VoxfieldError(f"{where}: a comparison entry lacks {', '.join(missing)}")
-    name = str(entry["name"])
-    maps = entry.get("maps") or {}
+    name = entry["name"]
+    if not isinstance(name, str):
+        raise VoxfieldError(f"{where}: a comparison's \"name\" is {_kind(name)}, not a string")
+    _check_entry_fields(where, name, entry)
+    maps = entry.get("maps")
+    if maps is None:
+        maps = {}
     if not isinstance(maps, dict):
         raise VoxfieldError(f"{where}: the maps of comparison {name!r} are {_kind(maps)}, "
                             "not an object")
     image_path = _inside(folder, entry["image"])
     reference_path = _inside(folder, entry["reference"])
     maps = {str(label): _inside(folder, file) for label, file in maps.items()}
-    for path in (image_path, reference_path):
+    for key, path in (("image", image_path), ("reference", reference_path)):
         if not path.is_file():
-            raise VoxfieldError(f"{path}: an image the results list is missing")
-    cards = [{"label": f"|Δ| against {entry.get('reference_name', 'reference')}",
+            # The slider, and the difference map, are the comparison: none without both.
+            raise VoxfieldError(f"{path}: the {key} of comparison {name!r} in {where.name} is "
+                                "missing from the folder")
+    reference_name = entry.get("reference_name") or "reference"
+    cards = [{"label": f"|Δ| against {reference_name}",
               "src": png_uri(difference_map(image_path, reference_path))}]
+    missing_maps = []
     for label, path in maps.items():
         if path.is_file():
             cards.append({"label": label, "src": data_uri(path)})
+        else:
+            # A deleted cost map was dropped from the comparison without a word.
+            cards.append(_missing_card(label, path.name))
+            missing_maps.append(path.name)
     return {
         "name": name, "image": data_uri(image_path), "reference": data_uri(reference_path),
-        "reference_name": str(entry.get("reference_name", "reference")),
-        "summary": str(entry.get("summary", "")), "maps": cards,
+        "reference_name": reference_name, "summary": entry.get("summary") or "", "maps": cards,
+        "missing_maps": missing_maps,
         "files": {image_path.name, reference_path.name, *(p.name for p in maps.values())},
     }
+
+
+def _check_entry_fields(where: Path, name: str, entry: dict) -> None:
+    """A comparison's file names and texts are strings: an image of ``5`` was looked for as
+    a file named "5", and a reference name of null shown as "None"."""
+    for key in ("image", "reference"):
+        if not isinstance(entry[key], str):
+            raise VoxfieldError(f"{where}: the {key} of comparison {name!r} is "
+                                f"{_kind(entry[key])}, not a file name")
+    for key in ("reference_name", "summary"):
+        _optional(where, entry, key, str, "a string", owner=f"comparison {name!r}'s ")
+    maps = entry.get("maps")
+    for label, file in maps.items() if isinstance(maps, dict) else ():
+        if not isinstance(file, str):
+            raise VoxfieldError(f"{where}: the map {label!r} of comparison {name!r} is "
+                                f"{_kind(file)}, not a file name")
 
 
 def _kind(value) -> str:

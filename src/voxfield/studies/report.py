@@ -19,6 +19,7 @@ import json
 import math
 import os
 import shutil
+import weakref
 import zipfile
 import zlib
 from collections.abc import Callable, Sequence
@@ -30,6 +31,7 @@ import voxfield
 from voxfield.array_files import load_arrays
 from voxfield.atomic import atomic_path, check_writable, save_figure
 from voxfield.errors import VoxfieldError
+from voxfield.folder_lock import FolderLock
 from voxfield.json_output import json_text, to_json
 from voxfield.metrics import compare_images, psnr_text
 from voxfield.parallel import thread_count
@@ -38,6 +40,7 @@ from voxfield.render.image_io import save_png
 from voxfield.render.result import RenderResult
 from voxfield.scaleout import check_scheduler, run_tasks
 from voxfield.studies.html_report import REPORT_NAME, write_html_report
+from voxfield.studies.study_mark import STUDY_FIGURES, STUDY_MARK, read_study_mark
 
 #: Bump when the cached item layout changes, so old caches are recomputed, not misread.
 CACHE_VERSION = 2
@@ -116,30 +119,11 @@ class _as_value:
         return self.compute(shared), {}
 
 
-#: The file that names the study a folder holds (``StudyFolder``'s ``study``) and the
-#: report files its last published report wrote.
-STUDY_MARK = "study.json"
-
 #: Where a run's report files wait until ``publish_report`` moves them into the folder.
 STAGING = ".report-in-progress"
 
 #: The report files every study writes, whatever it studies.
 REPORT_FILES = ("results.json", "results.md", REPORT_NAME)
-
-#: The figures each study (``StudyFolder``'s ``study``) writes on every run, under names of
-#: its own: a folder in the way of one is refused with the report files.
-STUDY_FIGURES = {
-    "study thresholds": ("thresholds.png", "view.png"),
-    "study resolution": ("resolution.png", "view.png"),
-    "study lighting": ("lighting.png", "contact_sheet.png"),
-    "study curves": ("curves.png", "view.png"),
-    "study probes": ("fetches_vs_resolution.png", "probe_count.png", "orderings.png",
-                     "contact_sheet.png"),
-    "sweep": ("sweep.png", "view.png"),
-    "compare": ("contact_sheet.png",),
-    "shadows": ("contact_sheet.png",),
-}
-
 
 class StudyFolder:
     """The folder a study writes; ``computed`` and ``reused`` name the items of this run.
@@ -166,6 +150,11 @@ class StudyFolder:
         self.items_dir = self.root / "items"
         self._check_outputs()
         check_scheduler(scheduler)
+        # One job writes a folder at a time (``folder_lock``): one that exists is claimed
+        # now, before any work; a new one as it is made. The claim ends with this object.
+        self._lock = FolderLock(self.root, f"voxfield {study}")
+        self._lock.take()
+        weakref.finalize(self, self._lock.release)
         self.fresh = fresh
         #: Where ``batch`` runs independent items (``voxfield.scaleout``; None: one after
         #: another here, each on every core).
@@ -193,13 +182,9 @@ class StudyFolder:
         return self.root / name
 
     def _mark(self) -> dict:
-        """The folder's mark; empty where there is none (a new folder, or one an older
-        voxfield wrote) or it cannot be read (the folder is then claimed anew)."""
-        try:
-            mark = json.loads((self.root / STUDY_MARK).read_text())
-        except (OSError, ValueError):
-            return {}
-        return mark if isinstance(mark, dict) else {}
+        """The folder's mark (``read_study_mark``); a folder whose mark cannot be read is
+        claimed anew."""
+        return read_study_mark(self.root)
 
     def _held_study(self) -> str | None:
         """The study named in the folder's mark; None where there is none."""
@@ -208,6 +193,7 @@ class StudyFolder:
 
     def _claim(self) -> None:
         """The mark written before the folder's first output of this run."""
+        self._lock.take(make=True)
         if self._held != self.study:
             self._write_json_file(self.root / STUDY_MARK, {"study": self.study})
             self._held = self.study
