@@ -403,6 +403,18 @@ def test_packed_probes_refuse_a_grid_or_maps_the_trace_cannot_use(change, messag
         PackedProbes.from_arrays(**arrays)
 
 
+def test_packed_probes_refuse_no_probes_in_plain_words():
+    """Zero probes said "grid counts [1, 1, 1] do not hold 0 probes" (or, with the grid
+    emptied too, "[0, 1, 1]"), which reads as a grid mistake rather than an empty set."""
+    arrays = _probe_arrays()
+    for name in ("positions", "enabled", "radiance", "distance", "normals"):
+        arrays[name] = arrays[name][:0]
+    for counts in ((2, 2, 2), (0, 1, 1)):
+        with pytest.raises(VoxfieldError, match="^a probe set needs at least one probe; "
+                           "got 0 positions$"):
+            PackedProbes.from_arrays(**{**arrays, "grid_counts": counts})
+
+
 def test_per_ray_bounds_and_probe_indices_are_checked(cornell_probe64):
     """A two-value tmin for one ray raised NumPy's broadcasting error; a probe index "1"
     a TypeError."""

@@ -3,6 +3,8 @@ bake, the PNG, cube faces that agree with the octree's own ray cast."""
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pytest
 from PIL import Image
@@ -10,6 +12,7 @@ from PIL import Image
 from voxfield import cli
 from voxfield.errors import VoxfieldError
 from voxfield.probes.probe_folder import open_probe_set
+from voxfield.probes.probe_set import BakeOptions
 
 
 @pytest.fixture
@@ -28,6 +31,42 @@ def test_bake_options_parse(run):
     assert defaults.scheduler == "threads" and defaults.out is None
     args = parser.parse_args(["probes", "show", "folder", "--out", "a.png", "--no-scene"])
     assert (args.folder, args.out, args.no_scene) == ("folder", "a.png", True)
+
+
+DEFAULTS = BakeOptions()
+
+
+@pytest.mark.parametrize(("chosen", "given", "note"), [
+    (["--renderer", "lod"], ["--samples", str(DEFAULTS.samples)],
+     "the lod radiance renderer takes no --samples (for reference); ignored"),
+    (["--renderer", "reference"],
+     ["--threshold", str(DEFAULTS.threshold), "--decay", str(DEFAULTS.decay)],
+     "the reference radiance renderer takes no --threshold (for error-aware), --decay (for "
+     "error-aware); ignored"),
+    (["--renderer", "reference"], ["--lod", "cone", "--cone-scale", str(DEFAULTS.cone_scale)],
+     "the reference radiance renderer takes no --lod (for lod/adaptive/error-aware), "
+     "--cone-scale (for lod/error-aware); ignored"),
+    (["--renderer", "lod", "--lod", "2"], ["--cone-scale", str(DEFAULTS.cone_scale)],
+     "the lod radiance renderer reads --cone-scale only with --lod cone; ignored"),
+    (["--lod", "0"], ["--threshold", str(DEFAULTS.threshold)],
+     "the error-aware radiance renderer reads --threshold only with a --lod other than 0; "
+     "ignored"),
+])
+def test_a_radiance_option_the_renderer_ignores_is_noted_at_its_default_too(chosen, given,
+                                                                            note):
+    """Each option ``given`` holds its default value: the notes compared values with the
+    defaults, so ``--renderer lod --samples 4`` was ignored without a word while
+    ``--samples 5`` was noted. Left out, nothing is noted and the options are the same."""
+    from voxfield.cli.cmd_probes import _bake_options
+
+    parser = cli.build_parser()
+    base = ["bake", "builtin:cornell", "--grid", "2x1x1", *chosen]
+    with pytest.warns(UserWarning) as notes:
+        options = _bake_options(parser.parse_args([*base, *given]))
+    assert [str(w.message) for w in notes] == [note]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert _bake_options(parser.parse_args(base)) == options
 
 
 def test_bad_arguments_exit_2(run, tmp_path, capsys):
@@ -88,6 +127,12 @@ def test_bake_and_show_end_to_end(run, tmp_path, capsys):
     assert study_page.read_text() == "a study's report"
     assert run(["probes", "show", str(out), "--no-scene", "--quiet"]) == 0
     assert (out / "show.png").is_file() and (out / "show.html").is_file()
+    assert capsys.readouterr().err == ""
+    # --size sizes the scene's render alone: with --no-scene it changed nothing, unsaid.
+    assert run(["probes", "show", str(out), "--no-scene", "--size", "64", "--quiet"]) == 0
+    assert capsys.readouterr().err.splitlines() == [
+        "voxfield: note: probes show with --no-scene takes no --size (for the scene's overview "
+        "render); ignored"]
 
 
 def test_export_cubes_traces_faces_from_the_baked_scene(run, tmp_path):

@@ -127,6 +127,33 @@ def test_resume_rebakes_only_missing_and_corrupt(tmp_path, octree, grid, local):
     assert again.positions == []
 
 
+def test_a_probe_damaged_in_its_record_or_shape_is_rebaked_by_a_resume_as_it_says(
+        tmp_path, octree, grid, local):
+    """A probe whose record is not an object, or whose maps have another shape than the
+    header's, is one damaged probe: a resume re-bakes it (``verified_probes``), so its
+    message says so, where it advised --fresh, which re-bakes every probe."""
+    bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial")
+    header_path = tmp_path / "probes.json"
+    header = json.loads(header_path.read_text())
+    header["probes"]["3"] = "damaged"
+    small = (np.zeros((4, 4, 3), np.float16), np.zeros((4, 4), np.float32),
+             np.zeros((4, 4, 2), np.int16))
+    np.savez(tmp_path / "probe_00001.npz", radiance=small[0], distance=small[1],
+             normal=small[2])
+    header["probes"]["1"]["checksum"] = probe_folder.maps_checksum(*small)
+    header_path.write_text(json.dumps(header))
+    with pytest.raises(ProbeFileError, match=r"radiance is float16 \(4, 4, 3\).*; resume the bake"):
+        probe_folder.read_probe(tmp_path, 1, header, grid.positions)
+    with pytest.raises(ProbeHeaderError, match="not an object; resume the bake"):
+        probe_folder.read_probe(tmp_path, 3, header, grid.positions)
+
+    counting = Counting()
+    resumed = bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial",
+                             baker=counting)
+    assert counting.indices(grid) == [1, 3]
+    assert_same(resumed, local)
+
+
 def test_killed_bake_leaves_whole_files_and_resumes(tmp_path, octree, grid, local):
     with pytest.raises(KeyboardInterrupt):
         bake_to_folder(octree, grid, OPTIONS, tmp_path, scheduler="serial",

@@ -3,6 +3,7 @@ show`` (a PNG to check it by eye)."""
 
 from __future__ import annotations
 
+import argparse
 import sys
 import time
 import warnings
@@ -41,6 +42,20 @@ from voxfield.studies.html_report import write_page
 from voxfield.studies.report import markdown_table
 from voxfield.svo.open import open_octree as open_octree_from_spec
 
+#: The overview render's side in pixels when ``probes show`` is given no --size.
+SHOW_SIZE = 512
+
+
+class _Given(argparse.Action):
+    """Store the value and remember (in ``args.given``) that the option was on the command
+    line. The notes on radiance options the chosen renderer does not take ask whether the
+    user gave one, not whether its value differs from the default: ``--renderer lod
+    --samples 4`` (4 being the default) was ignored without a word, ``--samples 5`` noted."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        namespace.given = getattr(namespace, "given", frozenset()) | {self.dest}
+
 
 def register(subparsers) -> None:
     """Register ``bake`` and ``probes show`` on the main parser's sub-commands."""
@@ -67,18 +82,21 @@ def register(subparsers) -> None:
                    help=f"radiance renderer (default {defaults.renderer}); distance and "
                    "normals always come from one exact LOD-0 ray per texel")
     p.add_argument("--samples", type=int_between(1, 16, "rays per texel side"),
-                   default=defaults.samples,
+                   action=_Given, default=defaults.samples,
                    help=f"reference: CMJ rays per texel side, 1..16 (default "
                    f"{defaults.samples})")
-    p.add_argument("--lod", type=lod_arg, default=defaults.lod,
+    p.add_argument("--lod", type=lod_arg, action=_Given, default=defaults.lod,
                    help="lod renderer: fixed LOD; adaptive/error-aware: base LOD; 'cone' "
                    "(default) picks it from the texel footprint")
-    p.add_argument("--cone-scale", type=positive_float, default=defaults.cone_scale,
+    p.add_argument("--cone-scale", type=positive_float, action=_Given,
+                   default=defaults.cone_scale,
                    help="node size accepted per texel footprint (default 1)")
-    p.add_argument("--threshold", type=threshold_arg, default=defaults.threshold,
+    p.add_argument("--threshold", type=threshold_arg, action=_Given,
+                   default=defaults.threshold,
                    help=f"error-aware: refinement threshold (default {defaults.threshold}; "
                    "inf never refines, a negative one refines everywhere)")
-    p.add_argument("--decay", type=non_negative_float, default=defaults.decay,
+    p.add_argument("--decay", type=non_negative_float, action=_Given,
+                   default=defaults.decay,
                    help=f"error-aware: weight of the children's error (default {defaults.decay})")
     add_channel_option(p)
     p.add_argument("--relocate", action="store_true",
@@ -116,9 +134,11 @@ def register(subparsers) -> None:
         help="scene for the overview render (default: the one the bake recorded)")
     which_scene.add_argument("--no-scene", action="store_true",
                              help="draw the probe positions without rendering the scene")
+    # None when not given: with --no-scene there is no render for it to size (noted).
     s.add_argument("--size", type=int_between(1, MAX_IMAGE_SIDE, "pixels per side"),
-                   default=512, metavar="N",
-                   help=f"overview render size in pixels, 1..{MAX_IMAGE_SIDE} (default 512)")
+                   default=None, metavar="N",
+                   help=f"overview render size in pixels, 1..{MAX_IMAGE_SIDE} (default "
+                   f"{SHOW_SIZE}; only with the scene, not --no-scene)")
     add_quiet(s)
     s.set_defaults(func=run_show)
 
@@ -140,24 +160,25 @@ def register(subparsers) -> None:
 
 
 def _bake_options(args):
-    defaults = BakeOptions()
+    # The radiance options on the command line (``_Given``), whatever their values: one
+    # given at its default is as ignored by a renderer that does not take it as any other.
+    given = getattr(args, "given", frozenset())
     takers: dict[str, list[str]] = {}  # each radiance field: the renderers that take it
     for renderer, taken in RADIANCE_FIELDS.items():
         for name in taken:
             takers.setdefault(name, []).append(renderer)
     ignored = {f"--{name.replace('_', '-')}": users for name, users in takers.items()
-               if args.renderer not in users and getattr(args, name) != getattr(defaults, name)}
+               if args.renderer not in users and name in given}
     if ignored:  # --samples with the default error-aware renderer did nothing unsaid
         warn_ignored(ignored, f"the {args.renderer} radiance renderer")
     unread = []
     if (args.renderer in takers["cone_scale"] and args.lod is not None
-            and args.cone_scale != defaults.cone_scale):
+            and "cone_scale" in given):
         unread.append("--cone-scale only with --lod cone")
     if args.renderer == "error-aware" and args.lod == 0:  # nothing finer to refine into
-        given = [f"--{name}" for name in ("threshold", "decay")
-                 if getattr(args, name) != getattr(defaults, name)]
-        if given:
-            unread.append(f"{spoken_list(given)} only with a --lod other than 0")
+        refining = [f"--{name}" for name in ("threshold", "decay") if name in given]
+        if refining:
+            unread.append(f"{spoken_list(refining)} only with a --lod other than 0")
     if unread:
         warnings.warn(f"the {args.renderer} radiance renderer reads {', '.join(unread)}; "
                       "ignored", stacklevel=2)
@@ -241,11 +262,14 @@ def run_show(args) -> int:
     probe_set = open_probe_set(folder)
     header = read_header(folder)
     out = output_named(args.out or folder / "show.png", ".png", "the probe set's picture")
+    if args.no_scene and args.size is not None:  # it sizes the scene's render alone
+        warn_ignored({"--size": ["the scene's overview render"]}, "probes show with --no-scene")
     octree = None if args.no_scene else _reopen_scene(header, args.scene, args.quiet)
     s = probe_set.cost_summary()
     title = (f"{header['scene'].get('name', 'scene')}: {s['baked']} of {s['probes']} probes, "
              f"{s['resolution']}² texels, {s['renderer']}, {s['rays_per_texel']:.2f} rays/texel")
-    write_show(probe_set, out, octree=octree, title=title, size=args.size)
+    write_show(probe_set, out, octree=octree, title=title,
+               size=SHOW_SIZE if args.size is None else args.size)
     # Named after the picture: a shared folder (out/) may hold a study's report.html, or
     # another probe set's page.
     page = write_page(out.with_suffix(".html"), title=title,

@@ -106,6 +106,8 @@ class PackedProbes:
         """Pack plain arrays (normals already decoded, (N, R, R, 3)); shapes are checked."""
         positions = np.ascontiguousarray(positions, np.float64).reshape(-1, 3)
         n = len(positions)
+        if n == 0:  # said plainly, not as "grid counts [1, 1, 1] do not hold 0 probes"
+            raise VoxfieldError("a probe set needs at least one probe; got 0 positions")
         distance = np.ascontiguousarray(distance, np.float32)
         if distance.ndim != 3 or distance.shape[0] != n or distance.shape[1] != distance.shape[2]:
             raise VoxfieldError(f"distance maps must be (N, R, R) for {n} probes, got "

@@ -292,7 +292,7 @@ def read_probe(folder: Path, index: int, header: dict,
                              "(run the same voxfield bake again)")
     if not isinstance(record, dict):
         raise ProbeHeaderError(f"{Path(folder) / HEADER_NAME}: probe {index}'s record is "
-                               f"{record!r}, not an object; re-bake with --fresh")
+                               f"{record!r}, not an object; resume the bake to re-bake it")
     name = str(record.get("file", probe_file_name(index)))
     if name != probe_file_name(index):  # records swapped or edited: another probe's maps
         raise ProbeFileError(f"{Path(folder) / HEADER_NAME}: probe {index}'s record names "
@@ -313,7 +313,7 @@ def read_probe(folder: Path, index: int, header: dict,
         if array.dtype != np.dtype(spec["dtype"]) or list(array.shape) != spec["shape"]:
             raise ProbeFileError(
                 f"{path}: {name} is {array.dtype} {array.shape}, the header says "
-                f"{spec['dtype']} {tuple(spec['shape'])}; re-bake with --fresh"
+                f"{spec['dtype']} {tuple(spec['shape'])}; resume the bake to re-bake it"
             )
     if maps_checksum(*arrays) != record.get("checksum"):
         raise ProbeFileError(f"{path}: probe {index}'s checksum does not match the header "
