@@ -230,6 +230,28 @@ def test_fallback_is_used_only_when_every_probe_loses_the_ray(cornell, cornell_g
                                       cornell_grid.radiance[nearest, row, col])
 
 
+@pytest.mark.parametrize("scale", [1e160, 1e300, -1e307])
+def test_rays_from_far_away_fall_back_to_the_nearest_probe(cornell_grid, scale):
+    """An origin so far that its squared distance to every probe overflows to inf found no
+    nearest probe (``inf < inf``), and the ray came back unknown with the fallback on."""
+    from voxfield.kernels.octahedral import texel_of_direction
+
+    rows = np.array([[1.0, 0.5, 0.25], [0.0, 1.0, 0.0], [0.3, -0.2, 1.0]])
+    origins = rows * scale
+    dirs = _unit(rows * np.sign(scale))  # on away from the room: no probe sees the way
+    hits = trace_light_field(cornell_grid, origins, dirs, LightFieldOptions())
+    assert (hits.kind != UNKNOWN).all()  # a miss, where a probe proves one, or the fallback
+    fell = np.flatnonzero(hits.kind == FALLBACK)
+    assert len(fell) >= 2
+    for i in fell:
+        # The nearest in exact arithmetic: distances compared after scaling them down.
+        offsets = (origins[i] - cornell_grid.positions) / abs(scale)
+        assert hits.probe[i] == np.argmin(np.linalg.norm(offsets, axis=1)), i
+        row, col = texel_of_direction(*dirs[i], cornell_grid.resolution)
+        np.testing.assert_array_equal(hits.radiance[i], cornell_grid.radiance[hits.probe[i],
+                                                                               row, col])
+
+
 @pytest.mark.parametrize("ordering", ["signed-dot", "nearest", "fixed"])
 def test_orderings_skip_disabled_probes_and_do_not_depend_on_threads(cornell, ordering):
     grid = ProbeGrid.fit([2.0, 2.0, 2.0], [30.0, 30.0, 30.0], [2, 2, 2], margin=0.5)

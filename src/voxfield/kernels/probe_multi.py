@@ -198,26 +198,38 @@ def first_corner(ordering: int, corners: np.ndarray, positions: np.ndarray,
 def nearest_enabled(corners: np.ndarray, positions: np.ndarray, enabled: np.ndarray,
                     ox: float, oy: float, oz: float) -> int:
     """The nearest enabled probe of the cage, else of the whole set (-1: none enabled)."""
+    scale = _distance_scale(ox, oy, oz)
     best = -1
     best_d = math.inf
     for corner in range(8):
-        best, best_d = _closer(corners[corner], best, best_d, positions, enabled, ox, oy, oz)
+        best, best_d = _closer(corners[corner], best, best_d, positions, enabled, ox, oy, oz,
+                               scale)
     if best >= 0:
         return best
     for p in range(len(positions)):
-        best, best_d = _closer(p, best, best_d, positions, enabled, ox, oy, oz)
+        best, best_d = _closer(p, best, best_d, positions, enabled, ox, oy, oz, scale)
     return best
 
 
 @njit(cache=True, nogil=True)
+def _distance_scale(ox: float, oy: float, oz: float) -> float:
+    """A power of two that keeps the squared offsets from a point this far out finite: from
+    an origin of 1e300 every one was inf, none was nearer than inf, and the fallback found
+    no probe. 1 for any point a scene holds (the offsets are then exactly as before)."""
+    far = max(abs(ox), abs(oy), abs(oz))
+    return 2.0 ** -600 if far > 1e150 else 1.0
+
+
+@njit(cache=True, nogil=True)
 def _closer(p: int, best: int, best_d: float, positions: np.ndarray, enabled: np.ndarray,
-            ox: float, oy: float, oz: float) -> tuple[int, float]:
-    """``(p, its squared distance)`` if probe ``p`` is enabled and nearer than ``best``."""
+            ox: float, oy: float, oz: float, scale: float) -> tuple[int, float]:
+    """``(p, its squared distance · scale²)`` if probe ``p`` is enabled and nearer than
+    ``best``."""
     if not enabled[p]:
         return best, best_d
-    vx = ox - positions[p, 0]
-    vy = oy - positions[p, 1]
-    vz = oz - positions[p, 2]
+    vx = (ox - positions[p, 0]) * scale
+    vy = (oy - positions[p, 1]) * scale
+    vz = (oz - positions[p, 2]) * scale
     d = vx * vx + vy * vy + vz * vz
     return (p, d) if d < best_d else (best, best_d)
 
