@@ -169,3 +169,16 @@ def test_a_whole_offset_of_any_number_type_moves_the_voxels():
     scene = VoxelScene(np.array([[1, 2, 3]]), np.full((1, 3), 0.5))
     for offset in ((2, 0, -3), (2.0, 0.0, -3.0), np.array([2, 0, -3], np.int16)):
         assert scene.translated(offset).coords.tolist() == [[3, 2, 0]]
+
+
+@pytest.mark.parametrize("field", ["emission", "channel"])
+def test_negative_light_is_refused_when_the_scene_is_made(field):
+    """Such a scene built and saved, and its octree file was then refused on load."""
+    coords = np.zeros((1, 3), np.int32)
+    light = np.array([[0.5, -1.0, 0.0]], np.float32)
+    given = {"emission": light} if field == "emission" else {"channels": {"noon": light}}
+    with pytest.raises(VoxfieldError, match="is light, never negative, got values down to -1"):
+        VoxelScene(coords, np.full((1, 3), 0.5, np.float32), **given)
+    ok = {k: (np.abs(v) if k == "emission" else {"noon": np.abs(light) * 4})
+          for k, v in given.items()}
+    VoxelScene(coords, np.full((1, 3), 0.5, np.float32), **ok)  # bright light is fine

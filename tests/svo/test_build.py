@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import json
 import pickle
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -14,6 +16,7 @@ from voxfield.kernels.node_descriptor import FIRST_CHILD_SHIFT, SOLID_BIT
 from voxfield.scene.voxel_scene import VoxelScene
 from voxfield.svo import build_octree, load_octree, morton_encode, save_octree
 from voxfield.svo.io import validate_octree
+from voxfield.svo.octree import Octree
 
 
 def _brute_force_levels(scene: VoxelScene, depth: int):
@@ -193,6 +196,101 @@ def _saved_with(octree, path, **arrays):
         np.savez(f, **{**stored, **arrays})
     return path
 
+
+
+def _with_header(octree, path, **changes):
+    """``octree``'s file with its JSON header changed (a key set to None is dropped), or
+    replaced outright by ``header=...``."""
+    save_octree(octree, path)
+    with np.load(path) as data:
+        stored = {name: data[name] for name in data.files}
+    header = json.loads(bytes(stored["header"]).decode())
+    header = changes.pop("header", header)
+    if isinstance(header, dict):
+        header = {k: v for k, v in {**header, **changes}.items() if v is not None}
+    stored["header"] = np.frombuffer(json.dumps(header).encode(), np.uint8)
+    with open(path, "wb") as f:
+        np.savez(f, **stored)
+    return path
+
+
+def test_an_octree_file_with_two_roots_is_refused(tmp_path):
+    """Level offsets [0, 2, 4]: a red voxel under root 0, a green one under root 1. Each
+    level held as many nodes as the level above declared children, so it loaded, and
+    ``voxfield info`` counted 2 voxels that no render ever showed the green one of."""
+    two_roots = Octree(
+        depth=1, name="tworoot",
+        descriptors=np.array([(2 << FIRST_CHILD_SHIFT) | 0x01, (3 << FIRST_CHILD_SHIFT) | 0x80],
+                             np.int64),
+        level_offsets=np.array([0, 2, 4], np.int64),
+        attributes={"color": np.array([[200, 0, 0], [0, 200, 0]] * 2, np.uint8)},
+        voxel_box=np.array([[0, 0, 0], [2, 2, 2]], np.int64))
+    path = save_octree(two_roots, tmp_path / "tworoot.npz")
+    with pytest.raises(OctreeFormatError, match=r"tworoot.npz: level 0 holds 2 nodes; an octree "
+                                                r"has one root"):
+        load_octree(path)
+    one_root = Octree(
+        depth=1, name="oneroot", descriptors=np.array([(1 << FIRST_CHILD_SHIFT) | 0x01], np.int64),
+        level_offsets=np.array([0, 1, 2], np.int64),
+        attributes={"color": np.array([[200, 0, 0]] * 2, np.uint8)},
+        voxel_box=np.array([[0, 0, 0], [1, 1, 1]], np.int64))
+    assert load_octree(save_octree(one_root, tmp_path / "oneroot.npz")).voxel_count == 1
+
+
+def test_octree_files_with_float_colours_out_of_range_are_refused(tmp_path):
+    """A scene's albedo outside [0, 1] is refused; an octree file's -5 rendered black and
+    1e30 white, exit 0. Light (lit channels, emission) may exceed 1, never go below 0."""
+    octree = build_octree(random_scene(5), colour_storage="float32")
+    n = octree.node_count
+    lit = octree.recoloured(attributes={**octree.attributes,
+                                        "noon": np.full((n, 3), 3.5, np.float32)})
+    refused = {
+        "albedo -5": ("color", -5.0, r"'color' holds -5\.\.\S+; the albedo is linear in \[0, 1\]"),
+        "albedo 1e30": ("color", 1e30, r"'color' holds \S+\.\.1e\+30; the albedo"),
+        "albedo NaN": ("color", np.nan, "'color' holds NaN or infinity"),
+        "lit infinity": ("noon", np.inf, "'noon' holds NaN or infinity"),
+        "lit -1": ("noon", -1.0, "'noon' holds -1; light and emission are never negative"),
+    }
+    for what, (name, value, message) in refused.items():
+        values = np.array(lit.attributes[name])
+        values[len(values) // 2] = value
+        path = _saved_with(lit, tmp_path / "colours.npz", **{f"attr_{name}": values})
+        with pytest.raises(OctreeFormatError, match="colours.npz: attribute " + message):
+            load_octree(path)
+            pytest.fail(what)
+    # Rounding past the ends is no damage; light past 1 is legitimate.
+    rounded = np.array(lit.attributes["color"])
+    rounded[0], rounded[1] = np.nextafter(np.float32(1), np.float32(2)), -1e-7
+    path = _saved_with(lit, tmp_path / "rounded.npz", attr_color=rounded)
+    loaded = load_octree(path)
+    assert loaded.attributes["noon"].max() == 3.5
+
+
+def test_octree_file_headers_of_the_wrong_kind_are_named_not_crashed_on(tmp_path):
+    """A list header failed with "'list' object has no attribute 'get'", a string of
+    attributes with "attr_c is not a file in the archive", and a depth of 6.7 was taken as
+    6 without a word."""
+    octree = build_octree(random_scene(5))
+    bad = {
+        "the header is a list, not an object": {"header": [1, 2]},
+        "the header is a string, not an object": {"header": "voxfield-octree"},
+        "the header's attributes must be a list of names, got \"color\"":
+            {"attributes": "color"},
+        "the header's attributes must be a list of names, got \\[1\\]": {"attributes": [1]},
+        "the header's attributes must be a list of names, got null": {"attributes": None},
+        "the header's depth must be a whole number, got 6.7": {"depth": 6.7},
+        "the header's depth must be a whole number, got \"abc\"": {"depth": "abc"},
+        "the header's depth must be a whole number, got true": {"depth": True},
+        "the header's depth must be a whole number, got null": {"depth": None},
+        "the file has no 'attr_noon' array": {"attributes": ["color", "noon"]},
+    }
+    for message, change in bad.items():
+        path = _with_header(octree, tmp_path / "header.npz", **change)
+        with pytest.raises(OctreeFormatError, match=f"^{re.escape(str(path))}: {message}$"):
+            load_octree(path)
+    # A depth written as a float of a whole number is still that depth.
+    whole = _with_header(octree, tmp_path / "whole.npz", depth=float(octree.depth))
+    assert load_octree(whole).depth == octree.depth
 
 def test_an_octree_cannot_be_changed_in_place_or_assembled_from_arrays_that_disagree():
     """The kernels index one array by another's values: an octree changed in place, or made

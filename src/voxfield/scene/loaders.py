@@ -8,11 +8,16 @@ file: ``.vox``, ``.obj/.gltf/.glb/.ply`` (voxelized), ``.hgt/.tif/.tiff/.npy`` (
 
 from __future__ import annotations
 
+import json
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from voxfield.array_files import load_arrays
+from voxfield.error_table.table import FORMAT as ERROR_TABLE_FORMAT
+from voxfield.error_table.table import LIGHTING_FORMAT
 from voxfield.errors import DataNotFoundError, SceneFormatError, VoxfieldError
 from voxfield.scene.builtin import builtin_scene
 from voxfield.scene.mesh import MESH_SUFFIXES, load_mesh
@@ -40,18 +45,47 @@ class SceneOptions:
     dem_fit: str | None = None
 
 
+#: The ``format`` a saved octree's header names (``svo.io.FORMAT``, a layer above this one).
+OCTREE_FORMAT = "voxfield-octree"
+#: The arrays of one probe of a baked probe set (``probes.probe_folder.write_probe``).
+PROBE_FILE_ARRAYS = frozenset({"radiance", "distance", "normal", "record"})
+
+
 def npz_kind(path: Path) -> str:
-    """``octree``, ``scene`` or ``dem`` for a ``.npz`` file, by the arrays it holds."""
+    """``octree``, ``scene`` or ``dem`` for a ``.npz`` file, by the arrays it holds. The
+    other files voxfield writes as ``.npz`` are refused by name: taken for a DEM, a probe
+    file's distance map (its one 2-D array) became a terrain without a word, and an error
+    table was refused for lacking an elevation array."""
     try:
         with load_arrays(path) as data:
             files = set(data.files)
+            written_as = _header_format(data) if "header" in files else None
     except Exception as exc:  # noqa: BLE001 - any failure here means "not a readable npz"
         raise SceneFormatError(f"{path}: not a readable .npz file ({exc})") from exc
-    if "header" in files and ("descriptors" in files or "child_mask" in files):
-        return "octree"
+    if written_as == OCTREE_FORMAT or (
+            "header" in files and ("descriptors" in files or "child_mask" in files)):
+        return "octree"  # the octree reader names what a damaged one lacks
+    if written_as in (ERROR_TABLE_FORMAT, LIGHTING_FORMAT):
+        raise SceneFormatError(f"{path}: a voxfield error table ({written_as}), not a scene; "
+                               "`voxfield errors info --table FILE` describes it")
+    if PROBE_FILE_ARRAYS <= files:
+        raise SceneFormatError(f"{path}: one probe of a baked probe set (its radiance, "
+                               "distance and normal maps), not a scene; give a scene, and "
+                               "the probe set's folder where a command takes probes")
     if "coords" in files:
         return "scene"
     return "dem"
+
+
+def _header_format(data) -> str | None:
+    """The ``format`` named by a voxfield file's JSON header array; None where the array
+    is no such header (a DEM may hold an array of that name)."""
+    try:
+        header = json.loads(np.asarray(data["header"], np.uint8).tobytes())
+    except (ValueError, TypeError, UnicodeDecodeError, RecursionError):
+        return None
+    written_as = header.get("format") if isinstance(header, dict) else None
+    return written_as if isinstance(written_as, str) else None
 
 
 def load_scene(spec: str, options: SceneOptions | None = None) -> VoxelScene:

@@ -72,11 +72,14 @@ class VoxelScene:
         n = len(coords)
         object.__setattr__(self, "color", _checked_albedo(_checked_rgb(self.color, n, "color")))
         if self.emission is not None:
-            object.__setattr__(self, "emission", _checked_rgb(self.emission, n, "emission"))
+            object.__setattr__(self, "emission",
+                               _checked_light(_checked_rgb(self.emission, n, "emission"),
+                                              "emission"))
         if not isinstance(self.channels, Mapping):
             raise VoxfieldError(f"channels must map names to N×3 colours, got "
                                 f"{type(self.channels).__name__}")
-        checked = {check_channel_name(k): _checked_rgb(v, n, f"channel {k!r}")
+        checked = {check_channel_name(k): _checked_light(_checked_rgb(v, n, f"channel {k!r}"),
+                                                         f"channel {k!r}")
                    for k, v in self.channels.items()}
         object.__setattr__(self, "channels", checked)
 
@@ -175,6 +178,15 @@ def _checked_albedo(color: np.ndarray) -> np.ndarray:
         raise VoxfieldError(f"color is linear albedo in [0, 1], got values {low:g}..{high:g}"
                             f"{hint}")
     return color
+
+
+def _checked_light(values: np.ndarray, what: str) -> np.ndarray:
+    """Light (emission, a lit channel) refused below zero: such a scene built and saved, and
+    its octree file was then refused on load (``svo.io``), where no light is negative."""
+    if values.size and values.min() < 0.0:
+        raise VoxfieldError(f"{what} is light, never negative, got values down to "
+                            f"{float(values.min()):g}")
+    return values
 
 
 def compose(
