@@ -18,8 +18,8 @@ import numpy as np
 
 from voxfield.errors import VoxfieldError
 
-__all__ = ["MAX_SEED", "integer_in", "is_integer", "is_real", "path_value", "ray_arrays",
-           "real_number", "seed_value", "switch_value"]
+__all__ = ["MAX_SEED", "flag", "integer_in", "is_integer", "is_real", "path_value", "ray_arrays",
+           "real_number", "seed_value"]
 
 #: Seeds are hashed as 32-bit words: 0..MAX_SEED.
 MAX_SEED = 2**32 - 1
@@ -89,14 +89,6 @@ def ray_arrays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
 
 def _writable(array: np.ndarray) -> np.ndarray:
     return array if array.flags.writeable else array.copy()
-
-
-def switch_value(value, what: str) -> bool:
-    """An on/off option: ``True`` or ``False`` (a NumPy bool too). ``columns="yes"`` was
-    taken as on and ``columns="no"`` too, any non-empty string being true to Python."""
-    if not isinstance(value, bool | np.bool_):
-        raise VoxfieldError(f"{what} must be True or False, got {value!r}")
-    return bool(value)
 
 
 def path_value(value, what: str) -> Path:

@@ -709,6 +709,40 @@ def test_options_the_renderer_reads_only_with_another_setting_are_noted(
     assert plain.read_bytes() == given.read_bytes()
 
 
+@pytest.mark.parametrize("renderer, enabling, note", [
+    ("reference", [], "the reference renderer takes no --threshold (for error-aware)"),
+    ("error-aware", ["--base-lod", "0"],
+     "the error-aware renderer reads --threshold only with a --base-lod other than 0"),
+])
+def test_an_option_given_at_its_default_is_noted_as_any_other(renderer, enabling, note,
+                                                              tmp_path, capsys):
+    """The notes compared values with the defaults: ``--threshold`` given at its default
+    was ignored without a word, at any other value noted."""
+    from voxfield.render.error_aware import ErrorAwareOptions
+
+    assert main(["render", "builtin:sphere", "--size", "8", "--quiet", "--renderer", renderer,
+                 *enabling, "--threshold", str(ErrorAwareOptions.threshold),
+                 "--out", str(tmp_path / "x.png")]) == 0
+    assert capsys.readouterr().err == f"voxfield: note: {note}; ignored\n"
+
+
+@pytest.mark.parametrize("renderer", ["error-aware", "adaptive"])
+def test_a_default_base_lod_the_scene_is_too_shallow_for_says_it_is_the_default(
+        renderer, tmp_path, capsys):
+    """A two-voxel scene has LODs 0..1: the renderer refused "base LOD … got 2", a value
+    the user never typed."""
+    scene = tmp_path / "two.npz"
+    np.savez(scene, coords=np.array([[0, 0, 0], [1, 1, 1]], np.int32),
+             color=np.full((2, 3), 0.5, np.float32))
+    common = ["render", str(scene), "--size", "8", "--quiet", "--renderer", renderer,
+              "--out", str(tmp_path / "x.png")]
+    assert main(common) == 2
+    assert "--base-lod 2 (the default) is coarser than" in one_error_line(capsys)
+    assert main([*common, "--base-lod", "3"]) == 2
+    assert "--base-lod 3 is coarser than" in one_error_line(capsys)
+    assert main([*common, "--base-lod", "1"]) == 0
+
+
 def test_compare_notes_the_error_aware_options_base_lod_0_does_not_read(tmp_path, capsys):
     """Its error-aware+reuse row came out as the plain one, without the note render gives."""
     import json

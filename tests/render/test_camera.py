@@ -129,6 +129,8 @@ def test_points_too_far_apart_for_float64_are_refused_without_numpy_s_warning(ma
         lambda: Camera.look_at((0, 0, 0), (0, 0, 1), width=True),  # once a 1-pixel image
         lambda: Camera.look_at((0, 0, 0), (0, 0, 1), width=8, height=16385),
         lambda: Camera.orthographic((0, 0, 0), (0, 0, 1), view_height=-1),
+        lambda: Camera.orthographic((0, 0, 0), (0, 0, 1), view_height="abc"),  # ValueError
+        lambda: Camera.orthographic((0, 0, 0), (0, 0, 1), view_height=None),  # TypeError
         lambda: Camera.cube_face((0, 0, 0), "+w"),
         lambda: Camera.cube_face((0, 0, 0), "+x", size=0),
         lambda: Camera.octahedral((0, 0, 0), resolution=8.5),
@@ -198,6 +200,8 @@ def test_ortho_top_renders_what_a_camera_just_above_sees_with_every_block_bounde
     ({"up": np.array([0.0, 2.0, 0.0])}, "orthonormal"),
     ({"right": np.array([np.inf, 0.0, 0.0])}, "right"),
     ({"kind": 9}, "kind"),
+    ({"half_width": "x"}, "half_width must be a number"),  # NumPy's isfinite TypeError
+    ({"half_height": None}, "half_height must be a number"),
 ])
 def test_a_camera_built_or_replaced_field_by_field_is_checked(change, words):
     """The constructors make valid cameras; one assembled by hand, or by

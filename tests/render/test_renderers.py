@@ -218,3 +218,21 @@ def test_render_refuses_what_it_cannot_use_in_one_clear_error(pillar_octree, arg
     given = {"octree": pillar_octree, "camera": camera}
     with pytest.raises(VoxfieldError, match=words):
         render(*(given.get(a, a) for a in arguments), **keywords)
+
+
+@pytest.mark.parametrize("name", ["beam", "columns", "progress"])
+@pytest.mark.parametrize("renderer", ["render_lod", "render_reference", "render_adaptive",
+                                      "render_error_aware"])
+def test_a_switch_of_every_renderer_takes_a_bool_not_any_truthy_object(renderer, name):
+    """``beam="no"`` rendered with the beam on (a non-empty string is true), and an array
+    for ``columns`` failed with NumPy's "truth value … is ambiguous"."""
+    import voxfield.render as renderers
+
+    octree = build_octree(pillars())
+    camera = Camera.look_at((40.0, 40.0, 40.0), (16.0, 16.0, 16.0), width=4)
+    draw = getattr(renderers, renderer)
+    if name == "beam" and renderer in ("render_adaptive", "render_error_aware"):
+        pytest.skip(f"{renderer} has no beam switch")
+    for value in ("no", np.array([1, 2]), None):
+        with pytest.raises(VoxfieldError, match=f"{name} must be True or False"):
+            draw(octree, camera, **{name: value})

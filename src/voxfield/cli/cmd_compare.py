@@ -13,6 +13,7 @@ from voxfield.cli.options import (
     check_measured_channel,
     check_measured_sides,
     default_output,
+    given_options,
     note_options_read_only_with_others,
     open_octree,
     positive_int,
@@ -54,7 +55,8 @@ def run(args) -> int:
     # (the reuse row came out as the plain one), as render notes.
     note_options_read_only_with_others(
         ErrorAwareOptions(threshold=args.threshold, decay=args.decay, base_lod=args.base_lod,
-                          reuse_parent=args.reuse_parent), "error-aware")
+                          reuse_parent=args.reuse_parent), "error-aware",
+        given_options(args))
     octree = open_octree(args)
     check_measured_channel(octree, args.channel)
     args = settled_view(args, octree)

@@ -3,7 +3,6 @@ show`` (a PNG to check it by eye)."""
 
 from __future__ import annotations
 
-import argparse
 import sys
 import time
 import warnings
@@ -14,10 +13,12 @@ import numpy as np
 from voxfield.checks import spoken_list
 from voxfield.cli.commands import add_command, add_quiet
 from voxfield.cli.options import (
+    Given,
     add_channel_option,
     add_scene_options,
     check_render_memory,
     default_output,
+    given_options,
     int_between,
     lod_arg,
     non_negative_float,
@@ -46,17 +47,6 @@ from voxfield.svo.open import open_octree as open_octree_from_spec
 SHOW_SIZE = 512
 
 
-class _Given(argparse.Action):
-    """Store the value and remember (in ``args.given``) that the option was on the command
-    line. The notes on radiance options the chosen renderer does not take ask whether the
-    user gave one, not whether its value differs from the default: ``--renderer lod
-    --samples 4`` (4 being the default) was ignored without a word, ``--samples 5`` noted."""
-
-    def __call__(self, parser, namespace, values, option_string=None):
-        setattr(namespace, self.dest, values)
-        namespace.given = getattr(namespace, "given", frozenset()) | {self.dest}
-
-
 def register(subparsers) -> None:
     """Register ``bake`` and ``probes show`` on the main parser's sub-commands."""
 
@@ -82,20 +72,20 @@ def register(subparsers) -> None:
                    help=f"radiance renderer (default {defaults.renderer}); distance and "
                    "normals always come from one exact LOD-0 ray per texel")
     p.add_argument("--samples", type=int_between(1, 16, "rays per texel side"),
-                   action=_Given, default=defaults.samples,
+                   action=Given, default=defaults.samples,
                    help=f"reference: CMJ rays per texel side, 1..16 (default "
                    f"{defaults.samples})")
-    p.add_argument("--lod", type=lod_arg, action=_Given, default=defaults.lod,
+    p.add_argument("--lod", type=lod_arg, action=Given, default=defaults.lod,
                    help="lod renderer: fixed LOD; adaptive/error-aware: base LOD; 'cone' "
                    "(default) picks it from the texel footprint")
-    p.add_argument("--cone-scale", type=positive_float, action=_Given,
+    p.add_argument("--cone-scale", type=positive_float, action=Given,
                    default=defaults.cone_scale,
                    help="node size accepted per texel footprint (default 1)")
-    p.add_argument("--threshold", type=threshold_arg, action=_Given,
+    p.add_argument("--threshold", type=threshold_arg, action=Given,
                    default=defaults.threshold,
                    help=f"error-aware: refinement threshold (default {defaults.threshold}; "
                    "inf never refines, a negative one refines everywhere)")
-    p.add_argument("--decay", type=non_negative_float, action=_Given,
+    p.add_argument("--decay", type=non_negative_float, action=Given,
                    default=defaults.decay,
                    help=f"error-aware: weight of the children's error (default {defaults.decay})")
     add_channel_option(p)
@@ -160,9 +150,9 @@ def register(subparsers) -> None:
 
 
 def _bake_options(args):
-    # The radiance options on the command line (``_Given``), whatever their values: one
-    # given at its default is as ignored by a renderer that does not take it as any other.
-    given = getattr(args, "given", frozenset())
+    # The radiance options on the command line, whatever their values: one given at its
+    # default is as ignored by a renderer that does not take it as any other.
+    given = given_options(args)
     takers: dict[str, list[str]] = {}  # each radiance field: the renderers that take it
     for renderer, taken in RADIANCE_FIELDS.items():
         for name in taken:

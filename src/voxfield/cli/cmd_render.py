@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 
 from voxfield.atomic import atomic_paths
@@ -12,6 +13,7 @@ from voxfield.cli.options import (
     add_renderer_options,
     add_scene_options,
     add_view_options,
+    check_base_lod,
     display_shaded,
     open_octree,
     positive_int,
@@ -54,6 +56,8 @@ def run(args) -> int:
     check_device(args.device, args.renderer)  # before the scene loads: fail fast
     out = check_image_output(args.out)
     octree = open_octree(args)
+    if any(f.name == "base_lod" for f in dataclasses.fields(RENDERERS[args.renderer].options_type)):
+        check_base_lod(args, octree)  # the renderer's message named no option
     view = scene_camera(args, octree)
     note = view_note(octree, view)
     if note is not None:

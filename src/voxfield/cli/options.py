@@ -381,6 +381,22 @@ def add_threshold_options(p: argparse.ArgumentParser) -> None:
     add_renderer_options(p, ("error-aware",), only=("threshold", "decay"), prefix=False)
 
 
+class Given(argparse.Action):
+    """Store the value and remember (``given_options``) that the option was on the command
+    line. Notes on options a choice ignores ask whether the user gave one, not whether its
+    value differs from the default: ``--renderer lod --samples 4`` (4 being the default) was
+    ignored without a word, ``--samples 5`` noted."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        setattr(namespace, self.dest, values)
+        namespace.given = given_options(namespace) | {self.dest}
+
+
+def given_options(args) -> frozenset[str]:
+    """The destinations of the ``Given`` options on the command line."""
+    return getattr(args, "given", frozenset())
+
+
 def add_renderer_options(p: argparse.ArgumentParser, renderers, *, only=None,
                          prefix: bool = True) -> None:
     """One option per field of the named renderers' options dataclasses (fields marked
@@ -410,7 +426,7 @@ def add_renderer_options(p: argparse.ArgumentParser, renderers, *, only=None,
             kwargs["choices"] = f.metadata["choices"]
         kwargs["type"] = _FIELD_TYPES.get(f.metadata.get("type"), _python_type(f.type))
         kwargs["metavar"] = flag[2:].upper().replace("-", "_")
-        p.add_argument(flag, **kwargs)
+        p.add_argument(flag, action=Given, **kwargs)
 
 
 def _flag(f: dataclasses.Field) -> str:
@@ -439,22 +455,24 @@ def renderer_options_from(args, renderer: str):
     own = {f.name for f in dataclasses.fields(options_type)
            if f.metadata.get("cli", True) is not False}
     ignored: dict[str, list[str]] = {}
+    given = given_options(args)
     for other, spec in RENDERERS.items():
         for f in dataclasses.fields(spec.options_type):
             if (f.name not in own and f.metadata.get("cli", True) is not False
                     and f.default is not dataclasses.MISSING and hasattr(args, f.name)
-                    and getattr(args, f.name) != f.default):
+                    and (f.name in given or getattr(args, f.name) != f.default)):
                 ignored.setdefault(_flag(f), []).append(other)
     if ignored:
         warn_ignored(ignored, f"the {renderer} renderer")
     values = {f.name: getattr(args, f.name) for f in dataclasses.fields(options_type)
               if f.metadata.get("cli", True) is not False and hasattr(args, f.name)}
     options = options_type(**values)
-    note_options_read_only_with_others(options, renderer)
+    note_options_read_only_with_others(options, renderer, given)
     return options
 
 
-def note_options_read_only_with_others(options, renderer: str) -> None:
+def note_options_read_only_with_others(options, renderer: str,
+                                       given: frozenset[str] = frozenset()) -> None:
     """A note naming options given that this renderer reads only with another setting
     (``read_when`` in the field's metadata: a ``(condition, setting)`` pair, or a tuple of
     them all of which must hold, the first unmet one named): ``--bright-ratio`` without
@@ -462,7 +480,8 @@ def note_options_read_only_with_others(options, renderer: str) -> None:
     flags_by_setting: dict[str, list[str]] = {}
     for f in dataclasses.fields(options):
         read_when = f.metadata.get("read_when")
-        if read_when is None or getattr(options, f.name) == f.default:
+        if read_when is None or (getattr(options, f.name) == f.default
+                                 and f.name not in given):  # given at its default: noted
             continue
         conditions = (read_when,) if callable(read_when[0]) else read_when
         unmet = next((setting for condition, setting in conditions
@@ -652,7 +671,9 @@ def check_base_lod(args, octree) -> None:
     refused it only after the reference (minutes on a large view) had been rendered."""
     base_lod = getattr(args, "base_lod", None)
     if base_lod is not None and base_lod > octree.depth:
-        raise VoxfieldError(f"--base-lod {base_lod} is coarser than the scene "
+        # Not given, it is the default, which the user may not know they asked for.
+        which = "" if "base_lod" in given_options(args) else " (the default)"
+        raise VoxfieldError(f"--base-lod {base_lod}{which} is coarser than the scene "
                             f"{octree.name!r} goes: its octree's LODs run 0..{octree.depth}; "
                             f"give one of those or 'cone'")
 

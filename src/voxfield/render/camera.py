@@ -146,6 +146,11 @@ class Camera:
         vectors.flags.writeable = False
         for name, row in zip(("position", "forward", "right", "up"), vectors, strict=True):
             object.__setattr__(self, name, row)
+        for name in ("half_width", "half_height"):
+            # A string or None failed inside NumPy's isfinite with its own TypeError.
+            if not is_real(getattr(self, name)):
+                raise CameraError(f"camera {name} must be a number, got "
+                                  f"{getattr(self, name)!r}")
         if not (np.isfinite(self.half_width) and np.isfinite(self.half_height)):
             raise CameraError("camera field of view or extent is not finite")
         if self.half_width <= 0.0 or self.half_height <= 0.0:
@@ -179,6 +184,8 @@ class Camera:
         ``look_at``'s."""
         width, height = _image_size(width, height)
         f, r, u = _basis(direction, up)
+        if not is_real(view_height):  # float() of a string or None raised Python's own error
+            raise CameraError(f"view_height must be a number, got {view_height!r}")
         half_h = float(view_height) / 2.0
         return cls(
             ORTHOGRAPHIC, _vector(center, "center"), f, r, u,

@@ -160,10 +160,11 @@ def render_error_aware(
     if base_lod is not None:
         base_lod = integer_in(base_lod, "base LOD", 0, octree.depth)
     seed = seed_value(seed)
-    reuse_parent, lighting_aware, context_aware, colour_to_voxels = (
+    reuse_parent, lighting_aware, context_aware, colour_to_voxels, progress, columns = (
         flag(value, name) for value, name in (
             (reuse_parent, "reuse_parent"), (lighting_aware, "lighting_aware"),
-            (context_aware, "context_aware"), (colour_to_voxels, "colour_to_voxels")))
+            (context_aware, "context_aware"), (colour_to_voxels, "colour_to_voxels"),
+            (progress, "progress"), (columns, "columns")))
     threshold = real_number(threshold, "threshold (inf: never refine)", finite=False)
     decay = real_number(decay, "decay")
     if decay < 0:

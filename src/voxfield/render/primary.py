@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 import numba
 import numpy as np
 
-from voxfield.checks import integer_in, real_number, seed_value
+from voxfield.checks import flag, integer_in, real_number, seed_value
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.bundles import BeamBounds, PixelOutputs, octree_view
 from voxfield.kernels.primary import render_pixels
@@ -64,6 +64,9 @@ def trace_image(
     """
     side = integer_in(side, "samples per pixel side", 1, 16)
     seed = seed_value(seed)
+    # Checked, not taken for their truth: beam="no" rendered with the beam on.
+    beam, columns, progress = (flag(value, name) for value, name in (
+        (beam, "beam"), (columns, "columns"), (progress, "progress")))
     check_device(device)
     threads = threads_for(camera.width * camera.height * side * side, threads)
     drawn = beam and device == "cpu" and columns

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
-from voxfield.checks import integer_in, ray_arrays, real_number, switch_value
+from voxfield.checks import flag, integer_in, ray_arrays, real_number
 from voxfield.errors import VoxfieldError
 from voxfield.kernels.ray_batch import occlude_rays, trace_rays
 from voxfield.parallel import thread_count, threads_for
@@ -50,7 +50,7 @@ def trace(
     the steps then count the pyramid's cells.
     """
     check_octree(octree, "trace")
-    columns = switch_value(columns, "columns")
+    columns = flag(columns, "columns")
     o, d = _rays_with_times(origins, directions)
     lod = integer_in(lod, "LOD", 0, octree.depth)
     tmin, tmax = _checked_interval(tmin, tmax)
@@ -93,7 +93,7 @@ def occluded(
     the same verdicts, usually far fewer steps, and the steps then count pyramid cells too.
     """
     check_octree(octree, "occluded")
-    columns = switch_value(columns, "columns")
+    columns = flag(columns, "columns")
     o, d = _rays_with_times(origins, directions)
     tmin, tmax = _checked_interval(tmin, tmax)
     n = len(o)
