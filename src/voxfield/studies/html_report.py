@@ -11,6 +11,7 @@ so an old folder gets them too (``voxfield report FOLDER``).
 from __future__ import annotations
 
 import base64
+import html
 import io
 import json
 import re
@@ -310,17 +311,13 @@ def _figure_order(name: str) -> tuple:
 def _missing_card(label: str, name: str) -> dict:
     """A card in place of an image the folder lacks: a grey box that says which file is
     missing, so the page shows the gap rather than closing over it."""
-    text = f"missing: {name}"
+    text = html.escape(f"missing: {name}", quote=False)
     svg = ('<svg xmlns="http://www.w3.org/2000/svg" width="320" height="120" '
            'viewBox="0 0 320 120"><rect width="320" height="120" fill="#eee" '
            'stroke="#999" stroke-dasharray="6 4"/><text x="160" y="64" font-family="sans-serif" '
-           f'font-size="14" text-anchor="middle" fill="#555">{_svg_text(text)}</text></svg>')
+           f'font-size="14" text-anchor="middle" fill="#555">{text}</text></svg>')
     return {"label": f"{label} (missing: {name} is not in the folder)",
             "src": "data:image/svg+xml," + quote(svg), "missing": name}
-
-
-def _svg_text(text: str) -> str:
-    return text.replace("&", "&amp;").replace("<", "&lt;").replace(">", "&gt;")
 
 
 def _readable_png(path: Path) -> bool:
